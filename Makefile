@@ -1,0 +1,36 @@
+# Two commands: `make demo` (the main job on embedded defaults) and `make test`.
+# Both create .venv and install the project on first use.
+
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+BIN := $(VENV)/bin
+INSTALLED := $(VENV)/.installed
+# Real motion capture to work on; any folder of BVH files will do.
+MOTION_DATA ?= ../shared/data/bandai-namco-1
+export MOTION_DATA
+
+.PHONY: demo test bench install clean
+
+install: $(INSTALLED)
+
+# torch is installed first, pinned, so that the CPU build on this machine's disk is
+# used; the project only asks for a range that it satisfies (see README for CUDA).
+$(INSTALLED): pyproject.toml
+	@$(PYTHON) -m venv $(VENV) || { echo "Cannot create a virtual environment: install python3-venv (e.g. apt-get install python3.11-venv)"; exit 1; }
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/pip install --quiet "torch==2.13.0"
+	$(BIN)/pip install --quiet -e '.[dev]'
+	@touch $@
+
+test: $(INSTALLED)
+	scripts/ensure-redis.sh
+	$(BIN)/python -m pytest
+
+demo: $(INSTALLED)
+	$(BIN)/python -m studyapp.demo
+
+bench: $(INSTALLED)
+	$(BIN)/python benchmarks/run_all.py
+
+clean:
+	rm -rf var .pytest_cache

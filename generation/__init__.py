@@ -1,0 +1,1 @@
+"""Motion data, models, training, sampling and rendering (no web, no queue)."""

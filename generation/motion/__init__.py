@@ -1,0 +1,15 @@
+"""Motion data: BVH in and out, forward kinematics, features, augmentation, datasets."""
+
+from .bvh import BVH, BVHError, load_motion, motion_to_bvh, read_bvh, write_bvh
+from .types import Motion, Skeleton
+
+__all__ = [
+    "BVH",
+    "BVHError",
+    "Motion",
+    "Skeleton",
+    "load_motion",
+    "motion_to_bvh",
+    "read_bvh",
+    "write_bvh",
+]

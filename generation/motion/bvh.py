@@ -1,0 +1,357 @@
+"""Read and write BVH motion capture files, for any skeleton.
+
+Supports any number of position and rotation channels per joint, any rotation order,
+End Sites, tabs or spaces, and any frame rate. Errors name the file and the line.
+
+Convention for position channels: a joint's animated position channels replace its
+OFFSET on the axes they cover (as most exporters, including the Bandai-Namco data, write
+the offset itself into non-root position channels).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .kinematics import forward_kinematics
+from .rotations import euler_to_matrix, matrix_to_euler, matrix_to_quat, quat_to_matrix
+from .types import Motion, Skeleton
+
+POSITION_AXIS = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
+ROTATION_AXIS = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
+
+
+class BVHError(ValueError):
+    """A BVH file that cannot be read; the message names the file and line."""
+
+    def __init__(self, path: str | os.PathLike, message: str, line: int | None = None):
+        where = f"{path}:{line}" if line is not None else str(path)
+        super().__init__(f"{where}: {message}")
+        self.path, self.line = str(path), line
+
+
+@dataclass(frozen=True)
+class BVH:
+    """The contents of a BVH file: hierarchy, channel layout and raw channel values.
+
+    ``values`` is (frames, channels) exactly as in the file (cm or the file's unit,
+    degrees). ``channels[j]`` lists joint j's channel names in file order.
+    """
+
+    skeleton: Skeleton
+    channels: tuple[tuple[str, ...], ...]
+    frame_time: float
+    values: np.ndarray
+
+    @property
+    def fps(self) -> float:
+        """Frames per second; snapped to an integer when the file rounds its frame time."""
+        fps = 1.0 / self.frame_time
+        return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else fps
+
+    def channel_columns(self) -> list[range]:
+        """The columns of ``values`` that belong to each joint."""
+        columns, start = [], 0
+        for names in self.channels:
+            columns.append(range(start, start + len(names)))
+            start += len(names)
+        return columns
+
+    def to_motion(self, scale: float = 1.0) -> Motion:
+        """Joint rotations, translations and (by forward kinematics) positions.
+
+        ``scale`` converts the file's length unit to centimetres (e.g. 100 for metres).
+        """
+        n_frames, n_joints = len(self.values), self.skeleton.n_joints
+        rotations = np.empty((n_frames, n_joints, 3, 3))
+        translations = np.broadcast_to(self.skeleton.offsets, (n_frames, n_joints, 3)).copy()
+        for j, (names, cols) in enumerate(zip(self.channels, self.channel_columns())):
+            order = "".join(ROTATION_AXIS[c] for c in names if c in ROTATION_AXIS)
+            rot_cols = [col for c, col in zip(names, cols) if c in ROTATION_AXIS]
+            rotations[:, j] = euler_to_matrix(np.radians(self.values[:, rot_cols]), order)
+            for c, col in zip(names, cols):
+                if c in POSITION_AXIS:
+                    translations[:, j, POSITION_AXIS[c]] = self.values[:, col]
+        translations *= scale
+        skeleton = self.skeleton
+        if scale != 1.0:
+            skeleton = Skeleton(
+                skeleton.names,
+                skeleton.parents,
+                skeleton.offsets * scale,
+                {j: o * scale for j, o in skeleton.end_sites.items()},
+            )
+        positions = forward_kinematics(rotations, translations, skeleton.parents)
+        return Motion(
+            positions=positions,
+            fps=self.fps,
+            skeleton=skeleton,
+            rotations=matrix_to_quat(rotations),
+            translations=translations,
+        )
+
+
+def read_bvh(path: str | os.PathLike) -> BVH:
+    """Parse a BVH file. Raises BVHError naming the file and line on malformed input."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except UnicodeDecodeError as error:
+        raise BVHError(path, f"not a text file ({error.reason})") from None
+    lines = text.splitlines()
+    skeleton, channels, motion_line = _parse_hierarchy(path, lines)
+    frame_time, values = _parse_motion(path, lines, motion_line, sum(map(len, channels)))
+    return BVH(skeleton, channels, frame_time, values)
+
+
+def load_motion(path: str | os.PathLike, scale: float = 1.0) -> Motion:
+    """Read a BVH file straight into a Motion (positions by forward kinematics)."""
+    return read_bvh(path).to_motion(scale)
+
+
+def _floats(path: Path, tokens: list[str], count: int, what: str, line: int) -> list[float]:
+    if len(tokens) != count:
+        raise BVHError(path, f"{what} needs {count} numbers, found {len(tokens)}", line)
+    try:
+        numbers = [float(t) for t in tokens]
+    except ValueError:
+        raise BVHError(path, f"{what} has a non-numeric value: {' '.join(tokens)!r}", line) from None
+    if not all(math.isfinite(x) for x in numbers):
+        raise BVHError(path, f"{what} has a NaN or infinite value", line)
+    return numbers
+
+
+def _parse_hierarchy(path: Path, lines: list[str]):
+    """Parse up to the MOTION line. Returns (skeleton, channels, index of MOTION line)."""
+    names: list[str] = []
+    parents: list[int] = []
+    offsets: list[list[float] | None] = []
+    channels: list[tuple[str, ...]] = []
+    end_sites: dict[int, list[list[float]]] = {}
+    stack: list[tuple[str, int]] = []  # ("joint", j) or ("end", j) for open blocks
+    pending: tuple[str, int] | None = None  # declared, waiting for its "{"
+    seen_header = False
+
+    for i, raw in enumerate(lines):
+        tokens = raw.split()
+        if not tokens:
+            continue
+        line, keyword = i + 1, tokens[0]
+        if not seen_header:
+            if keyword != "HIERARCHY":
+                raise BVHError(path, f"expected 'HIERARCHY', found {keyword!r}", line)
+            seen_header = True
+            continue
+        if pending is not None and keyword != "{":
+            raise BVHError(path, f"expected '{{' after the {pending[0]} declaration", line)
+        if keyword in ("ROOT", "JOINT"):
+            if len(tokens) < 2:
+                raise BVHError(path, f"{keyword} without a name", line)
+            if keyword == "ROOT" and names:
+                raise BVHError(path, "a second ROOT; only one skeleton per file is supported", line)
+            if keyword == "JOINT" and not (stack and stack[-1][0] == "joint"):
+                raise BVHError(path, "JOINT outside a joint block", line)
+            name = " ".join(tokens[1:])
+            if name in names:
+                raise BVHError(path, f"duplicate joint name {name!r}", line)
+            parents.append(stack[-1][1] if stack else -1)
+            names.append(name)
+            offsets.append(None)
+            channels.append(())
+            pending = ("joint", len(names) - 1)
+        elif keyword == "End":
+            if not (stack and stack[-1][0] == "joint"):
+                raise BVHError(path, "End Site outside a joint block", line)
+            pending = ("end", stack[-1][1])
+            end_sites.setdefault(stack[-1][1], []).append([0.0, 0.0, 0.0])
+        elif keyword == "{":
+            if pending is None:
+                raise BVHError(path, "unexpected '{'", line)
+            stack.append(pending)
+            pending = None
+        elif keyword == "}":
+            if not stack:
+                raise BVHError(path, "unmatched '}'", line)
+            kind, j = stack.pop()
+            if kind == "joint" and offsets[j] is None:
+                raise BVHError(path, f"joint {names[j]!r} has no OFFSET", line)
+        elif keyword == "OFFSET":
+            if not stack:
+                raise BVHError(path, "OFFSET outside a block", line)
+            offset = _floats(path, tokens[1:], 3, "OFFSET", line)
+            kind, j = stack[-1]
+            if kind == "joint":
+                offsets[j] = offset
+            else:
+                end_sites[j][-1] = offset
+        elif keyword == "CHANNELS":
+            if not (stack and stack[-1][0] == "joint"):
+                raise BVHError(path, "CHANNELS outside a joint block", line)
+            try:
+                count = int(tokens[1])
+            except (IndexError, ValueError):
+                raise BVHError(path, "CHANNELS needs a count", line) from None
+            found = tokens[2:]
+            if len(found) != count:
+                raise BVHError(path, f"CHANNELS declares {count} channels but names {len(found)}", line)
+            for name in found:
+                if name not in POSITION_AXIS and name not in ROTATION_AXIS:
+                    raise BVHError(path, f"unknown channel name {name!r}", line)
+            if len(set(found)) != len(found):
+                raise BVHError(path, "a channel is listed twice", line)
+            channels[stack[-1][1]] = tuple(found)
+        elif keyword == "MOTION":
+            if stack or pending:
+                raise BVHError(path, "MOTION before the hierarchy's blocks are closed", line)
+            if not names:
+                raise BVHError(path, "the hierarchy has no ROOT", line)
+            skeleton = Skeleton(
+                names=tuple(names),
+                parents=np.asarray(parents),
+                offsets=np.asarray(offsets, dtype=np.float64),
+                end_sites={j: np.asarray(o, dtype=np.float64) for j, o in end_sites.items()},
+            )
+            return skeleton, tuple(channels), i
+        else:
+            raise BVHError(path, f"unknown keyword {keyword!r}", line)
+    what = "the file is empty" if not seen_header else "the file ends before its MOTION section"
+    raise BVHError(path, what, len(lines) if lines else None)
+
+
+def _parse_motion(path: Path, lines: list[str], motion_line: int, n_channels: int):
+    """Parse the MOTION section: frame count, frame time and the value rows."""
+    header: dict[str, str] = {}
+    row_start = len(lines)
+    for i in range(motion_line + 1, len(lines)):
+        stripped = lines[i].strip()
+        if not stripped:
+            continue
+        key, _, value = stripped.partition(":")
+        if key in ("Frames", "Frame Time") and key not in header:
+            header[key] = value.strip()
+            if len(header) == 2:
+                row_start = i + 1
+                break
+        else:
+            raise BVHError(path, f"expected 'Frames:' and 'Frame Time:', found {stripped[:40]!r}", i + 1)
+    if len(header) < 2:
+        raise BVHError(path, "the MOTION section lacks 'Frames:' or 'Frame Time:'", len(lines))
+    try:
+        n_frames, frame_time = int(header["Frames"]), float(header["Frame Time"])
+    except ValueError:
+        raise BVHError(path, "'Frames:' or 'Frame Time:' is not a number", row_start) from None
+    if n_frames <= 0:
+        raise BVHError(path, f"the file declares {n_frames} frames; a motion needs at least one", row_start)
+    if not (math.isfinite(frame_time) and frame_time > 0):
+        raise BVHError(path, f"Frame Time must be positive, found {frame_time}", row_start)
+
+    row_lines = [i for i in range(row_start, len(lines)) if lines[i].strip()]
+    rows = [lines[i] for i in row_lines]
+    if len(rows) < n_frames:
+        raise BVHError(
+            path, f"truncated: 'Frames: {n_frames}' but only {len(rows)} rows of values",
+            len(lines),
+        )
+    if len(rows) > n_frames:
+        raise BVHError(
+            path, f"'Frames: {n_frames}' but {len(rows)} rows of values", row_lines[n_frames] + 1
+        )
+    tokens = " ".join(rows).split()
+    try:
+        values = np.array(tokens, dtype=np.float64) if len(tokens) == n_frames * n_channels else None
+    except ValueError:
+        values = None
+    if values is None or not np.isfinite(values).all():
+        _raise_for_bad_row(path, rows, row_lines, n_channels)
+    return frame_time, values.reshape(n_frames, n_channels)
+
+
+def _raise_for_bad_row(path: Path, rows: list[str], row_lines: list[int], n_channels: int):
+    """Slow path: find the first bad row and say what is wrong with it."""
+    for row, i in zip(rows, row_lines):
+        _floats(path, row.split(), n_channels, "the frame row", i + 1)
+    raise AssertionError("unreachable: a bad row was expected")
+
+
+def _format_number(x: float) -> str:
+    text = f"{x:.9g}"
+    return "0" if text == "-0" else text
+
+
+def bvh_text(bvh: BVH) -> str:
+    """The BVH file contents for ``bvh`` (tab-indented, numbers to 9 significant digits)."""
+    skeleton, out = bvh.skeleton, ["HIERARCHY"]
+    children: dict[int, list[int]] = {j: [] for j in range(skeleton.n_joints)}
+    for j, p in enumerate(skeleton.parents):
+        if p >= 0:
+            children[int(p)].append(j)
+
+    def vector(v) -> str:
+        return " ".join(_format_number(x) for x in v)
+
+    def write_joint(j: int, depth: int) -> None:
+        tab = "\t" * depth
+        out.append(f"{tab}{'ROOT' if depth == 0 else 'JOINT'} {skeleton.names[j]}")
+        out.append(f"{tab}{{")
+        out.append(f"{tab}\tOFFSET {vector(skeleton.offsets[j])}")
+        if bvh.channels[j]:
+            out.append(f"{tab}\tCHANNELS {len(bvh.channels[j])} {' '.join(bvh.channels[j])}")
+        for child in children[j]:
+            write_joint(child, depth + 1)
+        for site in np.asarray(skeleton.end_sites.get(j, np.empty((0, 3)))).reshape(-1, 3):
+            out += [f"{tab}\tEnd Site", f"{tab}\t{{", f"{tab}\t\tOFFSET {vector(site)}", f"{tab}\t}}"]
+        out.append(f"{tab}}}")
+
+    write_joint(0, 0)
+    out += ["MOTION", f"Frames: {len(bvh.values)}", f"Frame Time: {bvh.frame_time:.9g}"]
+    out += [vector(row) for row in bvh.values]
+    return "\n".join(out) + "\n"
+
+
+def write_bvh(bvh: BVH, path: str | os.PathLike) -> Path:
+    """Write ``bvh`` atomically: the file appears whole or not at all."""
+    path = Path(path)
+    write_atomic(path, bvh_text(bvh).encode())
+    return path
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    """Write bytes to ``path`` through a temporary file in the same folder."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".part")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def motion_to_bvh(motion: Motion, rotation_order: str = "ZXY") -> BVH:
+    """A BVH for a motion that has joint rotations (position-only motions need IK first).
+
+    Every joint gets rotation channels in ``rotation_order``; joints whose translation
+    changes over time (or differs from the offset) also get position channels.
+    """
+    if motion.rotations is None or motion.translations is None:
+        raise ValueError("this motion has joint positions only; BVH needs joint rotations")
+    euler = np.degrees(matrix_to_euler(quat_to_matrix(motion.rotations), rotation_order))
+    channels, columns = [], []
+    offsets = motion.skeleton.offsets
+    for j in range(motion.skeleton.n_joints):
+        translation = motion.translations[:, j]
+        animated = j == 0 or not np.allclose(translation, offsets[j], atol=1e-6)
+        names = (["Xposition", "Yposition", "Zposition"] if animated else [])
+        names += [f"{axis}rotation" for axis in rotation_order]
+        channels.append(tuple(names))
+        if animated:
+            columns.append(translation)
+        columns.append(euler[:, j])
+    values = np.concatenate(columns, axis=1)
+    return BVH(motion.skeleton, tuple(channels), 1.0 / motion.fps, values)

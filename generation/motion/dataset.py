@@ -1,0 +1,353 @@
+"""Build a training set from a folder of BVH files, cache it, and serve windows.
+
+Each clip is read, reduced to the body (the hips and everything below), resampled,
+optionally augmented (training clips only), and encoded into both representations.
+The result is cached as ``.npz`` under a fingerprint of the input files' contents and
+every option, so a changed file or option rebuilds it and nothing else does.
+
+Labels: a ``NAME.json`` beside ``NAME.bvh`` holding ``{"content": i, "style": j}``
+indexes the lines of ``cfg/content_label.txt`` and ``cfg/style_label.txt`` (looked for
+in the BVH folder and its parent), as in the Bandai-Namco data.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from .augment import mirror, reverse, windows
+from .bvh import load_motion, write_atomic
+from .features import AngleFeatureSpec, angle_feature_spec, encode_angles, encode_positions
+from .kinematics import subtree_motion
+from .resample import resample
+from .root import RootOptions, hips_index
+from .types import Motion, Skeleton
+
+FORMAT_VERSION = 1  # bump when the cached arrays change meaning
+SPLITS = ("train", "test")
+
+
+@dataclass(frozen=True)
+class DatasetOptions:
+    """Everything that decides the contents of a dataset (all part of its fingerprint)."""
+
+    fps: float = 20.0
+    window_seconds: float = 4.0
+    overlap: float = 0.5
+    mirror: bool = True
+    reverse: bool = False
+    contents: tuple[str, ...] | None = None  # keep only these content labels
+    holdout_fraction: float = 0.1  # of the takes of each content, held out for testing
+    seed: int = 0
+    angle_representation: str = "quaternion"
+    mirror_pairs: dict[str, str] | None = None
+    scale: float = 1.0  # file units to centimetres
+    root: RootOptions = field(default_factory=RootOptions)
+
+    @property
+    def window_frames(self) -> int:
+        return int(round(self.window_seconds * self.fps))
+
+    @property
+    def hop_frames(self) -> int:
+        return max(1, int(round(self.window_frames * (1.0 - self.overlap))))
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "DatasetOptions":
+        data = dict(data)
+        data["root"] = RootOptions(**data["root"])
+        if data.get("contents") is not None:
+            data["contents"] = tuple(data["contents"])
+        return cls(**data)
+
+
+@dataclass(frozen=True)
+class Clip:
+    """One (possibly augmented) clip of the dataset; its frames are rows start:stop."""
+
+    name: str  # the BVH file's stem
+    take: str  # what the train/test split keeps together
+    content: str | None
+    style: str | None
+    augmentation: str  # "", "mirror", "reverse" or "mirror+reverse"
+    split: str
+    start: int
+    stop: int
+    has_angles: bool
+
+
+@dataclass(frozen=True)
+class Standardizer:
+    """Per-dimension mean and standard deviation; constant dimensions get std 1."""
+
+    mean: np.ndarray
+    std: np.ndarray
+
+    @classmethod
+    def fit(cls, data: np.ndarray) -> "Standardizer":
+        flat = data.reshape(-1, data.shape[-1])
+        std = flat.std(axis=0)
+        return cls(flat.mean(axis=0), np.where(std < 1e-6, 1.0, std))
+
+    def apply(self, data: np.ndarray) -> np.ndarray:
+        return (data - self.mean) / self.std
+
+    def invert(self, data: np.ndarray) -> np.ndarray:
+        return data * self.std + self.mean
+
+    def to_dict(self) -> dict:
+        return {"mean": self.mean.tolist(), "std": self.std.tolist()}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "Standardizer":
+        return cls(np.asarray(data["mean"]), np.asarray(data["std"]))
+
+
+@dataclass
+class MotionDataset:
+    """Encoded clips, their labels and split, and the standardisation statistics.
+
+    ``arrays`` holds per-frame rows of every clip, concatenated: ``pose`` (3 × joints),
+    ``control`` (forward, sideways, yaw velocity) and ``angles`` (NaN for clips without
+    joint rotations, i.e. mirrored ones). ``stats`` are fitted on the training clips
+    and travel with the dataset into every checkpoint trained on it.
+    """
+
+    options: DatasetOptions
+    skeleton: Skeleton  # the body skeleton (hips as root)
+    angle_spec: AngleFeatureSpec
+    clips: list[Clip]
+    arrays: dict[str, np.ndarray]
+    stats: dict[str, Standardizer]
+    fingerprint: str
+
+    def clip_arrays(self, clip: Clip) -> dict[str, np.ndarray]:
+        return {key: value[clip.start : clip.stop] for key, value in self.arrays.items()}
+
+    def select(self, split: str, augmented: bool = True) -> list[Clip]:
+        if split not in SPLITS:
+            raise ValueError(f"unknown split {split!r}; use one of {SPLITS}")
+        return [c for c in self.clips if c.split == split and (augmented or not c.augmentation)]
+
+    def windows(self, split: str, keys: tuple[str, ...] = ("pose", "control"), standardize: bool = True) -> dict[str, np.ndarray]:
+        """Fixed-length overlapping windows (n, frames, dims) of the chosen arrays.
+
+        Clips lacking a requested array (angles of mirrored clips) are left out.
+        """
+        clips = [c for c in self.select(split) if c.has_angles or "angles" not in keys]
+        out = {}
+        for key in keys:
+            parts = [
+                windows(self.arrays[key][c.start : c.stop], self.options.window_frames, self.options.hop_frames)
+                for c in clips
+            ]
+            data = np.concatenate(parts) if parts else np.empty((0, self.options.window_frames, self.arrays[key].shape[1]))
+            out[key] = self.stats[key].apply(data) if standardize else data
+        return out
+
+    def labels(self, split: str, kind: str = "content") -> list[str | None]:
+        """The content or style label of each window returned by ``windows(split)``."""
+        result = []
+        for clip in self.select(split):
+            n = len(windows(np.empty((clip.stop - clip.start, 0)), self.options.window_frames, self.options.hop_frames))
+            result += [getattr(clip, kind)] * n
+        return result
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the dataset as one ``.npz`` (no pickles), atomically."""
+        meta = {
+            "format_version": FORMAT_VERSION,
+            "options": self.options.to_dict(),
+            "skeleton": self.skeleton.to_dict(),
+            "angle_spec": self.angle_spec.to_dict(),
+            "clips": [dataclasses.asdict(c) for c in self.clips],
+            "stats": {k: s.to_dict() for k, s in self.stats.items()},
+            "fingerprint": self.fingerprint,
+        }
+        import io
+
+        buffer = io.BytesIO()
+        np.savez_compressed(buffer, meta=np.array(json.dumps(meta)), **self.arrays)
+        path = Path(path)
+        write_atomic(path, buffer.getvalue())
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "MotionDataset":
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            if meta.get("format_version") != FORMAT_VERSION:
+                raise ValueError(f"{path}: dataset cache format {meta.get('format_version')} is not {FORMAT_VERSION}; rebuild it")
+            arrays = {k: data[k] for k in data.files if k != "meta"}
+        return cls(
+            options=DatasetOptions.from_dict(meta["options"]),
+            skeleton=Skeleton.from_dict(meta["skeleton"]),
+            angle_spec=AngleFeatureSpec.from_dict(meta["angle_spec"]),
+            clips=[Clip(**c) for c in meta["clips"]],
+            arrays=arrays,
+            stats={k: Standardizer.from_dict(s) for k, s in meta["stats"].items()},
+            fingerprint=meta["fingerprint"],
+        )
+
+
+def find_bvh_files(folder: str | os.PathLike) -> list[Path]:
+    """BVH files in ``folder`` or its ``data/`` subfolder, sorted by name."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"motion folder {folder} does not exist")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".bvh")
+    if not files and (folder / "data").is_dir():
+        files = sorted(p for p in (folder / "data").iterdir() if p.suffix.lower() == ".bvh")
+    if not files:
+        raise FileNotFoundError(f"no .bvh files in {folder} (or {folder / 'data'})")
+    return files
+
+
+def _label_names(folder: Path, kind: str) -> list[str] | None:
+    for cfg in (folder / "cfg", folder.parent / "cfg"):
+        path = cfg / f"{kind}_label.txt"
+        if path.is_file():
+            lines = [line.strip() for line in path.read_text().splitlines() if line.strip()]
+            # Drop a shared "dataset-1_" style prefix, up to its last underscore.
+            prefix = os.path.commonprefix(lines)
+            cut = prefix.rfind("_") + 1 if len(lines) > 1 else 0
+            return [line[cut:] for line in lines]
+    return None
+
+
+def read_labels(bvh_path: Path) -> tuple[str | None, str | None]:
+    """(content, style) of a clip from its JSON side file, or (None, None)."""
+    side = bvh_path.with_suffix(".json")
+    if not side.is_file():
+        return None, None
+    try:
+        data = json.loads(side.read_text())
+    except json.JSONDecodeError as error:
+        raise ValueError(f"{side}:{error.lineno}: invalid JSON ({error.msg})") from None
+    result = []
+    for kind in ("content", "style"):
+        index = data.get(kind)
+        names = _label_names(bvh_path.parent, kind)
+        if index is None:
+            result.append(None)
+        elif names is not None and 0 <= int(index) < len(names):
+            result.append(names[int(index)])
+        else:
+            result.append(str(index))
+    return result[0], result[1]
+
+
+def take_of(stem: str) -> str:
+    """The take a file belongs to: its name without augmentation; one file is one take."""
+    return stem
+
+
+def split_takes(takes: list[tuple[str, str | None]], fraction: float, seed: int) -> set[str]:
+    """The held-out takes: for each content, a seeded-random ``fraction`` (at least one
+    when the content has two or more takes)."""
+    by_content: dict[str | None, list[str]] = {}
+    for take, content in takes:
+        by_content.setdefault(content, []).append(take)
+    held = set()
+    for content, group in sorted(by_content.items(), key=lambda kv: str(kv[0])):
+        group = sorted(set(group), key=lambda t: hashlib.sha256(f"{seed}:{t}".encode()).hexdigest())
+        n = int(round(fraction * len(group)))
+        if fraction > 0 and len(group) >= 2:
+            n = max(1, min(n, len(group) - 1))
+        held.update(group[:n])
+    return held
+
+
+def fingerprint(files: list[Path], options: DatasetOptions) -> str:
+    """A hash of the input files' names and contents, the options and the format."""
+    digest = hashlib.sha256()
+    digest.update(json.dumps([FORMAT_VERSION, options.to_dict()], sort_keys=True).encode())
+    for path in files:
+        digest.update(path.name.encode())
+        digest.update(hashlib.sha256(path.read_bytes()).digest())
+        side = path.with_suffix(".json")
+        if side.is_file():
+            digest.update(side.read_bytes())
+    return digest.hexdigest()
+
+
+def default_cache_dir() -> Path:
+    return Path(os.environ.get("MOTION_CACHE_DIR", Path(os.environ.get("STUDYAPP_VAR_DIR", "var")) / "cache"))
+
+
+def build_dataset(
+    folder: str | os.PathLike,
+    options: DatasetOptions = DatasetOptions(),
+    cache_dir: str | os.PathLike | None = None,
+    progress: bool = True,
+) -> MotionDataset:
+    """Read, encode and split every BVH clip in ``folder``; reuse the cache when valid."""
+    files = find_bvh_files(folder)
+    labels = {f: read_labels(f) for f in files}
+    if options.contents is not None:
+        files = [f for f in files if labels[f][0] in options.contents]
+        if not files:
+            raise ValueError(f"no clips in {folder} have content in {list(options.contents)}")
+    key = fingerprint(files, options)
+    cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    cached = cache / f"dataset-{key[:20]}.npz"
+    if cached.is_file():
+        return MotionDataset.load(cached)
+
+    held_out = split_takes([(take_of(f.stem), labels[f][0]) for f in files], options.holdout_fraction, options.seed)
+    skeleton = spec = None
+    clips, parts = [], {"pose": [], "control": [], "angles": []}
+    rows = 0
+    for path in tqdm(files, desc="encoding clips", unit="clip", disable=not progress):
+        body = _body(resample(load_motion(path, options.scale), options.fps), options.root)
+        if skeleton is None:
+            skeleton, spec = body.skeleton, angle_feature_spec(body.skeleton, options.angle_representation)
+        elif body.skeleton.names != skeleton.names:
+            raise ValueError(f"{path}: its skeleton differs from the first file's; one dataset needs one skeleton")
+        split = "test" if take_of(path.stem) in held_out else "train"
+        for augmentation, motion in _augmented(body, options, split == "train"):
+            encoded = encode_positions(motion, options.root)
+            angles = encode_angles(motion, spec) if motion.rotations is not None else np.full((motion.n_frames, spec.size), np.nan)
+            for name, value in (("pose", encoded.pose), ("control", encoded.control), ("angles", angles)):
+                parts[name].append(value.astype(np.float32))
+            content, style = labels[path]
+            clips.append(Clip(path.stem, take_of(path.stem), content, style, augmentation, split,
+                              rows, rows + motion.n_frames, motion.rotations is not None))
+            rows += motion.n_frames
+    arrays = {k: np.concatenate(v) for k, v in parts.items()}
+    train = [c for c in clips if c.split == "train"]
+    stats = {
+        key: Standardizer.fit(np.concatenate([arrays[key][c.start : c.stop] for c in train if key != "angles" or c.has_angles]))
+        for key in arrays
+    }
+    dataset = MotionDataset(options, skeleton, spec, clips, arrays, stats, key)
+    dataset.save(cached)
+    return dataset
+
+
+def _body(motion: Motion, root: RootOptions) -> Motion:
+    return subtree_motion(motion, hips_index(motion.skeleton, root.hips))
+
+
+def _augmented(motion: Motion, options: DatasetOptions, train: bool):
+    """The clip and, for training clips, its augmented copies."""
+    yield "", motion
+    if not train:
+        return
+    if options.mirror:
+        yield "mirror", mirror(motion, options.mirror_pairs)
+    if options.reverse:
+        yield "reverse", reverse(motion)
+        if options.mirror:
+            yield "mirror+reverse", reverse(mirror(motion, options.mirror_pairs))
