@@ -304,7 +304,7 @@ def bvh_text(bvh: BVH) -> str:
         for child in children[j]:
             write_joint(child, depth + 1)
         for site in np.asarray(skeleton.end_sites.get(j, np.empty((0, 3)))).reshape(-1, 3):
-            out += [f"{tab}\tEnd Site", f"{tab}\t{{", f"{tab}\t\tOFFSET {vector(site)}", f"{tab}\t}}"]
+            out.extend([f"{tab}\tEnd Site", f"{tab}\t{{", f"{tab}\t\tOFFSET {vector(site)}", f"{tab}\t}}"])
         out.append(f"{tab}}}")
 
     write_joint(0, 0)

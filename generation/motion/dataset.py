@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import io
 import json
 import os
 import re
@@ -175,8 +176,6 @@ class MotionDataset:
             "stats": {k: s.to_dict() for k, s in self.stats.items()},
             "fingerprint": self.fingerprint,
         }
-        import io
-
         buffer = io.BytesIO()
         np.savez_compressed(buffer, meta=np.array(json.dumps(meta)), **self.arrays)
         path = Path(path)
@@ -318,7 +317,7 @@ def build_dataset(
         split = "test" if take_of(path.stem) in held_out else "train"
         for augmentation, motion in _augmented(body, options, split == "train"):
             encoded = encode_positions(motion, options.root)
-            angles = encode_angles(motion, spec) if motion.rotations is not None else np.full((motion.n_frames, spec.size), np.nan)
+            angles = encode_angles(motion, spec).values if motion.rotations is not None else np.full((motion.n_frames, spec.size), np.nan)
             for name, value in (("pose", encoded.pose), ("control", encoded.control), ("angles", angles)):
                 parts[name].append(value.astype(np.float32))
             content, style = labels[path]

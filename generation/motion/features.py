@@ -139,8 +139,16 @@ def hips_alignment(skeleton: Skeleton, hips: int) -> np.ndarray:
     return np.column_stack([left, up, np.cross(left, up)])
 
 
-def encode_angles(motion: Motion, spec: AngleFeatureSpec) -> np.ndarray:
-    """Angle features (frames, spec.size) of a motion that has joint rotations."""
+@dataclass(frozen=True)
+class AngleFeatures:
+    """HVRNN's representation of one clip."""
+
+    values: np.ndarray  # (frames, spec.size): six root values, then joint rotations
+    root: RootTrajectory  # the hips' floor position and heading, to place a decoded clip
+
+
+def encode_angles(motion: Motion, spec: AngleFeatureSpec) -> AngleFeatures:
+    """Angle features of a motion that has joint rotations."""
     if motion.rotations is None:
         raise ValueError("angle features need joint rotations; this motion has positions only")
     local = quat_to_matrix(motion.rotations)
@@ -152,7 +160,8 @@ def encode_angles(motion: Motion, spec: AngleFeatureSpec) -> np.ndarray:
     root = np.column_stack([vel[:, 0], vel[:, 1], hips[:, 1], vel[:, 2], pitch, roll])
     quats = quat_continuity(motion.rotations[:, list(spec.joints)], axis=0)
     joints = quats if spec.representation == "quaternion" else quat_to_expmap(quats)
-    return np.concatenate([root, joints.reshape(len(joints), -1)], axis=1)
+    values = np.concatenate([root, joints.reshape(len(joints), -1)], axis=1)
+    return AngleFeatures(values, RootTrajectory(xz=hips[:, [0, 2]], yaw=yaw))
 
 
 def decode_angles(

@@ -1,0 +1,224 @@
+"""Drawing one frame: floor grid, root path, shadow and stick figure, as RGB pixels.
+
+``FrameDrawer`` does the per-clip work once (projecting every joint of every output frame
+in one vectorised step, sorting bones by depth, drawing the floor grid when the camera
+does not move) so that a frame costs a handful of PIL calls. The figure is antialiased by
+drawing only its bounding box at ``Style.supersample`` times the resolution and
+box-filtering it down: supersampling the whole frame would cost several times more and
+the figure is what participants judge. The video writer and the contact sheet share this
+class, so both show exactly the same pictures.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from PIL import Image, ImageDraw
+
+from generation.motion.types import Motion
+from generation.render.camera import Camera
+from generation.render.figure import LEFT, RIGHT, body_root_index, figure_bones, hidden_joints, joint_side
+from generation.render.style import Style
+
+REFERENCE_HEIGHT = 480  # Style widths are pixels at this frame height and scale with it
+
+
+def frame_indices(n_frames: int, fps: float, out_fps: float) -> np.ndarray:
+    """Source frame shown at each output frame when resampling by time (nearest frame)."""
+    n_out = max(1, int(np.floor(n_frames * out_fps / fps + 0.5)))
+    times = np.arange(n_out) / out_fps
+    return np.minimum(np.floor(times * fps + 0.5).astype(np.int64), n_frames - 1)
+
+
+def floor_path(motion: Motion, root_path: np.ndarray | None = None) -> np.ndarray:
+    """The character's floor trajectory (T, 2) as x, z: ``root_path`` or the body root's."""
+    if root_path is None:
+        return motion.positions[:, body_root_index(motion.skeleton)][:, [0, 2]]
+    root_path = np.asarray(root_path, dtype=np.float64)
+    if root_path.ndim != 2 or len(root_path) != motion.n_frames or root_path.shape[1] not in (2, 3):
+        raise ValueError(
+            f"root_path must have shape ({motion.n_frames}, 2) as x, z or ({motion.n_frames}, 3) "
+            f"as x, y, z, got {root_path.shape}"
+        )
+    if not np.isfinite(root_path).all():
+        raise ValueError("root_path contains NaN or infinity")
+    return root_path if root_path.shape[1] == 2 else root_path[:, [0, 2]]
+
+
+def on_floor(xz: np.ndarray) -> np.ndarray:
+    """Floor points (..., 2) as x, z -> world points (..., 3) at y = 0."""
+    return np.stack([xz[..., 0], np.zeros(xz.shape[:-1]), xz[..., 1]], axis=-1)
+
+
+class FrameDrawer:
+    """Draws the frames of one motion for one camera, size, frame rate and style."""
+
+    def __init__(
+        self,
+        motion: Motion,
+        camera: Camera = Camera(),
+        size: tuple[int, int] = (640, 480),
+        fps: float | None = None,
+        root_path: np.ndarray | None = None,
+        style: Style = Style(),
+    ) -> None:
+        width, height = size
+        if width < 1 or height < 1:
+            raise ValueError(f"size must be positive, got {size}")
+        self.size, self.camera, self.style = (int(width), int(height)), camera, style
+        self.fps = float(fps) if fps is not None else float(motion.fps)
+        if not self.fps > 0:
+            raise ValueError(f"fps must be positive, got {fps}")
+        self.scale = height / REFERENCE_HEIGHT
+
+        self.source = frame_indices(motion.n_frames, motion.fps, self.fps)
+        path = floor_path(motion, root_path)
+        self.path = on_floor(path)  # every source frame, so the drawn path stays smooth
+        body_root = motion.positions[:, body_root_index(motion.skeleton)]
+        self.targets = camera.targets(body_root[:, [0, 2]], motion.fps)[self.source]
+
+        skeleton = motion.skeleton
+        colours = {LEFT: style.bone_left, RIGHT: style.bone_right}
+        self.joint_colours = [colours.get(joint_side(name), style.bone) for name in skeleton.names]
+        self.bones = np.array(figure_bones(skeleton), dtype=np.int64).reshape(-1, 2)
+        hidden = hidden_joints(skeleton)
+        self.loose_joints = [  # joints in no drawn bone still get a dot
+            j for j in range(skeleton.n_joints) if j not in hidden and j not in self.bones
+        ]
+        self.shown_joints = np.array(
+            [j for j in range(skeleton.n_joints) if j not in hidden], dtype=np.int64
+        )
+
+        # Every joint of every output frame in one projection.
+        joints = motion.positions[self.source]
+        self.joints_cam = camera.to_camera(joints, self.targets)
+        self.shadow_cam = camera.to_camera(on_floor(joints[..., [0, 2]]), self.targets)
+        # Far bones first so nearer limbs are drawn over them.
+        bone_depth = self.joints_cam[:, self.bones, 2].mean(axis=-1)
+        self.bone_order = np.argsort(-bone_depth, axis=1, kind="stable")
+
+        self.grid = self._grid_segments(path)
+        self.background = Image.new("RGB", self.size, style.background)
+        if not camera.follow:  # the floor looks the same in every frame: draw it once
+            self._draw_grid(ImageDraw.Draw(self.background), self.targets[0])
+
+    def __len__(self) -> int:
+        return len(self.source)
+
+    def image(self, k: int) -> Image.Image:
+        """Output frame ``k`` as a PIL image of ``size``."""
+        style, target, now = self.style, self.targets[k], int(self.source[k])
+        canvas = self.background.copy()
+        draw = ImageDraw.Draw(canvas)
+        if self.camera.follow:
+            self._draw_grid(draw, target)
+        if style.draw_future_path:
+            self._draw_path(draw, self.path[now:], target, style.path_future)
+        self._draw_path(draw, self.path[: now + 1], target, style.path_past)
+        self._draw_figure(canvas, k)
+        return canvas
+
+    def frame(self, k: int) -> np.ndarray:
+        """Output frame ``k`` as an (h, w, 3) uint8 array."""
+        return np.asarray(self.image(k))
+
+    def _px(self, width: float, supersample: int = 1) -> int:
+        return max(1, int(round(width * self.scale * supersample)))
+
+    def _grid_segments(self, path: np.ndarray) -> np.ndarray:
+        """Floor grid lines (L, 2, 3) covering the path plus a margin, on grid multiples."""
+        spacing, margin = self.style.grid_spacing, self.style.grid_margin
+        lo = np.floor((path.min(axis=0) - margin) / spacing) * spacing
+        hi = np.ceil((path.max(axis=0) + margin) / spacing) * spacing
+        xs = np.arange(lo[0], hi[0] + spacing / 2, spacing)
+        zs = np.arange(lo[1], hi[1] + spacing / 2, spacing)
+        along_z = [[[x, lo[1]], [x, hi[1]]] for x in xs]
+        along_x = [[[lo[0], z], [hi[0], z]] for z in zs]
+        return on_floor(np.array(along_z + along_x, dtype=np.float64))
+
+    def _segments_px(self, segments: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """World segments (N, 2, 3) -> pixel segments (M, 4) of what survives near clipping."""
+        cam = self.camera.to_camera(segments.reshape(-1, 3), target).reshape(segments.shape)
+        a, b, keep = self.camera.clip_segments(cam[:, 0], cam[:, 1])
+        pixels = self.camera.to_pixels(np.stack([a[keep], b[keep]], axis=1), self.size)
+        return pixels.reshape(-1, 4)
+
+    def _draw_grid(self, draw: ImageDraw.ImageDraw, target: np.ndarray) -> None:
+        width = self._px(self.style.grid_width)
+        for segment in self._segments_px(self.grid, target).tolist():
+            draw.line(segment, fill=self.style.grid, width=width)
+
+    def _draw_path(self, draw: ImageDraw.ImageDraw, points: np.ndarray, target: np.ndarray, colour) -> None:
+        if len(points) < 2:
+            return
+        segments = self._segments_px(np.stack([points[:-1], points[1:]], axis=1), target)
+        width = self._px(self.style.path_width)
+        if len(segments) == len(points) - 1:  # nothing clipped: one polyline is much faster
+            draw.line(np.concatenate([segments[:, :2], segments[-1:, 2:]]).ravel().tolist(), fill=colour, width=width)
+        else:
+            for segment in segments.tolist():
+                draw.line(segment, fill=colour, width=width)
+
+    def _draw_figure(self, canvas: Image.Image, k: int) -> None:
+        """Shadow, bones and joints of frame ``k``, supersampled inside their bounding box."""
+        style, camera, s = self.style, self.camera, self.style.supersample
+        bone_width, radius = self._px(style.bone_width, s), style.joint_radius * self.scale * s
+
+        cam = self.joints_cam[k]
+        a, b, keep = camera.clip_segments(cam[self.bones[:, 0]], cam[self.bones[:, 1]])
+        bones_px = camera.to_pixels(np.stack([a, b], axis=1), self.size)
+        joints_px = camera.to_pixels(cam, self.size)
+        visible = cam[:, 2] >= camera.near
+        if style.draw_shadow:
+            sa, sb, shadow_keep = camera.clip_segments(
+                self.shadow_cam[k, self.bones[:, 0]], self.shadow_cam[k, self.bones[:, 1]]
+            )
+            shadow_px = camera.to_pixels(np.stack([sa, sb], axis=1), self.size)
+        else:
+            shadow_px, shadow_keep = bones_px[:0], keep[:0]
+
+        drawn = np.concatenate([
+            bones_px[keep].reshape(-1, 2),
+            shadow_px[shadow_keep].reshape(-1, 2),
+            joints_px[self.shown_joints][visible[self.shown_joints]],
+        ])  # fmt: skip
+        if len(drawn) == 0:
+            return
+        pad = np.ceil(max(bone_width, 2 * radius) / s) + 2
+        left, top = np.maximum(np.floor(drawn.min(axis=0) - pad), 0).astype(int)
+        right, bottom = np.minimum(np.ceil(drawn.max(axis=0) + pad), self.size).astype(int)
+        if left >= right or top >= bottom:
+            return  # the figure is entirely off screen
+
+        box = (left, top, right, bottom)
+        layer = canvas.crop(box)
+        if s > 1:
+            layer = layer.resize((layer.width * s, layer.height * s), Image.NEAREST)
+        draw = ImageDraw.Draw(layer)
+        # Output pixel i spans supersampled pixels s*i .. s*i + s-1, centred at s*i + (s-1)/2.
+        origin = np.array([left, top]) * s - (s - 1) / 2
+        shadow_px = (shadow_px[shadow_keep] * s - origin).reshape(-1, 4).tolist()
+        bones_px = (bones_px * s - origin).reshape(-1, 4).tolist()
+        joints_px = (joints_px * s - origin).tolist()
+        visible = visible.tolist()
+
+        for segment in shadow_px:
+            draw.line(segment, fill=style.shadow, width=bone_width)
+
+        def dot(j: int) -> None:
+            if visible[j]:
+                x, y = joints_px[j]
+                draw.ellipse((x - radius, y - radius, x + radius, y + radius), fill=self.joint_colours[j])
+
+        for j in self.loose_joints:
+            dot(j)
+        keep, bones = keep.tolist(), self.bones.tolist()
+        # Each bone is followed by its end dots so the depth order covers the joints too.
+        for i in self.bone_order[k].tolist():
+            if keep[i]:
+                draw.line(bones_px[i], fill=self.joint_colours[bones[i][1]], width=bone_width)
+                dot(bones[i][0])
+                dot(bones[i][1])
+
+        if s > 1:
+            layer = layer.reduce(s)
+        canvas.paste(layer, box[:2])

@@ -1,0 +1,27 @@
+"""Shared fixtures: where the real motion capture lives."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+MOTION_DATA = Path(os.environ.get("MOTION_DATA", REPO.parent / "shared" / "data" / "bandai-namco-1"))
+
+
+@pytest.fixture(scope="session")
+def motion_data() -> Path:
+    """The real BVH folder (the Bandai-Namco data); tests that need it fail in CI without it."""
+    if not (MOTION_DATA / "data").is_dir():
+        if os.environ.get("CI"):
+            pytest.fail(f"real motion data not found at {MOTION_DATA}; set MOTION_DATA")
+        pytest.skip(f"real motion data not found at {MOTION_DATA}; set MOTION_DATA")
+    return MOTION_DATA
+
+
+@pytest.fixture(scope="session")
+def clip_path(motion_data):
+    """Path of a named clip, e.g. clip_path('walk-left_normal_001')."""
+    return lambda name: motion_data / "data" / f"dataset-1_{name}.bvh"

@@ -1,0 +1,94 @@
+"""The dataset builder: labels, split by take, augmentation, standardisation, cache."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from generation.motion.dataset import DatasetOptions, MotionDataset, build_dataset, split_takes
+
+CLIPS = [f"{c}_{s}_001" for c in ("walk", "walk-left", "run") for s in ("normal", "happy", "old")] + ["walk_normal_002"]
+
+
+@pytest.fixture
+def small_folder(motion_data, tmp_path):
+    """A folder of links to ten real clips, their labels and the label names."""
+    folder = tmp_path / "bvh"
+    (folder / "data").mkdir(parents=True)
+    (folder / "cfg").symlink_to(motion_data / "cfg")
+    for name in CLIPS:
+        for suffix in (".bvh", ".json"):
+            source = motion_data / "data" / f"dataset-1_{name}{suffix}"
+            (folder / "data" / source.name).symlink_to(source)
+    return folder
+
+
+def test_build_reads_labels_splits_by_take_and_augments_training_clips_only(small_folder, tmp_path):
+    options = DatasetOptions(holdout_fraction=0.34, reverse=True)
+    dataset = build_dataset(small_folder, options, cache_dir=tmp_path / "cache", progress=False)
+    originals = [c for c in dataset.clips if not c.augmentation]
+    assert sorted(c.name for c in originals) == sorted(f"dataset-1_{n}" for n in CLIPS)
+    assert {c.content for c in originals} == {"walk", "walk-left", "run"}
+    assert {c.style for c in originals} == {"normal", "happy", "old"}
+    test_takes = {c.take for c in dataset.select("test")}
+    train_takes = {c.take for c in dataset.select("train")}
+    assert test_takes and not test_takes & train_takes
+    assert {c.content for c in dataset.select("test")} == {"walk", "walk-left", "run"}
+    assert all(c.augmentation == "" for c in dataset.select("test"))
+    augmentations = {c.augmentation for c in dataset.select("train")}
+    assert augmentations == {"", "mirror", "reverse", "mirror+reverse"}
+    # Mirrored clips have no joint rotations, hence no angle features.
+    for clip in dataset.clips:
+        assert np.isnan(dataset.clip_arrays(clip)["angles"]).all() == ("mirror" in clip.augmentation)
+
+
+def test_windows_are_standardised_with_training_statistics(small_folder, tmp_path):
+    dataset = build_dataset(small_folder, DatasetOptions(), cache_dir=tmp_path, progress=False)
+    train = dataset.windows("train")
+    assert train["pose"].shape[1:] == (80, 63) and train["control"].shape[1:] == (80, 3)
+    assert len(dataset.labels("train")) == len(train["pose"])
+    pose = train["pose"].reshape(-1, 63)
+    # Overlapping windows weight frames unevenly, so the moments are close, not exact.
+    assert np.abs(pose.mean(axis=0)).max() < 0.35
+    assert np.abs(pose.std(axis=0) - 1).max() < 0.35
+    raw = dataset.windows("train", standardize=False)
+    np.testing.assert_allclose(dataset.stats["pose"].invert(train["pose"]), raw["pose"], rtol=1e-4, atol=1e-3)
+    angles = dataset.windows("train", keys=("angles",))["angles"]
+    assert not np.isnan(angles).any() and angles.shape[2] == dataset.angle_spec.size
+
+
+def test_second_build_loads_the_cache_and_changed_options_rebuild(small_folder, tmp_path):
+    first = build_dataset(small_folder, DatasetOptions(), cache_dir=tmp_path, progress=False)
+    assert len(list(tmp_path.glob("dataset-*.npz"))) == 1
+    start = time.perf_counter()
+    again = build_dataset(small_folder, DatasetOptions(), cache_dir=tmp_path, progress=False)
+    assert time.perf_counter() - start < 2.0
+    assert again.fingerprint == first.fingerprint
+    np.testing.assert_array_equal(again.arrays["pose"], first.arrays["pose"])
+    assert again.clips == first.clips
+    other = build_dataset(small_folder, DatasetOptions(fps=15.0), cache_dir=tmp_path, progress=False)
+    assert other.fingerprint != first.fingerprint
+    assert len(list(tmp_path.glob("dataset-*.npz"))) == 2
+
+
+def test_saved_dataset_loads_without_pickles(small_folder, tmp_path):
+    dataset = build_dataset(small_folder, DatasetOptions(), cache_dir=tmp_path, progress=False)
+    loaded = MotionDataset.load(dataset.save(tmp_path / "copy.npz"))
+    assert loaded.skeleton.names == dataset.skeleton.names
+    np.testing.assert_array_equal(loaded.stats["control"].std, dataset.stats["control"].std)
+    assert loaded.options == dataset.options
+
+
+def test_split_holds_out_a_fraction_of_each_content_reproducibly():
+    takes = [(f"walk_{i}", "walk") for i in range(20)] + [(f"run_{i}", "run") for i in range(10)]
+    held = split_takes(takes, 0.1, seed=3)
+    assert sum(t.startswith("walk") for t in held) == 2 and sum(t.startswith("run") for t in held) == 1
+    assert split_takes(takes, 0.1, seed=3) == held
+    assert split_takes(takes, 0.1, seed=4) != held
+
+
+def test_unknown_content_filter_is_a_clear_error(small_folder, tmp_path):
+    with pytest.raises(ValueError, match="no clips .* have content in"):
+        build_dataset(small_folder, DatasetOptions(contents=("swim",)), cache_dir=tmp_path, progress=False)
