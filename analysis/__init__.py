@@ -1,0 +1,20 @@
+"""Analysis of motion rating studies: exclusions, significance tables, objective metrics.
+
+Independent of the models and of the web app: it reads ratings tables (schema in
+`analysis.ratings`) and motion as plain arrays (positions (frames, joints, 3) in cm,
+y up; fps; joint names and parents), and writes the tables and figures of MoGlow
+(Henter et al. 2020) Sec. 5.2-5.3 and HVRNN Sec. 5.2. Entry points:
+
+- `read_ratings`, `build_report`, `write_report`: the whole pipeline (also
+  ``python -m analysis report``);
+- `analysis.stats`, `analysis.mixed`: ANOVA, Tukey HSD, CIs, the mixed model;
+- `analysis.footsteps`, `analysis.bones`, `analysis.scores`: objective metrics.
+"""
+
+from analysis.errors import AnalysisInputError
+from analysis.exclusions import ExclusionRules, apply_exclusions, exclusion_summary
+from analysis.ratings import read_ratings, validate_ratings
+from analysis.report import Report, build_report, write_report
+
+__all__ = ["AnalysisInputError", "ExclusionRules", "Report", "apply_exclusions", "build_report",
+           "exclusion_summary", "read_ratings", "validate_ratings", "write_report"]

@@ -1,0 +1,79 @@
+"""Command line: ``python -m analysis report RATINGS.csv --out report/`` (or motion-analysis)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from analysis.errors import AnalysisInputError
+from analysis.exclusions import ExclusionRules
+from analysis.motion_io import load_motion_sets
+from analysis.ratings import read_ratings
+from analysis.report import build_report, write_report
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="motion-analysis",
+        description="Significance tables and objective metrics for motion rating studies "
+                    "(MoGlow / HVRNN protocols).")
+    commands = parser.add_subparsers(dest="command", required=True)
+    report = commands.add_parser(
+        "report", help="turn a ratings CSV (and optionally motion) into a report folder",
+        description="Read a ratings CSV (schema: docs/ratings-schema.md), apply the "
+                    "exclusion rules, run ANOVA, Tukey HSD and a mixed model per task and "
+                    "control class, and write tables (CSV, Markdown, LaTeX, JSON), figures "
+                    "(PNG, SVG) and summary.md. With --motion, add the objective metrics.")
+    report.add_argument("ratings", help="ratings CSV file")
+    report.add_argument("--out", required=True, help="folder to write the report into")
+    report.add_argument("--reference", help="system to mark significant differences from "
+                                            "(default: NAT when rated)")
+    report.add_argument("--motion", nargs="+", default=[], metavar="DIR_OR_NPZ",
+                        help="motion clips as .npz files or folders of them (layout: "
+                             "analysis/motion_io.py); a subfolder or file stem names the system")
+    report.add_argument("--systems", help="comma-separated list of expected systems; any other "
+                                          "system in the ratings is an error")
+    report.add_argument("--natural", default="NAT", help="name of the natural-motion system")
+    report.add_argument("--attention", default="BAD", help="name of the attention-check system")
+    report.add_argument("--bad-threshold", type=float, default=4.0,
+                        help="exclude a participant rating any attention clip at or above this "
+                             "(on a 1-5 scale, rescaled for others; default 4)")
+    report.add_argument("--nat-threshold", type=float, default=2.0,
+                        help="exclude a participant rating any natural clip below this "
+                             "(on a 1-5 scale; default 2)")
+    report.add_argument("--keep-early", action="store_true",
+                        help="do not discard ratings given before the clip ended")
+    report.add_argument("--compare-attention-checks", action="store_true",
+                        help="include the attention-check system in the comparisons")
+    report.add_argument("--foot-joints", help="comma-separated foot joint names (default: "
+                                              "found by name)")
+    report.add_argument("--foot-kind", choices=("heel", "toe"), default="heel",
+                        help="heel for bipeds (default), toe for quadrupeds")
+    return parser
+
+
+def _split(text: str | None) -> list[str] | None:
+    return [t.strip() for t in text.split(",") if t.strip()] if text else None
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    rules = ExclusionRules(natural_system=args.natural, attention_system=args.attention,
+                           bad_at_or_above=args.bad_threshold, natural_below=args.nat_threshold,
+                           discard_early=not args.keep_early)
+    try:
+        ratings = read_ratings(args.ratings)
+        motion = load_motion_sets(args.motion) if args.motion else None
+        report = build_report(ratings, motion, reference=args.reference, rules=rules,
+                              systems=_split(args.systems),
+                              compare_attention_checks=args.compare_attention_checks,
+                              foot_joints=_split(args.foot_joints), foot_kind=args.foot_kind)
+        written = write_report(report, args.out)
+    except AnalysisInputError as exc:
+        print(f"motion-analysis: error: {exc}", file=sys.stderr)
+        return 2
+    print(f"wrote {len(written)} files to {args.out} (summary: {written[0]})")
+    for note in report.notes:
+        print(f"note: {note}")
+    return 0

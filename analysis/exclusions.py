@@ -1,0 +1,141 @@
+"""Exclusion rules of MoGlow Sec. 5.2, applied as flags and reported as the paper does.
+
+Rules (MoGlow defaults on a 1-5 scale):
+
+1. A participant who rates any attention-check clip (system BAD) at 4 or above, or any
+   natural clip (system NAT) below 2, is excluded: all their ratings, in every task.
+2. A rating given before its clip finished playing is discarded.
+
+Other scales: a threshold t on the 1-5 reference scale maps linearly onto
+``[scale_min, scale_max]`` as ``scale_min + (t - 1) * (scale_max - scale_min) / 4``, and
+integer ratings are compared with that real-valued threshold without rounding. On 1-10,
+BAD >= 7.75 means BAD >= 8 and NAT < 3.25 means NAT <= 3.
+
+Nothing is deleted. Each rating gets ``excluded_participant``, ``discarded_early``,
+``kept`` and ``exclusion_reason``; a rating that breaks both rules is counted under the
+participant exclusion, so ratings collected = discarded by each reason + kept.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import pandas as pd
+
+REFERENCE_SCALE = (1, 5)
+
+
+@dataclass(frozen=True)
+class ExclusionRules:
+    """Thresholds are given on the 1-5 reference scale and rescaled per rating."""
+
+    natural_system: str = "NAT"
+    attention_system: str = "BAD"
+    bad_at_or_above: float = 4.0
+    natural_below: float = 2.0
+    discard_early: bool = True
+
+
+def scaled_threshold(threshold: float, scale_min: int | pd.Series, scale_max: int | pd.Series):
+    """Map a threshold on the 1-5 reference scale onto another rating scale."""
+    lo, hi = REFERENCE_SCALE
+    return scale_min + (threshold - lo) * (scale_max - scale_min) / (hi - lo)
+
+
+def apply_exclusions(ratings: pd.DataFrame, rules: ExclusionRules = ExclusionRules()) -> pd.DataFrame:
+    """Return a copy of a validated ratings table with the exclusion flags added.
+
+    ``exclusion_reason`` is one of ``""`` (kept), ``"rated a BAD clip high"``,
+    ``"rated a NAT clip low"`` and ``"answered before clip end"`` (with the configured
+    system names); a participant who failed both attention rules is attributed to the
+    BAD rule.
+    """
+    df = ratings.copy()
+    failed_bad = (df["system"] == rules.attention_system) & (
+        df["value"] >= scaled_threshold(rules.bad_at_or_above, df["scale_min"], df["scale_max"])
+    )
+    failed_nat = (df["system"] == rules.natural_system) & (
+        df["value"] < scaled_threshold(rules.natural_below, df["scale_min"], df["scale_max"])
+    )
+    bad_participants = set(df.loc[failed_bad, "participant"])
+    nat_participants = set(df.loc[failed_nat, "participant"]) - bad_participants
+    by_bad = df["participant"].isin(bad_participants)
+    by_nat = df["participant"].isin(nat_participants)
+    df["excluded_participant"] = by_bad | by_nat
+    if rules.discard_early and "answered_before_end" in df.columns:
+        df["discarded_early"] = df["answered_before_end"] & ~df["excluded_participant"]
+    else:
+        df["discarded_early"] = False
+    df["kept"] = ~(df["excluded_participant"] | df["discarded_early"])
+    reason = pd.Series("", index=df.index, dtype=object)
+    reason[by_bad] = f"rated a {rules.attention_system} clip high"
+    reason[by_nat] = f"rated a {rules.natural_system} clip low"
+    reason[df["discarded_early"]] = "answered before clip end"
+    df["exclusion_reason"] = reason
+    return df
+
+
+def exclusion_notes(flagged: pd.DataFrame, rules: ExclusionRules = ExclusionRules()) -> list[str]:
+    """Plain-language notes on rules that could not be applied or that disagree with the app."""
+    notes = []
+    if rules.discard_early and "answered_before_end" not in flagged.columns:
+        notes.append(
+            "The early-answer rule was not applied: the table has neither "
+            "answered_before_end, played_until_s + clip_duration_s, nor shown_at + "
+            "answered_at + clip_duration_s."
+        )
+    if "app_excluded_participant" in flagged.columns:
+        differ = int((flagged["app_excluded_participant"] != flagged["excluded_participant"]).sum())
+        if differ:
+            notes.append(
+                f"The web app's excluded_participant flag disagrees with the recomputed rule "
+                f"on {differ} rating(s); the recomputed flags were used."
+            )
+    if "app_discarded_early" in flagged.columns:
+        # compared among participants still in, since apps differ in whether they also
+        # flag the early answers of excluded participants
+        inside = ~flagged["excluded_participant"]
+        differ = int((flagged["app_discarded_early"] != flagged["discarded_early"])[inside].sum())
+        if differ:
+            notes.append(
+                f"The web app's discarded_early flag disagrees with the recomputed rule on "
+                f"{differ} rating(s); the recomputed flags were used."
+            )
+    for system in (rules.attention_system, rules.natural_system):
+        if not (flagged["system"] == system).any():
+            notes.append(f"No ratings of {system} clips: its attention rule excluded nobody.")
+    return notes
+
+
+def exclusion_summary(flagged: pd.DataFrame) -> pd.DataFrame:
+    """One row per task in the words of MoGlow Sec. 5.2.
+
+    Columns: task, participants_total, participants_removed, ratings_collected,
+    discarded_participant, discarded_early, ratings_kept, ratings_per_stimulus_min,
+    ratings_per_stimulus_max (kept ratings per stimulus, over stimuli of that task).
+    """
+    rows = []
+    for task, group in flagged.groupby("task", sort=True):
+        per_participant = group.groupby("participant")["excluded_participant"].any()
+        kept_per_stimulus = group[group["kept"]].groupby("stimulus").size().reindex(
+            group["stimulus"].unique(), fill_value=0
+        )
+        rows.append({
+            "task": task,
+            "participants_total": int(len(per_participant)),
+            "participants_removed": int(per_participant.sum()),
+            "ratings_collected": int(len(group)),
+            "discarded_participant": int(group["excluded_participant"].sum()),
+            "discarded_early": int(group["discarded_early"].sum()),
+            "ratings_kept": int(group["kept"].sum()),
+            "ratings_per_stimulus_min": int(kept_per_stimulus.min()),
+            "ratings_per_stimulus_max": int(kept_per_stimulus.max()),
+        })
+    return pd.DataFrame(rows)
+
+
+def removed_by_reason(flagged: pd.DataFrame) -> pd.DataFrame:
+    """Participants removed per task and rule: columns task, reason, participants."""
+    removed = flagged[flagged["excluded_participant"]]
+    counts = removed.groupby(["task", "exclusion_reason"])["participant"].nunique()
+    return counts.rename("participants").reset_index().rename(columns={"exclusion_reason": "reason"})

@@ -1,0 +1,108 @@
+"""Reading generated or natural motion for the objective metrics: a small npz layout.
+
+One ``.npz`` file holds one clip or a stack of equal-length clips of one system:
+
+==========  ======================  ===============================================
+key         shape / type            meaning
+==========  ======================  ===============================================
+positions   (frames, joints, 3) or  joint positions in cm, y up
+            (clips, frames, joints,
+            3) float
+fps         scalar                  frames per second
+names       (joints,) str           joint names
+parents     (joints,) int           parent index per joint, -1 for the root
+offsets     (joints, 3) float       rest offsets from the parent in cm; optional,
+                                    without them no bone-length error is computed
+system      scalar str              optional; the system the clips belong to
+==========  ======================  ===============================================
+
+Without a ``system`` key the system is named by where the file lies: a file given
+directly, or lying directly in a given folder, is named by its stem (``MoGlow.npz``);
+a file in a subfolder of a given folder by that subfolder (``DIR/MoGlow/clip_001.npz``).
+All files of one system must share fps, joint names and parents.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from analysis.errors import AnalysisInputError
+
+
+@dataclass
+class SystemClips:
+    """All clips of one system on one skeleton."""
+
+    system: str
+    fps: float
+    names: tuple[str, ...]
+    parents: np.ndarray
+    offsets: np.ndarray | None
+    clips: list[np.ndarray] = field(default_factory=list)
+
+
+def save_clips(path: str | os.PathLike, positions: np.ndarray, fps: float, names, parents,
+               offsets: np.ndarray | None = None, system: str | None = None) -> Path:
+    """Write clips in the layout above (the inverse of `load_motion_sets` for one file)."""
+    arrays = {"positions": np.asarray(positions, dtype=np.float32), "fps": np.float64(fps),
+              "names": np.asarray(names, dtype=str), "parents": np.asarray(parents, dtype=np.int64)}
+    if offsets is not None:
+        arrays["offsets"] = np.asarray(offsets, dtype=np.float64)
+    if system is not None:
+        arrays["system"] = np.asarray(system)
+    path = Path(path)
+    np.savez_compressed(path, **arrays)
+    return path
+
+
+def load_motion_sets(paths: list[str | os.PathLike]) -> dict[str, SystemClips]:
+    """Read npz files and folders of them into clips grouped by system."""
+    systems: dict[str, SystemClips] = {}
+    for given in map(Path, paths):
+        if given.is_dir():
+            files = sorted(given.rglob("*.npz"))
+            if not files:
+                raise AnalysisInputError(f"no .npz motion files under {given}")
+            named = [(f, f.stem if f.parent == given else f.relative_to(given).parts[0]) for f in files]
+        elif given.is_file():
+            named = [(given, given.stem)]
+        else:
+            raise AnalysisInputError(f"motion path {given} does not exist")
+        for file, default_name in named:
+            _add_file(systems, file, default_name)
+    return systems
+
+
+def _add_file(systems: dict[str, SystemClips], file: Path, default_name: str) -> None:
+    try:
+        data = np.load(file, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise AnalysisInputError(f"{file}: not a readable npz file ({exc})") from exc
+    missing = [k for k in ("positions", "fps", "names", "parents") if k not in data.files]
+    if missing:
+        raise AnalysisInputError(f"{file}: lacks {', '.join(missing)} (see analysis/motion_io.py)")
+    positions = np.asarray(data["positions"], dtype=np.float64)
+    names = tuple(str(n) for n in data["names"])
+    parents = np.asarray(data["parents"], dtype=np.int64)
+    if positions.ndim == 3:
+        positions = positions[None]
+    if positions.ndim != 4 or positions.shape[2:] != (len(names), 3):
+        raise AnalysisInputError(
+            f"{file}: positions must be (frames, {len(names)}, 3) or (clips, frames, "
+            f"{len(names)}, 3), got {data['positions'].shape}"
+        )
+    if not np.isfinite(positions).all():
+        raise AnalysisInputError(f"{file}: positions contain NaN or infinity")
+    system = str(data["system"]) if "system" in data.files else default_name
+    offsets = np.asarray(data["offsets"], dtype=np.float64) if "offsets" in data.files else None
+    fps = float(data["fps"])
+    entry = systems.setdefault(system, SystemClips(system, fps, names, parents, offsets))
+    if entry.fps != fps or entry.names != names or not np.array_equal(entry.parents, parents):
+        raise AnalysisInputError(
+            f"{file}: fps or skeleton differ from earlier files of system {system!r}"
+        )
+    entry.clips.extend(positions)

@@ -1,0 +1,105 @@
+"""The report's figures: mean ratings with CIs, rating distributions, footstep curves.
+
+Each function returns a matplotlib Figure (so the study app can embed it); `save_figure`
+writes PNG and SVG. The Agg backend is used: no display is needed anywhere.
+
+Drawing text dominates matplotlib's time, and a report must take seconds, so panels
+share their system axis (labels drawn once), margins are set from the label length
+instead of by tight_layout (which draws the figure an extra time), and SVG keeps text
+as text rather than converting every glyph to a path.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first)
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from analysis.tables import system_order  # noqa: E402
+
+
+_CHAR_WIDTH_IN = 0.075  # tick label character width at the default 10 pt font
+
+
+def _cell_axes(cells: list[tuple], labels, width: float = 3.6, height: float = 3.2,
+               legend_in: float = 0.0):
+    """One panel per cell in a row, sharing the system axis, margins fixed up front."""
+    left_in = 0.3 + _CHAR_WIDTH_IN * max(len(str(label)) for label in labels)
+    fig_width = left_in + width * len(cells) + legend_in + 0.2
+    fig, axes = plt.subplots(1, len(cells), figsize=(fig_width, height), squeeze=False, sharey=True)
+    fig.subplots_adjust(left=left_in / fig_width, right=1 - (legend_in + 0.2) / fig_width,
+                        bottom=0.16, top=0.9, wspace=0.08)
+    return fig, axes[0]
+
+
+def means_plot(means: pd.DataFrame, reference: str | None = None) -> Figure:
+    """Mean rating and 95 % CI per system, one panel per task x control class."""
+    cells = sorted(means.groupby(["task", "control_class"]).groups)
+    order = system_order(means["system"].unique(), reference)
+    position = {system: len(order) - 1 - i for i, system in enumerate(order)}
+    fig, axes = _cell_axes(cells, order)
+    for ax, cell in zip(axes, cells):
+        frame = means[(means["task"] == cell[0]) & (means["control_class"] == cell[1])]
+        ax.errorbar(frame["mean"], frame["system"].map(position), xerr=frame["ci_half"],
+                    fmt="o", capsize=3)
+        ax.set_title(f"{cell[0]} · {cell[1]}", fontsize="medium")
+        ax.set_xlabel("mean rating (95 % CI)")
+    axes[0].set_yticks(list(position.values()), list(position))
+    axes[0].set_ylim(-0.5, len(order) - 0.5)
+    return fig
+
+
+def distribution_plot(ratings: pd.DataFrame, reference: str | None = None) -> Figure:
+    """Share of each rating value per system (stacked bars), one panel per cell."""
+    cells = sorted(ratings.groupby(["task", "control_class"]).groups)
+    order = system_order(ratings["system"].unique(), reference)[::-1]
+    counts = ratings.groupby(["task", "control_class", "system", "value"]).size()
+    fig, axes = _cell_axes(cells, order, legend_in=0.7)
+    for ax, cell in zip(axes, cells):
+        frame = ratings[(ratings["task"] == cell[0]) & (ratings["control_class"] == cell[1])]
+        lo, hi = int(frame["scale_min"].iloc[0]), int(frame["scale_max"].iloc[0])
+        shares = counts.loc[cell].unstack("value", fill_value=0)
+        shares = shares.reindex(index=order, columns=range(lo, hi + 1), fill_value=0)
+        shares = shares.div(shares.sum(axis=1).replace(0, 1), axis=0)
+        left = np.zeros(len(shares))
+        colours = plt.cm.RdYlGn(np.linspace(0.05, 0.95, hi - lo + 1))
+        for value, colour in zip(shares.columns, colours):
+            ax.barh(np.arange(len(order)), shares[value], left=left, color=colour, label=str(value))
+            left += shares[value].to_numpy()
+        ax.set_xlim(0, 1)
+        ax.set_title(f"{cell[0]} · {cell[1]}", fontsize="medium")
+        ax.set_xlabel("share of ratings")
+    axes[0].set_yticks(np.arange(len(order)), order)
+    axes[-1].legend(title="rating", bbox_to_anchor=(1.02, 1), loc="upper left", fontsize="small")
+    return fig
+
+
+def footstep_plot(curves: pd.DataFrame, natural: str = "NAT") -> Figure:
+    """f_est against v_tol per system (MoGlow Fig. 5)."""
+    fig, ax = plt.subplots(figsize=(5.5, 3.5))
+    for system in system_order(curves["system"], natural):
+        frame = curves[curves["system"] == system]
+        ax.plot(frame["v_tol"], frame["f_est"], label=system,
+                linewidth=2.0 if system == natural else 1.2)
+    ax.set_xlabel("speed tolerance $v_{tol}$ (cm/s)")
+    ax.set_ylabel("$f_{est}$ (footsteps/s)")
+    ax.legend(fontsize="small")
+    fig.tight_layout()
+    return fig
+
+
+def save_figure(fig: Figure, folder: str | Path, name: str) -> list[Path]:
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = [folder / f"{name}.png", folder / f"{name}.svg"]
+    with plt.rc_context({"svg.fonttype": "none"}):  # text stays text in the SVG
+        for path in paths:
+            fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return paths

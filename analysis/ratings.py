@@ -1,0 +1,190 @@
+"""Reading and validating a ratings table: one row per rating given by one participant.
+
+The schema is documented for users in ``docs/ratings-schema.md``; this is the contract.
+
+Minimal schema (what any tool must write; one row per rating):
+
+=================  ======  ==========================================================
+column             type    meaning
+=================  ======  ==========================================================
+participant        str     anonymous participant id
+system             str     the system (model) that produced the stimulus; NAT is
+                           natural motion, BAD the attention-check clips
+stimulus           str     clip id (unique within a task)
+value              int     the rating, ``scale_min <= value <= scale_max``
+scale_min          int     lowest point of the rating scale (e.g. 1)
+scale_max          int     highest point of the rating scale (e.g. 5)
+=================  ======  ==========================================================
+
+Optional columns:
+
+- ``task`` (str, default ``"all"``) and ``control_class`` (str, e.g. ``held-out`` or
+  ``synthetic``; default ``"all"``): the columns of the significance table.
+- Whether the rating was given before its clip finished playing, by the first of these
+  that is present: ``answered_before_end`` (bool); ``played_until_s`` and
+  ``clip_duration_s`` (early if played_until_s < clip_duration_s); ``shown_at``,
+  ``answered_at`` and ``clip_duration_s`` (ISO 8601 timestamps or seconds; early if
+  answered_at - shown_at < clip_duration_s). With none of them the early-answer rule
+  cannot be applied and the report says so.
+- ``excluded_participant`` and ``discarded_early`` (bool): the exclusion flags the web
+  app wrote. Analysis recomputes them from the rules and reports any disagreement; they
+  are kept as ``app_excluded_participant`` and ``app_discarded_early``.
+
+Any other column is carried through untouched. The web app's export is the minimal
+schema plus task, control_class, clip_duration_s, shown_at, answered_at and the two flags.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import IO
+
+import numpy as np
+import pandas as pd
+
+from analysis.errors import AnalysisInputError
+
+REQUIRED_COLUMNS = ("participant", "system", "stimulus", "value", "scale_min", "scale_max")
+LABEL_COLUMNS = ("participant", "system", "stimulus", "task", "control_class")
+APP_FLAG_COLUMNS = {"excluded_participant": "app_excluded_participant",
+                    "discarded_early": "app_discarded_early"}
+DEFAULT_LABEL = "all"
+
+_TRUE = {"true", "1", "yes", "y", "t"}
+_FALSE = {"false", "0", "no", "n", "f", ""}
+
+
+def read_ratings(source: str | os.PathLike | IO[str]) -> pd.DataFrame:
+    """Read a ratings CSV and return it validated and normalised (see `validate_ratings`)."""
+    try:
+        raw = pd.read_csv(source, dtype=str, keep_default_na=False)
+    except (FileNotFoundError, pd.errors.EmptyDataError) as exc:
+        raise AnalysisInputError(f"cannot read ratings table {source!s}: {exc}") from exc
+    return validate_ratings(raw)
+
+
+def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
+    """Check a ratings table against the schema and return a normalised copy.
+
+    The copy has string labels (task and control_class filled with ``"all"`` when
+    absent), integer value and scale columns, a boolean ``answered_before_end`` column
+    when the timings allow it, and the app's own flags renamed with an ``app_`` prefix.
+    Raises AnalysisInputError naming the offending column and rows otherwise.
+    """
+    missing = [c for c in REQUIRED_COLUMNS if c not in ratings.columns]
+    if missing:
+        raise AnalysisInputError(
+            f"ratings table lacks the required column(s) {', '.join(missing)}; the minimal "
+            f"schema is {', '.join(REQUIRED_COLUMNS)} (see docs/ratings-schema.md)"
+        )
+    if len(ratings) == 0:
+        raise AnalysisInputError("ratings table has no rows")
+    df = ratings.rename(columns=APP_FLAG_COLUMNS).copy()
+    for column in LABEL_COLUMNS:
+        if column not in df.columns:
+            df[column] = DEFAULT_LABEL
+        df[column] = df[column].astype(str).str.strip()
+        empty = df[column].isin(["", "nan", "None"])
+        if empty.any():
+            raise AnalysisInputError(
+                f"column {column!r} is empty in {int(empty.sum())} row(s), first at row "
+                f"{_row_number(df, empty)}"
+            )
+    for column in ("value", "scale_min", "scale_max"):
+        df[column] = _integers(df[column], column)
+    bad_scale = df["scale_min"] >= df["scale_max"]
+    if bad_scale.any():
+        raise AnalysisInputError(
+            f"scale_min must be below scale_max; not so in {int(bad_scale.sum())} row(s), "
+            f"first at row {_row_number(df, bad_scale)}"
+        )
+    outside = (df["value"] < df["scale_min"]) | (df["value"] > df["scale_max"])
+    if outside.any():
+        first = df.index[outside.to_numpy()][0]
+        raise AnalysisInputError(
+            f"{int(outside.sum())} rating(s) lie outside their declared scale, first at row "
+            f"{_row_number(df, outside)}: value {df.at[first, 'value']} on "
+            f"{df.at[first, 'scale_min']}..{df.at[first, 'scale_max']}"
+        )
+    scales = df.groupby("task")[["scale_min", "scale_max"]].nunique()
+    mixed = scales[(scales > 1).any(axis=1)].index.tolist()
+    if mixed:
+        raise AnalysisInputError(
+            f"task(s) {', '.join(map(str, mixed))} mix rating scales; ratings on different "
+            "scales cannot enter one ANOVA (give each scale its own task)"
+        )
+    early = _answered_before_end(df)
+    if early is not None:
+        df["answered_before_end"] = early
+    for column in APP_FLAG_COLUMNS.values():
+        if column in df.columns:
+            df[column] = _booleans(df[column], column)
+    return df.reset_index(drop=True)
+
+
+def _answered_before_end(df: pd.DataFrame) -> pd.Series | None:
+    if "answered_before_end" in df.columns:
+        return _booleans(df["answered_before_end"], "answered_before_end")
+    if {"played_until_s", "clip_duration_s"} <= set(df.columns):
+        played = _floats(df["played_until_s"], "played_until_s")
+        return played < _floats(df["clip_duration_s"], "clip_duration_s")
+    if {"shown_at", "answered_at", "clip_duration_s"} <= set(df.columns):
+        elapsed = _seconds(df["answered_at"], "answered_at") - _seconds(df["shown_at"], "shown_at")
+        return elapsed < _floats(df["clip_duration_s"], "clip_duration_s")
+    return None
+
+
+def _row_number(df: pd.DataFrame, mask: pd.Series) -> int:
+    # 1-based data row as a spreadsheet user counts it (header excluded)
+    return int(np.flatnonzero(mask.to_numpy())[0]) + 1
+
+
+def _integers(column: pd.Series, name: str) -> pd.Series:
+    numbers = pd.to_numeric(column, errors="coerce")
+    bad = numbers.isna() | (numbers != np.round(numbers))
+    if bad.any():
+        first = column[bad].iloc[0]
+        raise AnalysisInputError(
+            f"column {name!r} must hold integers; {int(bad.sum())} row(s) do not, first at "
+            f"row {_row_number(column.to_frame(), bad)}: {first!r}"
+        )
+    return numbers.astype(np.int64)
+
+
+def _floats(column: pd.Series, name: str) -> pd.Series:
+    numbers = pd.to_numeric(column, errors="coerce")
+    if numbers.isna().any():
+        raise AnalysisInputError(
+            f"column {name!r} must hold numbers (seconds); row "
+            f"{_row_number(column.to_frame(), numbers.isna())} does not"
+        )
+    return numbers.astype(np.float64)
+
+
+def _seconds(column: pd.Series, name: str) -> pd.Series:
+    """Seconds since an arbitrary origin from numbers or ISO 8601 timestamps."""
+    numbers = pd.to_numeric(column, errors="coerce")
+    if not numbers.isna().any():
+        return numbers.astype(np.float64)
+    try:
+        times = pd.to_datetime(column, utc=True, format="ISO8601")
+    except (ValueError, TypeError) as exc:
+        raise AnalysisInputError(
+            f"column {name!r} must hold ISO 8601 timestamps or seconds: {exc}"
+        ) from exc
+    if times.isna().any():
+        raise AnalysisInputError(f"column {name!r} has empty timestamps")
+    return (times - pd.Timestamp(0, tz="UTC")).dt.total_seconds()
+
+
+def _booleans(column: pd.Series, name: str) -> pd.Series:
+    if column.dtype == bool:
+        return column
+    text = column.astype(str).str.strip().str.lower()
+    unknown = ~text.isin(_TRUE | _FALSE)
+    if unknown.any():
+        raise AnalysisInputError(
+            f"column {name!r} must hold true/false; row "
+            f"{_row_number(column.to_frame(), unknown)} holds {column[unknown].iloc[0]!r}"
+        )
+    return text.isin(_TRUE)

@@ -1,0 +1,240 @@
+"""A whole evaluation from a ratings table (and optionally motion): build, then write.
+
+`build_report` runs every analysis and collects the results in a `Report` of tidy
+tables plus the papers' display tables, with a note for everything that could not be
+computed and why. `write_report` turns it into a folder:
+
+    summary.md                    a paragraph per task to paste into a paper, plus notes
+    tables/<name>.{csv,md,tex,json}
+    figures/<name>.{png,svg}
+
+The study app calls the same two functions and shows the same tables and figures.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from analysis import plots
+from analysis.correlation import subjective_objective_correlation
+from analysis.errors import AnalysisInputError
+from analysis.exclusions import (ExclusionRules, apply_exclusions, exclusion_notes,
+                                 exclusion_summary, removed_by_reason)
+from analysis.mixed import mixed_model_means
+from analysis.motion_io import SystemClips
+from analysis.objective import METRIC_COLUMNS, objective_metrics
+from analysis.stats import (CELL, anova, comparable_cells, pvalue_matrix, system_means,
+                            too_few_ratings, tukey_hsd)
+from analysis.tables import objective_table, pvalue_display, significance_table, slug, write_table
+
+
+@dataclass
+class Report:
+    """Everything a report folder shows, as DataFrames (tidy unless named *_display)."""
+
+    flagged: pd.DataFrame
+    exclusions: pd.DataFrame
+    removed: pd.DataFrame
+    means: pd.DataFrame
+    anova: pd.DataFrame
+    tukey: pd.DataFrame
+    mixed: pd.DataFrame
+    significance_display: pd.DataFrame
+    pvalues_display: dict[tuple[str, str], pd.DataFrame]
+    reference: str | None
+    rules: ExclusionRules
+    objective: pd.DataFrame | None = None
+    objective_display: pd.DataFrame | None = None
+    footstep_curves: pd.DataFrame | None = None
+    correlation: pd.DataFrame | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def analysed(self) -> pd.DataFrame:
+        """The ratings that enter the statistics: kept, and of compared systems."""
+        return self.flagged[self.flagged["kept"] & self.flagged["system"].isin(self.means["system"])]
+
+
+def _resolve_reference(reference: str | None, compared: set[str], rated: set[str],
+                       rules: ExclusionRules, notes: list[str]) -> str | None:
+    if reference is not None:
+        if reference not in rated:
+            raise AnalysisInputError(
+                f"reference system {reference!r} does not exist in the ratings; systems: "
+                f"{', '.join(sorted(rated))}")
+        if reference not in compared:
+            raise AnalysisInputError(
+                f"reference system {reference!r} has no kept ratings among the compared systems")
+        return reference
+    if rules.natural_system in compared:
+        return rules.natural_system
+    notes.append("No reference system (no NAT ratings and none chosen): Table 2 has no "
+                 "significance markers.")
+    return None
+
+
+def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = None,
+                 reference: str | None = None, rules: ExclusionRules = ExclusionRules(),
+                 systems: Sequence[str] | None = None, compare_attention_checks: bool = False,
+                 foot_joints: Sequence[str] | None = None, foot_kind: str = "heel") -> Report:
+    """Run the whole analysis on a validated ratings table (see `analysis.ratings`).
+
+    ``reference`` marks significance in Table 2 (default NAT when rated). ``systems``,
+    when given, lists the systems expected; any other system in the ratings is an error.
+    BAD clips are attention checks, left out of the comparisons unless
+    ``compare_attention_checks``.
+    """
+    rated = set(ratings["system"].unique())
+    if systems is not None:
+        unknown = rated - set(systems) - {rules.attention_system}
+        if unknown:
+            raise AnalysisInputError(
+                f"unknown system(s) in the ratings: {', '.join(sorted(unknown))}; expected "
+                f"{', '.join(systems)}")
+    flagged = apply_exclusions(ratings, rules)
+    notes = exclusion_notes(flagged, rules)
+    kept = flagged[flagged["kept"]]
+    if not compare_attention_checks:
+        kept = kept[kept["system"] != rules.attention_system]
+    if kept.empty:
+        raise AnalysisInputError("no ratings are left after the exclusions; nothing to analyse")
+    too_few = too_few_ratings(kept)
+    usable = kept[~kept.set_index([*CELL, "system"]).index.isin(
+        too_few.set_index([*CELL, "system"]).index)]
+    notes += [f"Not computed for {r.system} in {r.task} · {r.control_class}: only {r.n} kept "
+              "rating (two or more needed)." for r in too_few.itertuples(index=False)]
+    if usable.empty:
+        raise AnalysisInputError("no system has two or more kept ratings in any cell")
+    reference = _resolve_reference(reference, set(usable["system"].unique()), rated, rules, notes)
+    means = system_means(usable)
+    comparable, compare_notes = comparable_cells(usable)
+    notes += compare_notes
+    anova_table = anova(comparable) if len(comparable) else pd.DataFrame()
+    tukey_table = tukey_hsd(comparable) if len(comparable) else pd.DataFrame()
+    mixed_table = mixed_model_means(comparable) if len(comparable) else pd.DataFrame()
+    if len(mixed_table) and mixed_table["at_boundary"].any():
+        where = mixed_table.loc[mixed_table["at_boundary"], list(CELL)].drop_duplicates()
+        notes.append("Mixed model: participant variance estimated at zero in "
+                     + "; ".join(" · ".join(map(str, r)) for r in where.itertuples(index=False))
+                     + " (the model reduces to the plain means there).")
+    if reference is not None:
+        for task, cc in sorted(set(map(tuple, means[list(CELL)].to_numpy()))):
+            in_cell = means[(means["task"] == task) & (means["control_class"] == cc)]
+            if reference not in set(in_cell["system"]):
+                notes.append(f"{reference} was not rated in {task} · {cc}: no significance "
+                             "markers in that column.")
+    pvalues = {}
+    if len(tukey_table):
+        for (task, cc), pairs in tukey_table.groupby(list(CELL), sort=True):
+            pvalues[(task, cc)] = pvalue_display(pvalue_matrix(pairs))
+    report = Report(
+        flagged=flagged, exclusions=exclusion_summary(flagged), removed=removed_by_reason(flagged),
+        means=means, anova=anova_table, tukey=tukey_table, mixed=mixed_table,
+        significance_display=significance_table(means, tukey_table, reference, too_few),
+        pvalues_display=pvalues, reference=reference, rules=rules, notes=notes)
+    if motion:
+        _add_objective(report, motion, foot_joints, foot_kind)
+    return report
+
+
+def _add_objective(report: Report, motion: dict[str, SystemClips],
+                   foot_joints: Sequence[str] | None, foot_kind: str) -> None:
+    metrics, curves, notes = objective_metrics(motion, foot_joints, foot_kind)
+    report.objective = metrics
+    report.footstep_curves = curves
+    report.objective_display = objective_table(metrics, report.rules.natural_system)
+    report.notes += notes
+    subjective = report.analysed.groupby("system")["value"].mean()
+    report.correlation, corr_notes = subjective_objective_correlation(
+        subjective, metrics.set_index("system")[list(METRIC_COLUMNS)])
+    report.notes += corr_notes
+
+
+def _p_text(p: float) -> str:
+    return "p < .001" if p < 0.001 else f"p = {p:.3f}".replace("0.", ".", 1)
+
+
+def _comparison_text(report: Report, task: str, control_class: str) -> str:
+    """One cell's ANOVA and post-hoc result in words."""
+    a = report.anova[(report.anova["task"] == task)
+                     & (report.anova["control_class"] == control_class)].iloc[0]
+    text = (f" In {control_class}, a one-way ANOVA found "
+            f"{'a significant' if a.p < 0.05 else 'no significant'} effect of system "
+            f"(F({a.df_between}, {a.df_within}) = {a.F:.2f}, {_p_text(a.p)}).")
+    tukey, ref = report.tukey, report.reference
+    pairs = tukey[(tukey["task"] == task) & (tukey["control_class"] == control_class)
+                  & ((tukey["system_a"] == ref) | (tukey["system_b"] == ref))]
+    if ref is None or pairs.empty:
+        return text
+    same = sorted(set(pairs.loc[~pairs["reject"], ["system_a", "system_b"]].to_numpy().ravel()) - {ref})
+    found = (f"{', '.join(same)} not significantly different from {ref}" if same
+             else f"every system significantly different from {ref}")
+    return text + f" Tukey HSD post-hoc tests (family-wise error rate 0.05) found {found}."
+
+
+def summary_text(report: Report) -> str:
+    """Paragraphs in the style of MoGlow Sec. 5.2 that a researcher can paste."""
+    rules = report.rules
+    out = []
+    for row in report.exclusions.itertuples(index=False):
+        removed = report.removed[report.removed["task"] == row.task]
+        reasons = ", ".join(f"{r.participants} {r.reason}" for r in removed.itertuples(index=False))
+        text = (f"**{row.task}.** Of {row.participants_total} participants, "
+                f"{row.participants_removed} were removed for failing attention checks"
+                f"{f' ({reasons})' if reasons else ''}; a participant was removed who rated "
+                f"any {rules.attention_system} clip {rules.bad_at_or_above:g} or higher or any "
+                f"{rules.natural_system} clip below {rules.natural_below:g} (on a 1-5 scale; "
+                f"scaled linearly on others). {row.ratings_collected} ratings were collected; "
+                f"{row.discarded_participant} were discarded with the removed participants and "
+                f"{row.discarded_early} because they were given before the clip had finished "
+                f"playing, leaving {row.ratings_kept} ratings, {row.ratings_per_stimulus_min} to "
+                f"{row.ratings_per_stimulus_max} per stimulus.")
+        if len(report.anova):
+            for control_class in report.anova.loc[report.anova["task"] == row.task, "control_class"]:
+                text += _comparison_text(report, row.task, control_class)
+        out.append(text)
+    if report.reference:
+        out.append("Table 2 reports means with 95 % confidence intervals; ** and * mark a "
+                   f"significant difference from {report.reference} at p < 0.01 and p < 0.05.")
+    return "\n\n".join(out) + "\n"
+
+
+def write_report(report: Report, folder: str | Path) -> list[Path]:
+    """Write the report folder (tables, figures, summary.md); return the files written."""
+    folder = Path(folder)
+    tables, figures = folder / "tables", folder / "figures"
+    written = []
+    tidy = {"exclusions": report.exclusions, "excluded_participants": report.removed,
+            "system_means": report.means, "anova": report.anova, "tukey_hsd": report.tukey,
+            "mixed_model_means": report.mixed}
+    for name, table in tidy.items():
+        if len(table):
+            written += write_table(table, tables, name)
+    written += write_table(report.significance_display, tables, "table2_significance",
+                           caption="Mean ratings ± 95 % CI per system (MoGlow Table 2 layout).")
+    for (task, cc), matrix in report.pvalues_display.items():
+        written += write_table(matrix, tables, f"pvalues_{slug(task, cc)}",
+                               caption=f"Tukey HSD adjusted p-values, {task} · {cc}.")
+    written += plots.save_figure(plots.means_plot(report.means, report.reference), figures, "means_ci")
+    written += plots.save_figure(plots.distribution_plot(report.analysed, report.reference),
+                                 figures, "rating_distributions")
+    if report.objective is not None:
+        written += write_table(report.objective, tables, "objective_metrics")
+        written += write_table(report.objective_display, tables, "table3_objective",
+                               caption="Objective metrics (MoGlow Table 3 layout); marked: closest to NAT.")
+        written += write_table(report.footstep_curves, tables, "footstep_curves",
+                               formats=("csv", "json"))
+        if len(report.correlation):
+            written += write_table(report.correlation, tables, "correlation")
+        written += plots.save_figure(plots.footstep_plot(report.footstep_curves,
+                                                         report.rules.natural_system),
+                                     figures, "footstep_curves")
+    notes = "".join(f"- {n}\n" for n in report.notes) or "- None: everything was computed.\n"
+    summary = folder / "summary.md"
+    summary.write_text("# Summary\n\n" + summary_text(report)
+                       + "\n## Notes (what was not computed, and why)\n\n" + notes, encoding="utf-8")
+    return [summary, *written]
