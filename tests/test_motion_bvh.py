@@ -150,12 +150,12 @@ def test_malformed_files_raise_an_error_naming_file_and_line(tmp_path, case):
 
 
 def test_a_failed_write_leaves_no_partial_file(small_bvh, tmp_path, monkeypatch):
-    import generation.motion.bvh as bvh_module
+    import generation.files as files_module
 
     def fail_to_replace(src, dst):
         raise OSError("disk full")
 
-    monkeypatch.setattr(bvh_module.os, "replace", fail_to_replace)
+    monkeypatch.setattr(files_module.os, "replace", fail_to_replace)
     with pytest.raises(OSError, match="disk full"):
         write_bvh(read_bvh(small_bvh), tmp_path / "clip.bvh")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["small.bvh"]

@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..files import write_atomic
 from .kinematics import forward_kinematics
 from .rotations import euler_to_matrix, matrix_to_euler, matrix_to_quat, quat_to_matrix
 from .types import Motion, Skeleton
@@ -70,13 +70,19 @@ class BVH:
         n_frames, n_joints = len(self.values), self.skeleton.n_joints
         rotations = np.empty((n_frames, n_joints, 3, 3))
         translations = np.broadcast_to(self.skeleton.offsets, (n_frames, n_joints, 3)).copy()
+        # Joints that share a rotation order are converted in one vectorised call.
+        by_order: dict[str, tuple[list[int], list[list[int]]]] = {}
         for j, (names, cols) in enumerate(zip(self.channels, self.channel_columns())):
             order = "".join(ROTATION_AXIS[c] for c in names if c in ROTATION_AXIS)
-            rot_cols = [col for c, col in zip(names, cols) if c in ROTATION_AXIS]
-            rotations[:, j] = euler_to_matrix(np.radians(self.values[:, rot_cols]), order)
+            joints, columns = by_order.setdefault(order, ([], []))
+            joints.append(j)
+            columns.append([col for c, col in zip(names, cols) if c in ROTATION_AXIS])
             for c, col in zip(names, cols):
                 if c in POSITION_AXIS:
                     translations[:, j, POSITION_AXIS[c]] = self.values[:, col]
+        for order, (joints, columns) in by_order.items():
+            angles = np.radians(self.values[:, columns])  # (frames, joints, len(order))
+            rotations[:, joints] = euler_to_matrix(angles, order)
         translations *= scale
         skeleton = self.skeleton
         if scale != 1.0:
@@ -318,19 +324,6 @@ def write_bvh(bvh: BVH, path: str | os.PathLike) -> Path:
     path = Path(path)
     write_atomic(path, bvh_text(bvh).encode())
     return path
-
-
-def write_atomic(path: Path, data: bytes) -> None:
-    """Write bytes to ``path`` through a temporary file in the same folder."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".part")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def motion_to_bvh(motion: Motion, rotation_order: str = "ZXY") -> BVH:

@@ -25,7 +25,8 @@ import numpy as np
 from tqdm import tqdm
 
 from .augment import mirror, reverse, windows
-from .bvh import load_motion, write_atomic
+from ..files import write_atomic
+from .bvh import load_motion
 from .features import AngleFeatureSpec, angle_feature_spec, encode_angles, encode_positions
 from .kinematics import subtree_motion
 from .resample import resample

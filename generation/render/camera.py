@@ -22,10 +22,10 @@ from scipy.ndimage import gaussian_filter1d
 @dataclass(frozen=True)
 class Camera:
     azimuth: float = 35.0  # degrees about the vertical axis
-    elevation: float = 15.0  # degrees above the horizon
-    distance: float = 550.0  # cm from the target
+    elevation: float = 18.0  # degrees above the horizon
+    distance: float = 420.0  # cm from the target
     fov: float = 40.0  # vertical field of view, degrees
-    target_height: float = 90.0  # cm above the floor that the camera aims at (about the hips)
+    target_height: float = 85.0  # cm above the floor that the camera aims at (about the hips)
     follow: bool = True  # track the character; False aims at the clip's mean floor position
     follow_smoothing: float = 0.5  # s, Gaussian sigma that removes the gait's sway from tracking
     near: float = 10.0  # cm; geometry closer than this (or behind the camera) is clipped
@@ -90,16 +90,19 @@ class Camera:
     def to_pixels(self, camera_points: np.ndarray, size: tuple[int, int]) -> np.ndarray:
         """Perspective-divide camera coordinates (..., 3) to pixels (..., 2) for size (w, h).
 
-        Only meaningful where depth >= near; callers clip first (see ``clip_segments``).
+        Integer coordinates are pixel centres, as in PIL. Only meaningful where depth >= near;
+        callers clip first (see ``clip_segments``).
         """
         width, height = size
         f = self.focal_length(height)
         depth = np.maximum(camera_points[..., 2], self.near)  # keeps clipped points finite
-        x = 0.5 * width + f * camera_points[..., 0] / depth
-        y = 0.5 * height - f * camera_points[..., 1] / depth
+        x = 0.5 * (width - 1) + f * camera_points[..., 0] / depth
+        y = 0.5 * (height - 1) - f * camera_points[..., 1] / depth
         return np.stack([x, y], axis=-1)
 
-    def project(self, points: np.ndarray, targets: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    def project(
+        self, points: np.ndarray, targets: np.ndarray, size: tuple[int, int]
+    ) -> tuple[np.ndarray, np.ndarray]:
         """World points (..., N, 3) -> (pixels (..., N, 2), visible (..., N) bool)."""
         cam = self.to_camera(points, targets)
         return self.to_pixels(cam, size), cam[..., 2] >= self.near

@@ -16,6 +16,7 @@ from PIL import Image, ImageDraw
 
 from generation.motion.types import Motion
 from generation.render.camera import Camera
+from generation.render.floor import FloorGrid
 from generation.render.figure import LEFT, RIGHT, body_root_index, figure_bones, hidden_joints, joint_side
 from generation.render.style import Style
 
@@ -96,10 +97,13 @@ class FrameDrawer:
         bone_depth = self.joints_cam[:, self.bones, 2].mean(axis=-1)
         self.bone_order = np.argsort(-bone_depth, axis=1, kind="stable")
 
-        self.grid = self._grid_segments(path)
-        self.background = Image.new("RGB", self.size, style.background)
+        self.grid = FloorGrid(camera, self.size, style.grid_spacing, style.grid_width * self.scale)
+        # Grid coverage 0..255 -> colour, applied in C through an image palette.
+        background, grid = np.array(style.background), np.array(style.grid)
+        ramp = background + (grid - background) * np.arange(256)[:, None] / 255
+        self.grid_palette = np.floor(ramp + 0.5).astype(np.uint8).ravel().tolist()
         if not camera.follow:  # the floor looks the same in every frame: draw it once
-            self._draw_grid(ImageDraw.Draw(self.background), self.targets[0])
+            self.background = self._floor(self.targets[0])
 
     def __len__(self) -> int:
         return len(self.source)
@@ -107,10 +111,8 @@ class FrameDrawer:
     def image(self, k: int) -> Image.Image:
         """Output frame ``k`` as a PIL image of ``size``."""
         style, target, now = self.style, self.targets[k], int(self.source[k])
-        canvas = self.background.copy()
+        canvas = self._floor(target) if self.camera.follow else self.background.copy()
         draw = ImageDraw.Draw(canvas)
-        if self.camera.follow:
-            self._draw_grid(draw, target)
         if style.draw_future_path:
             self._draw_path(draw, self.path[now:], target, style.path_future)
         self._draw_path(draw, self.path[: now + 1], target, style.path_past)
@@ -122,18 +124,8 @@ class FrameDrawer:
         return np.asarray(self.image(k))
 
     def _px(self, width: float, supersample: int = 1) -> int:
-        return max(1, int(round(width * self.scale * supersample)))
-
-    def _grid_segments(self, path: np.ndarray) -> np.ndarray:
-        """Floor grid lines (L, 2, 3) covering the path plus a margin, on grid multiples."""
-        spacing, margin = self.style.grid_spacing, self.style.grid_margin
-        lo = np.floor((path.min(axis=0) - margin) / spacing) * spacing
-        hi = np.ceil((path.max(axis=0) + margin) / spacing) * spacing
-        xs = np.arange(lo[0], hi[0] + spacing / 2, spacing)
-        zs = np.arange(lo[1], hi[1] + spacing / 2, spacing)
-        along_z = [[[x, lo[1]], [x, hi[1]]] for x in xs]
-        along_x = [[[lo[0], z], [hi[0], z]] for z in zs]
-        return on_floor(np.array(along_z + along_x, dtype=np.float64))
+        """A style width in drawing pixels: scaled with the frame, never under one output pixel."""
+        return max(supersample, int(round(width * self.scale * supersample)))
 
     def _segments_px(self, segments: np.ndarray, target: np.ndarray) -> np.ndarray:
         """World segments (N, 2, 3) -> pixel segments (M, 4) of what survives near clipping."""
@@ -142,21 +134,26 @@ class FrameDrawer:
         pixels = self.camera.to_pixels(np.stack([a[keep], b[keep]], axis=1), self.size)
         return pixels.reshape(-1, 4)
 
-    def _draw_grid(self, draw: ImageDraw.ImageDraw, target: np.ndarray) -> None:
-        width = self._px(self.style.grid_width)
-        for segment in self._segments_px(self.grid, target).tolist():
-            draw.line(segment, fill=self.style.grid, width=width)
+    def _floor(self, target: np.ndarray) -> Image.Image:
+        """The background with the floor grid seen from ``target``, as a new RGB image."""
+        floor = Image.fromarray(self.grid.coverage_image(target))
+        floor.putpalette(self.grid_palette)  # turns the "L" coverage into a "P" image
+        return floor.convert("RGB")
 
     def _draw_path(self, draw: ImageDraw.ImageDraw, points: np.ndarray, target: np.ndarray, colour) -> None:
         if len(points) < 2:
             return
         segments = self._segments_px(np.stack([points[:-1], points[1:]], axis=1), target)
-        width = self._px(self.style.path_width)
         if len(segments) == len(points) - 1:  # nothing clipped: one polyline is much faster
-            draw.line(np.concatenate([segments[:, :2], segments[-1:, 2:]]).ravel().tolist(), fill=colour, width=width)
+            lines = [np.concatenate([segments[:, :2], segments[-1:, 2:]]).ravel().tolist()]
         else:
-            for segment in segments.tolist():
-                draw.line(segment, fill=colour, width=width)
+            lines = segments.tolist()
+        # A half-tone rim one pixel wider softens the staircase of an aliased line cheaply.
+        rim = tuple((np.add(colour, self.style.background) + 1) // 2)
+        width = self._px(self.style.path_width)
+        for line_width, line_colour in ((width + 1, rim), (width, colour)):
+            for line in lines:
+                draw.line(line, fill=line_colour, width=line_width)
 
     def _draw_figure(self, canvas: Image.Image, k: int) -> None:
         """Shadow, bones and joints of frame ``k``, supersampled inside their bounding box."""

@@ -15,7 +15,7 @@ from PIL import Image
 from generation.motion.types import Motion
 from generation.render.camera import Camera
 from generation.render.draw import FrameDrawer
-from generation.render.files import atomic_output
+from generation.files import atomic_output
 from generation.render.style import Style
 
 

@@ -16,7 +16,6 @@ class Style:
     background: RGB = (246, 245, 241)
     grid: RGB = (214, 212, 205)
     grid_spacing: float = 50.0  # cm between floor grid lines
-    grid_margin: float = 300.0  # cm of floor drawn beyond the clip's path
     grid_width: float = 1.0
     bone: RGB = (45, 45, 52)  # spine, head and anything not named left or right
     bone_left: RGB = (35, 80, 165)
@@ -29,7 +28,7 @@ class Style:
     path_future: RGB = (180, 200, 228)  # floor path still to come
     draw_future_path: bool = True
     path_width: float = 3.0
-    supersample: int = 2  # draw at this multiple of the size, then box-filter down (antialiasing)
+    supersample: int = 2  # the figure is drawn at this multiple, then box-filtered down (antialiasing)
 
     def __post_init__(self) -> None:
         if not isinstance(self.supersample, int) or self.supersample < 1:

@@ -8,6 +8,7 @@ file has arrived. Colours are converted and tagged as BT.709 so browsers agree o
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import tempfile
@@ -20,7 +21,7 @@ import numpy as np
 from generation.motion.types import Motion
 from generation.render.camera import Camera
 from generation.render.draw import FrameDrawer
-from generation.render.files import atomic_output
+from generation.files import atomic_output
 from generation.render.style import Style
 
 
@@ -34,12 +35,16 @@ def render_video(
     style: Style = Style(),
     crf: int = 20,
     preset: str = "veryfast",
+    x264_params: str = "me=dia:subme=1",
 ) -> Path:
     """Render ``motion`` as a stick-figure MP4 at ``path`` and return the path.
 
     ``fps`` None keeps the motion's rate; another rate picks the nearest frame in time.
     ``root_path`` (T, 2) x, z or (T, 3) overrides the floor path drawn under the figure.
-    ``crf`` and ``preset`` are libx264's quality and speed settings.
+    ``crf``, ``preset`` and ``x264_params`` are libx264's quality and speed settings. The
+    default params pick the cheapest motion search: a following camera slides the whole
+    floor every frame, and on 2 cores this measured ~1.5x faster encoding than plain
+    ``veryfast`` for ~10% larger files. Pass ``x264_params=""`` to use the preset's own.
     """
     width, height = size
     if width % 2 or height % 2:
@@ -47,11 +52,12 @@ def render_video(
     drawer = FrameDrawer(motion, camera, size, fps, root_path, style)
     path = Path(path)
     with atomic_output(path) as tmp:
-        _encode(drawer, tmp, crf, preset)
+        _encode(drawer, tmp, path, crf, preset, x264_params)
     return path
 
 
-def _encode(drawer: FrameDrawer, out: Path, crf: int, preset: str) -> None:
+def _encode(drawer: FrameDrawer, out: Path, target: Path, crf: int, preset: str, x264_params: str) -> None:
+    """Stream the frames into ffmpeg writing ``out`` (the temporary file for ``target``)."""
     width, height = drawer.size
     rate = Fraction(drawer.fps).limit_denominator(100_000)
     command = [
@@ -60,6 +66,7 @@ def _encode(drawer: FrameDrawer, out: Path, crf: int, preset: str) -> None:
         "-i", "pipe:0", "-an",
         "-vf", "scale=out_color_matrix=bt709:out_range=tv,format=yuv420p",
         "-c:v", "libx264", "-preset", preset, "-crf", str(crf),
+        *(["-x264-params", x264_params] if x264_params else []),
         "-colorspace", "bt709", "-color_primaries", "bt709", "-color_trc", "bt709",
         "-color_range", "tv", "-movflags", "+faststart", "-f", "mp4", "-y", str(out),
     ]  # fmt: skip
@@ -69,15 +76,16 @@ def _encode(drawer: FrameDrawer, out: Path, crf: int, preset: str) -> None:
         try:
             for k in range(len(drawer)):
                 process.stdin.write(drawer.image(k).tobytes())
-            process.stdin.close()
         except BrokenPipeError:
-            pass  # ffmpeg died; its exit status and log below say why
+            pass  # ffmpeg exited early; its exit status and log below say why
         except BaseException:
             process.kill()
-            process.wait()
             raise
-        returncode = process.wait()
-        if returncode != 0:
+        finally:
+            with contextlib.suppress(BrokenPipeError):
+                process.stdin.close()
+            process.wait()
+        if process.returncode != 0:
             log.seek(0)
             message = log.read().decode(errors="replace").strip()
-            raise RuntimeError(f"ffmpeg failed (exit {returncode}) writing {out}: {message}")
+            raise RuntimeError(f"ffmpeg failed (exit {process.returncode}) rendering {target}: {message}")

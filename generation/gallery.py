@@ -1,0 +1,105 @@
+"""A gallery of natural clips: videos, contact sheets and an index for the web page.
+
+The index (``index.json``) lists one entry per clip: file, title, content, style, frames,
+fps and sheet. The study app's gallery page reads it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from tqdm import tqdm
+
+from .files import write_atomic
+from .motion.bvh import load_motion
+from .motion.dataset import find_bvh_files, read_labels
+from .motion.kinematics import subtree_motion
+from .motion.resample import resample
+from .motion.root import RootOptions, hips_index, root_trajectory
+from .render import Camera, contact_sheet, render_video
+
+
+@dataclass(frozen=True)
+class GalleryOptions:
+    fps: float = 20.0
+    seconds: float = 4.0  # each clip is cut to at most this long, from its start
+    size: tuple[int, int] = (640, 480)
+    per_content: int = 1  # clips per content label
+    contents: tuple[str, ...] | None = None
+    camera: Camera = Camera()
+
+    def to_dict(self) -> dict:
+        """JSON-serialisable, to send to a worker."""
+        return {
+            "fps": self.fps, "seconds": self.seconds, "size": list(self.size),
+            "per_content": self.per_content,
+            "contents": list(self.contents) if self.contents is not None else None,
+            "camera": self.camera.to_dict(),
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "GalleryOptions":
+        return cls(
+            fps=data["fps"], seconds=data["seconds"], size=tuple(data["size"]),
+            per_content=data["per_content"],
+            contents=tuple(data["contents"]) if data["contents"] is not None else None,
+            camera=Camera.from_dict(data["camera"]),
+        )
+
+
+def choose_clips(folder: str | os.PathLike, per_content: int, contents: tuple[str, ...] | None) -> list[Path]:
+    """The first ``per_content`` clips (by name) of each content label, "normal" style first."""
+    chosen: dict[str | None, list[Path]] = {}
+    files = sorted(find_bvh_files(folder), key=lambda p: (read_labels(p)[1] != "normal", p.name))
+    for path in files:
+        content = read_labels(path)[0]
+        if contents is not None and content not in contents:
+            continue
+        group = chosen.setdefault(content, [])
+        if len(group) < per_content:
+            group.append(path)
+    return sorted(p for group in chosen.values() for p in group)
+
+
+def render_clip(path: Path, out_dir: Path, options: GalleryOptions) -> dict:
+    """Render one BVH clip (video and contact sheet) unless already there; its index entry."""
+    video, sheet = out_dir / f"{path.stem}.mp4", out_dir / f"{path.stem}.png"
+    motion = resample(load_motion(path), options.fps)
+    motion = subtree_motion(motion, hips_index(motion.skeleton))
+    keep = min(motion.n_frames, int(round(options.seconds * options.fps)))
+    motion = type(motion)(motion.positions[:keep], motion.fps, motion.skeleton)
+    floor = root_trajectory(motion, RootOptions()).xz
+    if not video.exists():
+        render_video(motion, video, camera=options.camera, size=options.size, root_path=floor)
+    if not sheet.exists():
+        contact_sheet(motion, sheet, n=8, camera=options.camera, root_path=floor)
+    content, style = read_labels(path)
+    return {
+        "file": video.name,
+        "title": " / ".join(x for x in (content, style, path.stem.rsplit("_", 1)[-1]) if x),
+        "content": content,
+        "style": style,
+        "frames": motion.n_frames,
+        "fps": motion.fps,
+        "sheet": sheet.name,
+        "source": path.name,
+    }
+
+
+def write_index(out_dir: str | os.PathLike, entries: list[dict]) -> Path:
+    """Write the gallery's ``index.json`` (atomically)."""
+    path = Path(out_dir) / "index.json"
+    write_atomic(path, json.dumps(entries, indent=2).encode())
+    return path
+
+
+def build_gallery(folder: str | os.PathLike, out_dir: str | os.PathLike, options: GalleryOptions = GalleryOptions(), progress: bool = True) -> list[dict]:
+    """Render the chosen clips into ``out_dir`` and write its ``index.json``."""
+    out_dir = Path(out_dir)
+    clips = choose_clips(folder, options.per_content, options.contents)
+    entries = [render_clip(p, out_dir, options) for p in tqdm(clips, desc="rendering gallery", unit="clip", disable=not progress)]
+    write_index(out_dir, entries)
+    return entries

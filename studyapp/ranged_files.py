@@ -1,0 +1,104 @@
+"""Serve files from a folder with HTTP range requests, so browsers can seek in videos.
+
+Django's `static.serve` always sends the whole file, which leaves `<video>` unable
+to seek (Safari will not even play it). This view answers `Range: bytes=...` with
+206 Partial Content, says `Accept-Ranges: bytes`, rejects ranges past the end with
+416, and refuses any path that resolves outside its folder. One range per request:
+a multi-range request gets the whole file, which HTTP allows.
+"""
+
+import mimetypes
+import re
+from collections.abc import Iterator
+from pathlib import Path
+
+from django.http import Http404, HttpRequest, HttpResponse, HttpResponseNotAllowed, StreamingHttpResponse
+from django.utils.http import http_date
+
+CHUNK_BYTES = 64 * 1024
+_SINGLE_RANGE = re.compile(r"^bytes=(\d*)-(\d*)$")
+
+
+class UnsatisfiableRange(Exception):
+    """The range names no byte of the file (answered with 416)."""
+
+
+def parse_byte_range(header: str | None, size: int) -> tuple[int, int] | None:
+    """The inclusive (first, last) byte a `Range` header asks for, or None for the whole file.
+
+    A header that is absent, malformed or asks for several ranges is ignored, as
+    RFC 9110 lets a server do; one that is well formed but misses the file raises.
+    """
+    if not header:
+        return None
+    match = _SINGLE_RANGE.match(header.strip())
+    if not match:
+        return None
+    first_text, last_text = match.groups()
+    if not first_text:
+        if not last_text:
+            return None
+        suffix = int(last_text)  # "bytes=-N": the last N bytes
+        if suffix == 0 or size == 0:
+            raise UnsatisfiableRange
+        return max(0, size - suffix), size - 1
+    first = int(first_text)
+    if last_text and int(last_text) < first:
+        return None
+    if first >= size:
+        raise UnsatisfiableRange
+    last = int(last_text) if last_text else size - 1
+    return first, min(last, size - 1)
+
+
+def _read_span(path: Path, first: int, length: int) -> Iterator[bytes]:
+    with path.open("rb") as stream:
+        stream.seek(first)
+        remaining = length
+        while remaining > 0:
+            chunk = stream.read(min(CHUNK_BYTES, remaining))
+            if not chunk:
+                return
+            remaining -= len(chunk)
+            yield chunk
+
+
+def _resolve_inside(document_root: Path, relative_path: str) -> Path:
+    root = document_root.resolve()
+    # resolve() follows "..", absolute parts and symlinks, so the containment
+    # test below sees where the file really is.
+    target = (root / relative_path).resolve()
+    if not target.is_relative_to(root) or not target.is_file():
+        raise Http404("No such file")
+    return target
+
+
+def serve_with_ranges(request: HttpRequest, path: str, document_root: str | Path) -> HttpResponse | StreamingHttpResponse:
+    """A view answering GET and HEAD for `document_root/path`, with range support."""
+    if request.method not in ("GET", "HEAD"):
+        return HttpResponseNotAllowed(["GET", "HEAD"])
+    target = _resolve_inside(Path(document_root), path)
+    stat = target.stat()
+    size = stat.st_size
+    try:
+        span = parse_byte_range(request.headers.get("Range"), size)
+    except UnsatisfiableRange:
+        response = HttpResponse(status=416)
+        response["Content-Range"] = f"bytes */{size}"
+        response["Accept-Ranges"] = "bytes"
+        return response
+
+    first, last = span if span is not None else (0, size - 1)
+    length = last - first + 1 if size else 0
+    body = _read_span(target, first, length) if request.method == "GET" else iter(())
+    response = StreamingHttpResponse(body, status=206 if span is not None else 200)
+    content_type, encoding = mimetypes.guess_type(target.name)
+    response["Content-Type"] = content_type or "application/octet-stream"
+    if encoding:
+        response["Content-Encoding"] = encoding
+    response["Content-Length"] = str(length)
+    response["Accept-Ranges"] = "bytes"
+    response["Last-Modified"] = http_date(stat.st_mtime)
+    if span is not None:
+        response["Content-Range"] = f"bytes {first}-{last}/{size}"
+    return response

@@ -1,0 +1,63 @@
+"""compose.yaml has the production shape: four services, health checks, a shared media volume."""
+
+from pathlib import Path
+
+import yaml
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+def load_compose() -> dict:
+    return yaml.safe_load((REPO_ROOT / "compose.yaml").read_text())
+
+
+def test_every_service_has_a_health_check() -> None:
+    services = load_compose()["services"]
+
+    assert {"web", "worker", "redis", "postgres"} <= services.keys()
+    checks = {name: " ".join(services[name]["healthcheck"]["test"]) for name in ("web", "worker", "redis", "postgres")}
+    assert "redis-cli ping" in checks["redis"]
+    assert "pg_isready" in checks["postgres"]
+    assert "/health.json" in checks["web"]
+    assert "celery -A studyapp inspect ping" in checks["worker"]
+
+
+def test_web_and_worker_run_the_app_against_postgres_and_redis() -> None:
+    services = load_compose()["services"]
+    web, worker = services["web"], services["worker"]
+
+    assert web["command"][:2] == ["gunicorn", "studyapp.wsgi"]
+    assert worker["command"][:4] == ["celery", "-A", "studyapp", "worker"]
+    for service in (web, worker):
+        environment = service["environment"]
+        assert environment["DATABASE_URL"].startswith("postgres://")
+        assert environment["CELERY_BROKER_URL"].startswith("redis://redis:")
+        assert environment["DEBUG"] == "0"
+        assert service["build"] == "."
+
+
+def test_web_and_worker_share_the_media_volume() -> None:
+    compose = load_compose()
+    services = compose["services"]
+
+    assert "media" in compose["volumes"]
+    mounts = {name: services[name]["volumes"] for name in ("web", "worker")}
+    assert mounts["web"] == mounts["worker"] == ["media:/data/media"]
+    assert services["web"]["environment"]["MEDIA_ROOT"] == "/data/media"
+
+
+def test_app_services_wait_for_healthy_dependencies() -> None:
+    services = load_compose()["services"]
+
+    for name in ("web", "worker"):
+        depends_on = services[name]["depends_on"]
+        assert depends_on["postgres"]["condition"] == "service_healthy"
+        assert depends_on["redis"]["condition"] == "service_healthy"
+        assert depends_on["migrate"]["condition"] == "service_completed_successfully"
+
+
+def test_dockerfile_pins_torch_before_installing_the_project() -> None:
+    dockerfile = (REPO_ROOT / "Dockerfile").read_text()
+
+    assert dockerfile.startswith("# ") and "FROM python:3.11-slim" in dockerfile
+    assert dockerfile.index("RUN pip install torch==2.13.0") < dockerfile.index("RUN pip install .\n")

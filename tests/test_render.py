@@ -1,0 +1,227 @@
+"""The stick-figure renderer: browser-ready MP4s, figures where the camera says, atomic writes.
+
+Everything runs on the synthetic walker (no data files) at small sizes, so the whole file
+takes a few seconds.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import struct
+import subprocess
+from pathlib import Path
+
+import imageio_ffmpeg
+import numpy as np
+import pytest
+
+from generation.motion.types import Motion, Skeleton
+from generation.render import Camera, FrameDrawer, Style, contact_sheet, render_video
+from generation.render.draw import frame_indices
+from generation.render.figure import LEFT, RIGHT, CENTRE, body_root_index, figure_bones, joint_side
+from generation.render.synthetic import walking_in_a_circle
+
+SIZE = (160, 120)
+
+
+def decode(path: Path, size: tuple[int, int] = SIZE) -> np.ndarray:
+    """All frames as (T, h, w, 3) uint8, decoded by imageio's ffmpeg binary.
+
+    (imageio_ffmpeg.read_frames would do, but it leaves its pipes for the garbage collector.)
+    """
+    ffmpeg = imageio_ffmpeg.get_ffmpeg_exe()
+    command = [ffmpeg, "-v", "error", "-i", str(path), "-f", "rawvideo", "-pix_fmt", "rgb24", "-"]
+    raw = subprocess.run(command, capture_output=True, check=True).stdout
+    return np.frombuffer(raw, np.uint8).reshape(-1, size[1], size[0], 3)
+
+
+def top_level_boxes(path: Path) -> list[str]:
+    """The types of an MP4 file's top-level boxes, in file order."""
+    data, boxes, at = path.read_bytes(), [], 0
+    while at + 8 <= len(data):
+        size, kind = struct.unpack(">I4s", data[at : at + 8])
+        if size == 1:  # 64-bit size follows the type
+            size = struct.unpack(">Q", data[at + 8 : at + 16])[0]
+        boxes.append(kind.decode("latin-1"))
+        at += size if size else len(data)
+    return boxes
+
+
+def dark_pixels(frame: np.ndarray, threshold: int = 120) -> np.ndarray:
+    """(row, col) of pixels much darker than the light background: the figure's bones."""
+    return np.argwhere(frame.mean(axis=-1) < threshold)
+
+
+@pytest.fixture(scope="module")
+def walker() -> Motion:
+    return walking_in_a_circle(seconds=1.0, fps=30.0)
+
+
+@pytest.fixture(scope="module")
+def video(walker, tmp_path_factory) -> Path:
+    return render_video(walker, tmp_path_factory.mktemp("video") / "walker.mp4", size=SIZE, fps=20)
+
+
+def test_video_is_h264_yuv420p_with_moov_before_mdat(video):
+    ffmpeg = imageio_ffmpeg.get_ffmpeg_exe()
+    probe = subprocess.run([ffmpeg, "-hide_banner", "-i", str(video)], capture_output=True, text=True)
+    stream = next(line for line in probe.stderr.splitlines() if "Video:" in line)
+    assert "Video: h264" in stream
+    assert re.search(r"\byuv420p\b", stream)
+    assert f"{SIZE[0]}x{SIZE[1]}" in stream
+    boxes = top_level_boxes(video)
+    assert "moov" in boxes and "mdat" in boxes
+    assert boxes.index("moov") < boxes.index("mdat"), f"moov must precede mdat for progressive play: {boxes}"
+
+
+def test_video_has_one_frame_per_output_time_at_the_requested_size(walker, video, tmp_path):
+    frames = decode(video)
+    assert frames.shape == (20, SIZE[1], SIZE[0], 3)  # 1 s resampled from 30 to 20 fps
+    native = decode(render_video(walker, tmp_path / "native.mp4", size=SIZE))
+    assert len(native) == walker.n_frames
+
+
+def test_resampling_picks_the_nearest_frame_in_time():
+    assert frame_indices(6, 30.0, 20.0).tolist() == [0, 2, 3, 5]  # t = 0, 0.05, 0.1, 0.15 s
+    assert frame_indices(3, 30.0, 60.0).tolist() == [0, 1, 1, 2, 2, 2]
+    assert frame_indices(1, 30.0, 5.0).tolist() == [0]
+
+
+def test_odd_frame_sizes_are_refused(walker, tmp_path):
+    with pytest.raises(ValueError, match="even"):
+        render_video(walker, tmp_path / "odd.mp4", size=(161, 120))
+
+
+def test_joints_appear_where_the_camera_projects_them(walker, video):
+    frames = decode(video)
+    drawer = FrameDrawer(walker, size=SIZE, fps=20)
+    background = np.array(Style().background)
+    for k in (0, 10, 19):
+        source = drawer.source[k]
+        pixels, visible = Camera().project(walker.positions[source], drawer.targets[k], SIZE)
+        assert visible.all()
+        for j in (walker.skeleton.index("Head"), walker.skeleton.index("Foot_L")):
+            x, y = np.round(pixels[j]).astype(int)
+            patch = frames[k, y - 1 : y + 2, x - 1 : x + 2].reshape(-1, 3).astype(int)
+            difference = np.abs(patch - background).sum(axis=1).max()
+            assert difference > 100, f"no joint drawn at {x, y} in frame {k}"
+
+
+def test_a_figure_further_right_is_drawn_further_right():
+    # The walker stands still for half a second, then steps sideways along the camera's
+    # right axis; with a fixed camera its dark pixels must move right on screen.
+    camera = Camera(follow=False)
+    still = walking_in_a_circle(seconds=0.1, fps=10.0).positions[:1]
+    shift = np.concatenate([np.zeros(5), np.full(5, 80.0)])[:, None, None] * camera.rotation[0]
+    motion = Motion(still + shift, fps=10.0, skeleton=walking_in_a_circle(0.1, 10.0).skeleton)
+    drawer = FrameDrawer(motion, camera, SIZE)
+    before, after = dark_pixels(drawer.frame(0)), dark_pixels(drawer.frame(9))
+    assert len(before) > 20 and len(after) > 20
+    assert after[:, 1].mean() > before[:, 1].mean() + 10
+    assert abs(after[:, 0].mean() - before[:, 0].mean()) < 5
+
+
+def test_follow_camera_keeps_the_walker_near_the_centre(walker):
+    drawer = FrameDrawer(walking_in_a_circle(seconds=3.0, fps=30.0), Camera(), SIZE)
+    columns = [dark_pixels(drawer.frame(k))[:, 1].mean() for k in range(0, len(drawer), 15)]
+    assert np.all(np.abs(np.array(columns) - SIZE[0] / 2) < SIZE[0] / 6)
+
+
+def test_same_input_gives_identical_frames(walker, video, tmp_path):
+    again = render_video(walker, tmp_path / "again.mp4", size=SIZE, fps=20)
+    assert decode(again).tobytes() == decode(video).tobytes()
+
+
+def test_camera_and_style_round_trip_through_json():
+    camera = Camera(azimuth=-20.0, elevation=30.0, distance=600.0, fov=35.0, follow=False)
+    assert Camera.from_dict(json.loads(json.dumps(camera.to_dict()))) == camera
+    style = Style(bone=(1, 2, 3), supersample=3)
+    assert Style.from_dict(json.loads(json.dumps(style.to_dict()))) == style
+    with pytest.raises(ValueError, match="unknown Camera fields: zoom"):
+        Camera.from_dict({"zoom": 2})
+
+
+def test_segments_crossing_the_near_plane_are_cut_there():
+    camera = Camera(near=10.0)
+    a = np.array([[0.0, 0.0, -50.0], [0.0, 0.0, -5.0], [1.0, 2.0, 20.0]])
+    b = np.array([[0.0, 0.0, 50.0], [0.0, 0.0, -1.0], [3.0, 4.0, 40.0]])
+    ca, cb, keep = camera.clip_segments(a, b)
+    assert keep.tolist() == [True, False, True]
+    np.testing.assert_allclose(ca[0], [0.0, 0.0, 10.0])
+    np.testing.assert_allclose(cb[0], b[0])
+    np.testing.assert_allclose([ca[2], cb[2]], [a[2], b[2]])
+
+
+def test_a_camera_inside_the_scene_still_renders(walker):
+    # Low and close: parts of the floor path and grid are behind the camera.
+    drawer = FrameDrawer(walker, Camera(distance=60.0, elevation=5.0, target_height=20.0), SIZE)
+    frame = drawer.frame(0)
+    assert frame.shape == (SIZE[1], SIZE[0], 3) and np.isfinite(frame).all()
+
+
+def test_failure_mid_render_leaves_no_file(walker, tmp_path, monkeypatch):
+    path = tmp_path / "broken.mp4"
+    path.write_bytes(b"previous version")
+    original = FrameDrawer.image
+
+    def fail_at_frame_5(self, k):
+        if k == 5:
+            raise RuntimeError("drawing failed")
+        return original(self, k)
+
+    monkeypatch.setattr(FrameDrawer, "image", fail_at_frame_5)
+    with pytest.raises(RuntimeError, match="drawing failed"):
+        render_video(walker, path, size=SIZE)
+    assert path.read_bytes() == b"previous version"  # the old file is untouched
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["broken.mp4"]  # no temporary left
+
+
+def test_ffmpeg_failure_is_reported_and_leaves_no_file(walker, tmp_path):
+    with pytest.raises(RuntimeError, match="ffmpeg failed"):
+        render_video(walker, tmp_path / "clip.mp4", size=SIZE, preset="no-such-preset")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_missing_folders_are_created(walker, tmp_path):
+    path = render_video(walker, tmp_path / "new" / "clip.mp4", size=SIZE)
+    assert path.is_file() and oct(path.stat().st_mode & 0o777) != oct(0o600)
+
+
+def test_contact_sheet_is_n_frames_wide(walker, tmp_path):
+    from PIL import Image
+
+    path = contact_sheet(walker, tmp_path / "sheet.png", n=4, size=(100, 80))
+    with Image.open(path) as sheet:
+        assert sheet.format == "PNG" and sheet.size == (400, 80)
+        # Every panel shows the figure.
+        pixels = np.asarray(sheet.convert("RGB"))
+        for i in range(4):
+            assert len(dark_pixels(pixels[:, i * 100 : (i + 1) * 100])) > 10
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sheet.png"]
+
+
+def test_root_path_override_is_drawn_on_the_floor(walker):
+    style = Style(draw_shadow=False)
+    camera = Camera(follow=False, elevation=60.0)
+    path = np.zeros((walker.n_frames, 2))
+    path[:, 0] = np.linspace(-300, 300, walker.n_frames)  # a straight line along x
+    with_path = FrameDrawer(walker, camera, SIZE, root_path=path, style=style).frame(0)
+    with pytest.raises(ValueError, match="root_path must have shape"):
+        FrameDrawer(walker, camera, SIZE, root_path=path[:-1])
+    future = np.array(style.path_future)
+    near_future = np.abs(with_path.astype(int) - future).sum(axis=-1) < 30
+    assert near_future.sum() > 20
+
+
+def test_reference_joints_above_the_pelvis_are_not_drawn():
+    skeleton = Skeleton(
+        names=("joint_Root", "Hips", "Spine", "UpperLeg_L", "LeftFoot", "R_Foot"),
+        parents=np.array([-1, 0, 1, 1, 3, 1]),
+        offsets=np.zeros((6, 3)),
+    )
+    assert body_root_index(skeleton) == 1
+    assert figure_bones(skeleton) == [(1, 2), (1, 3), (3, 4), (1, 5)]
+    sides = [joint_side(name) for name in skeleton.names]
+    assert sides == [CENTRE, CENTRE, CENTRE, LEFT, LEFT, RIGHT]
+    assert joint_side("Hand.R") == RIGHT and joint_side("HandRight") == RIGHT
