@@ -106,5 +106,9 @@ CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True
 CELERY_TASK_TRACK_STARTED = True
 CELERY_RESULT_EXPIRES = 24 * 3600
 
+# Ratings tables uploaded for analysis; 100,000 ratings are about 10 MB of CSV.
+MAX_RATINGS_UPLOAD_BYTES = int(env_float("MAX_RATINGS_UPLOAD_MB", 50) * 1_000_000)
+DATA_UPLOAD_MAX_MEMORY_SIZE = MAX_RATINGS_UPLOAD_BYTES
+
 # Bounds on each health probe, so a dead broker never holds a page for long.
 HEALTH_TIMEOUT_S = env_float("HEALTH_TIMEOUT_S", 1.0)

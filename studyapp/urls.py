@@ -10,6 +10,8 @@ urlpatterns = [
     path("", views.gallery, name="gallery"),
     path("health/", views.health_page, name="health"),
     path("health.json", views.health_json, name="health-json"),
+    path("analysis/", views.analysis_upload, name="analysis"),
+    path("analysis/<str:digest>/", views.analysis_report, name="analysis-report"),
     path("admin/", admin.site.urls),
 ]
 

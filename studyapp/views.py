@@ -1,8 +1,10 @@
-"""Pages of the study app: the clip gallery and the health report."""
+"""Pages of the study app: the clip gallery, the health report and analysis reports."""
 
+from django import forms
 from django.conf import settings
-from django.http import HttpRequest, HttpResponse, HttpResponseBase, JsonResponse
-from django.shortcuts import render
+from django.contrib.auth.decorators import login_required
+from django.http import Http404, HttpRequest, HttpResponse, HttpResponseBase, JsonResponse
+from django.shortcuts import redirect, render
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_safe
 
@@ -10,6 +12,7 @@ from studyapp.celery import app as celery_app
 from studyapp.gallery import GalleryIndexError, index_path, load_gallery
 from studyapp.health import HealthReport, collect_health
 from studyapp.ranged_files import serve_with_ranges
+from studyapp.reports import AnalysisInputError, create_report, report_page
 
 
 def _health() -> HealthReport:
@@ -63,3 +66,43 @@ def media_file(request: HttpRequest, path: str) -> HttpResponseBase:
 def static_file(request: HttpRequest, path: str) -> HttpResponseBase:
     """A collected static file, for when no proxy or runserver serves them."""
     return serve_with_ranges(request, path, settings.STATIC_ROOT)
+
+
+class RatingsUploadForm(forms.Form):
+    ratings = forms.FileField(help_text="A ratings table as CSV (see docs/ratings-schema.md).")
+    reference = forms.CharField(required=False, initial="NAT", max_length=100,
+                                help_text="System that significance stars compare against (empty: none).")
+
+    def clean_ratings(self):
+        upload = self.cleaned_data["ratings"]
+        if upload.size > settings.MAX_RATINGS_UPLOAD_BYTES:
+            raise forms.ValidationError(
+                f"the file is {upload.size / 1e6:.1f} MB; the limit is {settings.MAX_RATINGS_UPLOAD_BYTES / 1e6:.0f} MB")
+        return upload
+
+
+@login_required
+def analysis_upload(request: HttpRequest) -> HttpResponse:
+    """Researchers: upload a ratings table, get the papers' tables and figures."""
+    form = RatingsUploadForm(request.POST or None, request.FILES or None)
+    status = 200
+    if request.method == "POST":
+        if form.is_valid():
+            try:
+                digest = create_report(settings.MEDIA_ROOT, form.cleaned_data["ratings"].read(),
+                                       form.cleaned_data["reference"].strip() or None)
+                return redirect("analysis-report", digest=digest)
+            except AnalysisInputError as exc:
+                form.add_error("ratings", str(exc))
+        status = 400
+    return render(request, "studyapp/analysis_upload.html", {"form": form}, status=status)
+
+
+@login_required
+@require_safe
+def analysis_report(request: HttpRequest, digest: str) -> HttpResponse:
+    try:
+        page = report_page(settings.MEDIA_ROOT, digest)
+    except FileNotFoundError:
+        raise Http404("no such report") from None
+    return render(request, "studyapp/analysis_report.html", {"page": page})

@@ -1,0 +1,111 @@
+"""Analysis reports in the study app: a ratings CSV in, the report folder and its tables out.
+
+The app runs exactly the ``analysis`` package's report (the same tables and figures as
+``python -m analysis report``). A report lives in ``MEDIA_ROOT/reports/<digest>/``, named
+by the SHA-256 of the ratings file, so the same upload twice is the same report. The
+folder is built under a temporary name and renamed into place, so a failed analysis
+leaves nothing behind and a half-written report is never served.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+from django.utils.html import escape
+from django.utils.safestring import SafeString, mark_safe
+
+from analysis.errors import AnalysisInputError
+from analysis.ratings import read_ratings
+from analysis.report import Report, build_report, summary_text, write_report
+
+REPORTS_FOLDER = "reports"
+RATINGS_NAME = "ratings.csv"
+REFERENCE_NAME = "reference.txt"
+
+
+@dataclass(frozen=True)
+class ReportPage:
+    """What the report page shows."""
+
+    digest: str
+    summary: list[SafeString]  # paragraphs
+    tables: list[tuple[str, SafeString]]  # (title, HTML table)
+    figures: list[str]  # paths relative to MEDIA_ROOT
+    files: list[str]  # every table file (CSV, Markdown, LaTeX, JSON), relative to MEDIA_ROOT
+    notes: list[str]
+
+
+def report_folder(media_root: Path, digest: str) -> Path:
+    if len(digest) != 64 or any(c not in "0123456789abcdef" for c in digest):
+        raise FileNotFoundError(digest)
+    return Path(media_root) / REPORTS_FOLDER / digest
+
+
+def create_report(media_root: Path, ratings_csv: bytes, reference: str | None) -> str:
+    """Analyse an uploaded ratings CSV into its report folder; returns the digest.
+
+    Raises AnalysisInputError (naming what is wrong) for a table that cannot be analysed.
+    """
+    digest = hashlib.sha256(ratings_csv + f"\0{reference or ''}".encode()).hexdigest()
+    final = report_folder(media_root, digest)
+    if final.is_dir():
+        return digest
+    final.parent.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(dir=final.parent, prefix=".building-"))
+    try:
+        (work / RATINGS_NAME).write_bytes(ratings_csv)
+        (work / REFERENCE_NAME).write_text(reference or "")
+        report = _analyse(work)
+        write_report(report, work)
+        work.chmod(0o755)
+        work.rename(final)
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)
+        raise
+    return digest
+
+
+def _analyse(folder: Path) -> Report:
+    reference = (folder / REFERENCE_NAME).read_text() or None
+    return build_report(read_ratings(folder / RATINGS_NAME), reference=reference)
+
+
+def _paragraphs(markdown: str) -> list[SafeString]:
+    """The summary's paragraphs as HTML (it uses only **bold**)."""
+    bold = re.compile(r"\*\*(.+?)\*\*")
+    return [mark_safe(bold.sub(r"<strong>\1</strong>", str(escape(p.strip())))) for p in markdown.split("\n\n") if p.strip()]
+
+
+def _html(table: pd.DataFrame) -> SafeString:
+    flat = table.copy()
+    if isinstance(flat.columns, pd.MultiIndex):
+        flat.columns = [" · ".join(str(p) for p in c if str(p)) for c in flat.columns]
+    html = flat.to_html(index=not isinstance(flat.index, pd.RangeIndex), escape=True, border=0,
+                        classes="data", float_format=lambda x: f"{x:.4g}")
+    return mark_safe(html)  # pandas escaped every cell
+
+
+def report_page(media_root: Path, digest: str) -> ReportPage:
+    """The tables and figures of an existing report (re-analysed from its saved ratings)."""
+    folder = report_folder(media_root, digest)
+    if not (folder / RATINGS_NAME).is_file():
+        raise FileNotFoundError(digest)
+    report = _analyse(folder)
+    tables = [("Mean ratings ± 95 % CI (MoGlow Table 2 layout)", _html(report.significance_display)),
+              ("Exclusions", _html(report.exclusions)),
+              ("One-way ANOVA", _html(report.anova)),
+              ("Tukey HSD, all pairs", _html(report.tukey)),
+              ("Linear mixed model (participant random intercept)", _html(report.mixed))]
+    tables += [(f"Adjusted p-values, {task} · {cc}", _html(m)) for (task, cc), m in report.pvalues_display.items()]
+    figures = sorted(str(p.relative_to(media_root)) for p in (folder / "figures").glob("*.svg"))
+    files = sorted(str(p.relative_to(media_root)) for p in (folder / "tables").iterdir())
+    return ReportPage(digest, _paragraphs(summary_text(report)), tables, figures, files, report.notes)
+
+
+__all__ = ["AnalysisInputError", "ReportPage", "create_report", "report_folder", "report_page"]
