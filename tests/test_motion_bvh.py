@@ -159,3 +159,12 @@ def test_a_failed_write_leaves_no_partial_file(small_bvh, tmp_path, monkeypatch)
     with pytest.raises(OSError, match="disk full"):
         write_bvh(read_bvh(small_bvh), tmp_path / "clip.bvh")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["small.bvh"]
+
+
+def test_position_only_motion_writes_a_bvh_that_reproduces_its_positions(clip_path, tmp_path):
+    from generation.motion import Motion
+
+    motion = load_motion(clip_path("walk_normal_001"))
+    positions_only = Motion(motion.positions, motion.fps, motion.skeleton)
+    again = load_motion(write_bvh(motion_to_bvh(positions_only), tmp_path / "positions.bvh"))
+    np.testing.assert_allclose(again.positions, motion.positions, atol=1e-5)

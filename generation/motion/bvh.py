@@ -327,16 +327,24 @@ def write_bvh(bvh: BVH, path: str | os.PathLike) -> Path:
 
 
 def motion_to_bvh(motion: Motion, rotation_order: str = "ZXY") -> BVH:
-    """A BVH for a motion that has joint rotations (position-only motions need IK first).
+    """A BVH for any motion.
 
-    Every joint gets rotation channels in ``rotation_order``; joints whose translation
-    changes over time (or differs from the offset) also get position channels.
+    With joint rotations, every joint gets rotation channels in ``rotation_order`` and
+    joints whose translation is animated also get position channels. A position-only
+    motion (MoGlow and its baselines) gets position channels only: each joint's
+    translation from its parent with identity rotations, which reproduces the positions
+    exactly in any BVH reader.
     """
-    if motion.rotations is None or motion.translations is None:
-        raise ValueError("this motion has joint positions only; BVH needs joint rotations")
-    euler = np.degrees(matrix_to_euler(quat_to_matrix(motion.rotations), rotation_order))
-    channels, columns = [], []
     offsets = motion.skeleton.offsets
+    channels, columns = [], []
+    if motion.rotations is None:
+        parents = motion.skeleton.parents
+        for j in range(motion.skeleton.n_joints):
+            parent = motion.positions[:, parents[j]] if parents[j] >= 0 else 0.0
+            channels.append(("Xposition", "Yposition", "Zposition"))
+            columns.append(motion.positions[:, j] - parent)
+        return BVH(motion.skeleton, tuple(channels), 1.0 / motion.fps, np.concatenate(columns, axis=1))
+    euler = np.degrees(matrix_to_euler(quat_to_matrix(motion.rotations), rotation_order))
     for j in range(motion.skeleton.n_joints):
         translation = motion.translations[:, j]
         animated = j == 0 or not np.allclose(translation, offsets[j], atol=1e-6)

@@ -1,0 +1,186 @@
+"""Control signals: what a model is asked to do.
+
+Two kinds, as DESIGN.md says: a *path* (per-frame forward, sideways and yaw velocity in
+the root frame, as MoGlow uses) and *attributes* (action and style labels, as HVRNN
+uses). Paths come from held-out natural clips or are synthesised from a small JSON or
+YAML description: straight lines at a speed, curves, sidestepping, walking backwards,
+standing still and speed ramps, as in MoGlow's synthetic control.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+from scipy.ndimage import gaussian_filter1d
+
+from .motion.root import RootTrajectory, integrate
+
+# Seconds of Gaussian smoothing between segments, so speeds change as a person's do.
+TRANSITION_SIGMA = 0.25
+
+
+@dataclass(frozen=True)
+class PathControl:
+    """(frames, 3) forward (cm/s), sideways (cm/s, left positive) and yaw (rad/s) velocity."""
+
+    velocities: np.ndarray
+    fps: float
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        v = np.asarray(self.velocities, dtype=np.float64)
+        if v.ndim != 2 or v.shape[1] != 3 or len(v) < 2:
+            raise ValueError(f"path control needs shape (frames >= 2, 3), got {v.shape}")
+        if not np.isfinite(v).all():
+            raise ValueError("path control contains NaN or infinity")
+        object.__setattr__(self, "velocities", v)
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.velocities)
+
+    def path(self) -> RootTrajectory:
+        """The floor path this control traces from the origin, facing +z."""
+        return integrate(self.velocities, self.fps)
+
+    def to_dict(self) -> dict:
+        return {"type": "path", "name": self.name, "fps": self.fps, "velocities": self.velocities.round(4).tolist()}
+
+
+@dataclass(frozen=True)
+class AttributeControl:
+    """Action and style labels for a sequence of ``frames`` frames."""
+
+    action: str
+    style: str
+    frames: int
+    fps: float
+    name: str = ""
+
+    def to_dict(self) -> dict:
+        return {"type": "attributes", "name": self.name, "action": self.action, "style": self.style,
+                "frames": self.frames, "fps": self.fps}
+
+
+Control = PathControl | AttributeControl
+
+
+def control_from_dict(data: dict) -> Control:
+    """Inverse of ``to_dict`` for either kind."""
+    if data.get("type") == "path":
+        return PathControl(np.asarray(data["velocities"]), data["fps"], data.get("name", ""))
+    if data.get("type") == "attributes":
+        return AttributeControl(data["action"], data["style"], int(data["frames"]), data["fps"], data.get("name", ""))
+    raise ValueError(f"unknown control type {data.get('type')!r}; expected 'path' or 'attributes'")
+
+
+# Segment types of a synthetic path and what each reads from its description.
+def _segment(kind: str, spec: dict, n: int) -> np.ndarray:
+    speed = float(spec.get("speed", 120.0))
+    v = np.zeros((n, 3))
+    if kind == "straight":
+        v[:, 0] = speed
+    elif kind == "curve":
+        v[:, 0] = speed
+        v[:, 2] = math.radians(float(spec.get("turn_rate", 30.0)))  # deg/s, left positive
+    elif kind == "sidestep":
+        direction = spec.get("direction", "left")
+        if direction not in ("left", "right"):
+            raise ValueError(f"sidestep direction must be 'left' or 'right', got {direction!r}")
+        v[:, 1] = speed if direction == "left" else -speed
+    elif kind == "backward":
+        v[:, 0] = -speed
+    elif kind == "stand":
+        pass
+    elif kind == "ramp":
+        v[:, 0] = np.linspace(float(spec.get("from", 0.0)), float(spec.get("to", 250.0)), n)
+    else:
+        raise ValueError(f"unknown segment type {kind!r}; use straight, curve, sidestep, backward, stand or ramp")
+    return v
+
+
+def synthetic_path(description: dict, fps: float = 20.0) -> PathControl:
+    """A path from ``{"name": ..., "segments": [{"type": "straight", "seconds": 3, "speed": 120}, ...]}``.
+
+    Speeds are cm/s, ``turn_rate`` deg/s (left positive); segments join smoothly.
+    """
+    segments = description.get("segments")
+    if not segments:
+        raise ValueError("a synthetic path needs a non-empty 'segments' list")
+    parts = []
+    for i, spec in enumerate(segments):
+        seconds = float(spec.get("seconds", 0))
+        if seconds <= 0:
+            raise ValueError(f"segment {i} needs a positive 'seconds', got {spec.get('seconds')!r}")
+        parts.append(_segment(spec.get("type", ""), spec, max(1, int(round(seconds * fps)))))
+    velocities = np.concatenate(parts)
+    if len(parts) > 1:
+        velocities = gaussian_filter1d(velocities, TRANSITION_SIGMA * fps, axis=0, mode="nearest")
+    return PathControl(velocities, fps, description.get("name", "synthetic"))
+
+
+PRESETS: dict[str, dict] = {
+    "walk-straight": {"segments": [{"type": "straight", "speed": 120, "seconds": 4}]},
+    "run-straight": {"segments": [{"type": "straight", "speed": 300, "seconds": 4}]},
+    "walk-circle": {"segments": [{"type": "curve", "speed": 110, "turn_rate": 45, "seconds": 4}]},
+    "walk-zigzag": {"segments": [{"type": "curve", "speed": 110, "turn_rate": 40, "seconds": 1.5},
+                                 {"type": "curve", "speed": 110, "turn_rate": -40, "seconds": 1.5},
+                                 {"type": "curve", "speed": 110, "turn_rate": 40, "seconds": 1}]},
+    "sidestep-left": {"segments": [{"type": "sidestep", "direction": "left", "speed": 60, "seconds": 4}]},
+    "sidestep-right": {"segments": [{"type": "sidestep", "direction": "right", "speed": 60, "seconds": 4}]},
+    "walk-backward": {"segments": [{"type": "backward", "speed": 90, "seconds": 4}]},
+    "stand-still": {"segments": [{"type": "stand", "seconds": 4}]},
+    "walk-stop-walk": {"segments": [{"type": "straight", "speed": 120, "seconds": 1.5},
+                                    {"type": "stand", "seconds": 1.5},
+                                    {"type": "straight", "speed": 120, "seconds": 1.5}]},
+    "speed-ramp": {"segments": [{"type": "ramp", "from": 0, "to": 300, "seconds": 4}]},
+}
+
+
+def preset_path(name: str, fps: float = 20.0) -> PathControl:
+    """One of the named synthetic paths (``PRESETS``)."""
+    if name not in PRESETS:
+        raise ValueError(f"unknown control preset {name!r}; choose from {', '.join(PRESETS)}")
+    return synthetic_path({"name": name, **PRESETS[name]}, fps)
+
+
+def load_control_file(path: str | Path, fps: float = 20.0) -> list[PathControl]:
+    """Synthetic paths from a JSON or YAML file: one description, or a list of them."""
+    path = Path(path)
+    text = path.read_text()
+    if path.suffix.lower() in (".yaml", ".yml"):
+        try:
+            data = yaml.safe_load(text)
+        except yaml.YAMLError as error:
+            raise ValueError(f"{path}: invalid YAML ({error})") from None
+    else:
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as error:
+            raise ValueError(f"{path}:{error.lineno}: invalid JSON ({error.msg})") from None
+    descriptions = data if isinstance(data, list) else [data]
+    controls = []
+    for i, description in enumerate(descriptions):
+        try:
+            controls.append(synthetic_path({"name": f"{path.stem}-{i}", **description}, fps))
+        except (ValueError, TypeError, AttributeError) as error:
+            raise ValueError(f"{path}: path {i}: {error}") from None
+    return controls
+
+
+def held_out_paths(dataset, seconds: float | None = None) -> list[PathControl]:
+    """The control of each held-out natural clip of a dataset (cut to ``seconds``)."""
+    fps = dataset.options.fps
+    result = []
+    for clip in dataset.select("test"):
+        control = dataset.clip_arrays(clip)["control"].astype(np.float64)
+        if seconds is not None:
+            control = control[: int(round(seconds * fps))]
+        if len(control) >= 2:
+            result.append(PathControl(control, fps, clip.name))
+    return result

@@ -1,0 +1,88 @@
+"""Control signals: synthetic paths integrate to the shapes they describe; held-out ones are real."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from generation.control import (
+    PRESETS,
+    PathControl,
+    control_from_dict,
+    held_out_paths,
+    load_control_file,
+    preset_path,
+    synthetic_path,
+)
+
+
+def test_straight_walk_covers_speed_times_time_facing_forward():
+    path = preset_path("walk-straight").path()
+    assert path.xz[-1, 1] == pytest.approx(120 * 79 / 20)  # 80 frames, 79 steps at 120 cm/s
+    assert np.abs(path.xz[:, 0]).max() < 1e-9 and np.abs(path.yaw).max() < 1e-12
+
+
+def test_circle_turns_at_the_asked_rate():
+    control = preset_path("walk-circle")
+    assert np.degrees(control.path().yaw[-1]) == pytest.approx(45 * 79 / 20)
+
+
+def test_sidestep_moves_sideways_and_backward_moves_back():
+    left = preset_path("sidestep-left").path().xz[-1]
+    right = preset_path("sidestep-right").path().xz[-1]
+    assert left[0] > 200 and right[0] < -200  # +x is the character's left at yaw 0
+    assert preset_path("walk-backward").path().xz[-1, 1] < -300
+
+
+def test_stand_still_stays_put_and_segments_join_smoothly():
+    assert np.abs(preset_path("stand-still").path().xz).max() == 0
+    speed = preset_path("walk-stop-walk").velocities[:, 0]
+    assert speed.max() == pytest.approx(120, abs=1) and speed.min() < 2
+    assert np.abs(np.diff(speed)).max() < 30  # cm/s per frame: no jump from 120 to 0
+
+
+def test_every_preset_builds():
+    for name in PRESETS:
+        control = preset_path(name)
+        assert control.n_frames >= 60 and np.isfinite(control.velocities).all()
+
+
+def test_json_and_yaml_files_describe_paths(tmp_path):
+    (tmp_path / "paths.json").write_text(json.dumps([{"segments": [{"type": "ramp", "from": 0, "to": 200, "seconds": 2}]}]))
+    (tmp_path / "turn.yaml").write_text("segments:\n  - {type: curve, speed: 100, turn_rate: -30, seconds: 3}\n")
+    ramp = load_control_file(tmp_path / "paths.json")[0]
+    assert ramp.velocities[0, 0] == pytest.approx(0) and ramp.velocities[-1, 0] == pytest.approx(200)
+    turn = load_control_file(tmp_path / "turn.yaml")[0]
+    assert turn.path().yaw[-1] < 0 and turn.name == "turn-0"
+
+
+@pytest.mark.parametrize("text, message", [
+    ('{"segments": []}', "non-empty 'segments'"),
+    ('{"segments": [{"type": "fly", "seconds": 1}]}', "unknown segment type 'fly'"),
+    ('{"segments": [{"type": "straight"}]}', "positive 'seconds'"),
+    ('{"segments": [{"type": "straight", "seconds": 1},]}', "invalid JSON"),
+])
+def test_bad_descriptions_name_the_problem(tmp_path, text, message):
+    path = tmp_path / "bad.json"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        load_control_file(path)
+
+
+def test_controls_round_trip_through_dicts():
+    control = synthetic_path({"name": "x", "segments": [{"type": "curve", "seconds": 1}]})
+    again = control_from_dict(json.loads(json.dumps(control.to_dict())))
+    assert isinstance(again, PathControl) and again.name == "x"
+    np.testing.assert_allclose(again.velocities, control.velocities, atol=1e-4)
+
+
+def test_held_out_control_comes_from_held_out_natural_clips(motion_data, tmp_path):
+    from generation.motion.dataset import DatasetOptions, build_dataset
+
+    dataset = build_dataset(motion_data, DatasetOptions(contents=("walk-back",)), cache_dir=tmp_path, progress=False)
+    controls = held_out_paths(dataset, seconds=4)
+    assert {c.name for c in controls} == {c.name for c in dataset.select("test")}
+    assert all(c.n_frames <= 80 for c in controls)
+    assert all(c.velocities[:, 0].mean() < -30 for c in controls)  # walking backwards
