@@ -4,12 +4,16 @@
   build-dataset FOLDER  encode a folder of BVH files into a cached training set
   render BVH...         draw clips as MP4 stick figures (and contact sheets)
   gallery FOLDER        render a few natural clips per content, with an index.json
+  train FOLDER          train a model (moglow, rnn, vae) on a BVH folder
+  sample CHECKPOINT     generate motion for control signals (npz, BVH, optional MP4)
+  evaluate CHECKPOINT   held-out loss (MoGlow: negative log-likelihood per frame)
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -125,6 +129,97 @@ def gallery(args: argparse.Namespace) -> int:
     return 0
 
 
+LOCOMOTION = "walk,run,dash,walk-back,walk-left,walk-right"
+
+
+def _dataset_for_training(args: argparse.Namespace):
+    options = DatasetOptions(contents=tuple(args.contents.split(",")) if args.contents else None)
+    return build_dataset(args.folder, options, cache_dir=args.cache_dir)
+
+
+def train_command(args: argparse.Namespace) -> int:
+    import torch
+
+    from .train import TrainOptions, train
+
+    if args.device.startswith("cuda") and not torch.cuda.is_available():
+        raise ValueError("--device cuda asked for, but torch sees no CUDA device (is a CUDA build of torch installed?)")
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    dataset = _dataset_for_training(args)
+    options = TrainOptions(steps=args.steps, eval_every=args.eval_every, seed=args.seed, device=args.device)
+    meta = train(args.model, args.preset, dataset, args.out, options, resume=args.resume)
+    last = meta.metrics["history"][-1]
+    print(f"{args.out}: step {meta.step}, held-out loss {last['val_loss']:.4f}, "
+          f"training loss {last['train_loss']:.4f}, {last['seconds']:.0f} s of training")
+    return 0
+
+
+def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
+    from .control import PRESETS, held_out_paths, load_control_file, preset_path
+
+    controls = []
+    for name in args.control:
+        if name == "held-out":
+            folder = args.data or os.environ.get("MOTION_DATA")
+            if not folder:
+                raise ValueError("held-out control needs the motion folder: --data FOLDER or $MOTION_DATA")
+            dataset = build_dataset(folder, DatasetOptions.from_dict(dataset_options), cache_dir=args.cache_dir)
+            controls += held_out_paths(dataset, args.seconds)
+        elif name in PRESETS:
+            controls.append(preset_path(name, fps))
+        else:
+            controls += load_control_file(name, fps)
+    return controls
+
+
+def sample_command(args: argparse.Namespace) -> int:
+    import numpy as np
+    from tqdm import tqdm
+
+    from .generator import Generator
+    from .motion.bvh import motion_to_bvh, write_bvh
+    from .files import atomic_output
+
+    generator = Generator.load(args.checkpoint, args.device)
+    controls = _controls(args, generator.fps, generator.meta.features["dataset_options"])
+    out = Path(args.out)
+    for control in tqdm(controls, desc="sampling", unit="control", disable=len(controls) < 2):
+        motions = generator.sample(control, n=args.n, seed=args.seed, temperature=args.temperature)
+        path = control.path()
+        for i, motion in enumerate(motions):
+            stem = f"{control.name}_{i:02d}"
+            with atomic_output(out / f"{stem}.npz") as tmp:
+                with open(tmp, "wb") as f:
+                    np.savez(f, positions=motion.positions, fps=motion.fps, names=np.array(motion.skeleton.names),
+                             parents=motion.skeleton.parents, offsets=motion.skeleton.offsets,
+                             control=control.velocities, path=path.xz)
+            write_bvh(motion_to_bvh(motion), out / f"{stem}.bvh")
+            if args.render:
+                from .render import render_video
+
+                render_video(motion, out / f"{stem}.mp4", camera=_camera(args), size=args.size, root_path=path.xz)
+    print(f"{len(controls) * args.n} clips in {out}")
+    return 0
+
+
+def evaluate_command(args: argparse.Namespace) -> int:
+    from .checkpoint import load_checkpoint
+    from .train import evaluate_loss, tensors
+
+    model, meta = load_checkpoint(args.checkpoint, args.device)
+    folder = args.data or os.environ.get("MOTION_DATA")
+    if not folder:
+        raise ValueError("evaluation needs the motion folder: --data FOLDER or $MOTION_DATA")
+    dataset = build_dataset(folder, DatasetOptions.from_dict(meta.features["dataset_options"]), cache_dir=args.cache_dir)
+    if dataset.fingerprint != meta.data_fingerprint:
+        print("warning: this data differs from the data the model was trained on", file=sys.stderr)
+    loss = evaluate_loss(model, tensors(dataset, "test", args.device))
+    name = "negative log-likelihood (nats per frame)" if meta.kind == "moglow" else "loss"
+    print(f"{args.checkpoint}: held-out {name}: {loss:.4f} over {len(dataset.select('test'))} held-out takes")
+    return 0
+
+
 def parser() -> argparse.ArgumentParser:
     root = argparse.ArgumentParser(prog="python -m generation", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = root.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -167,6 +262,49 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--seconds", type=float, default=4.0, help="length of each clip (default %(default)s)")
     _add_camera_arguments(p)
     p.set_defaults(run=gallery)
+
+    p = commands.add_parser("train", help="train a model on a BVH folder",
+                            description="Train a model on the locomotion clips of FOLDER (held-out takes for "
+                                        "validation). Writes CHECKPOINT (safetensors + JSON header) at every evaluation; "
+                                        "--resume continues from it.")
+    p.add_argument("folder", help="folder of .bvh files")
+    p.add_argument("--model", choices=("moglow", "rnn", "vae"), default="moglow", help="model kind (default %(default)s)")
+    p.add_argument("--preset", default="cpu", help="configuration preset: cpu, paper, or with an ablation such as cpu-MG-D (default %(default)s)")
+    p.add_argument("--out", "-o", required=True, help="checkpoint path (.safetensors)")
+    p.add_argument("--steps", type=int, default=4000, help="total training steps (default %(default)s)")
+    p.add_argument("--eval-every", type=int, default=250, help="steps between validation and checkpoint (default %(default)s)")
+    p.add_argument("--resume", action="store_true", help="continue from the checkpoint at --out")
+    p.add_argument("--contents", default=LOCOMOTION, help="content labels to train on (default: locomotion)")
+    p.add_argument("--cache-dir", help="dataset cache folder")
+    p.add_argument("--device", default="cpu", help="cpu or cuda (default %(default)s)")
+    p.add_argument("--threads", type=int, help="CPU threads for torch")
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(run=train_command)
+
+    p = commands.add_parser("sample", help="generate motion for control signals",
+                            description="Sample N motions per control signal. CONTROL is a preset name "
+                                        "(walk-straight, walk-circle, sidestep-left, walk-backward, stand-still, speed-ramp, ...), "
+                                        "a JSON or YAML path description, or 'held-out' for the held-out natural clips.")
+    p.add_argument("checkpoint", help="a checkpoint written by train")
+    p.add_argument("--control", "-c", nargs="+", default=["walk-straight"], help="control presets, files or 'held-out'")
+    p.add_argument("--out", "-o", required=True, help="output folder (npz and BVH per clip)")
+    p.add_argument("--n", type=int, default=1, help="samples per control (default %(default)s)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--temperature", type=float, default=1.0, help="sampling temperature (default %(default)s)")
+    p.add_argument("--seconds", type=float, default=4.0, help="length of held-out control (default %(default)s)")
+    p.add_argument("--data", help="motion folder for held-out control (default $MOTION_DATA)")
+    p.add_argument("--cache-dir", help="dataset cache folder")
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--render", action="store_true", help="also render each clip to MP4")
+    _add_camera_arguments(p)
+    p.set_defaults(run=sample_command)
+
+    p = commands.add_parser("evaluate", help="held-out loss of a checkpoint")
+    p.add_argument("checkpoint")
+    p.add_argument("--data", help="motion folder (default $MOTION_DATA)")
+    p.add_argument("--cache-dir", help="dataset cache folder")
+    p.add_argument("--device", default="cpu")
+    p.set_defaults(run=evaluate_command)
     return root
 
 
@@ -174,6 +312,6 @@ def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
         return args.run(args)
-    except (BVHError, ValueError, FileNotFoundError) as error:
+    except (BVHError, ValueError, FileNotFoundError) as error:  # CheckpointError is a ValueError
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -155,7 +155,7 @@ class MotionDataset:
                 for c in clips
             ]
             data = np.concatenate(parts) if parts else np.empty((0, self.options.window_frames, self.arrays[key].shape[1]))
-            out[key] = self.stats[key].apply(data) if standardize else data
+            out[key] = (self.stats[key].apply(data) if standardize else data).astype(np.float32)
         return out
 
     def labels(self, split: str, kind: str = "content") -> list[str | None]:

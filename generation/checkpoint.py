@@ -1,0 +1,181 @@
+"""The checkpoint format: safetensors weights with a JSON description in the header.
+
+One ``.safetensors`` file holds everything needed to sample: the tensors, and under the
+header's ``motion_study`` metadata key a JSON object with the model kind, its
+hyperparameters, the feature specification, the standardisation statistics, the
+skeleton, the training data's fingerprint, the training step, the code version and a
+SHA-256 digest of the tensors. Loading never unpickles anything; a file whose JSON,
+tensor names, shapes or bytes do not match is refused with a message naming what is
+wrong. The optimiser state for resuming lives beside it, in ``NAME.optim.safetensors``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import subprocess
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+
+import torch
+from safetensors import SafetensorError, safe_open
+from safetensors.torch import load_file, save_file
+
+from .files import atomic_output
+from .models import model_class
+
+FORMAT_KEY = "motion_study"
+FORMAT_VERSION = 1
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that cannot be used; the message names the file and the problem."""
+
+
+@dataclass
+class CheckpointMeta:
+    """The JSON half of a checkpoint."""
+
+    kind: str
+    hyperparameters: dict
+    pose_dim: int
+    control_dim: int
+    features: dict  # {"type": "positions", "fps": 20.0, "root": {...}, ...}
+    stats: dict  # {"pose": {"mean": [...], "std": [...]}, "control": {...}}
+    skeleton: dict
+    data_fingerprint: str
+    step: int = 0
+    code_version: str = ""
+    metrics: dict = field(default_factory=dict)
+
+    def to_json(self) -> str:
+        return json.dumps({"format_version": FORMAT_VERSION, **dataclasses.asdict(self)})
+
+    @classmethod
+    def from_json(cls, text: str, path: Path) -> "CheckpointMeta":
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as error:
+            raise CheckpointError(f"{path}: the checkpoint's JSON header is invalid ({error.msg})") from None
+        if data.pop("format_version", None) != FORMAT_VERSION:
+            raise CheckpointError(f"{path}: checkpoint format version is not {FORMAT_VERSION}")
+        names = {f.name for f in dataclasses.fields(cls)}
+        required = {f.name for f in dataclasses.fields(cls) if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING}
+        missing, unknown = required - set(data), set(data) - names
+        if missing or unknown:
+            problems = [f"missing {', '.join(sorted(missing))}"] if missing else []
+            problems += [f"unknown {', '.join(sorted(unknown))}"] if unknown else []
+            raise CheckpointError(f"{path}: checkpoint JSON fields: {'; '.join(problems)}")
+        return cls(**data)
+
+
+def code_version() -> str:
+    """The package version, with the git commit when run from a checkout."""
+    try:
+        version = metadata.version("motion-study")
+    except metadata.PackageNotFoundError:
+        version = "unknown"
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=Path(__file__).parent,
+            capture_output=True, text=True, timeout=5,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        commit = ""
+    return f"{version}+{commit}" if commit else version
+
+
+def tensor_digest(tensors: dict[str, torch.Tensor]) -> str:
+    digest = hashlib.sha256()
+    for name in sorted(tensors):
+        digest.update(name.encode())
+        digest.update(tensors[name].detach().cpu().contiguous().numpy().tobytes())
+    return digest.hexdigest()
+
+
+def _save_atomic(tensors: dict[str, torch.Tensor], header: dict[str, str], path: Path) -> None:
+    with atomic_output(path) as tmp:
+        save_file(tensors, str(tmp), metadata=header)
+
+
+def save_checkpoint(path: str | os.PathLike, model: torch.nn.Module, meta: CheckpointMeta,
+                    optimizer: torch.optim.Optimizer | None = None) -> Path:
+    """Write the model (and, if given, the optimiser state beside it) atomically."""
+    path = Path(path)
+    tensors = {k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
+    header = {FORMAT_KEY: meta.to_json(), "digest": tensor_digest(tensors)}
+    _save_atomic(tensors, header, path)
+    if optimizer is not None:
+        state = optimizer.state_dict()
+        flat = {f"{index}.{key}": torch.as_tensor(value).detach().cpu().contiguous()
+                for index, entries in state["state"].items() for key, value in entries.items()}
+        _save_atomic(flat, {"param_groups": json.dumps(state["param_groups"])}, optimizer_path(path))
+    return path
+
+
+def optimizer_path(path: Path) -> Path:
+    return path.with_name(path.name.removesuffix(".safetensors") + ".optim.safetensors")
+
+
+def _read(path: Path) -> tuple[dict[str, torch.Tensor], dict[str, str]]:
+    if not path.is_file():
+        raise CheckpointError(f"{path}: no such checkpoint file")
+    try:
+        with safe_open(str(path), framework="pt") as f:
+            header = f.metadata() or {}
+        tensors = load_file(str(path))
+    except (SafetensorError, OSError, ValueError) as error:
+        raise CheckpointError(f"{path}: not a readable safetensors file ({error})") from None
+    return tensors, header
+
+
+def read_meta(path: str | os.PathLike) -> CheckpointMeta:
+    """The JSON description of a checkpoint, checked for form (the tensors are not checked)."""
+    path = Path(path)
+    _, header = _read(path)
+    if FORMAT_KEY not in header:
+        raise CheckpointError(f"{path}: a safetensors file, but not a checkpoint of this project (no '{FORMAT_KEY}' header)")
+    return CheckpointMeta.from_json(header[FORMAT_KEY], path)
+
+
+def load_checkpoint(path: str | os.PathLike, device: str | torch.device = "cpu") -> tuple[torch.nn.Module, CheckpointMeta]:
+    """The model (in eval mode, on ``device``) and its description, fully validated."""
+    path = Path(path)
+    tensors, header = _read(path)
+    if FORMAT_KEY not in header:
+        raise CheckpointError(f"{path}: a safetensors file, but not a checkpoint of this project (no '{FORMAT_KEY}' header)")
+    meta = CheckpointMeta.from_json(header[FORMAT_KEY], path)
+    if header.get("digest") != tensor_digest(tensors):
+        raise CheckpointError(f"{path}: the tensors do not match the checkpoint's digest (the file was changed or damaged)")
+    try:
+        cls = model_class(meta.kind)
+        config = cls.Config(**meta.hyperparameters)
+    except (KeyError, TypeError, ValueError) as error:
+        raise CheckpointError(f"{path}: {error}") from None
+    model = cls(config, meta.pose_dim, meta.control_dim)
+    expected = model.state_dict()
+    missing = sorted(set(expected) - set(tensors))
+    unexpected = sorted(set(tensors) - set(expected))
+    if missing or unexpected:
+        problems = ([f"missing tensor(s) {', '.join(missing[:5])}"] if missing else []) + (
+            [f"unexpected tensor(s) {', '.join(unexpected[:5])}"] if unexpected else [])
+        raise CheckpointError(f"{path}: does not fit a {meta.kind} model with these hyperparameters: {'; '.join(problems)}")
+    for name, tensor in tensors.items():
+        if tensor.shape != expected[name].shape:
+            raise CheckpointError(
+                f"{path}: tensor {name} has shape {tuple(tensor.shape)}, the model needs {tuple(expected[name].shape)}")
+    model.load_state_dict(tensors)
+    return model.to(device).eval(), meta
+
+
+def load_optimizer_state(path: str | os.PathLike, optimizer: torch.optim.Optimizer) -> None:
+    """Restore the optimiser state saved beside a checkpoint by ``save_checkpoint``."""
+    tensors, header = _read(optimizer_path(Path(path)))
+    state: dict[int, dict[str, torch.Tensor]] = {}
+    for name, tensor in tensors.items():
+        index, key = name.split(".", 1)
+        state.setdefault(int(index), {})[key] = tensor
+    optimizer.load_state_dict({"state": state, "param_groups": json.loads(header["param_groups"])})

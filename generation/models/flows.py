@@ -1,0 +1,225 @@
+"""Invertible transforms of sequences, the parts of a Glow step of flow as MoGlow uses it.
+
+Every transform maps ``x`` (batch, frames, dim) to ``(y, logabsdet)`` where ``logabsdet``
+(batch, frames) is log|det ∂y_t/∂x_t| of each frame, and ``inverse`` maps back, returning
+the log-determinant of the inverse. ``context`` (batch, frames, context_dim) is the
+conditioning information; only the coupling uses it.
+
+Sampling inverts the flow one frame at a time. ``frame_inverse()`` returns a callable
+``(y_t, context_t) -> x_t`` for that, with everything that does not change between
+frames (inverse weight matrices, concatenated LSTM weights) computed once, and with the
+recurrent state of the coupling network kept inside the callable rather than the module.
+Call it under ``torch.inference_mode()``, as ``MoGlow.generate`` does.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import torch
+from torch import nn
+
+FrameInverse = Callable[[torch.Tensor, torch.Tensor | None], torch.Tensor]
+
+
+class ActNorm(nn.Module):
+    """y = (x + bias) * exp(log_scale), per dimension (Glow, Sec. 3.1).
+
+    The first batch seen in training sets bias and scale so that its output has zero
+    mean and unit variance in every dimension; the ``initialized`` buffer records that
+    this happened, so a loaded checkpoint is not re-initialised.
+    """
+
+    def __init__(self, dim: int) -> None:
+        super().__init__()
+        self.bias = nn.Parameter(torch.zeros(dim))
+        self.log_scale = nn.Parameter(torch.zeros(dim))
+        self.register_buffer("initialized", torch.tensor(False))
+
+    @torch.no_grad()
+    def _initialize(self, x: torch.Tensor) -> None:
+        flat = x.reshape(-1, x.shape[-1])
+        self.bias.copy_(-flat.mean(0))
+        self.log_scale.copy_(-torch.log(flat.std(0, unbiased=False) + 1e-6))
+        self.initialized.fill_(True)
+
+    def forward(self, x: torch.Tensor, context: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        if self.training and not self.initialized:
+            self._initialize(x)
+        y = (x + self.bias) * torch.exp(self.log_scale)
+        return y, self.log_scale.sum().expand(x.shape[:-1])
+
+    def inverse(self, y: torch.Tensor, context: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        x = y * torch.exp(-self.log_scale) - self.bias
+        return x, (-self.log_scale.sum()).expand(y.shape[:-1])
+
+    def frame_inverse(self) -> FrameInverse:
+        inverse_scale, negative_bias = torch.exp(-self.log_scale), -self.bias
+        return lambda y, context: torch.addcmul(negative_bias, y, inverse_scale)
+
+
+class InvertibleLinearLU(nn.Module):
+    """y = W x with W = P L (U + diag(s)), s = sign * exp(log_s) (Glow's LU-decomposed 1×1 convolution).
+
+    P (a permutation) and the signs of s are fixed; L is unit lower triangular and U
+    strictly upper triangular. log|det W| = Σ log|s|, so the determinant costs nothing.
+    W starts as a random rotation, which mixes all dimensions from the first step.
+    """
+
+    def __init__(self, dim: int) -> None:
+        super().__init__()
+        rotation, _ = torch.linalg.qr(torch.randn(dim, dim, dtype=torch.float64))
+        permutation, lower, upper = torch.linalg.lu(rotation)
+        s = torch.diagonal(upper)
+        self.register_buffer("permutation", permutation.float())
+        self.register_buffer("sign_s", torch.sign(s).float())
+        self.lower = nn.Parameter(torch.tril(lower, -1).float())
+        self.upper = nn.Parameter(torch.triu(upper, 1).float())
+        self.log_s = nn.Parameter(torch.log(torch.abs(s)).float())
+        # Masks keep L and U triangular whatever the optimiser does to the zero entries.
+        self.register_buffer("lower_mask", torch.tril(torch.ones(dim, dim), -1), persistent=False)
+        self.register_buffer("eye", torch.eye(dim), persistent=False)
+
+    def _factors(self) -> tuple[torch.Tensor, torch.Tensor]:
+        lower = self.lower * self.lower_mask + self.eye
+        upper = self.upper * self.lower_mask.T + torch.diag(self.sign_s * torch.exp(self.log_s))
+        return lower, upper
+
+    def weight(self) -> torch.Tensor:
+        lower, upper = self._factors()
+        return self.permutation @ lower @ upper
+
+    def inverse_weight(self) -> torch.Tensor:
+        """W⁻¹ = (U + diag(s))⁻¹ L⁻¹ Pᵀ by triangular solves (exact and cheap)."""
+        lower, upper = self._factors()
+        lower_inv_pt = torch.linalg.solve_triangular(lower, self.permutation.T, upper=False, unitriangular=True)
+        return torch.linalg.solve_triangular(upper, lower_inv_pt, upper=True)
+
+    def forward(self, x: torch.Tensor, context: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        return x @ self.weight().T, self.log_s.sum().expand(x.shape[:-1])
+
+    def inverse(self, y: torch.Tensor, context: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        return y @ self.inverse_weight().T, (-self.log_s.sum()).expand(y.shape[:-1])
+
+    def frame_inverse(self) -> FrameInverse:
+        inverse_t = self.inverse_weight().T.contiguous()
+        return lambda y, context: y @ inverse_t
+
+
+class AffineCoupling(nn.Module):
+    """x = (x_a, x_b) ↦ (y_a, x_b) with y_a = (x_a + t) ⊙ scale, scale = sigmoid(h) + 0.05.
+
+    (h, t) = A(x_b, context) where A is a unidirectional LSTM followed by a linear layer,
+    run along the frames, so each frame's transform depends on x_b and the context of
+    all earlier frames too. The shift is added before scaling, as in the
+    authors' code. The last layer starts at zero, so every coupling starts as the same
+    fixed scaling. The floor of 0.05 on the scale bounds how far one coupling can shrink
+    a dimension (the inverse divides by the scale), which keeps sampling stable.
+
+    x_b is the first ``dim // 2`` dimensions and x_a the rest.
+    """
+
+    def __init__(self, dim: int, context_dim: int, hidden: int, layers: int) -> None:
+        super().__init__()
+        self.split = dim // 2
+        self.lstm = nn.LSTM(self.split + context_dim, hidden, num_layers=layers, batch_first=True)
+        self.out = nn.Linear(hidden, 2 * (dim - self.split))
+        nn.init.zeros_(self.out.weight)
+        nn.init.zeros_(self.out.bias)
+
+    def _scale_and_shift(self, x_b: torch.Tensor, context: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        hidden, _ = self.lstm(torch.cat([x_b, context], dim=-1))
+        h, shift = self.out(hidden).chunk(2, dim=-1)
+        return torch.sigmoid(h) + 0.05, shift
+
+    def forward(self, x: torch.Tensor, context: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        x_b, x_a = x[..., : self.split], x[..., self.split :]
+        scale, shift = self._scale_and_shift(x_b, context)
+        return torch.cat([x_b, (x_a + shift) * scale], dim=-1), torch.log(scale).sum(-1)
+
+    def inverse(self, y: torch.Tensor, context: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        x_b, y_a = y[..., : self.split], y[..., self.split :]
+        scale, shift = self._scale_and_shift(x_b, context)
+        return torch.cat([x_b, y_a / scale - shift], dim=-1), -torch.log(scale).sum(-1)
+
+    def frame_inverse(self) -> FrameInverse:
+        return _CouplingFrameInverse(self)
+
+
+class _CouplingFrameInverse:
+    """One frame of ``AffineCoupling.inverse``, carrying the LSTM state between calls.
+
+    Each LSTM layer is one matrix product of (input, h) with [W_ih W_hh], concatenated
+    once per sampling run: fewer and larger products, and fewer elementwise calls, than
+    ``torch.lstm_cell`` or ``nn.LSTM`` make, which is where sampling spends its time.
+    """
+
+    def __init__(self, coupling: AffineCoupling) -> None:
+        lstm = coupling.lstm
+        self.split = coupling.split
+        self.layers = [
+            (
+                torch.cat([getattr(lstm, f"weight_ih_l{k}"), getattr(lstm, f"weight_hh_l{k}")], dim=1),
+                getattr(lstm, f"bias_ih_l{k}") + getattr(lstm, f"bias_hh_l{k}"),
+            )
+            for k in range(lstm.num_layers)
+        ]
+        self.hidden_size = lstm.hidden_size
+        self.out = coupling.out
+        self.state: list[tuple[torch.Tensor, torch.Tensor]] | None = None
+
+    def __call__(self, y: torch.Tensor, context: torch.Tensor | None) -> torch.Tensor:
+        x_b, y_a = y[:, : self.split], y[:, self.split :]
+        if self.state is None:
+            zeros = y.new_zeros(y.shape[0], self.hidden_size)
+            self.state = [(zeros, zeros)] * len(self.layers)
+        size, inputs = self.hidden_size, [x_b, context]
+        for k, (weight, bias) in enumerate(self.layers):
+            hidden, cell = self.state[k]
+            gates = torch.addmm(bias, torch.cat([*inputs, hidden], dim=1), weight.T)
+            # nn.LSTM's gate order is (input, forget, cell, output); one sigmoid serves three.
+            sigmoids = torch.sigmoid(gates)
+            cell_input = torch.tanh(gates[:, 2 * size : 3 * size])
+            cell = torch.addcmul(sigmoids[:, size : 2 * size] * cell, sigmoids[:, :size], cell_input)
+            hidden = sigmoids[:, 3 * size :] * torch.tanh(cell)
+            self.state[k] = (hidden, cell)
+            inputs = [hidden]
+        h, shift = self.out(inputs[0]).chunk(2, dim=1)
+        return torch.cat([x_b, y_a / (torch.sigmoid(h) + 0.05) - shift], dim=1)
+
+
+class Flow(nn.Module):
+    """A composition of transforms: forward applies them in order and sums the log-determinants."""
+
+    def __init__(self, transforms: list[nn.Module]) -> None:
+        super().__init__()
+        self.transforms = nn.ModuleList(transforms)
+
+    def forward(self, x: torch.Tensor, context: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        total = x.new_zeros(x.shape[:-1])
+        for transform in self.transforms:
+            x, logabsdet = transform(x, context)
+            total = total + logabsdet
+        return x, total
+
+    def inverse(self, y: torch.Tensor, context: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        total = y.new_zeros(y.shape[:-1])
+        for transform in reversed(self.transforms):
+            y, logabsdet = transform.inverse(y, context)
+            total = total + logabsdet
+        return y, total
+
+    def frame_inverse(self) -> FrameInverse:
+        steps = [transform.frame_inverse() for transform in reversed(self.transforms)]
+
+        def invert(y: torch.Tensor, context: torch.Tensor | None) -> torch.Tensor:
+            for step in steps:
+                y = step(y, context)
+            return y
+
+        return invert
+
+
+def glow_step(dim: int, context_dim: int, hidden: int, layers: int) -> list[nn.Module]:
+    """One step of flow: actnorm, then an invertible linear map, then an affine coupling."""
+    return [ActNorm(dim), InvertibleLinearLU(dim), AffineCoupling(dim, context_dim, hidden, layers)]

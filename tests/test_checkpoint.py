@@ -1,0 +1,160 @@
+"""Checkpoints, training, resuming and the Generator, with a tiny MoGlow on real clips."""
+
+from __future__ import annotations
+
+import json
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from generation.checkpoint import CheckpointError, load_checkpoint, read_meta, save_checkpoint
+from generation.control import preset_path
+from generation.generator import Generator
+from generation.motion.dataset import DatasetOptions, build_dataset
+from generation.train import TrainOptions, train
+
+CLIPS = ["walk_normal_001", "walk_happy_001", "walk-back_normal_001", "run_normal_001", "walk-left_old_001", "walk_old_002"]
+
+
+@pytest.fixture(scope="module")
+def dataset(motion_data, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("clips")
+    for name in CLIPS:
+        for suffix in (".bvh", ".json"):
+            (folder / f"dataset-1_{name}{suffix}").symlink_to(motion_data / "data" / f"dataset-1_{name}{suffix}")
+    (folder / "cfg").symlink_to(motion_data / "cfg")
+    return build_dataset(folder, DatasetOptions(holdout_fraction=0.2), cache_dir=tmp_path_factory.mktemp("cache"), progress=False)
+
+
+@pytest.fixture(scope="module")
+def tiny_preset(monkeypatch_module):
+    """A MoGlow small enough to train in seconds, registered as the preset 'tiny'."""
+    import dataclasses
+
+    from generation import models
+
+    kind_class, make = models.MODELS["moglow"]
+    tiny = dataclasses.replace(make("cpu"), steps=2, tau=3, lstm_hidden=16, batch_size=8, warmup_steps=0)
+    monkeypatch_module.setitem(models.MODELS, "moglow", (kind_class, lambda name: tiny if name == "tiny" else make(name)))
+    return "tiny"
+
+
+@pytest.fixture(scope="module")
+def monkeypatch_module():
+    patch = pytest.MonkeyPatch()
+    yield patch
+    patch.undo()
+
+
+@pytest.fixture(scope="module")
+def checkpoint(dataset, tiny_preset, tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("run") / "moglow.safetensors"
+    train("moglow", tiny_preset, dataset, path, TrainOptions(steps=20, eval_every=10), progress=False)
+    return path
+
+
+def test_training_writes_a_checkpoint_describing_model_data_and_progress(checkpoint, dataset):
+    meta = read_meta(checkpoint)
+    assert meta.kind == "moglow" and meta.step == 20 and meta.pose_dim == 63 and meta.control_dim == 3
+    assert meta.data_fingerprint == dataset.fingerprint
+    assert [h["step"] for h in meta.metrics["history"]] == [10, 20]
+    assert np.isfinite(meta.metrics["val_loss"])
+    assert meta.skeleton["names"][0] == "Hips" and len(meta.stats["pose"]["mean"]) == 63
+    assert meta.code_version
+    assert Path(str(checkpoint).replace(".safetensors", ".optim.safetensors")).is_file()
+
+
+def test_resuming_continues_from_the_saved_step(checkpoint, dataset, tiny_preset, tmp_path):
+    copy = tmp_path / "resumed.safetensors"
+    copy.write_bytes(checkpoint.read_bytes())
+    (tmp_path / "resumed.optim.safetensors").write_bytes(
+        Path(str(checkpoint).replace(".safetensors", ".optim.safetensors")).read_bytes())
+    meta = train("moglow", tiny_preset, dataset, copy, TrainOptions(steps=30, eval_every=10), resume=True, progress=False)
+    assert meta.step == 30 and [h["step"] for h in meta.metrics["history"]] == [10, 20, 30]
+
+
+def test_samples_are_reproducible_and_survive_save_and_load(checkpoint, tmp_path):
+    generator = Generator.load(checkpoint)
+    control = preset_path("walk-circle")
+    a = generator.sample(control, n=2, seed=7)
+    b = generator.sample(control, n=2, seed=7)
+    c = generator.sample(control, n=2, seed=8)
+    assert len(a) == 2 and a[0].positions.shape == (control.n_frames, 21, 3) and a[0].fps == 20.0
+    np.testing.assert_array_equal(a[0].positions, b[0].positions)
+    assert not np.allclose(a[0].positions, c[0].positions)
+    assert not np.allclose(a[0].positions, a[1].positions)  # two different samples
+
+    model, meta = load_checkpoint(checkpoint)
+    copy = save_checkpoint(tmp_path / "copy.safetensors", model, meta)
+    again = Generator.load(copy).sample(control, n=2, seed=7)
+    np.testing.assert_array_equal(again[1].positions, a[1].positions)
+
+
+def test_generated_root_follows_the_control_path(checkpoint):
+    control = preset_path("walk-straight")
+    motion = Generator.load(checkpoint).sample(control, seed=1)[0]
+    # The pose is placed on the integrated path: the hips end up near the path's end.
+    end = control.path().xz[-1]
+    assert np.linalg.norm(motion.positions[-1, 0, [0, 2]] - end) < 100
+
+
+def _rewrite_header(path: Path, out: Path, change) -> Path:
+    data = path.read_bytes()
+    (length,) = struct.unpack("<Q", data[:8])
+    header = json.loads(data[8 : 8 + length])
+    change(header)
+    text = json.dumps(header).encode()
+    out.write_bytes(struct.pack("<Q", len(text)) + text + data[8 + length :])
+    return out
+
+
+def _set_meta(field, value):
+    def change(header):
+        meta = json.loads(header["__metadata__"]["motion_study"])
+        meta[field] = value
+        header["__metadata__"]["motion_study"] = json.dumps(meta)
+    return change
+
+
+@pytest.mark.parametrize("tamper, message", [
+    (lambda p, out: out.write_bytes(p.read_bytes()[:-100]) and out, "not a readable safetensors file"),
+    (lambda p, out: out.write_bytes(p.read_bytes()[:-8] + b"\x00" * 8) and out, "do not match the checkpoint's digest"),
+    (lambda p, out: _rewrite_header(p, out, _set_meta("kind", "gan")), "unknown model kind 'gan'"),
+    (lambda p, out: _rewrite_header(p, out, _set_meta("pose_dim", 60)), "has shape"),
+    (lambda p, out: _rewrite_header(p, out, lambda h: h["__metadata__"].pop("motion_study")), "not a checkpoint of this project"),
+])
+def test_tampered_checkpoints_fail_with_a_message_naming_the_problem(checkpoint, tmp_path, tamper, message):
+    bad = tamper(checkpoint, tmp_path / "bad.safetensors")
+    with pytest.raises(CheckpointError, match=message) as error:
+        load_checkpoint(bad)
+    assert str(bad) in str(error.value)
+
+
+def test_a_checkpoint_with_a_missing_tensor_is_refused(checkpoint, tmp_path):
+    from safetensors.torch import load_file, save_file
+
+    from generation.checkpoint import FORMAT_KEY, tensor_digest
+
+    tensors = load_file(str(checkpoint))
+    tensors.pop(sorted(tensors)[0])
+    meta = read_meta(checkpoint)
+    save_file(tensors, str(tmp_path / "short.safetensors"),
+              metadata={FORMAT_KEY: meta.to_json(), "digest": tensor_digest(tensors)})
+    with pytest.raises(CheckpointError, match="missing tensor"):
+        load_checkpoint(tmp_path / "short.safetensors")
+
+
+def test_loading_never_unpickles(checkpoint, monkeypatch):
+    import pickle
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("unpickling attempted")
+
+    monkeypatch.setattr(pickle, "load", refuse)
+    monkeypatch.setattr(pickle, "loads", refuse)
+    monkeypatch.setattr(torch, "load", refuse)
+    model, _ = load_checkpoint(checkpoint)
+    assert not model.training
