@@ -127,7 +127,7 @@ def train(
         loss.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
         optimizer.step()
-        recent.append(float(loss))
+        recent.append(loss.detach().item())
         if not np.isfinite(recent[-1]):
             raise FloatingPointError(f"the training loss became {recent[-1]} at step {step + 1}; "
                                      "try a lower learning rate or stronger gradient clipping")

@@ -20,13 +20,18 @@ CLIPS = ["walk_normal_001", "walk_happy_001", "walk-back_normal_001", "run_norma
 
 
 @pytest.fixture(scope="module")
-def dataset(motion_data, tmp_path_factory):
+def clips_folder(motion_data, tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("clips")
     for name in CLIPS:
         for suffix in (".bvh", ".json"):
             (folder / f"dataset-1_{name}{suffix}").symlink_to(motion_data / "data" / f"dataset-1_{name}{suffix}")
     (folder / "cfg").symlink_to(motion_data / "cfg")
-    return build_dataset(folder, DatasetOptions(holdout_fraction=0.2), cache_dir=tmp_path_factory.mktemp("cache"), progress=False)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def dataset(clips_folder, tmp_path_factory):
+    return build_dataset(clips_folder, DatasetOptions(holdout_fraction=0.2), cache_dir=tmp_path_factory.mktemp("cache"), progress=False)
 
 
 @pytest.fixture(scope="module")
@@ -158,3 +163,40 @@ def test_loading_never_unpickles(checkpoint, monkeypatch):
     monkeypatch.setattr(torch, "load", refuse)
     model, _ = load_checkpoint(checkpoint)
     assert not model.training
+
+
+def test_sample_command_writes_npz_bvh_and_video_per_clip(checkpoint, tmp_path, capsys):
+    from generation.cli import main
+    from generation.motion import load_motion
+
+    control_file = tmp_path / "turn.yaml"
+    control_file.write_text("segments:\n  - {type: curve, speed: 100, turn_rate: 30, seconds: 2}\n")
+    out = tmp_path / "samples"
+    code = main(["sample", str(checkpoint), "-c", "stand-still", str(control_file), "--n", "2", "--out", str(out),
+                 "--render", "--size", "160x120"])
+    assert code == 0, capsys.readouterr().err
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted(f"{stem}_{i:02d}.{ext}" for stem in ("stand-still", "turn-0") for i in range(2) for ext in ("bvh", "mp4", "npz"))
+    with np.load(out / "turn-0_01.npz") as clip:
+        assert clip["positions"].shape == (40, 21, 3) and float(clip["fps"]) == 20.0
+        np.testing.assert_allclose(load_motion(out / "turn-0_01.bvh").positions, clip["positions"], atol=1e-4)
+
+
+def test_evaluate_command_reports_held_out_nll(checkpoint, clips_folder, tmp_path, capsys):
+    from generation.cli import main
+
+    assert main(["evaluate", str(checkpoint), "--data", str(clips_folder), "--cache-dir", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "held-out negative log-likelihood (nats per frame)" in out
+    value = float(out.split(":")[-1].split()[0])
+    assert value == pytest.approx(read_meta(checkpoint).metrics["val_loss"], rel=1e-4)
+
+
+def test_a_broken_checkpoint_is_a_clean_command_line_error(tmp_path, capsys):
+    from generation.cli import main
+
+    bad = tmp_path / "model.safetensors"
+    bad.write_bytes(b"not a checkpoint")
+    assert main(["sample", str(bad), "--out", str(tmp_path / "out")]) == 2
+    assert f"{bad}: not a readable safetensors file" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

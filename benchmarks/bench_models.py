@@ -1,0 +1,133 @@
+"""Benchmark: MoGlow and baseline sampling and training speed on this machine.
+
+Sampling frames/s at batch 1 and batch 64, and training steps/s, for the ``paper`` and
+``cpu`` presets (63-D poses, 3-D control, 80-frame windows of the real data for ActNorm's
+initialisation and the training steps). The reference is the authors' official MoGlow
+implementation measured on this machine with the paper-sized model: 17.9 frames/s at
+batch 1 and 570 frames/s at batch 64. That code is not part of this repository, so its
+figures are constants here rather than re-measured in each run.
+
+Targets: the paper preset samples faster than real time (20 fps) at batch 1, a
+4-second clip for each of 64 control signals takes under a minute, and ours beats the
+reference by 2x at both batch sizes.
+
+    python benchmarks/bench_models.py [--json] [--threads N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from benchmarks.machine import describe_machine  # noqa: E402
+from generation.models import model_class, preset  # noqa: E402
+from generation.motion.dataset import DatasetOptions, build_dataset  # noqa: E402
+
+REFERENCE_FPS = {1: 17.9, 64: 570.0}  # official MoGlow, paper-sized, this machine
+LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right")
+
+
+def windows(data: str) -> tuple[torch.Tensor, torch.Tensor]:
+    dataset = build_dataset(data, DatasetOptions(contents=LOCOMOTION), progress=False)
+    w = dataset.windows("train")
+    return torch.as_tensor(w["pose"]), torch.as_tensor(w["control"])
+
+
+def sampling_fps(model, control: torch.Tensor, batch: int, frames: int = 80, repeats: int = 2) -> float:
+    c = control[:1, :frames].expand(batch, -1, -1).contiguous()
+    model.generate(c, None, 1.0, torch.Generator().manual_seed(0))  # warm-up
+    best = float("inf")
+    for r in range(repeats):
+        start = time.perf_counter()
+        model.generate(c, None, 1.0, torch.Generator().manual_seed(r))
+        best = min(best, time.perf_counter() - start)
+    generated = frames - model.context_frames
+    return batch * generated / best
+
+
+def training_steps_per_s(model, pose, control, steps: int = 5) -> float:
+    optimizer = torch.optim.Adam(model.parameters(), lr=1e-4)
+    model.train()
+    batch = model.config.batch_size
+    times = []
+    for step in range(steps + 1):
+        index = torch.randint(len(pose), (batch,))
+        start = time.perf_counter()
+        loss, _ = model.loss(pose[index], control[index])
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        times.append(time.perf_counter() - start)
+    return 1.0 / (sum(times[1:]) / steps)  # the first step includes set-up
+
+
+def run(data: str) -> dict:
+    pose, control = windows(data)
+    rows = []
+    for kind in ("moglow", "rnn", "vae"):
+        for name in ("paper", "cpu"):
+            config = preset(kind, name)
+            torch.manual_seed(0)
+            model = model_class(kind)(config, pose.shape[-1], control.shape[-1])
+            model.train()
+            with torch.no_grad():
+                model.loss(pose[:64], control[:64])  # data-dependent initialisation (ActNorm)
+            row = {"model": kind, "preset": name, "parameters": sum(p.numel() for p in model.parameters()),
+                   "train_steps_per_s": round(training_steps_per_s(model, pose, control), 2),
+                   "train_batch": config.batch_size}
+            model.eval()
+            for batch in (1, 64):
+                row[f"sample_fps_batch{batch}"] = round(sampling_fps(model, control, batch), 1)
+            rows.append(row)
+            print(json.dumps(row), file=sys.stderr, flush=True)
+    paper = next(r for r in rows if r["model"] == "moglow" and r["preset"] == "paper")
+    targets = {
+        "paper batch 1 faster than real time (20 fps)": paper["sample_fps_batch1"] > 20,
+        "64 clips of 4 s in under a minute": 64 * 80 / paper["sample_fps_batch64"] < 60,
+        "2x the official implementation at batch 1": paper["sample_fps_batch1"] >= 2 * REFERENCE_FPS[1],
+        "2x the official implementation at batch 64": paper["sample_fps_batch64"] >= 2 * REFERENCE_FPS[64],
+    }
+    return {
+        "benchmark": "model sampling and training speed",
+        "rows": rows,
+        "reference_fps": REFERENCE_FPS,
+        "ratio_batch1": round(paper["sample_fps_batch1"] / REFERENCE_FPS[1], 2),
+        "ratio_batch64": round(paper["sample_fps_batch64"] / REFERENCE_FPS[64], 2),
+        "targets": targets,
+        "threads": torch.get_num_threads(),
+        "machine": describe_machine(),
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--data", default=os.environ.get("MOTION_DATA", "../shared/data/bandai-namco-1"))
+    parser.add_argument("--threads", type=int, help="torch CPU threads (default: torch's choice)")
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    result = run(args.data)
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(f"{'model':<8}{'preset':<8}{'params':>12}{'train steps/s':>15}{'fps b=1':>10}{'fps b=64':>10}")
+        for r in result["rows"]:
+            print(f"{r['model']:<8}{r['preset']:<8}{r['parameters']:>12,}{r['train_steps_per_s']:>15}"
+                  f"{r['sample_fps_batch1']:>10}{r['sample_fps_batch64']:>10}")
+        print(f"MoGlow paper vs official implementation: {result['ratio_batch1']}x at batch 1, "
+              f"{result['ratio_batch64']}x at batch 64")
+        for target, met in result["targets"].items():
+            print(f"  {'met   ' if met else 'MISSED'} {target}")
+    return 0 if all(result["targets"].values()) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
