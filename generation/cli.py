@@ -17,11 +17,21 @@ import os
 import sys
 from pathlib import Path
 
-from .motion.bvh import BVHError, read_bvh
+import numpy as np
+from tqdm import tqdm
+
+from .control import PRESETS, held_out_paths, load_control_file, preset_path
+from .files import atomic_output
+from .gallery import GalleryOptions, build_gallery
+from .motion.bvh import BVHError, load_motion, motion_to_bvh, read_bvh, write_bvh
 from .motion.dataset import DatasetOptions, MotionDataset, build_dataset, default_cache_dir
 from .motion.kinematics import subtree_motion
 from .motion.resample import resample
 from .motion.root import RootOptions, hips_index, root_trajectory
+from .render import Camera, contact_sheet, render_video
+
+# Modules that import torch (train, generator, checkpoint) are imported by the commands
+# that need them, so that --help, info, render and gallery start quickly.
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -33,8 +43,6 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def _add_camera_arguments(parser: argparse.ArgumentParser) -> None:
-    from .render import Camera
-
     default = Camera()
     group = parser.add_argument_group("camera (keep it the same for every system of a study)")
     group.add_argument("--azimuth", type=float, default=default.azimuth, help="degrees about the vertical (default %(default)s)")
@@ -45,8 +53,6 @@ def _add_camera_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _camera(args: argparse.Namespace):
-    from .render import Camera
-
     return Camera(azimuth=args.azimuth, elevation=args.elevation, distance=args.distance)
 
 
@@ -95,10 +101,6 @@ def build(args: argparse.Namespace) -> int:
 
 
 def render(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
-    from .motion.bvh import load_motion
-    from .render import contact_sheet, render_video
 
     out = Path(args.out)
     if len(args.bvh) > 1 and out.suffix:
@@ -118,8 +120,6 @@ def render(args: argparse.Namespace) -> int:
 
 
 def gallery(args: argparse.Namespace) -> int:
-    from .gallery import GalleryOptions, build_gallery
-
     options = GalleryOptions(
         fps=args.fps, seconds=args.seconds, size=args.size, per_content=args.per_content,
         contents=tuple(args.contents.split(",")) if args.contents else None, camera=_camera(args),
@@ -156,8 +156,6 @@ def train_command(args: argparse.Namespace) -> int:
 
 
 def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
-    from .control import PRESETS, held_out_paths, load_control_file, preset_path
-
     controls = []
     for name in args.control:
         if name == "held-out":
@@ -174,12 +172,7 @@ def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
 
 
 def sample_command(args: argparse.Namespace) -> int:
-    import numpy as np
-    from tqdm import tqdm
-
     from .generator import Generator
-    from .motion.bvh import motion_to_bvh, write_bvh
-    from .files import atomic_output
 
     generator = Generator.load(args.checkpoint, args.device)
     controls = _controls(args, generator.fps, generator.meta.features["dataset_options"])
@@ -196,8 +189,6 @@ def sample_command(args: argparse.Namespace) -> int:
                              control=control.velocities, path=path.xz)
             write_bvh(motion_to_bvh(motion), out / f"{stem}.bvh")
             if args.render:
-                from .render import render_video
-
                 render_video(motion, out / f"{stem}.mp4", camera=_camera(args), size=args.size, root_path=path.xz)
     print(f"{len(controls) * args.n} clips in {out}")
     return 0
