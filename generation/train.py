@@ -80,6 +80,11 @@ def checkpoint_meta(model: MotionModel, dataset: MotionDataset, step: int, metri
     )
 
 
+def best_path(out: Path) -> Path:
+    """Where the checkpoint with the lowest held-out loss so far is kept."""
+    return out.with_name(out.name.removesuffix(".safetensors") + ".best.safetensors")
+
+
 def train(
     kind: str,
     preset_name: str,
@@ -89,7 +94,11 @@ def train(
     resume: bool = False,
     progress: bool = True,
 ) -> CheckpointMeta:
-    """Train (or with ``resume`` continue) a model; returns the last checkpoint's description."""
+    """Train (or with ``resume`` continue) a model; returns the last checkpoint's description.
+
+    ``out`` always holds the latest state (and its optimiser, for resuming);
+    ``NAME.best.safetensors`` beside it the state with the lowest held-out loss.
+    """
     out = Path(out)
     torch.manual_seed(options.seed)
     train_data, val_data = tensors(dataset, "train", options.device), tensors(dataset, "test", options.device)
@@ -140,5 +149,8 @@ def train(
             bar.set_postfix(train=f"{history[-1]['train_loss']:.3f}", val=f"{val:.3f}")
             meta = checkpoint_meta(model, dataset, done, {"val_loss": val, "history": history})
             save_checkpoint(out, model, meta, optimizer)
+            # Small baselines overfit the few held-out takes early: keep the best as well.
+            if val <= min(h["val_loss"] for h in history):
+                save_checkpoint(best_path(out), model, meta)
     bar.close()
     return read_meta(out)

@@ -70,6 +70,8 @@ def test_training_writes_a_checkpoint_describing_model_data_and_progress(checkpo
     assert meta.skeleton["names"][0] == "Hips" and len(meta.stats["pose"]["mean"]) == 63
     assert meta.code_version
     assert Path(str(checkpoint).replace(".safetensors", ".optim.safetensors")).is_file()
+    best = read_meta(Path(str(checkpoint).replace(".safetensors", ".best.safetensors")))
+    assert best.metrics["val_loss"] == min(h["val_loss"] for h in meta.metrics["history"])
 
 
 def test_resuming_continues_from_the_saved_step(checkpoint, dataset, tiny_preset, tmp_path):
