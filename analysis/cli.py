@@ -1,16 +1,24 @@
-"""Command line: ``python -m analysis report RATINGS.csv --out report/`` (or motion-analysis)."""
+"""Command line (or ``motion-analysis``):
+
+    python -m analysis report RATINGS.csv --out report/ [--motion DIR ...]
+    python -m analysis objective DIR ... --out objective/
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
+from analysis import plots
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import ExclusionRules
 from analysis.motion_io import load_motion_sets
+from analysis.objective import objective_metrics
 from analysis.ratings import read_ratings
 from analysis.report import build_report, write_report
+from analysis.tables import objective_table, to_markdown, write_table
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -50,7 +58,34 @@ def _parser() -> argparse.ArgumentParser:
                                               "found by name)")
     report.add_argument("--foot-kind", choices=("heel", "toe"), default="heel",
                         help="heel for bipeds (default), toe for quadrupeds")
+    _add_objective_parser(commands)
     return parser
+
+
+def _add_objective_parser(commands) -> None:
+    objective = commands.add_parser(
+        "objective", help="objective metrics of motion alone (no ratings): Table 3 and Fig. 5",
+        description="Footstep and bone-length metrics of each system's clips, the MoGlow Table 3 layout "
+                    "(value closest to the natural system marked) and the footstep curves.")
+    objective.add_argument("motion", nargs="+", metavar="DIR_OR_NPZ",
+                           help="motion clips (layout: analysis/motion_io.py); a subfolder or file stem names the system")
+    objective.add_argument("--out", required=True, help="folder to write tables and the figure into")
+    objective.add_argument("--natural", default="NAT", help="name of the natural-motion system")
+    objective.add_argument("--foot-joints", help="comma-separated foot joint names (default: found by name)")
+    objective.add_argument("--foot-kind", choices=("heel", "toe"), default="heel")
+
+
+def objective_command(args: argparse.Namespace) -> list[str]:
+    """Write the objective tables and figure; returns the notes."""
+    table, curves, notes = objective_metrics(load_motion_sets(args.motion), _split(args.foot_joints), args.foot_kind)
+    out = Path(args.out)
+    write_table(table, out / "tables", "objective_metrics")
+    write_table(objective_table(table, args.natural), out / "tables", "table3_objective",
+                caption=f"Objective metrics (MoGlow Table 3 layout); marked: closest to {args.natural}.")
+    write_table(curves, out / "tables", "footstep_curves", formats=("csv", "json"))
+    plots.save_figure(plots.footstep_plot(curves, args.natural), out / "figures", "footstep_curves")
+    print(to_markdown(objective_table(table, args.natural)))
+    return notes
 
 
 def _split(text: str | None) -> list[str] | None:
@@ -59,6 +94,15 @@ def _split(text: str | None) -> list[str] | None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if args.command == "objective":
+        try:
+            notes = objective_command(args)
+        except AnalysisInputError as exc:
+            print(f"motion-analysis: error: {exc}", file=sys.stderr)
+            return 2
+        for note in notes:
+            print(f"note: {note}")
+        return 0
     rules = ExclusionRules(natural_system=args.natural, attention_system=args.attention,
                            bad_at_or_above=args.bad_threshold, natural_below=args.nat_threshold,
                            discard_early=not args.keep_early)

@@ -6,6 +6,7 @@
   gallery FOLDER        render a few natural clips per content, with an index.json
   train FOLDER          train a model (moglow, rnn, vae) on a BVH folder
   sample CHECKPOINT     generate motion for control signals (npz, BVH, optional MP4)
+  natural FOLDER        export held-out natural clips the same way (the NAT system)
   evaluate CHECKPOINT   held-out loss (MoGlow: negative log-likelihood per frame)
 """
 
@@ -17,15 +18,14 @@ import os
 import sys
 from pathlib import Path
 
-import numpy as np
 from tqdm import tqdm
 
 from .control import PRESETS, held_out_paths, load_control_file, preset_path
-from .files import atomic_output
 from .gallery import GalleryOptions, build_gallery
 from .motion.bvh import BVHError, load_motion, motion_to_bvh, read_bvh, write_bvh
-from .motion.dataset import DatasetOptions, MotionDataset, build_dataset, default_cache_dir
+from .motion.dataset import DatasetOptions, MotionDataset, build_dataset, default_cache_dir, find_bvh_files
 from .motion.kinematics import subtree_motion
+from .motion.npz import save_motion_npz
 from .motion.resample import resample
 from .motion.root import RootOptions, hips_index, root_trajectory
 from .render import Camera, contact_sheet, render_video
@@ -182,15 +182,31 @@ def sample_command(args: argparse.Namespace) -> int:
         path = control.path()
         for i, motion in enumerate(motions):
             stem = f"{control.name}_{i:02d}"
-            with atomic_output(out / f"{stem}.npz") as tmp:
-                with open(tmp, "wb") as f:
-                    np.savez(f, positions=motion.positions, fps=motion.fps, names=np.array(motion.skeleton.names),
-                             parents=motion.skeleton.parents, offsets=motion.skeleton.offsets,
-                             control=control.velocities, path=path.xz)
+            save_motion_npz(motion, out / f"{stem}.npz", control=control.velocities, path=path.xz)
             write_bvh(motion_to_bvh(motion), out / f"{stem}.bvh")
             if args.render:
                 render_video(motion, out / f"{stem}.mp4", camera=_camera(args), size=args.size, root_path=path.xz)
     print(f"{len(controls) * args.n} clips in {out}")
+    return 0
+
+
+def natural_command(args: argparse.Namespace) -> int:
+    options = DatasetOptions(contents=tuple(args.contents.split(",")) if args.contents else None)
+    dataset = build_dataset(args.folder, options, cache_dir=args.cache_dir)
+    clips = dataset.select(args.split, augmented=False)
+    folder = Path(args.folder)
+    files = {p.stem: p for p in find_bvh_files(folder)}
+    out = Path(args.out)
+    for clip in tqdm(clips, desc="natural clips", unit="clip", disable=len(clips) < 2):
+        motion = resample(load_motion(files[clip.name], options.scale), options.fps)
+        motion = subtree_motion(motion, hips_index(motion.skeleton, options.root.hips))
+        keep = min(motion.n_frames, int(round(args.seconds * options.fps)))
+        motion = type(motion)(motion.positions[:keep], motion.fps, motion.skeleton)
+        save_motion_npz(motion, out / f"{clip.name}.npz")
+        if args.render:
+            floor = root_trajectory(motion, options.root).xz
+            render_video(motion, out / f"{clip.name}.mp4", camera=_camera(args), size=args.size, root_path=floor)
+    print(f"{len(clips)} natural {args.split} clips in {out}")
     return 0
 
 
@@ -289,6 +305,20 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--render", action="store_true", help="also render each clip to MP4")
     _add_camera_arguments(p)
     p.set_defaults(run=sample_command)
+
+    p = commands.add_parser("natural", help="export natural clips (held-out takes by default) like samples",
+                            description="Write the natural clips of a dataset split as npz (and optionally MP4), "
+                                        "processed exactly as the models' training data: the NAT system of a study "
+                                        "or of the objective metrics.")
+    p.add_argument("folder", help="folder of .bvh files")
+    p.add_argument("--out", "-o", required=True, help="output folder")
+    p.add_argument("--split", choices=("test", "train"), default="test", help="which takes (default: held-out)")
+    p.add_argument("--contents", default=LOCOMOTION, help="content labels (default: locomotion)")
+    p.add_argument("--seconds", type=float, default=4.0, help="length of each clip (default %(default)s)")
+    p.add_argument("--cache-dir", help="dataset cache folder")
+    p.add_argument("--render", action="store_true", help="also render each clip to MP4")
+    _add_camera_arguments(p)
+    p.set_defaults(run=natural_command)
 
     p = commands.add_parser("evaluate", help="held-out loss of a checkpoint")
     p.add_argument("checkpoint")

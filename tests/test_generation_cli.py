@@ -60,3 +60,17 @@ def test_gallery_renders_clips_and_an_index(motion_data, tmp_path):
     build_gallery(motion_data, tmp_path, options, progress=False)
     assert {p.name: p.stat().st_mtime_ns for p in tmp_path.glob("*.mp4")} == before
     assert np.isfinite([e["frames"] for e in entries]).all()
+
+
+def test_natural_clips_export_feeds_the_objective_metrics(motion_data, tmp_path, capsys):
+    from analysis.cli import main as analysis_main
+
+    out = tmp_path / "motion" / "NAT"
+    assert main(["natural", str(motion_data), "--contents", "walk", "--out", str(out), "--cache-dir", str(tmp_path)]) == 0
+    clips = sorted(out.glob("*.npz"))
+    assert clips and all(np.load(c)["positions"].shape == (80, 21, 3) for c in clips)
+    capsys.readouterr()
+    assert analysis_main(["objective", str(tmp_path / "motion"), "--out", str(tmp_path / "objective")]) == 0
+    table = (tmp_path / "objective" / "tables" / "objective_metrics.csv").read_text()
+    assert table.startswith("system,n_clips,v_tol_95,steps_per_s")
+    assert "NAT" in table and (tmp_path / "objective" / "figures" / "footstep_curves.png").is_file()
