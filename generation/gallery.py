@@ -14,7 +14,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from .files import write_atomic
-from .motion.bvh import load_motion
+from .motion.bvh import bvh_duration, load_motion
 from .motion.dataset import find_bvh_files, read_labels
 from .motion.kinematics import subtree_motion
 from .motion.resample import resample
@@ -50,10 +50,13 @@ class GalleryOptions:
         )
 
 
-def choose_clips(folder: str | os.PathLike, per_content: int, contents: tuple[str, ...] | None) -> list[Path]:
-    """The first ``per_content`` clips (by name) of each content label, "normal" style first."""
+def choose_clips(folder: str | os.PathLike, per_content: int, contents: tuple[str, ...] | None,
+                 seconds: float = 0.0) -> list[Path]:
+    """The first ``per_content`` clips (by name) of each content label: clips lasting at
+    least ``seconds`` first, then the "normal" style."""
     chosen: dict[str | None, list[Path]] = {}
-    files = sorted(find_bvh_files(folder), key=lambda p: (read_labels(p)[1] != "normal", p.name))
+    files = sorted(find_bvh_files(folder),
+                   key=lambda p: (bvh_duration(p) < seconds, read_labels(p)[1] != "normal", p.name))
     for path in files:
         content = read_labels(path)[0]
         if contents is not None and content not in contents:
@@ -99,7 +102,7 @@ def write_index(out_dir: str | os.PathLike, entries: list[dict]) -> Path:
 def build_gallery(folder: str | os.PathLike, out_dir: str | os.PathLike, options: GalleryOptions = GalleryOptions(), progress: bool = True) -> list[dict]:
     """Render the chosen clips into ``out_dir`` and write its ``index.json``."""
     out_dir = Path(out_dir)
-    clips = choose_clips(folder, options.per_content, options.contents)
+    clips = choose_clips(folder, options.per_content, options.contents, options.seconds)
     entries = [render_clip(p, out_dir, options) for p in tqdm(clips, desc="rendering gallery", unit="clip", disable=not progress)]
     write_index(out_dir, entries)
     return entries

@@ -4,12 +4,14 @@
 2. builds the MoGlow locomotion dataset from $MOTION_DATA (cached after the first run);
 3. starts one local Celery worker on the serverless filesystem broker;
 4. has the worker render a gallery of natural clips (one per content label);
-5. serves the gallery and the health page with Django's runserver until Ctrl-C.
+5. makes sure a researcher account exists (for the analysis pages);
+6. serves the gallery and the health page with Django's runserver until Ctrl-C.
 """
 
 from __future__ import annotations
 
 import os
+import secrets
 import signal
 import socket
 import subprocess
@@ -55,7 +57,7 @@ def render_gallery(data: Path, media_root: Path) -> int:
 
     options = GalleryOptions()
     out = media_root / "gallery"
-    clips = choose_clips(data, options.per_content, options.contents)
+    clips = choose_clips(data, options.per_content, options.contents, options.seconds)
     pending = [render_natural_clip.delay(str(p), str(out), options.to_dict()) for p in clips]
     entries = []
     with tqdm(total=len(pending), desc="worker rendering gallery", unit="clip") as bar:
@@ -64,6 +66,23 @@ def render_gallery(data: Path, media_root: Path) -> int:
             bar.update()
     write_index(out, entries)
     return len(entries)
+
+
+def ensure_researcher(var_dir: Path) -> tuple[str, str]:
+    """The demo's researcher login; the password is made once and kept under var/."""
+    from django.contrib.auth.models import User
+
+    name = "researcher"
+    secret = var_dir / "demo-researcher-password.txt"
+    if not secret.exists():
+        secret.write_text(secrets.token_urlsafe(12))
+        secret.chmod(0o600)
+    password = secret.read_text().strip()
+    user, _ = User.objects.get_or_create(username=name)
+    if not user.check_password(password):
+        user.set_password(password)
+        user.save()
+    return name, password
 
 
 def port_is_free(port: int) -> bool:
@@ -109,6 +128,7 @@ def main() -> int:
 
     say(f"database: {settings.DATABASES['default']['NAME']}")
     call_command("migrate", verbosity=0)
+    login = ensure_researcher(Path(settings.VAR_DIR))
     say(f"building the locomotion dataset from {data}")
     dataset = build_dataset(data, DatasetOptions(contents=LOCOMOTION))
     say(f"dataset {dataset.fingerprint[:12]}: {len(dataset.select('train', augmented=False))} training takes, "
@@ -127,6 +147,7 @@ def main() -> int:
         )
         say(f"gallery:  http://127.0.0.1:{port}/")
         say(f"health:   http://127.0.0.1:{port}/health/")
+        say(f"analysis: http://127.0.0.1:{port}/analysis/  (login {login[0]} / {login[1]})")
         say("press Ctrl-C to stop")
         server.wait()
     except KeyboardInterrupt:

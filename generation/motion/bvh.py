@@ -115,6 +115,23 @@ def read_bvh(path: str | os.PathLike) -> BVH:
     return BVH(skeleton, channels, frame_time, values)
 
 
+def bvh_duration(path: str | os.PathLike) -> float:
+    """Seconds of motion a BVH file declares, read from its header only (0 if unreadable)."""
+    frames = frame_time = None
+    with open(path) as f:
+        for line in f:
+            key, _, value = line.strip().partition(":")
+            if key == "Frames":
+                frames = value
+            elif key == "Frame Time":
+                frame_time = value
+                break
+    try:
+        return int(frames) * float(frame_time)
+    except (TypeError, ValueError):
+        return 0.0
+
+
 def load_motion(path: str | os.PathLike, scale: float = 1.0) -> Motion:
     """Read a BVH file straight into a Motion (positions by forward kinematics)."""
     return read_bvh(path).to_motion(scale)
