@@ -111,8 +111,7 @@ class AffineCoupling(nn.Module):
 
     (h, t) = A(x_b, context) where A is a unidirectional LSTM followed by a linear layer,
     run along the frames, so each frame's transform depends on x_b and the context of
-    all earlier frames too. The shift is added before scaling, as in the
-    authors' code. The last layer starts at zero, so every coupling starts as the same
+    all earlier frames too. The shift is added before scaling. The last layer starts at zero, so every coupling starts as the same
     fixed scaling. The floor of 0.05 on the scale bounds how far one coupling can shrink
     a dimension (the inverse divides by the scale), which keeps sampling stable.
 

@@ -39,7 +39,7 @@ class MoGlowConfig:
     lstm_hidden: int = 512
     lstm_layers: int = 2
     dropout: float = 0.95  # probability of zeroing each past pose in the conditioning (training only)
-    learning_rate: float = 1e-3  # Adam, with the Noam schedule of generation.train, as in the authors' code
+    learning_rate: float = 1e-3  # Adam, with the Noam schedule of generation.train
     warmup_steps: int = 1000  # of the Noam schedule; 0 keeps the learning rate constant
     grad_clip: float = 100.0  # gradient-norm clipping: a guard against rare exploding steps, not a regulariser
     batch_size: int = 100
