@@ -182,7 +182,7 @@ def sample_command(args: argparse.Namespace) -> int:
         path = control.path()
         for i, motion in enumerate(motions):
             stem = f"{control.name}_{i:02d}"
-            save_motion_npz(motion, out / f"{stem}.npz", control=control.velocities, path=path.xz)
+            save_motion_npz(motion, out / f"{stem}.npz", control=control.velocities, floor_path=path.xz)
             write_bvh(motion_to_bvh(motion), out / f"{stem}.bvh")
             if args.render:
                 render_video(motion, out / f"{stem}.mp4", camera=_camera(args), size=args.size, root_path=path.xz)

@@ -1,7 +1,7 @@
 """Motion as ``.npz``: the layout ``analysis`` reads for the objective metrics.
 
 Keys: positions (frames, joints, 3) cm; fps; names; parents; offsets (joints, 3); and any
-extra arrays given (e.g. the control and floor path a clip was generated for).
+extra arrays given (e.g. ``control`` and ``floor_path``, what a clip was generated for).
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ from ..files import write_atomic
 from .types import Motion
 
 
-def save_motion_npz(motion: Motion, path: str | os.PathLike, **extra: np.ndarray) -> Path:
+def save_motion_npz(motion: Motion, file: str | os.PathLike, **extra: np.ndarray) -> Path:
     """Write a motion (and ``extra`` arrays) atomically."""
     buffer = io.BytesIO()
     np.savez(buffer, positions=motion.positions, fps=np.float64(motion.fps),
              names=np.array(motion.skeleton.names), parents=motion.skeleton.parents,
              offsets=motion.skeleton.offsets, **extra)
-    return write_atomic(path, buffer.getvalue())
+    return write_atomic(file, buffer.getvalue())
