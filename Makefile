@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 INSTALLED := $(VENV)/.installed
 # Real motion capture to work on; any folder of BVH files will do.
-MOTION_DATA ?= ../shared/data/bandai-namco-1
+MOTION_DATA ?= $(abspath ../shared/data/bandai-namco-1)
 export MOTION_DATA
 
 .PHONY: demo test bench install clean

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-MOTION_DATA = Path(os.environ.get("MOTION_DATA", REPO.parent / "shared" / "data" / "bandai-namco-1"))
+MOTION_DATA = Path(os.environ.get("MOTION_DATA", REPO.parent / "shared" / "data" / "bandai-namco-1")).resolve()
 
 
 @pytest.fixture(scope="session")
