@@ -22,12 +22,11 @@ from tqdm import tqdm
 
 from .control import PRESETS, held_out_paths, load_control_file, preset_path
 from .gallery import GalleryOptions, build_gallery
-from .motion.bvh import BVHError, load_motion, motion_to_bvh, read_bvh, write_bvh
-from .motion.dataset import DatasetOptions, MotionDataset, build_dataset, default_cache_dir, find_bvh_files
-from .motion.kinematics import subtree_motion
+from .motion.bvh import BVHError, motion_to_bvh, read_bvh, write_bvh
+from .motion.dataset import (DatasetOptions, MotionDataset, build_dataset, default_cache_dir, find_bvh_files,
+                             load_body_motion)
 from .motion.npz import save_motion_npz
-from .motion.resample import resample
-from .motion.root import RootOptions, hips_index, root_trajectory
+from .motion.root import RootOptions, root_trajectory
 from .render import Camera, contact_sheet, render_video
 
 # Modules that import torch (train, generator, checkpoint) are imported by the commands
@@ -108,8 +107,7 @@ def render(args: argparse.Namespace) -> int:
     camera = _camera(args)
     for source in tqdm(args.bvh, desc="rendering", unit="clip", disable=len(args.bvh) < 2):
         source = Path(source)
-        motion = resample(load_motion(source), args.fps)
-        motion = subtree_motion(motion, hips_index(motion.skeleton))
+        motion = load_body_motion(source, args.fps)
         target = out if out.suffix else out / f"{source.stem}.mp4"
         floor = root_trajectory(motion, RootOptions()).xz
         render_video(motion, target, camera=camera, size=args.size, root_path=floor)
@@ -198,10 +196,7 @@ def natural_command(args: argparse.Namespace) -> int:
     files = {p.stem: p for p in find_bvh_files(folder)}
     out = Path(args.out)
     for clip in tqdm(clips, desc="natural clips", unit="clip", disable=len(clips) < 2):
-        motion = resample(load_motion(files[clip.name], options.scale), options.fps)
-        motion = subtree_motion(motion, hips_index(motion.skeleton, options.root.hips))
-        keep = min(motion.n_frames, int(round(args.seconds * options.fps)))
-        motion = type(motion)(motion.positions[:keep], motion.fps, motion.skeleton)
+        motion = load_body_motion(files[clip.name], options.fps, args.seconds, options.scale, options.root)
         save_motion_npz(motion, out / f"{clip.name}.npz")
         if args.render:
             floor = root_trajectory(motion, options.root).xz

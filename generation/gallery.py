@@ -14,11 +14,9 @@ from pathlib import Path
 from tqdm import tqdm
 
 from .files import write_atomic
-from .motion.bvh import bvh_duration, load_motion
-from .motion.dataset import find_bvh_files, read_labels
-from .motion.kinematics import subtree_motion
-from .motion.resample import resample
-from .motion.root import RootOptions, hips_index, root_trajectory
+from .motion.bvh import bvh_duration
+from .motion.dataset import find_bvh_files, load_body_motion, read_labels
+from .motion.root import RootOptions, root_trajectory
 from .render import Camera, contact_sheet, render_video
 
 
@@ -70,10 +68,7 @@ def choose_clips(folder: str | os.PathLike, per_content: int, contents: tuple[st
 def render_clip(path: Path, out_dir: Path, options: GalleryOptions) -> dict:
     """Render one BVH clip (video and contact sheet) unless already there; its index entry."""
     video, sheet = out_dir / f"{path.stem}.mp4", out_dir / f"{path.stem}.png"
-    motion = resample(load_motion(path), options.fps)
-    motion = subtree_motion(motion, hips_index(motion.skeleton))
-    keep = min(motion.n_frames, int(round(options.seconds * options.fps)))
-    motion = type(motion)(motion.positions[:keep], motion.fps, motion.skeleton)
+    motion = load_body_motion(path, options.fps, options.seconds)
     floor = root_trajectory(motion, RootOptions()).xz
     if not video.exists():
         render_video(motion, video, camera=options.camera, size=options.size, root_path=floor)

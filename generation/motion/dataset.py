@@ -309,7 +309,7 @@ def build_dataset(
     clips, parts = [], {"pose": [], "control": [], "angles": []}
     rows = 0
     for path in tqdm(files, desc="encoding clips", unit="clip", disable=not progress):
-        body = _body(resample(load_motion(path, options.scale), options.fps), options.root)
+        body = load_body_motion(path, options.fps, scale=options.scale, root=options.root)
         if skeleton is None:
             skeleton, spec = body.skeleton, angle_feature_spec(body.skeleton, options.angle_representation)
         elif body.skeleton.names != skeleton.names:
@@ -335,8 +335,16 @@ def build_dataset(
     return dataset
 
 
-def _body(motion: Motion, root: RootOptions) -> Motion:
-    return subtree_motion(motion, hips_index(motion.skeleton, root.hips))
+def load_body_motion(path: str | os.PathLike, fps: float, seconds: float | None = None,
+                     scale: float = 1.0, root: RootOptions = RootOptions()) -> Motion:
+    """A BVH clip as the models see it: resampled to ``fps``, reduced to the body (the
+    hips and below), and cut to its first ``seconds`` (positions only) when given."""
+    motion = resample(load_motion(path, scale), fps)
+    motion = subtree_motion(motion, hips_index(motion.skeleton, root.hips))
+    if seconds is None:
+        return motion
+    keep = min(motion.n_frames, int(round(seconds * fps)))
+    return Motion(motion.positions[:keep], motion.fps, motion.skeleton)
 
 
 def _augmented(motion: Motion, options: DatasetOptions, train: bool):
