@@ -120,34 +120,36 @@ def optimizer_path(path: Path) -> Path:
     return path.with_name(path.name.removesuffix(".safetensors") + ".optim.safetensors")
 
 
-def _read(path: Path) -> tuple[dict[str, torch.Tensor], dict[str, str]]:
+def _read(path: Path, tensors: bool = True) -> tuple[dict[str, torch.Tensor], dict[str, str]]:
+    """The tensors (unless ``tensors`` is False: the header alone is cheap) and header metadata."""
     if not path.is_file():
         raise CheckpointError(f"{path}: no such checkpoint file")
     try:
         with safe_open(str(path), framework="pt") as f:
             header = f.metadata() or {}
-        tensors = load_file(str(path))
+        loaded = load_file(str(path)) if tensors else {}
     except (SafetensorError, OSError, ValueError) as error:
         raise CheckpointError(f"{path}: not a readable safetensors file ({error})") from None
-    return tensors, header
+    return loaded, header
 
 
-def read_meta(path: str | os.PathLike) -> CheckpointMeta:
-    """The JSON description of a checkpoint, checked for form (the tensors are not checked)."""
-    path = Path(path)
-    _, header = _read(path)
+def _meta(path: Path, header: dict[str, str]) -> CheckpointMeta:
     if FORMAT_KEY not in header:
         raise CheckpointError(f"{path}: a safetensors file, but not a checkpoint of this project (no '{FORMAT_KEY}' header)")
     return CheckpointMeta.from_json(header[FORMAT_KEY], path)
+
+
+def read_meta(path: str | os.PathLike) -> CheckpointMeta:
+    """The JSON description of a checkpoint, checked for form (the tensors are not read)."""
+    path = Path(path)
+    return _meta(path, _read(path, tensors=False)[1])
 
 
 def load_checkpoint(path: str | os.PathLike, device: str | torch.device = "cpu") -> tuple[torch.nn.Module, CheckpointMeta]:
     """The model (in eval mode, on ``device``) and its description, fully validated."""
     path = Path(path)
     tensors, header = _read(path)
-    if FORMAT_KEY not in header:
-        raise CheckpointError(f"{path}: a safetensors file, but not a checkpoint of this project (no '{FORMAT_KEY}' header)")
-    meta = CheckpointMeta.from_json(header[FORMAT_KEY], path)
+    meta = _meta(path, header)
     if header.get("digest") != tensor_digest(tensors):
         raise CheckpointError(f"{path}: the tensors do not match the checkpoint's digest (the file was changed or damaged)")
     try:

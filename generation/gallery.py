@@ -53,10 +53,10 @@ def choose_clips(folder: str | os.PathLike, per_content: int, contents: tuple[st
     """The first ``per_content`` clips (by name) of each content label: clips lasting at
     least ``seconds`` first, then the "normal" style."""
     chosen: dict[str | None, list[Path]] = {}
-    files = sorted(find_bvh_files(folder),
-                   key=lambda p: (bvh_duration(p) < seconds, read_labels(p)[1] != "normal", p.name))
+    labels = {p: read_labels(p) for p in find_bvh_files(folder)}
+    files = sorted(labels, key=lambda p: (bvh_duration(p) < seconds, labels[p][1] != "normal", p.name))
     for path in files:
-        content = read_labels(path)[0]
+        content = labels[path][0]
         if contents is not None and content not in contents:
             continue
         group = chosen.setdefault(content, [])

@@ -30,6 +30,11 @@ def reverse(motion: Motion) -> Motion:
     )
 
 
+def window_count(frames: int, length: int, hop: int) -> int:
+    """How many windows ``windows`` cuts from a clip of ``frames`` frames."""
+    return 0 if frames < length else (frames - length) // hop + 1
+
+
 def windows(frames: np.ndarray, length: int, hop: int) -> np.ndarray:
     """Overlapping windows (n, length, ...) of a (frames, ...) array; the tail that does
     not fill a whole window is dropped, and a clip shorter than one window gives none."""
@@ -37,5 +42,5 @@ def windows(frames: np.ndarray, length: int, hop: int) -> np.ndarray:
         raise ValueError(f"window length and hop must be at least 1, got {length} and {hop}")
     if len(frames) < length:
         return np.empty((0, length) + frames.shape[1:], dtype=frames.dtype)
-    starts = np.arange(0, len(frames) - length + 1, hop)
+    starts = np.arange(window_count(len(frames), length, hop)) * hop
     return np.stack([frames[s : s + length] for s in starts])

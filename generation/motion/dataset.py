@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from .augment import mirror, reverse, windows
+from .augment import mirror, reverse, window_count, windows
 from ..files import write_atomic
 from .bvh import load_motion
 from .features import AngleFeatureSpec, angle_feature_spec, encode_angles, encode_positions
@@ -161,7 +161,7 @@ class MotionDataset:
         """The content or style label of each window returned by ``windows(split)``."""
         result = []
         for clip in self.select(split):
-            n = len(windows(np.empty((clip.stop - clip.start, 0)), self.options.window_frames, self.options.hop_frames))
+            n = window_count(clip.stop - clip.start, self.options.window_frames, self.options.hop_frames)
             result += [getattr(clip, kind)] * n
         return result
 
