@@ -78,6 +78,10 @@ DATABASES = {
         conn_health_checks=True,
     )
 }
+if DATABASES["default"]["ENGINE"] == "django.db.backends.sqlite3":
+    # Writers take the lock when their transaction begins, so the read-then-write of
+    # assigning clips cannot interleave between two participants; waiters queue up.
+    DATABASES["default"].setdefault("OPTIONS", {}).update({"transaction_mode": "IMMEDIATE", "timeout": 30})
 DEFAULT_AUTO_FIELD = "django.db.models.BigAutoField"
 
 # Researcher pages use Django's auth; the admin's login form is the one login page.
@@ -105,6 +109,15 @@ CELERY_RESULT_BACKEND = env_str("CELERY_RESULT_BACKEND", "") or filesystem_resul
 CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True
 CELERY_TASK_TRACK_STARTED = True
 CELERY_RESULT_EXPIRES = 24 * 3600
+
+# Uploaded checkpoints live here, named by content digest; never under MEDIA_ROOT,
+# which is served to the public.
+CHECKPOINT_ROOT = Path(env_str("CHECKPOINT_ROOT", str(VAR_DIR / "checkpoints")))
+# The paper-sized MoGlow is about 300 MB in float32.
+MAX_CHECKPOINT_UPLOAD_BYTES = int(env_float("MAX_CHECKPOINT_UPLOAD_MB", 500) * 1_000_000)
+MAX_VIDEO_UPLOAD_BYTES = int(env_float("MAX_VIDEO_UPLOAD_MB", 50) * 1_000_000)
+# Large uploads go to a temporary file, not memory.
+FILE_UPLOAD_MAX_MEMORY_SIZE = 5_000_000
 
 # Ratings tables uploaded for analysis; 100,000 ratings are about 10 MB of CSV.
 MAX_RATINGS_UPLOAD_BYTES = int(env_float("MAX_RATINGS_UPLOAD_MB", 50) * 1_000_000)

@@ -1,0 +1,277 @@
+"""The study's data: studies, their systems, control signals and stimuli, and the
+participants' assignments and ratings.
+
+Nothing a participant can see names a system: stimuli are served under a random token,
+and the rating form names an assignment by another random token. Exclusions are flags
+(``Participant.excluded``, ``Rating.answered_before_end``), never deletions.
+"""
+
+from __future__ import annotations
+
+import secrets
+from pathlib import Path
+
+from django.conf import settings
+from django.core.exceptions import ValidationError
+from django.db import models
+
+from analysis.exclusions import scaled_threshold
+from generation.render.camera import Camera
+
+NATURAL_NAME, ATTENTION_NAME = "NAT", "BAD"  # the names the analysis expects for these roles
+
+
+def new_token() -> str:
+    return secrets.token_hex(16)
+
+
+def new_study_key() -> str:
+    return secrets.token_urlsafe(9)
+
+
+def default_camera() -> dict:
+    return Camera().to_dict()
+
+
+class Study(models.Model):
+    """One rating study: its question, scale, protocol and crowd platform."""
+
+    class Platform(models.TextChoices):
+        PROLIFIC = "prolific", "Prolific"
+        MTURK = "mturk", "Amazon Mechanical Turk"
+        LINK = "link", "A plain link"
+
+    owner = models.ForeignKey(settings.AUTH_USER_MODEL, on_delete=models.CASCADE, related_name="studies")
+    title = models.CharField(max_length=200)
+    # The participants' entry link carries this key; it says nothing about the study.
+    key = models.CharField(max_length=32, unique=True, default=new_study_key, editable=False)
+    question = models.CharField(max_length=300, default="How natural does the motion of the character look?")
+    scale_min = models.SmallIntegerField(default=1)
+    scale_max = models.SmallIntegerField(default=5)
+    label_min = models.CharField(max_length=60, default="Completely unnatural")
+    label_max = models.CharField(max_length=60, default="Completely natural")
+    instructions = models.TextField(default=(
+        "You will watch short videos of a stick figure moving. After each video, rate how natural "
+        "the motion looks. Please watch every video to the end before you answer."))
+    consent_text = models.TextField(default=(
+        "This study is part of research on computer-generated motion. Taking part is voluntary and you "
+        "may stop at any time. We record your ratings, the time you take, and the id your crowd "
+        "platform gives you; nothing else about you."))
+    clips_per_participant = models.PositiveSmallIntegerField(default=20, help_text="rated clips, attention checks included")
+    ratings_per_stimulus = models.PositiveSmallIntegerField(default=10, help_text="target number of ratings of each stimulus")
+    training_clips = models.PositiveSmallIntegerField(default=4, help_text="practice clips shown first and not recorded")
+    bad_checks = models.PositiveSmallIntegerField(default=1, help_text="BAD clips per participant (attention checks)")
+    natural_checks = models.PositiveSmallIntegerField(default=1, help_text="NAT clips per participant placed as attention checks")
+    bad_threshold = models.FloatField(default=4.0, help_text="on the 1-5 scale: rating a BAD clip this high or higher excludes")
+    natural_threshold = models.FloatField(default=2.0, help_text="on the 1-5 scale: rating a NAT clip below this excludes")
+    discard_early = models.BooleanField(default=True, help_text="flag ratings given before the clip finished playing")
+    reservation_minutes = models.PositiveIntegerField(
+        default=90, help_text="an unfinished participant's unrated clips stop counting towards the target after this idle time")
+    platform = models.CharField(max_length=10, choices=Platform.choices, default=Platform.LINK)
+    completion_code = models.CharField(max_length=100, blank=True)
+    redirect_url = models.URLField(blank=True, help_text="where finished participants are sent (Prolific: its completion URL)")
+    camera = models.JSONField(default=default_camera)
+    video_width = models.PositiveSmallIntegerField(default=640)
+    video_height = models.PositiveSmallIntegerField(default=480)
+    is_open = models.BooleanField(default=False, help_text="accepting participants")
+    created = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["-created"]
+        verbose_name_plural = "studies"
+
+    def __str__(self) -> str:
+        return self.title
+
+    def clean(self) -> None:
+        if self.scale_min >= self.scale_max:
+            raise ValidationError({"scale_max": f"the scale must rise: {self.scale_min} to {self.scale_max} does not"})
+        if self.video_width % 2 or self.video_height % 2:
+            raise ValidationError({"video_width": "H.264 video needs an even width and height"})
+        if self.bad_checks + self.natural_checks >= self.clips_per_participant:
+            raise ValidationError({"clips_per_participant": "leave room for rated clips besides the attention checks"})
+        try:
+            Camera.from_dict(self.camera)
+        except (TypeError, ValueError, KeyError) as error:
+            raise ValidationError({"camera": f"not a camera description: {error}"}) from None
+
+    @property
+    def scale(self) -> range:
+        return range(self.scale_min, self.scale_max + 1)
+
+    def bad_cutoff(self) -> float:
+        return scaled_threshold(self.bad_threshold, self.scale_min, self.scale_max)
+
+    def natural_cutoff(self) -> float:
+        return scaled_threshold(self.natural_threshold, self.scale_min, self.scale_max)
+
+
+class System(models.Model):
+    """A condition of the study: a trained model, natural motion (NAT) or attention checks (BAD)."""
+
+    class Role(models.TextChoices):
+        MODEL = "model", "model"
+        NATURAL = "natural", "natural motion (NAT)"
+        BAD = "bad", "attention check (BAD)"
+
+    study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="systems")
+    name = models.CharField(max_length=60)
+    role = models.CharField(max_length=10, choices=Role.choices, default=Role.MODEL)
+    # Relative to settings.CHECKPOINT_ROOT, named by content digest; empty for NAT and uploaded videos.
+    checkpoint = models.CharField(max_length=200, blank=True)
+    checkpoint_digest = models.CharField(max_length=64, blank=True)
+    kind = models.CharField(max_length=30, blank=True)
+    metadata = models.JSONField(default=dict, blank=True)
+    temperature = models.FloatField(default=1.0)
+    created = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["study", "role", "name"]
+        constraints = [models.UniqueConstraint(fields=["study", "name"], name="unique_system_name")]
+
+    def __str__(self) -> str:
+        return f"{self.name} ({self.get_role_display()})"
+
+    @property
+    def export_name(self) -> str:
+        """The name in the ratings table: NAT and BAD for their roles, so the analysis finds them."""
+        return {self.Role.NATURAL: NATURAL_NAME, self.Role.BAD: ATTENTION_NAME}.get(self.role, self.name)
+
+    def checkpoint_path(self) -> Path | None:
+        return Path(settings.CHECKPOINT_ROOT) / self.checkpoint if self.checkpoint else None
+
+
+class ControlSignal(models.Model):
+    """A control signal every model system is sampled with: held out from real clips, or synthetic."""
+
+    class Origin(models.TextChoices):
+        HELD_OUT = "held-out", "held-out"
+        SYNTHETIC = "synthetic", "synthetic"
+
+    study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="controls")
+    name = models.CharField(max_length=100)
+    origin = models.CharField(max_length=10, choices=Origin.choices)
+    control = models.JSONField(help_text="generation.control's to_dict() form")
+    # For held-out control: the natural clip it came from, which NAT stimuli show.
+    source_clip = models.CharField(max_length=200, blank=True)
+    seconds = models.FloatField()
+
+    class Meta:
+        ordering = ["study", "origin", "name"]
+        constraints = [models.UniqueConstraint(fields=["study", "name"], name="unique_control_name")]
+
+    def __str__(self) -> str:
+        return f"{self.name} ({self.origin})"
+
+
+class Stimulus(models.Model):
+    """One clip: a system's motion for a control signal, rendered with the study's camera.
+
+    ``content_key`` digests everything the clip depends on, so generating again finds the
+    existing row instead of making a second one.
+    """
+
+    class Status(models.TextChoices):
+        PENDING = "pending", "not queued"
+        QUEUED = "queued", "queued"
+        RUNNING = "running", "running"
+        DONE = "done", "done"
+        FAILED = "failed", "failed"
+
+    study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="stimuli")
+    system = models.ForeignKey(System, on_delete=models.CASCADE, related_name="stimuli")
+    control = models.ForeignKey(ControlSignal, on_delete=models.CASCADE, related_name="stimuli", null=True, blank=True)
+    seed = models.IntegerField(default=0)
+    content_key = models.CharField(max_length=64)
+    token = models.CharField(max_length=32, unique=True, default=new_token, editable=False)
+    status = models.CharField(max_length=10, choices=Status.choices, default=Status.PENDING)
+    error = models.TextField(blank=True)
+    attempts = models.PositiveSmallIntegerField(default=0)
+    task_id = models.CharField(max_length=64, blank=True)
+    duration_s = models.FloatField(null=True, blank=True)
+    updated = models.DateTimeField(auto_now=True)
+
+    class Meta:
+        ordering = ["study", "system", "control"]
+        verbose_name_plural = "stimuli"
+        constraints = [models.UniqueConstraint(fields=["study", "content_key"], name="unique_stimulus_content")]
+
+    def __str__(self) -> str:
+        return f"{self.system.name} / {self.control.name if self.control else 'uploaded video'} [{self.status}]"
+
+    @property
+    def relative_path(self) -> str:
+        return f"stimuli/{self.token}.mp4"
+
+    def video_path(self) -> Path:
+        return Path(settings.MEDIA_ROOT) / self.relative_path
+
+    @property
+    def video_url(self) -> str:
+        return f"/{settings.MEDIA_URL.strip('/')}/{self.relative_path}"
+
+    @property
+    def control_class(self) -> str:
+        return self.control.origin if self.control else "uploaded"
+
+
+class Participant(models.Model):
+    """One person's pass through a study, identified by their crowd platform's id."""
+
+    study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="participants")
+    platform_id = models.CharField(max_length=100)
+    platform_data = models.JSONField(default=dict, blank=True)
+    # Anonymous id written to the ratings table instead of the platform id.
+    code = models.CharField(max_length=32, unique=True, default=new_token, editable=False)
+    started_at = models.DateTimeField(auto_now_add=True)
+    last_seen = models.DateTimeField(auto_now_add=True)
+    consented_at = models.DateTimeField(null=True, blank=True)
+    instructed_at = models.DateTimeField(null=True, blank=True)
+    training = models.JSONField(default=list, blank=True, help_text="ids of the practice stimuli, in order")
+    training_done = models.PositiveSmallIntegerField(default=0)
+    finished_at = models.DateTimeField(null=True, blank=True)
+    excluded = models.BooleanField(default=False)
+    exclusion_reason = models.CharField(max_length=100, blank=True)
+    user_agent = models.CharField(max_length=300, blank=True)
+
+    class Meta:
+        ordering = ["study", "started_at"]
+        constraints = [models.UniqueConstraint(fields=["study", "platform_id"], name="one_start_per_platform_id")]
+
+    def __str__(self) -> str:
+        return f"{self.platform_id} in {self.study}"
+
+
+class Assignment(models.Model):
+    """A clip placed at a position in a participant's sequence."""
+
+    participant = models.ForeignKey(Participant, on_delete=models.CASCADE, related_name="assignments")
+    stimulus = models.ForeignKey(Stimulus, on_delete=models.PROTECT, related_name="assignments")
+    position = models.PositiveSmallIntegerField()
+    is_check = models.BooleanField(default=False, help_text="placed as an attention check")
+    token = models.CharField(max_length=32, unique=True, default=new_token, editable=False)
+    shown_at = models.DateTimeField(null=True, blank=True, help_text="when the server first sent its page")
+
+    class Meta:
+        ordering = ["participant", "position"]
+        constraints = [
+            models.UniqueConstraint(fields=["participant", "position"], name="one_clip_per_position"),
+            models.UniqueConstraint(fields=["participant", "stimulus"], name="each_clip_once_per_participant"),
+        ]
+
+
+class Rating(models.Model):
+    """A participant's answer to one assignment, with the timings that judge it."""
+
+    assignment = models.OneToOneField(Assignment, on_delete=models.CASCADE, related_name="rating")
+    value = models.SmallIntegerField()
+    answered_at = models.DateTimeField(auto_now_add=True)
+    # Client-side times in seconds after the page was shown (None: the event never happened).
+    client_started_s = models.FloatField(null=True, blank=True)
+    client_ended_s = models.FloatField(null=True, blank=True)
+    client_answered_s = models.FloatField(null=True, blank=True)
+    played_until_s = models.FloatField(null=True, blank=True)
+    answered_before_end = models.BooleanField(default=False)
+
+    class Meta:
+        ordering = ["answered_at"]
