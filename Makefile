@@ -24,6 +24,7 @@ $(INSTALLED): pyproject.toml
 
 test: $(INSTALLED)
 	scripts/ensure-redis.sh
+	scripts/ensure-chromium.sh
 	$(BIN)/python -m pytest
 
 demo: $(INSTALLED)

@@ -49,18 +49,7 @@ case "$host" in
 esac
 
 if ! command -v redis-server >/dev/null 2>&1; then
-    as_root=()
-    if [[ "$(id -u)" != 0 ]]; then
-        if ! command -v sudo >/dev/null 2>&1; then
-            say "redis-server is not installed and installing it needs root (no sudo here)"
-            exit 1
-        fi
-        as_root=(sudo)
-    fi
-    apt_get=("${as_root[@]}" env DEBIAN_FRONTEND=noninteractive apt-get -q -y)
-    say "installing redis-server"
-    # The package lists may be missing or stale on a fresh machine.
-    "${apt_get[@]}" install redis-server >&2 || { "${apt_get[@]}" update >&2 && "${apt_get[@]}" install redis-server >&2; }
+    "$(dirname "${BASH_SOURCE[0]}")/apt-install.sh" redis-server
     # Some systems start the packaged service on install (before apt-get returns).
     if answers; then
         say "Redis answers at $host:$port (started by the package)"

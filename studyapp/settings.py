@@ -82,6 +82,9 @@ if DATABASES["default"]["ENGINE"] == "django.db.backends.sqlite3":
     # Writers take the lock when their transaction begins, so the read-then-write of
     # assigning clips cannot interleave between two participants; waiters queue up.
     DATABASES["default"].setdefault("OPTIONS", {}).update({"transaction_mode": "IMMEDIATE", "timeout": 30})
+    # Tests use a file, not memory, so that a live server's threads get connections of
+    # their own and concurrency tests meet the same locking as production.
+    DATABASES["default"]["TEST"] = {"NAME": str(VAR_DIR / "test-db.sqlite3")}
 DEFAULT_AUTO_FIELD = "django.db.models.BigAutoField"
 
 # Researcher pages use Django's auth; the admin's login form is the one login page.

@@ -4,7 +4,7 @@ from django.conf import settings
 from django.contrib import admin
 from django.urls import path
 
-from studyapp import views
+from studyapp import participant_views, views
 
 urlpatterns = [
     path("", views.gallery, name="gallery"),
@@ -13,6 +13,13 @@ urlpatterns = [
     path("analysis/", views.analysis_upload, name="analysis"),
     path("analysis/<str:digest>/", views.analysis_report, name="analysis-report"),
     path("admin/", admin.site.urls),
+    # Participants: the entry link, the one page they are on, and its steps.
+    path("p/<str:key>/", participant_views.enter, name="participant-enter"),
+    path("p/<str:key>/now/", participant_views.page, name="participant-page"),
+    path("p/<str:key>/consent/", participant_views.consent, name="participant-consent"),
+    path("p/<str:key>/instructions/", participant_views.instructions, name="participant-instructions"),
+    path("p/<str:key>/practice/", participant_views.practice, name="participant-practice"),
+    path("p/<str:key>/rate/", participant_views.rate, name="participant-rate"),
 ]
 
 if settings.SERVE_FILES:

@@ -1,0 +1,110 @@
+"""Which clips a new participant rates: balanced across stimuli, with attention checks.
+
+A participant gets ``clips_per_participant`` clips: ``bad_checks`` BAD clips and
+``natural_checks`` NAT clips as attention checks, and the rest from every non-BAD system,
+least-loaded first with ties broken at random, skipping stimuli that have reached the
+study's target. The rated clips are shuffled and the checks put at random positions.
+
+A stimulus's load counts the ratings that will be kept (not from an excluded participant,
+not given before the clip ended) plus the clips reserved by participants who are still
+active. Allocation runs inside one transaction that first locks the study row (on
+PostgreSQL; SQLite's IMMEDIATE transactions serialise writers anyway), so two participants
+arriving together see each other's reservations and never push a stimulus past its target.
+"""
+
+from __future__ import annotations
+
+import random
+from datetime import timedelta
+
+from django.db import transaction
+from django.db.models import Count, Q
+from django.utils import timezone
+
+from studyapp.models import Assignment, Participant, Stimulus, Study, System
+
+
+class StudyFull(Exception):
+    """Every stimulus has reached its target number of ratings."""
+
+
+class StudyNotReady(Exception):
+    """The study has no rendered clips to rate yet."""
+
+
+def stimulus_loads(study: Study) -> dict[int, int]:
+    """Load of each rendered stimulus of the study: kept ratings + live reservations."""
+    cutoff = timezone.now() - timedelta(minutes=study.reservation_minutes)
+    kept = Q(assignments__rating__isnull=False)
+    if study.discard_early:
+        kept &= Q(assignments__rating__answered_before_end=False)
+    counted = Q(assignments__participant__excluded=False) & (
+        kept
+        | Q(assignments__rating__isnull=True, assignments__participant__finished_at__isnull=True,
+            assignments__participant__last_seen__gte=cutoff)
+    )
+    rows = (Stimulus.objects.filter(study=study, status=Stimulus.Status.DONE)
+            .annotate(load=Count("assignments", filter=counted)).values_list("id", "load"))
+    return dict(rows)
+
+
+def _least_loaded(candidates: list[Stimulus], loads: dict[int, int], count: int, rng: random.Random,
+                  cap: int | None = None) -> list[Stimulus]:
+    eligible = [s for s in candidates if cap is None or loads[s.id] < cap]
+    rng.shuffle(eligible)  # ties at random: sort() is stable
+    eligible.sort(key=lambda s: loads[s.id])
+    return eligible[:count]
+
+
+def _plan(study: Study, loads: dict[int, int], rng: random.Random) -> list[tuple[Stimulus, bool]]:
+    """(stimulus, is_check) in presentation order."""
+    rendered = list(Stimulus.objects.filter(study=study, status=Stimulus.Status.DONE).select_related("system"))
+    if not any(s.system.role != System.Role.BAD for s in rendered):
+        raise StudyNotReady("no clips have been rendered for this study yet")
+    by_role = {role: [s for s in rendered if s.system.role == role] for role in System.Role.values}
+    checks = (_least_loaded(by_role[System.Role.BAD], loads, study.bad_checks, rng)
+              + _least_loaded(by_role[System.Role.NATURAL], loads, study.natural_checks, rng))
+    taken = {s.id for s in checks}
+    pool = [s for s in rendered if s.system.role != System.Role.BAD and s.id not in taken]
+    rated = _least_loaded(pool, loads, study.clips_per_participant - len(checks), rng, cap=study.ratings_per_stimulus)
+    if not rated:
+        raise StudyFull("every clip of this study has its target number of ratings")
+    order: list[tuple[Stimulus, bool]] = [(s, False) for s in rated]
+    rng.shuffle(order)
+    for stimulus in checks:
+        order.insert(rng.randint(0, len(order)), (stimulus, True))
+    return order
+
+
+def _training_clips(study: Study, exclude: set[int], rng: random.Random) -> list[int]:
+    """Practice clips: one per system in turn (models, NAT and BAD alike), not among the rated ones."""
+    per_system: dict[int, list[int]] = {}
+    for stimulus in Stimulus.objects.filter(study=study, status=Stimulus.Status.DONE).exclude(id__in=exclude):
+        per_system.setdefault(stimulus.system_id, []).append(stimulus.id)
+    for ids in per_system.values():
+        rng.shuffle(ids)
+    systems = list(per_system)
+    rng.shuffle(systems)
+    chosen: list[int] = []
+    while len(chosen) < study.training_clips and any(per_system.values()):
+        for system in systems:
+            if per_system[system] and len(chosen) < study.training_clips:
+                chosen.append(per_system[system].pop())
+    return chosen
+
+
+def enrol(study: Study, platform_id: str, platform_data: dict, user_agent: str = "",
+          rng: random.Random | None = None) -> Participant:
+    """Create a participant with their clips, or raise StudyFull / StudyNotReady (nothing saved)."""
+    rng = rng or random.SystemRandom()
+    with transaction.atomic():
+        Study.objects.select_for_update().get(pk=study.pk)
+        plan = _plan(study, stimulus_loads(study), rng)
+        participant = Participant.objects.create(
+            study=study, platform_id=platform_id, platform_data=platform_data, user_agent=user_agent[:300],
+            training=_training_clips(study, {s.id for s, _ in plan}, rng))
+        Assignment.objects.bulk_create([
+            Assignment(participant=participant, stimulus=stimulus, position=i, is_check=is_check)
+            for i, (stimulus, is_check) in enumerate(plan)
+        ])
+    return participant

@@ -1,0 +1,53 @@
+"""Building studies for the study-app tests: systems, controls and rendered stimuli.
+
+Stimuli here are real videos of real motion capture (one short natural clip rendered
+once per test session and copied to each stimulus's token path), so that a browser can
+play them to the end; which system "made" them does not matter to the rating flow.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+from django.contrib.auth.models import User
+
+from studyapp.models import ControlSignal, Stimulus, Study, System
+
+SYSTEMS = (("MoGlow", System.Role.MODEL), ("RNN", System.Role.MODEL), ("NAT", System.Role.NATURAL),
+           ("BAD", System.Role.BAD))
+
+
+def render_clip_video(bvh: Path, out: Path, seconds: float) -> Path:
+    """A short H.264 clip of real motion (small, so a browser test plays it quickly)."""
+    from generation.motion.dataset import load_body_motion
+    from generation.render import render_video
+
+    motion = load_body_motion(bvh, fps=20.0, seconds=seconds)
+    return render_video(motion, out, size=(320, 240))
+
+
+def make_study(owner_name: str = "researcher", controls: int = 3, video: Path | None = None,
+               clip_seconds: float = 4.0, **fields) -> Study:
+    """An open study with MoGlow, RNN, NAT and BAD systems and one done stimulus per (system, control).
+
+    With ``video``, every stimulus's file is a copy of it; otherwise no files exist
+    (enough for tests that never play a clip).
+    """
+    owner, _ = User.objects.get_or_create(username=owner_name)
+    defaults = {"title": "Naturalness of locomotion", "clips_per_participant": 6, "ratings_per_stimulus": 3,
+                "training_clips": 2, "completion_code": "C0MPL3TE", "is_open": True,
+                "platform": Study.Platform.PROLIFIC}
+    study = Study.objects.create(owner=owner, **{**defaults, **fields})
+    signals = [ControlSignal.objects.create(study=study, name=f"control-{i}", origin=ControlSignal.Origin.HELD_OUT,
+                                            control={"type": "path"}, source_clip=f"clip-{i}", seconds=clip_seconds)
+               for i in range(controls)]
+    for name, role in SYSTEMS:
+        system = System.objects.create(study=study, name=name, role=role)
+        for signal in signals:
+            stimulus = Stimulus.objects.create(study=study, system=system, control=signal, status=Stimulus.Status.DONE,
+                                               content_key=f"{name}-{signal.name}", duration_s=clip_seconds)
+            if video is not None:
+                stimulus.video_path().parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(video, stimulus.video_path())
+    return study

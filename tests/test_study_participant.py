@@ -1,0 +1,277 @@
+"""The participant's side of a study: entry, consent, practice, rating, exclusions, refusals."""
+
+from __future__ import annotations
+
+import random
+import re
+from collections import Counter
+from datetime import timedelta
+
+import pytest
+from django.test import Client
+from django.urls import reverse
+from django.utils import timezone
+
+from studyapp.assignment import StudyFull, enrol, stimulus_loads
+from studyapp.models import Assignment, Participant, Rating, Stimulus, Study, System
+from studyapp.ratings import ClientTimes, current_assignment, ratings_rows
+from tests.study_fixtures import make_study
+
+pytestmark = pytest.mark.django_db
+
+
+def enter(client: Client, study: Study, pid: str = "pid-1"):
+    return client.get(reverse("participant-enter", args=[study.key]), {"PROLIFIC_PID": pid, "STUDY_ID": "s",
+                                                                       "SESSION_ID": "x"}, follow=True)
+
+
+def post(client: Client, study: Study, step: str, **data):
+    return client.post(reverse(f"participant-{step}", args=[study.key]), data)
+
+
+def through_practice(client: Client, study: Study, pid: str = "pid-1") -> Participant:
+    enter(client, study, pid)
+    post(client, study, "consent", agree="yes")
+    post(client, study, "instructions")
+    participant = Participant.objects.get(study=study, platform_id=pid)
+    for index in range(len(participant.training)):
+        post(client, study, "practice", index=index, value=3)
+    return participant
+
+
+def on_screen_token(client: Client, study: Study) -> str:
+    page = client.get(reverse("participant-page", args=[study.key])).content.decode()
+    return re.search(r'name="assignment" value="([0-9a-f]+)"', page).group(1)
+
+
+def make_shown_long_ago(participant: Participant) -> None:
+    """As if every clip had been on screen for a minute, so no answer is early by the server's clock."""
+    participant.assignments.update(shown_at=timezone.now() - timedelta(minutes=1))
+
+
+WATCHED = {"started_s": 0.1, "ended_s": 4.2, "answered_s": 5.0, "played_until_s": 4.0}
+
+
+def rate_current(client: Client, study: Study, participant: Participant, value: int, **times):
+    token = on_screen_token(client, study)
+    make_shown_long_ago(participant)
+    return post(client, study, "rate", assignment=token, value=value, **{**WATCHED, **times})
+
+
+def test_a_participant_goes_from_entry_link_to_completion_code():
+    study = make_study(platform=Study.Platform.PROLIFIC)
+    client = Client()
+    first = enter(client, study)
+    assert "Consent" in first.content.decode()
+    participant = through_practice(client, study)
+    assert Rating.objects.count() == 0  # practice answers are not recorded
+    for _ in range(study.clips_per_participant):
+        response = rate_current(client, study, participant, 3)
+        assert response.status_code == 302
+    done = client.get(reverse("participant-page", args=[study.key])).content.decode()
+    assert "C0MPL3TE" in done and "app.prolific.com/submissions/complete?cc=C0MPL3TE" in done
+    participant.refresh_from_db()
+    assert participant.finished_at is not None and not participant.excluded
+    assert Rating.objects.filter(assignment__participant=participant).count() == study.clips_per_participant
+
+
+def test_a_reload_shows_the_same_clip_and_the_same_id_cannot_start_twice():
+    study = make_study()
+    client = Client()
+    participant = through_practice(client, study)
+    assert on_screen_token(client, study) == on_screen_token(client, study)
+    other_browser = Client()
+    enter(other_browser, study)  # same platform id, another browser: resumes, no second participant
+    assert Participant.objects.filter(study=study).count() == 1
+    assert on_screen_token(other_browser, study) == on_screen_token(client, study)
+    assert participant.assignments.count() == study.clips_per_participant
+
+
+def test_assignment_has_checks_at_random_positions_and_each_clip_once():
+    study = make_study(controls=6, clips_per_participant=8, bad_checks=1, natural_checks=1, ratings_per_stimulus=100)
+    positions = Counter()
+    for i in range(30):
+        participant = enrol(study, f"p{i}", {}, rng=random.Random(i))
+        assignments = list(participant.assignments.select_related("stimulus__system"))
+        assert len({a.stimulus_id for a in assignments}) == len(assignments) == 8
+        checks = [a for a in assignments if a.is_check]
+        assert sorted(a.stimulus.system.role for a in checks) == ["bad", "natural"]
+        assert all(a.is_check for a in assignments if a.stimulus.system.role == System.Role.BAD)
+        positions.update(a.position for a in checks)
+    assert len(positions) >= 6  # checks land all over the sequence, not at fixed places
+
+
+def test_assignment_balances_loads_and_never_passes_the_target():
+    study = make_study(controls=4, clips_per_participant=5, ratings_per_stimulus=3, bad_checks=1, natural_checks=0)
+    pool = Stimulus.objects.filter(study=study).exclude(system__role=System.Role.BAD)
+    enrolled = 0
+    with pytest.raises(StudyFull):
+        for i in range(100):
+            enrol(study, f"p{i}", {}, rng=random.Random(i))
+            enrolled += 1
+            loads = stimulus_loads(study)
+            pool_loads = [loads[s.id] for s in pool]
+            assert max(pool_loads) - min(pool_loads) <= 1  # least-rated first
+            assert max(pool_loads) <= study.ratings_per_stimulus
+    assert all(stimulus_loads(study)[s.id] == study.ratings_per_stimulus for s in pool)
+    assert Participant.objects.filter(study=study).count() == enrolled  # a full study enrols nobody more
+
+
+def test_an_idle_participant_stops_holding_clips():
+    study = make_study(controls=1, clips_per_participant=3, ratings_per_stimulus=1, bad_checks=0, natural_checks=0,
+                       reservation_minutes=30)
+    first = enrol(study, "idle", {})
+    with pytest.raises(StudyFull):
+        enrol(study, "second", {})
+    Participant.objects.filter(pk=first.pk).update(last_seen=timezone.now() - timedelta(minutes=31))
+    assert enrol(study, "second", {}).assignments.count() == 3
+
+
+@pytest.mark.parametrize(("role", "value", "excluded"), [
+    (System.Role.BAD, 4, True), (System.Role.BAD, 3, False), (System.Role.NATURAL, 1, True),
+    (System.Role.NATURAL, 2, False),
+])
+def test_attention_checks_flag_the_participant(role, value, excluded):
+    study = make_study()
+    client = Client()
+    participant = through_practice(client, study)
+    while (current := current_assignment(participant)) is not None:
+        is_target = current.stimulus.system.role == role
+        rate_current(client, study, participant, value if is_target else 3)
+    participant.refresh_from_db()
+    assert participant.excluded is excluded
+    assert Rating.objects.filter(assignment__participant=participant).count() == study.clips_per_participant
+
+
+def test_on_a_ten_point_scale_the_thresholds_are_rescaled():
+    study = make_study(scale_min=1, scale_max=10)
+    assert (study.bad_cutoff(), study.natural_cutoff()) == (7.75, 3.25)
+
+
+def test_an_answer_before_the_clip_ends_is_kept_but_flagged():
+    study = make_study()
+    client = Client()
+    participant = through_practice(client, study)
+    token = on_screen_token(client, study)  # the server has just sent the page: 4 s have not passed
+    post(client, study, "rate", assignment=token, value=3, started_s=0.1, answered_s=1.0, played_until_s=0.9)
+    rating = Rating.objects.get(assignment__token=token)
+    assert rating.answered_before_end and rating.played_until_s == 0.9
+    rate_current(client, study, participant, 3, ended_s="")  # the browser never saw the end
+    rate_current(client, study, participant, 3)
+    flags = [r.answered_before_end for r in Rating.objects.order_by("answered_at", "pk")]
+    assert flags == [True, True, False]
+    rows = ratings_rows(study)
+    assert [r["discarded_early"] for r in rows] == [True, True, False]
+
+
+def test_bad_ratings_are_refused_and_store_nothing():
+    study = make_study()
+    client = Client()
+    participant = through_practice(client, study)
+    token = on_screen_token(client, study)
+    make_shown_long_ago(participant)
+    assert post(client, study, "rate", assignment=token, value=6).status_code == 400
+    assert post(client, study, "rate", assignment=token, value=0).status_code == 400
+    assert post(client, study, "rate", assignment=token, value="three").status_code == 400
+    assert post(client, study, "rate", assignment=token, value=3, answered_s="soon").status_code == 400
+    stranger = through_practice(Client(), study, "pid-2")
+    foreign = stranger.assignments.first().token
+    assert post(client, study, "rate", assignment=foreign, value=3).status_code == 403
+    later = participant.assignments.order_by("position").last().token
+    assert post(client, study, "rate", assignment=later, value=3).status_code == 409  # not the one on screen
+    assert Rating.objects.count() == 0
+    assert post(client, study, "rate", assignment=token, value=3, **WATCHED).status_code == 302
+    assert post(client, study, "rate", assignment=token, value=3, **WATCHED).status_code == 409  # repeated
+    assert Rating.objects.count() == 1
+
+
+def test_no_rating_after_completion_or_before_consent():
+    study = make_study(clips_per_participant=3, bad_checks=1, natural_checks=1)
+    client = Client()
+    participant = through_practice(client, study)
+    tokens = list(participant.assignments.order_by("position").values_list("token", flat=True))
+    for _ in tokens:
+        rate_current(client, study, participant, 3)
+    assert post(client, study, "rate", assignment=tokens[0], value=3).status_code == 409
+    newcomer = Client()
+    enter(newcomer, study, "pid-new")
+    first = Participant.objects.get(platform_id="pid-new").assignments.first().token
+    assert post(newcomer, study, "rate", assignment=first, value=3).status_code == 409
+    assert Rating.objects.count() == 3
+
+
+def test_every_form_needs_its_csrf_token():
+    study = make_study()
+    client = Client(enforce_csrf_checks=True)
+    enter(client, study)
+    assert post(client, study, "consent", agree="yes").status_code == 403
+    page = client.get(reverse("participant-page", args=[study.key])).content.decode()
+    token = re.search(r'name="csrfmiddlewaretoken" value="([^"]+)"', page).group(1)
+    assert post(client, study, "consent", agree="yes", csrfmiddlewaretoken=token).status_code == 302
+
+
+def test_nothing_on_the_participant_pages_names_a_system():
+    study = make_study()
+    client = Client()
+    pages = [enter(client, study).content.decode()]
+    post(client, study, "consent", agree="yes")
+    post(client, study, "instructions")
+    pages.append(client.get(reverse("participant-page", args=[study.key])).content.decode())  # practice
+    participant = Participant.objects.get(study=study)
+    for index in range(len(participant.training)):
+        post(client, study, "practice", index=index)
+    pages.append(client.get(reverse("participant-page", args=[study.key])).content.decode())  # rating
+    stimulus = current_assignment(participant).stimulus
+    assert f"/media/stimuli/{stimulus.token}.mp4" in pages[-1]
+    for page in pages:
+        for system in System.objects.filter(study=study):
+            assert not re.search(rf"\b{re.escape(system.name)}\b", page), system.name
+        assert "control-" not in page and stimulus.content_key not in page
+
+
+def test_links_without_the_platform_id_closed_studies_and_missing_sessions_are_refused():
+    study = make_study(platform=Study.Platform.PROLIFIC)
+    client = Client()
+    assert client.get(reverse("participant-enter", args=[study.key])).status_code == 400
+    assert client.get(reverse("participant-page", args=[study.key])).status_code == 403
+    assert post(client, study, "rate", assignment="0" * 32, value=3).status_code == 403
+    study.is_open = False
+    study.save()
+    assert client.get(reverse("participant-enter", args=[study.key]), {"PROLIFIC_PID": "x"}).status_code == 404
+    assert Participant.objects.count() == 0
+
+
+def test_an_unready_study_enrols_nobody():
+    study = make_study()
+    Stimulus.objects.update(status=Stimulus.Status.QUEUED)
+    response = Client().get(reverse("participant-enter", args=[study.key]), {"PROLIFIC_PID": "x"})
+    assert response.status_code == 503 and Participant.objects.count() == 0
+
+
+def test_mturk_participants_submit_to_mturk_only():
+    study = make_study(platform=Study.Platform.MTURK, clips_per_participant=3)
+    preview = Client().get(reverse("participant-enter", args=[study.key]),
+                           {"assignmentId": "ASSIGNMENT_ID_NOT_AVAILABLE", "hitId": "h"})
+    assert "preview" in preview.content.decode() and Participant.objects.count() == 0
+    client = Client()
+    client.get(reverse("participant-enter", args=[study.key]),
+               {"workerId": "W1", "assignmentId": "A1", "hitId": "H1", "turkSubmitTo": "https://evil.example.com"})
+    participant = through_practice(client, study, "W1")
+    for _ in range(3):
+        rate_current(client, study, participant, 3)
+    done = client.get(reverse("participant-page", args=[study.key])).content.decode()
+    assert "evil.example.com" not in done and "C0MPL3TE" in done
+
+
+def test_the_export_has_one_row_per_rating_with_the_flags():
+    study = make_study(clips_per_participant=3, bad_checks=1, natural_checks=1)
+    client = Client()
+    participant = through_practice(client, study)
+    while (current := current_assignment(participant)) is not None:
+        rate_current(client, study, participant, 5 if current.stimulus.system.role == System.Role.BAD else 3)
+    rows = ratings_rows(study)
+    assert len(rows) == 3
+    assert {r["participant"] for r in rows} == {participant.code}
+    assert all(r["excluded_participant"] for r in rows)
+    assert {r["system"] for r in rows} <= {"MoGlow", "RNN", "NAT", "BAD"}
+    assert "BAD" in {r["system"] for r in rows}
