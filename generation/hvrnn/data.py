@@ -198,6 +198,19 @@ class AttributeData:
             mask[i, : len(piece)] = True
         return SequenceSet(features, mask, np.asarray(actions, dtype=np.int64), np.asarray(styles, dtype=np.int64), tuple(takes))
 
+    def quaternion_reference(self) -> np.ndarray:
+        """Per joint, the sign-free average rotation of the training frames (joints, 4).
+
+        q and −q are one rotation, and clips (and generated sequences) disagree on the
+        sign; flipping each quaternion into the hemisphere of this reference gives a
+        network one sign per rotation. It is the principal eigenvector of Σ q qᵀ
+        (Markley's quaternion average), so it is itself free of the signs.
+        """
+        frames = np.concatenate([self.dataset.arrays["angles"][c.start : c.stop] for c in self.clips("train")])
+        quats = frames[:, ROOT_DIMS:].reshape(len(frames), -1, 4).astype(np.float64)
+        scatter = np.einsum("tja,tjb->jab", quats, quats)
+        return np.linalg.eigh(scatter)[1][..., -1].astype(np.float32)
+
     def labels_dict(self) -> dict:
         """The vocabularies, for a checkpoint's JSON."""
         return {"actions": list(self.actions.names), "styles": list(self.styles.names)}

@@ -1,0 +1,83 @@
+"""Attribute classifiers: accuracy on held-out real data, invariances, crops, saving."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from generation.checkpoint import CheckpointError
+from generation.hvrnn.classifiers import (AttributeClassifiers, ClassifierConfig, accuracy, random_crops,
+                                          train_classifiers)
+from generation.hvrnn.data import ROOT_DIMS, load_attribute_data
+from generation.hvrnn.store import save_network
+
+TINY = ClassifierConfig(channels=(32, 32, 32), steps=150, batch_size=16, lr=3e-3)
+
+
+@pytest.fixture(scope="module")
+def data(motion_data, pytestconfig):
+    return load_attribute_data(motion_data, cache_dir=pytestconfig.cache.mkdir("motion-dataset"), progress=False)
+
+
+@pytest.fixture(scope="module")
+def trained(data):
+    torch.set_num_threads(1)
+    return train_classifiers(data, TINY, seed=0)
+
+
+def test_held_out_accuracy_is_well_above_chance(data, trained):
+    classifiers, history = trained
+    result = accuracy(classifiers, data.sequences("test"))
+    chance = {"action": 1 / len(data.actions), "style": 1 / len(data.styles)}
+    for kind in ("action", "style"):
+        # Chance is 1/17 (actions) and 1/15 (styles); a tiny network reaches 0.5 and more.
+        assert result[kind] > 4 * chance[kind], (kind, result[kind])
+        assert np.mean(history[kind][-20:]) < 0.5 * np.mean(history[kind][:20])
+
+
+def test_output_ignores_padding_and_quaternion_signs(data, trained):
+    classifiers, _ = trained
+    net = classifiers["style"]
+    test = data.sequences("test").subset(np.arange(4))
+    features, mask, _, _ = test.tensors()
+    logits, activations = net(features, mask)
+    assert len(activations) == 3 and activations[0].shape[:2] == (4, TINY.channels[0])
+    longer = torch.cat([features, torch.randn(4, 50, features.shape[-1])], 1)
+    longer_mask = torch.cat([mask, torch.zeros(4, 50, dtype=torch.bool)], 1)
+    assert torch.allclose(net(longer, longer_mask)[0], logits, atol=1e-5)
+    flipped = features.clone()
+    flipped[..., ROOT_DIMS:] *= -1
+    assert torch.allclose(net(flipped, mask)[0], logits, atol=1e-5)
+    assert net.embed(features, mask).shape == (4, TINY.channels[-1])
+
+
+def test_random_crops_stay_inside_and_are_long_enough():
+    lengths = torch.tensor([10, 45, 200, 120])
+    mask = torch.arange(200)[None] < lengths[:, None]
+    generator = torch.Generator().manual_seed(0)
+    for _ in range(20):
+        crop = random_crops(mask, 45, generator)
+        assert not (crop & ~mask).any()
+        kept = crop.sum(1)
+        assert (kept >= lengths.clamp(max=45)).all() and (kept <= lengths).all()
+        # One contiguous stretch per row.
+        assert ((crop[:, 1:].int() - crop[:, :-1].int()) == 1).sum(1).le(1).all()
+
+
+def test_saved_classifiers_load_identically_and_bad_files_are_refused(data, trained, tmp_path):
+    classifiers, _ = trained
+    path = classifiers.save(tmp_path / "classifiers.safetensors", data.dataset.fingerprint, {"accuracy": 1.0})
+    loaded = AttributeClassifiers.load(path)
+    test = data.sequences("test").subset(np.arange(6))
+    features, mask, _, _ = test.tensors()
+    for kind in ("action", "style"):
+        assert torch.equal(loaded[kind](features, mask)[0], classifiers[kind](features, mask)[0])
+    assert loaded.vocabularies["style"] == data.styles
+    other = save_network(tmp_path / "other.safetensors", torch.nn.Linear(2, 2), "denoiser", {})
+    with pytest.raises(CheckpointError, match="'denoiser' network, not a 'attribute-classifiers'"):
+        AttributeClassifiers.load(other)
+    damaged = tmp_path / "damaged.safetensors"
+    damaged.write_bytes(path.read_bytes()[:-8] + b"\x00" * 8)
+    with pytest.raises(CheckpointError, match="digest"):
+        AttributeClassifiers.load(damaged)
