@@ -1,0 +1,33 @@
+"""Many participants at once, over HTTP against a live server and a real database file."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import pytest
+
+from studyapp.models import Participant, Rating, Stimulus, System
+from studyapp.simulated_participants import run_participants
+from tests.study_fixtures import make_study
+
+
+@pytest.mark.django_db(transaction=True)
+def test_simultaneous_participants_never_pass_a_target_and_lose_no_rating(live_server):
+    # 4 controls x 3 rated systems = 12 stimuli x 3 ratings = 36 places; each participant
+    # rates 4 of them (plus one BAD check), so exactly 9 participants fit. Thresholds
+    # that exclude nobody keep every rating counting towards the targets.
+    study = make_study(controls=4, clips_per_participant=5, ratings_per_stimulus=3, bad_checks=1, natural_checks=0,
+                       training_clips=1, clip_seconds=0.01, bad_threshold=6.0, natural_threshold=0.0)
+    outcomes = run_participants(f"{live_server.url}/p/{study.key}/", count=24)
+
+    assert [o.error for o in outcomes if o.error] == []
+    finished = [o for o in outcomes if o.finished]
+    turned_away = [o for o in outcomes if "The study is full" in o.final_page]
+    assert (len(finished), len(turned_away)) == (9, 15)
+    assert Participant.objects.filter(study=study).count() == 9
+
+    # Every rating the participants sent is stored, once.
+    assert Rating.objects.count() == sum(o.ratings for o in outcomes) == 9 * 5
+    per_stimulus = Counter(Rating.objects.values_list("assignment__stimulus_id", flat=True))
+    rated = Stimulus.objects.filter(study=study).exclude(system__role=System.Role.BAD)
+    assert all(per_stimulus[s.id] == study.ratings_per_stimulus for s in rated)
