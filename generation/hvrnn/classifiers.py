@@ -6,10 +6,8 @@ HVRNN uses their intermediate activations and labels in its loss; the evaluation
 their class probabilities (Inception Score) and pooled activations (FID).
 
 They take raw angle features, as ``data.AttributeData.sequences`` gives them without a
-standardiser, and prepare them themselves: each quaternion flipped into the
-hemisphere of the training average (q and −q are one rotation, and generated
-sequences need not pick the data's sign), then standardised with the training
-statistics. So real data and every model's output are judged alike.
+standardiser, and prepare them themselves (``inputs.InputNormalizer``: quaternion signs
+aligned, then standardised), so real data and every model's output are judged alike.
 """
 
 from __future__ import annotations
@@ -24,13 +22,13 @@ import torch
 from torch import nn
 
 from ..checkpoint import CheckpointError
-from .data import ROOT_DIMS, AttributeData, SequenceSet, Vocabulary
+from .data import AttributeData, SequenceSet, Vocabulary
 from .fitting import fit
+from .inputs import InputNormalizer
 from .store import load_network, load_state, save_network
 
 KINDS = ("action", "style")
 NETWORK_KIND = "attribute-classifiers"
-MIN_QUATERNION_STD = 0.05  # about 6 degrees of rotation
 
 
 @dataclass(frozen=True)
@@ -57,31 +55,20 @@ class AttributeClassifier(nn.Module):
 
     def __init__(self, config: ClassifierConfig, feature_dim: int, n_classes: int) -> None:
         super().__init__()
-        if (feature_dim - ROOT_DIMS) % 4:
-            raise ValueError(f"feature_dim {feature_dim} is not {ROOT_DIMS} root values plus quaternions")
         self.config = config
-        self.register_buffer("mean", torch.zeros(feature_dim))
-        self.register_buffer("std", torch.ones(feature_dim))
-        self.register_buffer("reference", torch.tensor([1.0, 0.0, 0.0, 0.0]).repeat((feature_dim - ROOT_DIMS) // 4, 1))
+        self.inputs = InputNormalizer(feature_dim)
         widths = (feature_dim, *config.channels)
         self.convs = nn.ModuleList(
             nn.Conv1d(a, b, config.kernel, padding=config.kernel // 2) for a, b in zip(widths[:-1], widths[1:]))
         self.dropout = nn.Dropout(config.dropout)
         self.linear = nn.Linear(widths[-1], n_classes)
 
-    def prepare(self, features: torch.Tensor) -> torch.Tensor:
-        """Raw angle features (batch, frames, dims), sign-aligned and standardised."""
-        root, quats = features[..., :ROOT_DIMS], features[..., ROOT_DIMS:].unflatten(-1, (-1, 4))
-        flip = (quats * self.reference).sum(-1, keepdim=True) < 0
-        quats = torch.where(flip, -quats, quats)
-        return (torch.cat([root, quats.flatten(-2)], -1) - self.mean) / self.std
-
     def activations(self, features: torch.Tensor, mask: torch.Tensor) -> list[torch.Tensor]:
         """The output (batch, channels, frames) of each convolution, zero on padding."""
         weights = mask.to(features.dtype).unsqueeze(1)
         # Zeroing the padding before every layer makes a sequence's output independent
         # of how much padding follows it.
-        h = self.prepare(features).transpose(1, 2) * weights
+        h = self.inputs(features).transpose(1, 2) * weights
         result = []
         for conv in self.convs:
             h = torch.relu(conv(h)) * weights
@@ -111,24 +98,9 @@ class AttributeClassifiers(nn.Module):
             raise KeyError(f"unknown classifier {kind!r}; use one of {KINDS}")
         return self.nets[kind]
 
-    @torch.no_grad()
-    def fit_input_statistics(self, sequences: SequenceSet, reference: np.ndarray) -> None:
-        """Set the sign reference, then the mean and spread of the sign-aligned real frames.
-
-        A quaternion component's spread is floored at MIN_QUATERNION_STD: some barely
-        move in the data, and dividing by their tiny spread would turn a few degrees
-        of another take's posture into hundreds of standard deviations.
-        """
-        features, mask, _, _ = sequences.tensors()
+    def fit_inputs(self, sequences: SequenceSet, reference: np.ndarray) -> None:
         for net in self.nets.values():
-            net.reference.copy_(torch.as_tensor(reference, dtype=torch.float32))
-            net.mean.zero_()
-            net.std.fill_(1.0)
-            aligned = net.prepare(features)[mask]
-            floor = torch.full_like(net.std, MIN_QUATERNION_STD)
-            floor[:ROOT_DIMS] = 1e-6
-            net.mean.copy_(aligned.mean(0))
-            net.std.copy_(torch.maximum(aligned.std(0), floor))
+            net.inputs.fit(sequences, reference)
 
     def save(self, path: str | os.PathLike, data_fingerprint: str, metrics: dict) -> Path:
         return save_network(path, self, NETWORK_KIND, {
@@ -168,7 +140,7 @@ def train_classifiers(data: AttributeData, config: ClassifierConfig = Classifier
     """Both classifiers, trained with cross entropy on ``part``; and each one's step losses."""
     sequences = data.sequences(part)
     classifiers = AttributeClassifiers(config, data.feature_dim, data.actions, data.styles)
-    classifiers.fit_input_statistics(data.sequences("train"), data.quaternion_reference())
+    classifiers.fit_inputs(data.sequences("train"), data.quaternion_reference())
     features, mask, action, style = sequences.tensors()
     labels = {"action": action, "style": style}
     crops = torch.Generator().manual_seed(seed)
