@@ -5,7 +5,11 @@
 
 The generator owns what the models do not: standardisation, the seed context, the
 optional warm-up second that MoGlow generates and discards, and turning features back
-into a ``Motion`` placed in the world.
+into a ``Motion`` placed in the world. Path models (MoGlow and its baselines) follow a
+``PathControl``; attribute models (HVRNN, ERD, QuaterNet) take an ``AttributeControl``
+and return joint-angle features, decoded onto the skeleton:
+
+    Generator.load("hvrnn-cpu.safetensors").sample(AttributeControl("walk", "happy", 120, 30.0), n=4, seed=1)
 """
 
 from __future__ import annotations
@@ -16,10 +20,11 @@ import numpy as np
 import torch
 
 from .checkpoint import CheckpointMeta, load_checkpoint
-from .control import Control, PathControl
+from .control import AttributeControl, Control, PathControl
 from .motion.dataset import Standardizer
-from .motion.features import decode_positions
+from .motion.features import AngleFeatureSpec, decode_angles, decode_positions
 from .motion.types import Motion, Skeleton
+from .models.attribute import AttributeModel
 from .models.base import MotionModel
 
 
@@ -31,7 +36,11 @@ class Generator:
         self.skeleton = Skeleton.from_dict(meta.skeleton)
         self.fps = float(meta.features["dataset_options"]["fps"])
         self.pose_stats = Standardizer.from_dict(meta.stats["pose"])
-        self.control_stats = Standardizer.from_dict(meta.stats["control"])
+        self.attributes = isinstance(model, AttributeModel)
+        if self.attributes:
+            self.angle_spec = AngleFeatureSpec.from_dict(meta.features["angle_spec"])
+        else:
+            self.control_stats = Standardizer.from_dict(meta.stats["control"])
 
     @classmethod
     def load(cls, path: str | os.PathLike, device: str | torch.device = "cpu") -> "Generator":
@@ -53,7 +62,10 @@ class Generator:
         (default: 1 s for autoregressive models, as in MoGlow, else 0), holding the
         first control frame. ``context`` (context_frames, 3 × joints, in the root frame,
         cm) seeds autoregressive models; by default they start from the mean pose.
+        Attribute models take an ``AttributeControl`` and neither of those two.
         """
+        if self.attributes:
+            return self._sample_attributes(control, n, seed, temperature)
         if not isinstance(control, PathControl):
             raise ValueError(f"a {self.meta.kind} model follows a path; got {type(control).__name__}")
         if abs(control.fps - self.fps) > 1e-6:
@@ -85,3 +97,19 @@ class Generator:
             Motion(decode_positions(p, control.velocities, self.fps), self.fps, self.skeleton)
             for p in poses
         ]
+
+    def _sample_attributes(self, control: Control, n: int, seed: int, temperature: float) -> list[Motion]:
+        if not isinstance(control, AttributeControl):
+            raise ValueError(f"a {self.meta.kind} model is controlled by action and style labels "
+                             f"(AttributeControl); got {type(control).__name__}")
+        if abs(control.fps - self.fps) > 1e-6:
+            raise ValueError(f"control is at {control.fps:g} fps but the model was trained at {self.fps:g} fps")
+        if n < 1 or control.frames < 1:
+            raise ValueError(f"n and frames must be at least 1, got n={n}, frames={control.frames}")
+        action, style = self.model.label_indices(control.action, control.style)
+        labels = [torch.full((n,), index, dtype=torch.long, device=self.device) for index in (action, style)]
+        generator = torch.Generator(device=self.device).manual_seed(seed)
+        with torch.inference_mode():
+            features = self.model.generate_from_labels(*labels, control.frames, temperature, generator)
+        features = self.pose_stats.invert(features.double().cpu().numpy())
+        return [decode_angles(f, self.skeleton, self.angle_spec, self.fps) for f in features]

@@ -275,3 +275,21 @@ def test_the_export_has_one_row_per_rating_with_the_flags():
     assert all(r["excluded_participant"] for r in rows)
     assert {r["system"] for r in rows} <= {"MoGlow", "RNN", "NAT", "BAD"}
     assert "BAD" in {r["system"] for r in rows}
+
+
+def test_participants_finish_while_the_task_queue_is_down():
+    from studyapp.celery import app
+
+    study = make_study(clips_per_participant=3, bad_checks=1, natural_checks=1)
+    dead_broker = "redis://127.0.0.1:1/0"  # nothing listens on port 1
+    original = app.conf.broker_url
+    app.conf.broker_url = dead_broker
+    try:
+        client = Client()
+        participant = through_practice(client, study)
+        for _ in range(3):
+            assert rate_current(client, study, participant, 3).status_code == 302
+    finally:
+        app.conf.broker_url = original
+    participant.refresh_from_db()
+    assert participant.finished_at is not None
