@@ -4,8 +4,8 @@
   build-dataset FOLDER  encode a folder of BVH files into a cached training set
   render BVH...         draw clips as MP4 stick figures (and contact sheets)
   gallery FOLDER        render a few natural clips per content, with an index.json
-  train FOLDER          train a model (moglow, rnn, vae) on a BVH folder
-  sample CHECKPOINT     generate motion for control signals (npz, BVH, optional MP4)
+  train FOLDER          train a model (moglow, rnn, vae, hvrnn) on a BVH folder
+  sample CHECKPOINT     generate motion for control signals or labels (npz, BVH, optional MP4)
   natural FOLDER        export held-out natural clips the same way (the NAT system)
   evaluate CHECKPOINT   held-out loss (MoGlow: negative log-likelihood per frame)
 """
@@ -130,23 +130,36 @@ def gallery(args: argparse.Namespace) -> int:
 LOCOMOTION = "walk,run,dash,walk-back,walk-left,walk-right"
 
 
-def _dataset_for_training(args: argparse.Namespace):
-    options = DatasetOptions(contents=tuple(args.contents.split(",")) if args.contents else None)
+def _dataset_for_training(args: argparse.Namespace, attributes: bool):
+    """Path models: the locomotion windows by default; attribute models: every content's
+    labelled angle sequences (``generation.hvrnn.data``)."""
+    if attributes:
+        from .hvrnn.data import load_attribute_data
+
+        contents = tuple(args.contents.split(",")) if args.contents else None
+        return load_attribute_data(args.folder, contents, cache_dir=args.cache_dir)
+    options = DatasetOptions(contents=tuple((args.contents or LOCOMOTION).split(",")))
     return build_dataset(args.folder, options, cache_dir=args.cache_dir)
 
 
 def train_command(args: argparse.Namespace) -> int:
     import torch
 
+    from .models import model_class
+    from .models.attribute import AttributeModel
     from .train import TrainOptions, train
 
     if args.device.startswith("cuda") and not torch.cuda.is_available():
         raise ValueError("--device cuda asked for, but torch sees no CUDA device (is a CUDA build of torch installed?)")
     if args.threads:
         torch.set_num_threads(args.threads)
-    dataset = _dataset_for_training(args)
+    attributes = issubclass(model_class(args.model), AttributeModel)
+    if args.classifiers and not attributes:
+        raise ValueError(f"--classifiers is for attribute-controlled models, not {args.model}")
+    dataset = _dataset_for_training(args, attributes)
     options = TrainOptions(steps=args.steps, eval_every=args.eval_every, seed=args.seed, device=args.device)
-    meta = train(args.model, args.preset, dataset, args.out, options, resume=args.resume)
+    overrides = {"classifiers": args.classifiers} if args.classifiers else None
+    meta = train(args.model, args.preset, dataset, args.out, options, resume=args.resume, overrides=overrides)
     last = meta.metrics["history"][-1]
     print(f"{args.out}: step {meta.step}, held-out loss {last['val_loss']:.4f}, "
           f"training loss {last['train_loss']:.4f}, {last['seconds']:.0f} s of training")
@@ -173,6 +186,10 @@ def sample_command(args: argparse.Namespace) -> int:
     from .generator import Generator
 
     generator = Generator.load(args.checkpoint, args.device)
+    if generator.attributes:
+        return _sample_attributes(args, generator)
+    if args.action or args.style:
+        raise ValueError(f"--action and --style are for attribute-controlled models; {args.checkpoint} follows a path (--control)")
     controls = _controls(args, generator.fps, generator.meta.features["dataset_options"])
     out = Path(args.out)
     for control in tqdm(controls, desc="sampling", unit="control", disable=len(controls) < 2):
@@ -185,6 +202,28 @@ def sample_command(args: argparse.Namespace) -> int:
             if args.render:
                 render_video(motion, out / f"{stem}.mp4", camera=_camera(args), size=args.size, root_path=path.xz)
     print(f"{len(controls) * args.n} clips in {out}")
+    return 0
+
+
+def _sample_attributes(args: argparse.Namespace, generator) -> int:
+    """N clips of --seconds for every --action and --style pair (default: all the model knows)."""
+    from .control import AttributeControl
+
+    model = generator.model
+    actions, styles = args.action or list(model.actions), args.style or list(model.styles)
+    frames = max(1, int(round(args.seconds * generator.fps)))
+    out = Path(args.out)
+    pairs = [(a, s) for a in actions for s in styles]
+    for action, style in tqdm(pairs, desc="sampling", unit="label pair", disable=len(pairs) < 2):
+        control = AttributeControl(action, style, frames, generator.fps, f"{action}_{style}")
+        for i, motion in enumerate(generator.sample(control, n=args.n, seed=args.seed, temperature=args.temperature)):
+            stem = f"{control.name}_{i:02d}"
+            floor = root_trajectory(motion, RootOptions()).xz
+            save_motion_npz(motion, out / f"{stem}.npz", floor_path=floor)
+            write_bvh(motion_to_bvh(motion), out / f"{stem}.bvh")
+            if args.render:
+                render_video(motion, out / f"{stem}.mp4", camera=_camera(args), size=args.size, root_path=floor)
+    print(f"{len(pairs) * args.n} clips in {out}")
     return 0
 
 
@@ -207,16 +246,24 @@ def natural_command(args: argparse.Namespace) -> int:
 
 def evaluate_command(args: argparse.Namespace) -> int:
     from .checkpoint import load_checkpoint
-    from .train import evaluate_loss, tensors
+    from .models.attribute import AttributeModel
+    from .train import attribute_tensors, evaluate_loss, tensors
 
     model, meta = load_checkpoint(args.checkpoint, args.device)
     folder = args.data or os.environ.get("MOTION_DATA")
     if not folder:
         raise ValueError("evaluation needs the motion folder: --data FOLDER or $MOTION_DATA")
-    dataset = build_dataset(folder, DatasetOptions.from_dict(meta.features["dataset_options"]), cache_dir=args.cache_dir)
+    options = DatasetOptions.from_dict(meta.features["dataset_options"])
+    dataset = build_dataset(folder, options, cache_dir=args.cache_dir)
     if dataset.fingerprint != meta.data_fingerprint:
         print("warning: this data differs from the data the model was trained on", file=sys.stderr)
-    loss = evaluate_loss(model, tensors(dataset, "test", args.device))
+    if isinstance(model, AttributeModel):
+        from .hvrnn.data import AttributeData
+
+        data = attribute_tensors(AttributeData.from_dataset(dataset, options.seed), "test", model.standardization, args.device)
+    else:
+        data = tensors(dataset, "test", args.device)
+    loss = evaluate_loss(model, data)
     name = "negative log-likelihood (nats per frame)" if meta.kind == "moglow" else "loss"
     print(f"{args.checkpoint}: held-out {name}: {loss:.4f} over {len(dataset.select('test'))} held-out takes")
     return 0
@@ -270,13 +317,14 @@ def parser() -> argparse.ArgumentParser:
                                         "validation). Writes CHECKPOINT (safetensors + JSON header) at every evaluation; "
                                         "--resume continues from it.")
     p.add_argument("folder", help="folder of .bvh files")
-    p.add_argument("--model", choices=("moglow", "rnn", "vae"), default="moglow", help="model kind (default %(default)s)")
-    p.add_argument("--preset", default="cpu", help="configuration preset: cpu, paper, or with an ablation such as cpu-MG-D (default %(default)s)")
+    p.add_argument("--model", "--kind", choices=("moglow", "rnn", "vae", "hvrnn"), default="moglow", help="model kind (default %(default)s)")
+    p.add_argument("--preset", default="cpu", help="configuration preset: cpu, paper, or with an ablation such as cpu-MG-D or cpu-SL (default %(default)s)")
+    p.add_argument("--classifiers", help="attribute classifiers' file for HVRNN's classifier loss")
     p.add_argument("--out", "-o", required=True, help="checkpoint path (.safetensors)")
     p.add_argument("--steps", type=int, default=4000, help="total training steps (default %(default)s)")
     p.add_argument("--eval-every", type=int, default=250, help="steps between validation and checkpoint (default %(default)s)")
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint at --out")
-    p.add_argument("--contents", default=LOCOMOTION, help="content labels to train on (default: locomotion)")
+    p.add_argument("--contents", help="content labels to train on (default: locomotion for path models, all for attribute models)")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu", help="cpu or cuda (default %(default)s)")
     p.add_argument("--threads", type=int, help="CPU threads for torch")
@@ -289,11 +337,13 @@ def parser() -> argparse.ArgumentParser:
                                         "a JSON or YAML path description, or 'held-out' for the held-out natural clips.")
     p.add_argument("checkpoint", help="a checkpoint written by train")
     p.add_argument("--control", "-c", nargs="+", default=["walk-straight"], help="control presets, files or 'held-out'")
+    p.add_argument("--action", nargs="+", help="attribute models: actions to sample (default: all the model knows)")
+    p.add_argument("--style", nargs="+", help="attribute models: styles to sample (default: all the model knows)")
     p.add_argument("--out", "-o", required=True, help="output folder (npz and BVH per clip)")
     p.add_argument("--n", type=int, default=1, help="samples per control (default %(default)s)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--temperature", type=float, default=1.0, help="sampling temperature (default %(default)s)")
-    p.add_argument("--seconds", type=float, default=4.0, help="length of held-out control (default %(default)s)")
+    p.add_argument("--seconds", type=float, default=4.0, help="length of held-out control or of attribute-controlled clips (default %(default)s)")
     p.add_argument("--data", help="motion folder for held-out control (default $MOTION_DATA)")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu")

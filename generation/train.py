@@ -3,6 +3,11 @@
 One loop serves every model: Adam, an optional Noam warm-up (MoGlow), gradient-norm
 clipping, random minibatches of training windows, and at each evaluation the held-out
 loss (MoGlow's held-out NLL) and a checkpoint written atomically.
+
+Path-controlled models learn from a ``MotionDataset``'s windows of poses and control;
+attribute-controlled models (``AttributeModel``: HVRNN, ERD, QuaterNet) from an
+``AttributeData``'s padded angle sequences with masks and labels. Either way a batch is
+a dict of tensors passed to ``model.loss`` by name.
 """
 
 from __future__ import annotations
@@ -20,10 +25,14 @@ from tqdm import tqdm
 
 from .checkpoint import CheckpointError, CheckpointMeta, code_version, load_checkpoint, load_optimizer_state, read_meta, save_checkpoint
 from .models import model_class, preset
+from .models.attribute import AttributeModel
 from .models.base import MotionModel
 from .motion.dataset import MotionDataset
 
 KEYS = ("pose", "control")
+# The training part of an attribute dataset: every training take (the classifiers of
+# the classifier loss see only half of them, as in the paper).
+ATTRIBUTE_TRAINING_PART = "train"
 
 
 @dataclass(frozen=True)
@@ -49,31 +58,82 @@ def tensors(dataset: MotionDataset, split: str, device: str) -> dict[str, torch.
     return {k: torch.as_tensor(v, dtype=torch.float32, device=device) for k, v in windows.items()}
 
 
+def attribute_tensors(data, part: str, standardization: str, device: str) -> dict[str, torch.Tensor]:
+    """Padded sequences of an ``AttributeData`` part as a batch dict: pose, mask, action, style."""
+    pose, mask, action, style = data.sequences(part, data.standardizer(standardization)).tensors(device)
+    return {"pose": pose, "mask": mask, "action": action, "style": style}
+
+
+@dataclass
+class TrainingData:
+    """A dataset as the loop sees it: batches by name, and what a checkpoint records of it."""
+
+    train: dict[str, torch.Tensor]
+    test: dict[str, torch.Tensor]
+    pose_dim: int
+    control_dim: int
+    features: dict
+    stats: dict
+    skeleton: dict
+    fingerprint: str
+    labels: dict  # configuration fields taken from the data (attribute models' vocabularies)
+
+
+def training_data(cls: type[MotionModel], dataset, device: str) -> TrainingData:
+    """Windows of a ``MotionDataset`` for path models, sequences of an ``AttributeData`` for attribute models."""
+    if issubclass(cls, AttributeModel):
+        if not hasattr(dataset, "sequences"):
+            raise ValueError(f"a {cls.kind} model learns from labelled angle sequences (generation.hvrnn.data.AttributeData)")
+        train_part = attribute_tensors(dataset, ATTRIBUTE_TRAINING_PART, cls.standardization, device)
+        motion = dataset.dataset
+        return TrainingData(
+            train_part, attribute_tensors(dataset, "test", cls.standardization, device),
+            dataset.feature_dim, len(dataset.actions) + len(dataset.styles),
+            {"type": "angles", "dataset_options": motion.options.to_dict(), "angle_spec": motion.angle_spec.to_dict(),
+             "part": ATTRIBUTE_TRAINING_PART},
+            {"pose": dataset.standardizer(cls.standardization).to_dict()},
+            motion.skeleton.to_dict(), motion.fingerprint,
+            {"actions": dataset.actions.names, "styles": dataset.styles.names},
+        )
+    if not isinstance(dataset, MotionDataset):
+        raise ValueError(f"a {cls.kind} model learns from a MotionDataset's windows")
+    train_part = tensors(dataset, "train", device)
+    return TrainingData(
+        train_part, tensors(dataset, "test", device), train_part["pose"].shape[-1], train_part["control"].shape[-1],
+        {"type": "positions", "dataset_options": dataset.options.to_dict()},
+        {k: dataset.stats[k].to_dict() for k in KEYS}, dataset.skeleton.to_dict(), dataset.fingerprint, {},
+    )
+
+
+def batch_count(data: dict[str, torch.Tensor]) -> int:
+    return len(data["pose"])
+
+
 @torch.no_grad()
 def evaluate_loss(model: MotionModel, data: dict[str, torch.Tensor], batch_size: int = 64) -> float:
     """The mean loss over all windows (model in eval mode: no dropout)."""
     was_training = model.training
     model.eval()
     total, count = 0.0, 0
-    for start in range(0, len(data["pose"]), batch_size):
-        pose, control = data["pose"][start : start + batch_size], data["control"][start : start + batch_size]
-        loss, _ = model.loss(pose, control)
-        total += float(loss) * len(pose)
-        count += len(pose)
+    for start in range(0, batch_count(data), batch_size):
+        batch = {k: v[start : start + batch_size] for k, v in data.items()}
+        loss, _ = model.loss(**batch)
+        total += float(loss) * batch_count(batch)
+        count += batch_count(batch)
     model.train(was_training)
     return total / count
 
 
-def checkpoint_meta(model: MotionModel, dataset: MotionDataset, step: int, metrics: dict) -> CheckpointMeta:
+def checkpoint_meta(model: MotionModel, data: TrainingData, step: int, metrics: dict) -> CheckpointMeta:
     return CheckpointMeta(
         kind=model.kind,
         hyperparameters=dataclasses.asdict(model.config),
         pose_dim=model.pose_dim,
         control_dim=model.control_dim,
-        features={"type": "positions", "dataset_options": dataset.options.to_dict()},
-        stats={k: dataset.stats[k].to_dict() for k in KEYS},
-        skeleton=dataset.skeleton.to_dict(),
-        data_fingerprint=dataset.fingerprint,
+        features=data.features,
+        stats=data.stats,
+        skeleton=data.skeleton,
+        data_fingerprint=data.fingerprint,
         step=step,
         code_version=code_version(),
         metrics=metrics,
@@ -88,33 +148,40 @@ def best_path(out: Path) -> Path:
 def train(
     kind: str,
     preset_name: str,
-    dataset: MotionDataset,
+    dataset,
     out: str | os.PathLike,
     options: TrainOptions = TrainOptions(),
     resume: bool = False,
     progress: bool = True,
+    overrides: dict | None = None,
 ) -> CheckpointMeta:
     """Train (or with ``resume`` continue) a model; returns the last checkpoint's description.
 
+    ``dataset`` is a ``MotionDataset`` (path models) or an ``AttributeData`` (attribute
+    models). ``overrides`` replaces fields of the preset's configuration.
     ``out`` always holds the latest state (and its optimiser, for resuming);
     ``NAME.best.safetensors`` beside it the state with the lowest held-out loss.
     """
     out = Path(out)
     torch.manual_seed(options.seed)
-    train_data, val_data = tensors(dataset, "train", options.device), tensors(dataset, "test", options.device)
-    pose_dim, control_dim = train_data["pose"].shape[-1], train_data["control"].shape[-1]
+    cls = model_class(kind)
+    data = training_data(cls, dataset, options.device)
+    train_data, val_data = data.train, data.test
 
     history: list[dict] = []
     if resume and out.exists():
         model, meta = load_checkpoint(out, options.device)
-        if meta.data_fingerprint != dataset.fingerprint:
+        if meta.data_fingerprint != data.fingerprint:
             raise CheckpointError(f"{out}: trained on other data (fingerprint {meta.data_fingerprint[:12]}, "
-                                  f"this dataset {dataset.fingerprint[:12]}); cannot resume")
+                                  f"this dataset {data.fingerprint[:12]}); cannot resume")
         model.train()
         start, history = meta.step, meta.metrics.get("history", [])
     else:
-        model = model_class(kind)(preset(kind, preset_name), pose_dim, control_dim).to(options.device)
+        config = dataclasses.replace(preset(kind, preset_name), **data.labels, **(overrides or {}))
+        model = cls(config, data.pose_dim, data.control_dim).to(options.device)
         start = 0
+    if isinstance(model, AttributeModel):
+        model.prepare(dataset)
     config = model.config
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
     if start:
@@ -130,8 +197,8 @@ def train(
     for step in bar:
         for group in optimizer.param_groups:
             group["lr"] = config.learning_rate * noam_factor(step + 1, warmup)
-        index = torch.randint(len(train_data["pose"]), (config.batch_size,), generator=batches).to(options.device)
-        loss, metrics = model.loss(train_data["pose"][index], train_data["control"][index])
+        index = torch.randint(batch_count(train_data), (config.batch_size,), generator=batches).to(options.device)
+        loss, metrics = model.loss(**{k: v[index] for k, v in train_data.items()})
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
@@ -147,7 +214,7 @@ def train(
             history.append({"step": done, "train_loss": float(np.mean(recent)), "val_loss": val, "seconds": round(seconds, 1)})
             recent = []
             bar.set_postfix(train=f"{history[-1]['train_loss']:.3f}", val=f"{val:.3f}")
-            meta = checkpoint_meta(model, dataset, done, {"val_loss": val, "history": history})
+            meta = checkpoint_meta(model, data, done, {"val_loss": val, "history": history})
             save_checkpoint(out, model, meta, optimizer)
             # Small baselines overfit the few held-out takes early: keep the best as well.
             if val <= min(h["val_loss"] for h in history):

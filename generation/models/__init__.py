@@ -12,11 +12,13 @@ from .base import MotionModel
 from .moglow import MoGlow, moglow_preset
 from .rnn import RNNBaseline, rnn_preset
 from .vae import VAEBaseline, vae_preset
+from ..hvrnn.model import HVRNN, hvrnn_preset
 
 MODELS: dict[str, tuple[type[MotionModel], Callable]] = {
     MoGlow.kind: (MoGlow, moglow_preset),
     RNNBaseline.kind: (RNNBaseline, rnn_preset),
     VAEBaseline.kind: (VAEBaseline, vae_preset),
+    HVRNN.kind: (HVRNN, hvrnn_preset),
 }
 
 
