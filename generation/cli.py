@@ -193,7 +193,8 @@ def sample_command(args: argparse.Namespace) -> int:
     controls = _controls(args, generator.fps, generator.meta.features["dataset_options"])
     out = Path(args.out)
     for control in tqdm(controls, desc="sampling", unit="control", disable=len(controls) < 2):
-        motions = generator.sample(control, n=args.n, seed=args.seed, temperature=args.temperature)
+        motions = generator.sample(control, n=args.n, seed=args.seed, temperature=args.temperature,
+                                   precision=args.precision)
         path = control.path()
         for i, motion in enumerate(motions):
             stem = f"{control.name}_{i:02d}"
@@ -343,6 +344,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--n", type=int, default=1, help="samples per control (default %(default)s)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--temperature", type=float, default=1.0, help="sampling temperature (default %(default)s)")
+    p.add_argument("--precision", choices=("float32", "bfloat16"), default="float32",
+                   help="MoGlow's coupling networks in bfloat16: several times faster for large --n on CPUs "
+                        "with AMX, samples close to float32's (default %(default)s)")
     p.add_argument("--seconds", type=float, default=4.0, help="length of held-out control or of attribute-controlled clips (default %(default)s)")
     p.add_argument("--data", help="motion folder for held-out control (default $MOTION_DATA)")
     p.add_argument("--cache-dir", help="dataset cache folder")

@@ -55,6 +55,7 @@ class Generator:
         temperature: float = 1.0,
         warmup_seconds: float | None = None,
         context: np.ndarray | None = None,
+        precision: str = "float32",
     ) -> list[Motion]:
         """``n`` motions following ``control``; the same seed gives the same motions.
 
@@ -63,7 +64,10 @@ class Generator:
         first control frame. ``context`` (context_frames, 3 × joints, in the root frame,
         cm) seeds autoregressive models; by default they start from the mean pose.
         Attribute models take an ``AttributeControl`` and neither of those two.
+        ``precision`` is one the model offers (``model.precisions``): MoGlow's
+        "bfloat16" is several times faster at large ``n`` on CPUs with AMX.
         """
+        self.model.check_precision(precision)
         if self.attributes:
             return self._sample_attributes(control, n, seed, temperature)
         if not isinstance(control, PathControl):
@@ -91,7 +95,7 @@ class Generator:
 
         generator = torch.Generator(device=self.device).manual_seed(seed)
         with torch.inference_mode():
-            poses = self.model.generate(c, seed_poses, temperature, generator)
+            poses = self.model.generate(c, seed_poses, temperature, generator, precision)
         poses = self.pose_stats.invert(poses[:, warmup:].double().cpu().numpy())
         return [
             Motion(decode_positions(p, control.velocities, self.fps), self.fps, self.skeleton)

@@ -25,6 +25,9 @@ class MotionModel(nn.Module):
     Config: ClassVar[type]
     # How many past poses the model needs before it can continue a sequence (0: none).
     context_frames: int = 0
+    # The precisions ``generate`` offers for its matrix products; "float32" (the default)
+    # computes in the parameters' own dtype, float32 for every trained model.
+    precisions: ClassVar[tuple[str, ...]] = ("float32",)
 
     def __init__(self, config: Any, pose_dim: int, control_dim: int) -> None:
         super().__init__()
@@ -41,6 +44,7 @@ class MotionModel(nn.Module):
         context: torch.Tensor | None,
         temperature: float = 1.0,
         generator: torch.Generator | None = None,
+        precision: str = "float32",
     ) -> torch.Tensor:
         """Poses (batch, frames, pose_dim) for control (batch, frames, control_dim).
 
@@ -48,9 +52,14 @@ class MotionModel(nn.Module):
         are the poses of the first ``context_frames`` frames, whose control is the start
         of ``control``; the output repeats them and continues. Models without context
         ignore it. Randomness comes only from ``generator``, so a seed reproduces a
-        sample.
+        sample. ``precision`` is one of the class's ``precisions``.
         """
         raise NotImplementedError
+
+    @classmethod
+    def check_precision(cls, precision: str) -> None:
+        if precision not in cls.precisions:
+            raise ValueError(f"a {cls.kind} model samples in precision {' or '.join(cls.precisions)}, not {precision!r}")
 
     def hyperparameters(self) -> dict:
         return dataclasses.asdict(self.config)

@@ -5,10 +5,14 @@ Every transform maps ``x`` (batch, frames, dim) to ``(y, logabsdet)`` where ``lo
 the log-determinant of the inverse. ``context`` (batch, frames, context_dim) is the
 conditioning information; only the coupling uses it.
 
-Sampling inverts the flow one frame at a time. ``frame_inverse()`` returns a callable
-``(y_t, context_t) -> x_t`` for that, with everything that does not change between
-frames (inverse weight matrices, concatenated LSTM weights) computed once, and with the
-recurrent state of the coupling network kept inside the callable rather than the module.
+Sampling inverts the flow one frame at a time. ``frame_inverse(network_dtype)`` returns
+a callable ``(y_t, context_t) -> x_t`` for that, with everything that does not change
+between frames (inverse weight matrices, concatenated LSTM weights) computed once, and
+with the recurrent state of the coupling network kept inside the callable rather than
+the module. ``network_dtype`` (default: the parameters' own) is the precision of the
+coupling networks' matrix products, where sampling spends its time; ``torch.bfloat16``
+runs them on the CPU's bf16 units. Everything else (actnorm, the inverse linear map, the
+affine arithmetic of the coupling, the LSTM cell state) stays in the parameters' dtype.
 Call it under ``torch.inference_mode()``, as ``MoGlow.generate`` does.
 """
 
@@ -53,7 +57,7 @@ class ActNorm(nn.Module):
         x = y * torch.exp(-self.log_scale) - self.bias
         return x, (-self.log_scale.sum()).expand(y.shape[:-1])
 
-    def frame_inverse(self) -> FrameInverse:
+    def frame_inverse(self, network_dtype: torch.dtype | None = None) -> FrameInverse:
         inverse_scale, negative_bias = torch.exp(-self.log_scale), -self.bias
         return lambda y, context: torch.addcmul(negative_bias, y, inverse_scale)
 
@@ -101,7 +105,7 @@ class InvertibleLinearLU(nn.Module):
     def inverse(self, y: torch.Tensor, context: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         return y @ self.inverse_weight().T, (-self.log_s.sum()).expand(y.shape[:-1])
 
-    def frame_inverse(self) -> FrameInverse:
+    def frame_inverse(self, network_dtype: torch.dtype | None = None) -> FrameInverse:
         inverse_t = self.inverse_weight().T.contiguous()
         return lambda y, context: y @ inverse_t
 
@@ -141,8 +145,8 @@ class AffineCoupling(nn.Module):
         scale, shift = self._scale_and_shift(x_b, context)
         return torch.cat([x_b, y_a / scale - shift], dim=-1), -torch.log(scale).sum(-1)
 
-    def frame_inverse(self) -> FrameInverse:
-        return _CouplingFrameInverse(self)
+    def frame_inverse(self, network_dtype: torch.dtype | None = None) -> FrameInverse:
+        return _CouplingFrameInverse(self, network_dtype)
 
 
 class _CouplingFrameInverse:
@@ -151,39 +155,42 @@ class _CouplingFrameInverse:
     Each LSTM layer is one matrix product of (input, h) with [W_ih W_hh], concatenated
     once per sampling run: fewer and larger products, and fewer elementwise calls, than
     ``torch.lstm_cell`` or ``nn.LSTM`` make, which is where sampling spends its time.
+    The products run in ``network_dtype`` (their inputs and the hidden state are kept in
+    it); gates, cell state, scale and shift are computed in the parameters' dtype.
     """
 
-    def __init__(self, coupling: AffineCoupling) -> None:
+    def __init__(self, coupling: AffineCoupling, network_dtype: torch.dtype | None = None) -> None:
         lstm = coupling.lstm
+        self.dtype = network_dtype or coupling.out.weight.dtype
         self.split = coupling.split
         self.layers = [
             (
-                torch.cat([getattr(lstm, f"weight_ih_l{k}"), getattr(lstm, f"weight_hh_l{k}")], dim=1),
-                getattr(lstm, f"bias_ih_l{k}") + getattr(lstm, f"bias_hh_l{k}"),
+                torch.cat([getattr(lstm, f"weight_ih_l{k}"), getattr(lstm, f"weight_hh_l{k}")], dim=1).T.to(self.dtype),
+                (getattr(lstm, f"bias_ih_l{k}") + getattr(lstm, f"bias_hh_l{k}")).to(self.dtype),
             )
             for k in range(lstm.num_layers)
         ]
         self.hidden_size = lstm.hidden_size
-        self.out = coupling.out
+        self.out = coupling.out.weight.T.to(self.dtype), coupling.out.bias.to(self.dtype)
         self.state: list[tuple[torch.Tensor, torch.Tensor]] | None = None
 
     def __call__(self, y: torch.Tensor, context: torch.Tensor | None) -> torch.Tensor:
         x_b, y_a = y[:, : self.split], y[:, self.split :]
         if self.state is None:
             zeros = y.new_zeros(y.shape[0], self.hidden_size)
-            self.state = [(zeros, zeros)] * len(self.layers)
+            self.state = [(zeros.to(self.dtype), zeros)] * len(self.layers)
         size, inputs = self.hidden_size, [x_b, context]
-        for k, (weight, bias) in enumerate(self.layers):
+        for k, (weight_t, bias) in enumerate(self.layers):
             hidden, cell = self.state[k]
-            gates = torch.addmm(bias, torch.cat([*inputs, hidden], dim=1), weight.T)
+            gates = torch.addmm(bias, torch.cat([*inputs, hidden], dim=1).to(self.dtype), weight_t).to(y.dtype)
             # nn.LSTM's gate order is (input, forget, cell, output); one sigmoid serves three.
             sigmoids = torch.sigmoid(gates)
             cell_input = torch.tanh(gates[:, 2 * size : 3 * size])
             cell = torch.addcmul(sigmoids[:, size : 2 * size] * cell, sigmoids[:, :size], cell_input)
-            hidden = sigmoids[:, 3 * size :] * torch.tanh(cell)
+            hidden = (sigmoids[:, 3 * size :] * torch.tanh(cell)).to(self.dtype)
             self.state[k] = (hidden, cell)
             inputs = [hidden]
-        h, shift = self.out(inputs[0]).chunk(2, dim=1)
+        h, shift = torch.addmm(self.out[1], inputs[0], self.out[0]).to(y.dtype).chunk(2, dim=1)
         return torch.cat([x_b, y_a / (torch.sigmoid(h) + 0.05) - shift], dim=1)
 
 
@@ -208,8 +215,8 @@ class Flow(nn.Module):
             total = total + logabsdet
         return y, total
 
-    def frame_inverse(self) -> FrameInverse:
-        steps = [transform.frame_inverse() for transform in reversed(self.transforms)]
+    def frame_inverse(self, network_dtype: torch.dtype | None = None) -> FrameInverse:
+        steps = [transform.frame_inverse(network_dtype) for transform in reversed(self.transforms)]
 
         def invert(y: torch.Tensor, context: torch.Tensor | None) -> torch.Tensor:
             for step in steps:

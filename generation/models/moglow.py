@@ -45,9 +45,15 @@ class MoGlowConfig:
     batch_size: int = 100
 
 
+# What each precision of ``generate`` means for the coupling networks' matrix products
+# (None: the parameters' own dtype).
+NETWORK_DTYPES = {"float32": None, "bfloat16": torch.bfloat16}
+
+
 class MoGlow(MotionModel):
     kind = "moglow"
     Config = MoGlowConfig
+    precisions = tuple(NETWORK_DTYPES)
 
     def __init__(self, config: MoGlowConfig, pose_dim: int, control_dim: int) -> None:
         super().__init__(config, pose_dim, control_dim)
@@ -94,12 +100,17 @@ class MoGlow(MotionModel):
         context: torch.Tensor | None,
         temperature: float = 1.0,
         generator: torch.Generator | None = None,
+        precision: str = "float32",
     ) -> torch.Tensor:
         """Sample poses frame by frame; the noise of all frames is drawn up front.
 
         z (batch, T-τ, pose_dim) ~ N(0, θ²) is one draw from ``generator``, so frame t
-        depends only on z_τ..z_t, the context and control up to t.
+        depends only on z_τ..z_t, the context and control up to t. With ``precision``
+        "bfloat16" the LSTMs and linear layers of the couplings multiply in bfloat16
+        (several times faster at large batches on CPUs with AMX); the flow's arithmetic
+        stays in float32, and the result stays close to the float32 sample of the same seed.
         """
+        self.check_precision(precision)
         batch, frames, _ = control.shape
         tau = self.config.tau
         if frames < tau:
@@ -114,7 +125,7 @@ class MoGlow(MotionModel):
         noise = temperature * torch.randn(shape, generator=generator, dtype=pose.dtype, device=pose.device)
         # The control part of every c_t is known in advance; c_t is laid out as in conditioning().
         controls = control.unfold(1, tau + 1, 1).transpose(2, 3).flatten(2)  # (batch, T-τ, (τ+1)·control_dim)
-        invert = self.flow.frame_inverse()
+        invert = self.flow.frame_inverse(NETWORK_DTYPES[precision])
         for t in range(tau, frames):
             conditioning = torch.cat([pose[:, t - tau : t].flatten(1), controls[:, t - tau]], dim=-1)
             pose[:, t] = invert(noise[:, t - tau], conditioning)

@@ -78,6 +78,8 @@ class RNNBaseline(MotionModel):
         context: torch.Tensor | None = None,
         temperature: float = 1.0,
         generator: torch.Generator | None = None,
+        precision: str = "float32",
     ) -> torch.Tensor:
         """The predicted poses; the same for every temperature and seed (see the class)."""
+        self.check_precision(precision)
         return self(control.to(self.output.weight))

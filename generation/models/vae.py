@@ -126,8 +126,10 @@ class VAEBaseline(MotionModel):
         context: torch.Tensor | None = None,
         temperature: float = 1.0,
         generator: torch.Generator | None = None,
+        precision: str = "float32",
     ) -> torch.Tensor:
         """Decoded poses with z at the prior mean; the same for every temperature and seed."""
+        self.check_precision(precision)
         control = control.to(self.output.weight)
         latent = control.new_zeros(control.shape[0], self.config.latent_dim)
         return self.decode(control, latent)
