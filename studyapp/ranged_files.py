@@ -3,8 +3,9 @@
 Django's `static.serve` always sends the whole file, which leaves `<video>` unable
 to seek (Safari will not even play it). This view answers `Range: bytes=...` with
 206 Partial Content, says `Accept-Ranges: bytes`, rejects ranges past the end with
-416, and refuses any path that resolves outside its folder. One range per request:
-a multi-range request gets the whole file, which HTTP allows.
+416, and refuses any path that resolves outside its folder or has a hidden (dot)
+part. One range per request: a multi-range request gets the whole file, which HTTP
+allows.
 """
 
 import mimetypes
@@ -64,6 +65,10 @@ def _read_span(path: Path, first: int, length: int) -> Iterator[bytes]:
 
 
 def _resolve_inside(document_root: Path, relative_path: str) -> Path:
+    # Hidden names are work in progress (atomic_output's ".NAME.*.part" temporaries)
+    # or private; a half-written video must never be served.
+    if any(part.startswith(".") for part in Path(relative_path).parts):
+        raise Http404("No such file")
     root = document_root.resolve()
     # resolve() follows "..", absolute parts and symlinks, so the containment
     # test below sees where the file really is.

@@ -9,6 +9,7 @@ from pathlib import Path
 from celery import shared_task
 
 from generation.gallery import GalleryOptions, render_clip
+from studyapp import stimuli
 
 
 @shared_task(bind=True)
@@ -28,3 +29,23 @@ def render_natural_clip(bvh_path: str, out_dir: str, options: dict) -> dict:
     Idempotent: a clip whose files exist is not drawn again.
     """
     return render_clip(Path(bvh_path), Path(out_dir), GalleryOptions.from_dict(options))
+
+
+# acks_late with reject_on_worker_lost: a worker process killed mid-render (out of
+# memory, a deploy) puts the message back, so another attempt finishes the clip.
+@shared_task(acks_late=True, reject_on_worker_lost=True)
+def generate_stimulus(stimulus_id: int) -> dict:
+    """Render one stimulus: queued -> running -> done (or failed with the reason).
+
+    Idempotent: a stimulus already done with its video in place is left alone.
+    """
+    stimulus = stimuli.claim(stimulus_id)
+    if stimulus is None:
+        return {"stimulus": stimulus_id, "status": "nothing to do"}
+    try:
+        duration = stimuli.render_stimulus(stimulus)
+    except Exception as error:  # the reason is shown on the progress page, where it can be retried
+        stimuli.finish(stimulus, error=f"{type(error).__name__}: {error}")
+        return {"stimulus": stimulus_id, "status": "failed", "attempt": stimulus.attempts}
+    stimuli.finish(stimulus, duration_s=duration)
+    return {"stimulus": stimulus_id, "status": "done", "attempt": stimulus.attempts}

@@ -2,7 +2,7 @@
 
 from django.conf import settings
 from django.contrib import admin
-from django.urls import path
+from django.urls import include, path
 
 from studyapp import participant_views, views
 
@@ -13,6 +13,7 @@ urlpatterns = [
     path("analysis/", views.analysis_upload, name="analysis"),
     path("analysis/<str:digest>/", views.analysis_report, name="analysis-report"),
     path("admin/", admin.site.urls),
+    path("studies/", include("studyapp.researcher_urls")),
     # Participants: the entry link, the one page they are on, and its steps.
     path("p/<str:key>/", participant_views.enter, name="participant-enter"),
     path("p/<str:key>/now/", participant_views.page, name="participant-page"),

@@ -1,0 +1,86 @@
+"""Forms of the researcher's pages: the study itself, its systems, controls and generation.
+
+The forms only collect input; what it means (and every check of an upload's content)
+lives in the service modules ``systems``, ``controls`` and ``stimuli``, which the
+management commands call too.
+"""
+
+from __future__ import annotations
+
+from django import forms
+from django.conf import settings
+
+from generation.control import PRESETS
+from studyapp.models import Study, System
+
+
+class StudyForm(forms.ModelForm):
+    """Every setting of a study; ``Study.clean`` checks them together."""
+
+    redirect_url = forms.URLField(required=False, assume_scheme="https",
+                                  help_text=Study._meta.get_field("redirect_url").help_text)
+
+    class Meta:
+        model = Study
+        exclude = ["owner"]
+        widgets = {
+            "instructions": forms.Textarea(attrs={"rows": 4}),
+            "consent_text": forms.Textarea(attrs={"rows": 4}),
+            "camera": forms.Textarea(attrs={"rows": 3}),
+        }
+
+
+def _megabytes(limit: int) -> str:
+    return f"at most {limit / 1e6:.0f} MB"
+
+
+class CheckpointSystemForm(forms.Form):
+    name = forms.CharField(max_length=60, help_text="shown to you only; participants never see it")
+    role = forms.ChoiceField(choices=[(System.Role.MODEL, "model"), (System.Role.BAD, "BAD (an early or weakened checkpoint)")])
+    temperature = forms.FloatField(initial=1.0, min_value=0.0001, help_text="sampling temperature")
+    checkpoint = forms.FileField(help_text=f"a .safetensors checkpoint of this project, "
+                                           f"{_megabytes(settings.MAX_CHECKPOINT_UPLOAD_BYTES)}")
+
+
+class NaturalSystemForm(forms.Form):
+    name = forms.CharField(max_length=60, initial="NAT")
+
+
+class MultipleFileInput(forms.ClearableFileInput):
+    allow_multiple_selected = True
+
+
+class MultipleFileField(forms.FileField):
+    """Several files in one field (Django's documented pattern)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("widget", MultipleFileInput(attrs={"accept": "video/mp4,.mp4"}))
+        super().__init__(*args, **kwargs)
+
+    def clean(self, data, initial=None):
+        files = data if isinstance(data, (list, tuple)) else [data]
+        return [super(MultipleFileField, self).clean(item, initial) for item in files]
+
+
+class VideoSystemForm(forms.Form):
+    name = forms.CharField(max_length=60, initial="BAD")
+    videos = MultipleFileField(help_text=f"MP4 files, each {_megabytes(settings.MAX_VIDEO_UPLOAD_BYTES)}")
+
+
+class HeldOutControlsForm(forms.Form):
+    seconds = forms.FloatField(initial=4.0, min_value=0.5, max_value=60.0, help_text="each clip is cut to this")
+    count = forms.IntegerField(required=False, min_value=1, initial=6,
+                               help_text="how many held-out clips, spread over their content labels (empty: all)")
+
+
+class PresetControlsForm(forms.Form):
+    presets = forms.MultipleChoiceField(choices=[(name, name) for name in PRESETS], widget=forms.CheckboxSelectMultiple)
+
+
+class ControlFileForm(forms.Form):
+    description = forms.FileField(help_text="a JSON or YAML path description (one path or a list), "
+                                            "as generation.control.load_control_file reads")
+
+
+class GenerateForm(forms.Form):
+    seed = forms.IntegerField(initial=0, help_text="random seed of every model's samples")

@@ -1,0 +1,41 @@
+"""``manage.py add_controls STUDY_ID``: held-out and synthetic controls, as the controls page adds them."""
+
+from pathlib import Path
+
+from django.core.files import File
+from django.core.management.base import BaseCommand, CommandError
+
+from studyapp.controls import ControlError, add_control_file, add_held_out_controls, add_preset_controls
+
+from ._study import study_by_id
+
+
+class Command(BaseCommand):
+    help = "Add control signals to a study: held-out clips of MOTION_DATA, presets, or JSON/YAML descriptions."
+
+    def add_arguments(self, parser):
+        parser.add_argument("study_id", type=int)
+        parser.add_argument("--held-out", type=float, metavar="SECONDS", help="held-out controls cut to SECONDS")
+        parser.add_argument("--count", type=int, help="how many held-out controls (default: all)")
+        parser.add_argument("--preset", nargs="+", default=[], help="names from generation.control.PRESETS")
+        parser.add_argument("--file", nargs="+", default=[], help="JSON or YAML path descriptions")
+
+    def handle(self, *args, **options):
+        study = study_by_id(options["study_id"])
+        if not (options["held_out"] or options["preset"] or options["file"]):
+            raise CommandError("nothing to add: give --held-out SECONDS, --preset NAME ... or --file PATH ...")
+        added = []
+        try:
+            if options["held_out"]:
+                added += add_held_out_controls(study, options["held_out"], options["count"])
+            if options["preset"]:
+                added += add_preset_controls(study, options["preset"])
+            for path in options["file"]:
+                if not Path(path).is_file():
+                    raise CommandError(f"{path}: no such file")
+                with File(Path(path).open("rb"), name=Path(path).name) as upload:
+                    added += add_control_file(study, upload)
+        except ControlError as error:
+            raise CommandError(str(error)) from None
+        for control in added:
+            self.stdout.write(f"{control.pk} {control}")

@@ -1,0 +1,44 @@
+"""``manage.py create_study OWNER TITLE``: a new study (closed); prints its id."""
+
+from django.contrib.auth import get_user_model
+from django.core.exceptions import ValidationError
+from django.core.management.base import BaseCommand, CommandError
+
+from studyapp.models import Study
+
+
+def create_study(owner, title: str, **fields) -> Study:
+    """A study checked by ``Study.clean`` (as the study form does) and saved."""
+    study = Study(owner=owner, title=title, **fields)
+    try:
+        study.full_clean()
+    except ValidationError as error:
+        raise CommandError("; ".join(f"{k}: {' '.join(v)}" for k, v in error.message_dict.items())) from None
+    study.save()
+    return study
+
+
+class Command(BaseCommand):
+    help = "Create a study owned by a user; the study's id is printed."
+
+    def add_arguments(self, parser):
+        parser.add_argument("owner", help="username of the researcher who owns it")
+        parser.add_argument("title")
+        parser.add_argument("--scale", nargs=2, type=int, metavar=("MIN", "MAX"), default=(1, 5))
+        parser.add_argument("--clips", type=int, default=20, help="clips per participant, attention checks included")
+        parser.add_argument("--ratings-per-stimulus", type=int, default=10)
+        parser.add_argument("--training-clips", type=int, default=4)
+        parser.add_argument("--platform", choices=Study.Platform.values, default=Study.Platform.LINK)
+        parser.add_argument("--completion-code", default="")
+        parser.add_argument("--size", nargs=2, type=int, metavar=("WIDTH", "HEIGHT"), default=(640, 480))
+
+    def handle(self, *args, **options):
+        owner = get_user_model().objects.filter(username=options["owner"]).first()
+        if owner is None:
+            raise CommandError(f"no user named {options['owner']!r} (create one with createsuperuser)")
+        study = create_study(
+            owner, options["title"], scale_min=options["scale"][0], scale_max=options["scale"][1],
+            clips_per_participant=options["clips"], ratings_per_stimulus=options["ratings_per_stimulus"],
+            training_clips=options["training_clips"], platform=options["platform"],
+            completion_code=options["completion_code"], video_width=options["size"][0], video_height=options["size"][1])
+        self.stdout.write(str(study.pk))

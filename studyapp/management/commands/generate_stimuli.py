@@ -1,0 +1,46 @@
+"""``manage.py generate_stimuli STUDY_ID [--wait]``: plan and queue every stimulus, as the stimuli page does."""
+
+import time
+
+from django.core.management.base import BaseCommand, CommandError
+
+from studyapp.stimuli import BrokerUnavailable, generate_stimuli, progress
+
+from ._study import study_by_id
+
+
+class Command(BaseCommand):
+    help = "Create the study's stimuli (idempotently) and send the missing ones to the Celery workers."
+
+    def add_arguments(self, parser):
+        parser.add_argument("study_id", type=int)
+        parser.add_argument("--seed", type=int, default=0)
+        parser.add_argument("--wait", action="store_true", help="wait until the workers have finished every clip")
+        parser.add_argument("--timeout", type=float, default=3600.0, help="seconds to wait at most (with --wait)")
+
+    def handle(self, *args, **options):
+        study = study_by_id(options["study_id"])
+        try:
+            result = generate_stimuli(study, options["seed"])
+        except BrokerUnavailable as error:
+            raise CommandError(str(error)) from None
+        self.stdout.write(f"{result.total} stimuli ({result.created} new), {result.queued} queued")
+        if not options["wait"]:
+            return
+        deadline = time.monotonic() + options["timeout"]
+        last = None
+        while True:
+            state = progress(study)
+            counts = state["counts"]
+            line = f"{counts['done']}/{state['total']} done, {counts['running']} running, {counts['failed']} failed"
+            if line != last:
+                self.stdout.write(line)
+                last = line
+            if counts["queued"] + counts["running"] == 0:
+                break
+            if time.monotonic() > deadline:
+                raise CommandError(f"gave up waiting after {options['timeout']:g} s: {line} (is a worker running?)")
+            time.sleep(0.5)
+        if state["failed"]:
+            reasons = "\n".join(f"  {f['system']} / {f['control']}: {f['error']}" for f in state["failed"])
+            raise CommandError(f"{len(state['failed'])} stimuli failed:\n{reasons}")

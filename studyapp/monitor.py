@@ -1,0 +1,117 @@
+"""What the researcher watches while a study runs: participants, ratings, means with CIs.
+
+Everything is computed from the exported ratings table (the CSV a researcher
+downloads), read back through ``analysis.ratings`` and flagged by
+``analysis.exclusions`` with the study's own thresholds, so the page agrees with the
+analysis report. Means and 95 % confidence intervals are over kept ratings (excluded
+participants and early answers left out, as the papers report them).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+
+import pandas as pd
+
+from analysis.exclusions import ExclusionRules, apply_exclusions
+from analysis.ratings import read_ratings
+from analysis.stats import system_means
+from studyapp.models import ATTENTION_NAME, NATURAL_NAME, Stimulus, Study
+from studyapp.ratings import EXPORT_COLUMNS, ratings_rows
+
+
+def ratings_csv(study: Study) -> bytes:
+    """The study's ratings table (docs/ratings-schema.md) as CSV."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=EXPORT_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(ratings_rows(study))
+    return buffer.getvalue().encode()
+
+
+def exclusion_rules(study: Study) -> ExclusionRules:
+    return ExclusionRules(natural_system=NATURAL_NAME, attention_system=ATTENTION_NAME,
+                          bad_at_or_above=study.bad_threshold, natural_below=study.natural_threshold,
+                          discard_early=study.discard_early)
+
+
+def flagged_ratings(study: Study) -> pd.DataFrame:
+    """The ratings table with ``kept``, ``excluded_participant`` and ``discarded_early`` flags (may be empty)."""
+    csv_bytes = ratings_csv(study)
+    if csv_bytes.count(b"\n") < 2:
+        return pd.DataFrame(columns=[*EXPORT_COLUMNS, "kept"])
+    return apply_exclusions(read_ratings(io.StringIO(csv_bytes.decode())), exclusion_rules(study))
+
+
+@dataclass(frozen=True)
+class SystemMean:
+    system: str
+    n: int  # kept ratings
+    mean: float | None
+    ci_low: float | None  # None with fewer than two ratings: no interval exists
+    ci_high: float | None
+
+    @property
+    def ci_half(self) -> float | None:
+        return None if self.ci_low is None else (self.ci_high - self.ci_low) / 2
+
+
+@dataclass(frozen=True)
+class StudyMonitor:
+    participants_started: int
+    participants_finished: int
+    participants_excluded: int
+    ratings_collected: int
+    ratings_kept: int
+    clips: int  # finished stimuli
+    per_stimulus_min: int  # ratings collected per finished stimulus
+    per_stimulus_max: int
+    kept_per_stimulus_min: int
+    kept_per_stimulus_max: int
+    means: list[SystemMean]
+
+
+def system_mean_rows(kept: pd.DataFrame, systems: list[str]) -> list[SystemMean]:
+    """Mean ± 95 % CI of each system's kept ratings; systems with fewer than two get what exists."""
+    counts = kept.groupby("system").size()
+    rateable = [s for s in systems if counts.get(s, 0) >= 2]
+    table = (system_means(kept[kept["system"].isin(rateable)], groupby=()).set_index("system")
+             if rateable else pd.DataFrame())
+    rows = []
+    for system in systems:
+        n = int(counts.get(system, 0))
+        if system in rateable:
+            row = table.loc[system]
+            rows.append(SystemMean(system, n, float(row["mean"]), float(row["ci_low"]), float(row["ci_high"])))
+        else:
+            values = kept.loc[kept["system"] == system, "value"]
+            rows.append(SystemMean(system, n, float(values.mean()) if n else None, None, None))
+    return rows
+
+
+def study_monitor(study: Study) -> StudyMonitor:
+    participants = study.participants.all()
+    flagged = flagged_ratings(study)
+    kept = flagged[flagged["kept"].astype(bool)]
+    done = list(study.stimuli.filter(status=Stimulus.Status.DONE).values_list("token", flat=True))
+    collected = flagged.groupby("stimulus").size().reindex(done, fill_value=0)
+    kept_counts = kept.groupby("stimulus").size().reindex(done, fill_value=0)
+    systems = sorted({s.export_name for s in study.systems.all()})
+    return StudyMonitor(
+        participants_started=participants.count(),
+        participants_finished=participants.filter(finished_at__isnull=False).count(),
+        participants_excluded=participants.filter(excluded=True).count(),
+        ratings_collected=len(flagged),
+        ratings_kept=len(kept),
+        clips=len(done),
+        per_stimulus_min=int(collected.min()) if done else 0,
+        per_stimulus_max=int(collected.max()) if done else 0,
+        kept_per_stimulus_min=int(kept_counts.min()) if done else 0,
+        kept_per_stimulus_max=int(kept_counts.max()) if done else 0,
+        means=system_mean_rows(kept, systems),
+    )
+
+
+__all__ = ["StudyMonitor", "SystemMean", "flagged_ratings", "ratings_csv", "study_monitor"]

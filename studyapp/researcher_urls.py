@@ -1,0 +1,20 @@
+"""URL map of the researcher's pages (included under ``studies/``)."""
+
+from django.urls import path
+
+from studyapp import researcher_views as views
+
+urlpatterns = [
+    path("", views.study_list, name="study-list"),
+    path("new/", views.study_edit, name="study-create"),
+    path("<int:pk>/", views.study_edit, name="study-edit"),
+    path("<int:pk>/systems/", views.study_systems, name="study-systems"),
+    path("<int:pk>/controls/", views.study_controls, name="study-controls"),
+    path("<int:pk>/stimuli/", views.study_stimuli, name="study-stimuli"),
+    path("<int:pk>/stimuli/progress.json", views.study_progress, name="study-progress"),
+    path("<int:pk>/stimuli/<int:stimulus_id>/retry/", views.stimulus_retry, name="stimulus-retry"),
+    path("<int:pk>/monitor/", views.study_monitor_page, name="study-monitor"),
+    path("<int:pk>/open/", views.study_open, name="study-open"),
+    path("<int:pk>/ratings.csv", views.study_export, name="study-export"),
+    path("<int:pk>/report/", views.study_report, name="study-report"),
+]

@@ -1,0 +1,226 @@
+"""Generating a study's stimuli: one row per (system, control) pair, then the clip itself.
+
+``plan_stimuli`` makes the rows. Each row's ``content_key`` digests everything its clip
+depends on (the checkpoint's digest or the natural clip, the control, seed, temperature,
+camera, video size and code version), so planning again finds the same rows and never
+duplicates a stimulus. Models and BAD checkpoints get every control; NAT only the
+held-out ones, since a synthetic path has no natural clip.
+
+``queue_stimuli`` hands rows to Celery, checking the broker first with a bounded wait
+so a stopped broker is a clear message, not a hung page. ``render_stimulus`` is the
+work a task does: sample (or read the natural clip), render with the study's camera
+and write ``MEDIA_ROOT/stimuli/<token>.mp4`` atomically. A killed attempt leaves only
+a hidden ``.<token>.mp4.*.part`` temporary, which the next attempt removes and the media
+view never serves.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import uuid
+from collections import Counter
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import metadata
+from pathlib import Path
+
+from django.conf import settings
+from django.db import transaction
+from django.db.models import F
+
+from generation.control import control_from_dict
+from generation.generator import Generator
+from generation.motion.dataset import load_body_motion
+from generation.motion.root import root_trajectory
+from generation.motion.types import Motion
+from generation.render import Camera, render_video
+from studyapp.controls import training_options
+from studyapp.health import check_broker
+from studyapp.models import ControlSignal, Stimulus, Study, System
+
+# The package version, not the git commit: a commit that changes no rendering code
+# must not make every stimulus new.
+try:
+    CODE_VERSION = metadata.version("motion-study")
+except metadata.PackageNotFoundError:
+    CODE_VERSION = "unknown"
+
+
+class BrokerUnavailable(RuntimeError):
+    """The task queue's broker did not answer; nothing was queued."""
+
+
+def content_key(study: Study, system: System, control: ControlSignal, seed: int) -> str:
+    """SHA-256 of everything the clip of ``system`` for ``control`` depends on."""
+    natural = system.role == System.Role.NATURAL
+    parts = {
+        "role": system.role,
+        "source": f"natural:{control.source_clip}" if natural else f"checkpoint:{system.checkpoint_digest}",
+        "control": control.control,
+        "seconds": control.seconds,
+        "seed": None if natural else seed,
+        "temperature": None if natural else system.temperature,
+        "camera": study.camera,
+        "size": [study.video_width, study.video_height],
+        "code": CODE_VERSION,
+    }
+    return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
+
+
+def _pairs(study: Study) -> list[tuple[System, ControlSignal]]:
+    controls = list(study.controls.all())
+    pairs = []
+    for system in study.systems.all():
+        if system.role == System.Role.NATURAL:
+            pairs += [(system, c) for c in controls if c.origin == ControlSignal.Origin.HELD_OUT and c.source_clip]
+        elif system.checkpoint:
+            pairs += [(system, c) for c in controls]
+    return pairs
+
+
+def plan_stimuli(study: Study, seed: int = 0) -> tuple[list[Stimulus], int]:
+    """The rows of every (system, control) pair, created where missing; (rows, how many were new)."""
+    stimuli, created = [], 0
+    with transaction.atomic():
+        for system, control in _pairs(study):
+            stimulus, new = Stimulus.objects.get_or_create(
+                study=study, content_key=content_key(study, system, control, seed),
+                defaults={"system": system, "control": control, "seed": seed})
+            stimuli.append(stimulus)
+            created += new
+    return stimuli, created
+
+
+def queue_stimuli(stimuli: list[Stimulus], timeout_s: float | None = None) -> int:
+    """Send each row not yet queued (or failed) to a worker; how many were sent.
+
+    Raises BrokerUnavailable, with the rows left as they were, when the broker does not
+    answer within ``timeout_s`` (default: settings.HEALTH_TIMEOUT_S).
+    """
+    from studyapp.celery import app
+    from studyapp.tasks import generate_stimulus
+
+    todo = [s for s in stimuli if s.status in (Stimulus.Status.PENDING, Stimulus.Status.FAILED)]
+    if not todo:
+        return 0
+    timeout_s = settings.HEALTH_TIMEOUT_S if timeout_s is None else timeout_s
+    with app.connection_for_write(connect_timeout=timeout_s) as connection:
+        broker = check_broker(connection, timeout_s)
+        if not broker.ok:
+            raise BrokerUnavailable(f"the task queue's broker does not answer ({broker.detail}); "
+                                    "nothing was queued: start it (and a worker), then generate again")
+        sent = 0
+        for stimulus in todo:
+            task_id = str(uuid.uuid4())
+            # Marked queued before sending: a fast worker may mark it running first.
+            Stimulus.objects.filter(pk=stimulus.pk).update(status=Stimulus.Status.QUEUED, task_id=task_id, error="")
+            try:
+                generate_stimulus.apply_async((stimulus.pk,), task_id=task_id, connection=connection, retry=False)
+            except Exception as error:  # kombu raises many kinds; all mean "not sent"
+                Stimulus.objects.filter(pk=stimulus.pk, task_id=task_id).update(status=stimulus.status, task_id="")
+                raise BrokerUnavailable(f"sending to the task queue failed after {sent} of {len(todo)} "
+                                        f"({type(error).__name__}: {error}); the rest stay as they were") from None
+            stimulus.status, stimulus.task_id = Stimulus.Status.QUEUED, task_id
+            sent += 1
+    return sent
+
+
+@dataclass(frozen=True)
+class Generation:
+    total: int
+    created: int
+    queued: int
+
+
+def generate_stimuli(study: Study, seed: int = 0, timeout_s: float | None = None) -> Generation:
+    """Plan every stimulus of the study and queue the ones not done; BrokerUnavailable if it cannot."""
+    stimuli, created = plan_stimuli(study, seed)
+    return Generation(len(stimuli), created, queue_stimuli(stimuli, timeout_s))
+
+
+def progress(study: Study) -> dict:
+    """Counts by status and the failed rows with their reasons, for the progress page."""
+    counts = Counter(study.stimuli.values_list("status", flat=True))
+    failed = study.stimuli.filter(status=Stimulus.Status.FAILED).select_related("system", "control")
+    return {
+        "total": sum(counts.values()),
+        "counts": {status: counts.get(status, 0) for status in Stimulus.Status.values},
+        "failed": [{"id": s.pk, "system": s.system.name, "control": s.control.name if s.control else "",
+                    "error": s.error, "attempts": s.attempts} for s in failed],
+    }
+
+
+# --- the work of one task ---------------------------------------------------------
+
+@lru_cache(maxsize=4)
+def _generator(path: str, digest: str) -> Generator:
+    """A worker keeps a few models loaded; the digest keys the cache to the file's content."""
+    return Generator.load(path)
+
+
+def stimulus_motion(stimulus: Stimulus) -> tuple[Motion, object]:
+    """The stimulus's motion and the floor path (frames × 2) drawn under it."""
+    system, control = stimulus.system, stimulus.control
+    if control is None:
+        raise ValueError("an uploaded video has nothing to generate")
+    if system.role == System.Role.NATURAL:
+        options = training_options(stimulus.study)
+        source = Path(settings.MOTION_DATA) / control.source_clip
+        if not source.is_file():
+            raise FileNotFoundError(f"the natural clip {source} is missing (MOTION_DATA={settings.MOTION_DATA})")
+        motion = load_body_motion(source, options.fps, control.seconds, options.scale, options.root)
+        return motion, root_trajectory(motion, options.root).xz
+    path = system.checkpoint_path()
+    if path is None or not path.is_file():
+        raise FileNotFoundError(f"the checkpoint of {system.name} is missing ({path})")
+    signal = control_from_dict(control.control)
+    motion = _generator(str(path), system.checkpoint_digest).sample(
+        signal, n=1, seed=stimulus.seed, temperature=system.temperature)[0]
+    return motion, signal.path().xz
+
+
+def remove_partial_files(stimulus: Stimulus) -> int:
+    """Delete temporaries a killed attempt left beside the video; how many there were."""
+    target = stimulus.video_path()
+    stale = list(target.parent.glob(f".{target.name}.*.part")) if target.parent.is_dir() else []
+    for path in stale:
+        path.unlink(missing_ok=True)
+    return len(stale)
+
+
+def render_stimulus(stimulus: Stimulus) -> float:
+    """Write the stimulus's video atomically; its duration in seconds."""
+    remove_partial_files(stimulus)
+    motion, floor = stimulus_motion(stimulus)
+    study = stimulus.study
+    render_video(motion, stimulus.video_path(), camera=Camera.from_dict(study.camera),
+                 size=(study.video_width, study.video_height), root_path=floor)
+    return motion.n_frames / motion.fps
+
+
+def claim(stimulus_id: int) -> Stimulus | None:
+    """Mark the row running and count the attempt; None when there is nothing to do."""
+    with transaction.atomic():
+        stimulus = (Stimulus.objects.select_for_update().select_related("study", "system", "control")
+                    .filter(pk=stimulus_id).first())
+        if stimulus is None or (stimulus.status == Stimulus.Status.DONE and stimulus.video_path().is_file()):
+            return None
+        Stimulus.objects.filter(pk=stimulus.pk).update(status=Stimulus.Status.RUNNING, attempts=F("attempts") + 1, error="")
+    stimulus.refresh_from_db()
+    return stimulus
+
+
+def finish(stimulus: Stimulus, duration_s: float | None = None, error: str = "") -> None:
+    """Record the attempt's outcome: done with its duration, or failed with the reason."""
+    status = Stimulus.Status.FAILED if error else Stimulus.Status.DONE
+    Stimulus.objects.filter(pk=stimulus.pk).update(status=status, duration_s=duration_s, error=error)
+
+
+def retry_stimulus(stimulus: Stimulus, timeout_s: float | None = None) -> int:
+    """Queue a failed stimulus again (BrokerUnavailable if the broker is down)."""
+    return queue_stimuli([stimulus], timeout_s)
+
+
+__all__ = ["BrokerUnavailable", "Generation", "claim", "content_key", "finish", "generate_stimuli", "plan_stimuli",
+           "progress", "queue_stimuli", "remove_partial_files", "render_stimulus", "retry_stimulus"]

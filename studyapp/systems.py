@@ -1,0 +1,229 @@
+"""Registering a study's systems: uploaded checkpoints, natural motion (NAT) and BAD videos.
+
+Uploads are never trusted: a checkpoint must be a safetensors file of this project that
+loads completely (digest, kind, every tensor's name and shape) and can drive the
+Generator; a video must be an MP4 whose first frame decodes. Nothing is unpickled or
+executed, and a refused upload leaves nothing on disk. Accepted checkpoints are stored
+under ``CHECKPOINT_ROOT`` named by their SHA-256, so the same file uploaded twice is
+stored once; accepted videos become finished stimuli under ``MEDIA_ROOT/stimuli/``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import struct
+import tempfile
+from contextlib import ExitStack
+from dataclasses import dataclass
+from pathlib import Path
+
+import imageio_ffmpeg
+from django.conf import settings
+from django.core.files import File
+from django.db import transaction
+
+from generation.checkpoint import CheckpointError, CheckpointMeta, load_checkpoint
+from generation.files import atomic_output
+from generation.generator import Generator
+from generation.models import preset
+from studyapp.models import Stimulus, Study, System, new_token
+
+CHECKPOINT_SUFFIX = ".safetensors"
+VIDEO_SUFFIX = ".mp4"
+# A safetensors file starts with the little-endian length of its JSON header; real
+# headers are kilobytes, so anything near this is not one.
+MAX_HEADER_BYTES = 100_000_000
+KNOWN_PRESETS = ("paper", "cpu")
+
+
+class UploadRefused(ValueError):
+    """An upload that cannot become a system; the message says what is wrong with it."""
+
+
+@dataclass(frozen=True)
+class StoredCheckpoint:
+    relative_path: str  # under CHECKPOINT_ROOT
+    digest: str  # SHA-256 of the file
+    meta: CheckpointMeta
+    parameters: int
+
+
+def _check_upload(upload: File, suffix: str, limit: int, what: str) -> None:
+    name = Path(upload.name or "").name
+    if not name.lower().endswith(suffix):
+        raise UploadRefused(f"{name or 'the file'}: a {what} must be a {suffix} file")
+    if upload.size > limit:
+        raise UploadRefused(f"{name}: {upload.size / 1e6:.1f} MB is over the {limit / 1e6:.0f} MB limit for a {what}")
+
+
+def _copy(upload: File, target: Path) -> str:
+    """Write the upload to ``target``; its SHA-256."""
+    digest = hashlib.sha256()
+    with target.open("wb") as out:
+        for chunk in upload.chunks():
+            digest.update(chunk)
+            out.write(chunk)
+    return digest.hexdigest()
+
+
+def safetensors_header_problem(path: Path) -> str | None:
+    """Why the file is not a safetensors file (its framing and JSON header), or None."""
+    size = path.stat().st_size
+    with path.open("rb") as stream:
+        prefix = stream.read(8)
+        if len(prefix) < 8:
+            return "too short to be a safetensors file"
+        (length,) = struct.unpack("<Q", prefix)
+        if length < 2 or length > min(MAX_HEADER_BYTES, size - 8):
+            return "not a safetensors file (its first 8 bytes do not give a header length that fits the file)"
+        header = stream.read(length)
+    try:
+        parsed = json.loads(header)
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        return "not a safetensors file (its header is not JSON)"
+    return None if isinstance(parsed, dict) else "not a safetensors file (its header is not a JSON object)"
+
+
+def preset_name(meta: CheckpointMeta) -> str:
+    """The named preset whose configuration the checkpoint has, or "custom"."""
+    for name in KNOWN_PRESETS:
+        try:
+            if dataclasses.asdict(preset(meta.kind, name)) == meta.hyperparameters:
+                return name
+        except (KeyError, ValueError):
+            break
+    return "custom"
+
+
+def store_checkpoint(upload: File) -> StoredCheckpoint:
+    """Validate an uploaded checkpoint completely and store it by digest (UploadRefused if not)."""
+    _check_upload(upload, CHECKPOINT_SUFFIX, settings.MAX_CHECKPOINT_UPLOAD_BYTES, "checkpoint")
+    name = Path(upload.name).name
+    root = Path(settings.CHECKPOINT_ROOT)
+    root.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(dir=root, prefix=".upload-", suffix=".part")
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        digest = _copy(upload, tmp)
+        problem = safetensors_header_problem(tmp)
+        if problem:
+            raise UploadRefused(f"{name}: {problem}")
+        try:
+            model, meta = load_checkpoint(tmp)
+            Generator(model, meta)  # the features and statistics sampling needs are there
+        except CheckpointError as error:
+            raise UploadRefused(f"{name}: {str(error).removeprefix(f'{tmp}: ')}") from None
+        except (KeyError, TypeError, ValueError) as error:
+            raise UploadRefused(f"{name}: a {meta.kind} checkpoint that cannot drive sampling ({error})") from None
+        parameters = sum(p.numel() for p in model.parameters())
+        final = root / f"{digest}{CHECKPOINT_SUFFIX}"
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, final)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return StoredCheckpoint(final.name, digest, meta, parameters)
+
+
+def checkpoint_metadata(stored: StoredCheckpoint, original_name: str) -> dict:
+    """What the systems page shows and generation needs about a stored checkpoint."""
+    meta = stored.meta
+    return {
+        "file": original_name,
+        "preset": preset_name(meta),
+        "step": meta.step,
+        "data_fingerprint": meta.data_fingerprint,
+        "parameters": stored.parameters,
+        "code_version": meta.code_version,
+        "val_loss": meta.metrics.get("val_loss"),
+        "dataset_options": meta.features["dataset_options"],
+    }
+
+
+def _check_name(study: Study, name: str) -> None:
+    if not name.strip():
+        raise UploadRefused("a system needs a name")
+    if study.systems.filter(name=name).exists():
+        raise UploadRefused(f"this study already has a system named {name!r}")
+
+
+def add_checkpoint_system(study: Study, name: str, upload: File, role: str = System.Role.MODEL,
+                          temperature: float = 1.0) -> System:
+    """A model system (or a BAD one sampled from a weak checkpoint) from an uploaded checkpoint."""
+    if role not in (System.Role.MODEL, System.Role.BAD):
+        raise UploadRefused(f"a checkpoint makes a model or a BAD system, not {role!r}")
+    if not temperature > 0:
+        raise UploadRefused(f"the sampling temperature must be positive, got {temperature}")
+    _check_name(study, name)
+    stored = store_checkpoint(upload)
+    twin = study.systems.filter(checkpoint_digest=stored.digest, role=role, temperature=temperature).first()
+    if twin is not None:
+        raise UploadRefused(f"this checkpoint is already system {twin.name!r} at temperature {temperature:g}")
+    return System.objects.create(
+        study=study, name=name, role=role, checkpoint=stored.relative_path, checkpoint_digest=stored.digest,
+        kind=stored.meta.kind, metadata=checkpoint_metadata(stored, Path(upload.name).name), temperature=temperature)
+
+
+def add_natural_system(study: Study, name: str = "NAT") -> System:
+    """The natural-motion system: the held-out clips that held-out controls came from."""
+    existing = study.systems.filter(role=System.Role.NATURAL).first()
+    if existing is not None:
+        raise UploadRefused(f"this study already has its natural system {existing.name!r}")
+    _check_name(study, name)
+    return System.objects.create(study=study, name=name, role=System.Role.NATURAL, kind="natural")
+
+
+def video_duration(path: Path) -> float:
+    """Seconds of an MP4 whose first frame decodes; UploadRefused naming the problem if not."""
+    with path.open("rb") as stream:
+        head = stream.read(12)
+    if head[4:8] != b"ftyp":
+        raise UploadRefused("not an MP4 file (it has no ftyp box)")
+    frames = imageio_ffmpeg.read_frames(str(path))
+    try:
+        meta = next(frames)
+        next(frames)
+    except (RuntimeError, OSError, StopIteration) as error:
+        raise UploadRefused(f"its video does not decode ({str(error).strip().splitlines()[-1] if str(error) else 'no frames'})") from None
+    finally:
+        frames.close()
+    duration = float(meta.get("duration") or 0.0)
+    if not duration > 0:
+        raise UploadRefused("the video does not say how long it lasts")
+    return duration
+
+
+def add_video_system(study: Study, name: str, uploads: list[File]) -> System:
+    """A BAD system whose stimuli are uploaded videos, stored as finished stimuli.
+
+    All videos are checked before any is kept: one bad video refuses the whole upload.
+    """
+    if not uploads:
+        raise UploadRefused("choose at least one video")
+    for upload in uploads:
+        _check_upload(upload, VIDEO_SUFFIX, settings.MAX_VIDEO_UPLOAD_BYTES, "video")
+    _check_name(study, name)
+    # Files move into place when the stack closes, just before the rows commit.
+    with transaction.atomic(), ExitStack() as stack:
+        system = System.objects.create(study=study, name=name, role=System.Role.BAD, kind="video",
+                                       metadata={"videos": [Path(u.name).name for u in uploads]})
+        for upload in uploads:
+            token = new_token()
+            tmp = stack.enter_context(atomic_output(Path(settings.MEDIA_ROOT) / "stimuli" / f"{token}{VIDEO_SUFFIX}"))
+            digest = _copy(upload, tmp)
+            try:
+                duration = video_duration(tmp)
+            except UploadRefused as error:
+                raise UploadRefused(f"{Path(upload.name).name}: {error}") from None
+            if study.stimuli.filter(content_key=digest).exists():
+                raise UploadRefused(f"{Path(upload.name).name}: this video is already a stimulus of the study")
+            Stimulus.objects.create(study=study, system=system, control=None, content_key=digest, token=token,
+                                    status=Stimulus.Status.DONE, duration_s=duration)
+    return system
+
+
+__all__ = ["UploadRefused", "add_checkpoint_system", "add_natural_system", "add_video_system",
+           "safetensors_header_problem", "store_checkpoint", "video_duration"]
