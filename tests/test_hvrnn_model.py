@@ -16,7 +16,7 @@ from generation.control import AttributeControl, preset_path
 from generation.generator import Generator
 from generation.hvrnn.classifiers import AttributeClassifier, ClassifierConfig
 from generation.hvrnn.data import load_attribute_data
-from generation.hvrnn.model import HVRNN, hvrnn_preset
+from generation.hvrnn.model import HVRNN, hvrnn_preset, random_crop
 from generation.train import TrainOptions, train
 
 
@@ -63,6 +63,17 @@ def test_loss_falls_on_real_data(data):
         losses.append(metrics["reconstruction"])
     assert np.mean(losses[-10:]) < 0.5 * np.mean(losses[:10]), losses
     assert int(model.step) == 60
+
+
+def test_random_crops_stay_within_the_real_frames():
+    frames = torch.arange(10.0)[None, :, None].expand(3, 10, 2).contiguous()
+    mask = torch.arange(10)[None] < torch.tensor([[10], [6], [3]])
+    torch.manual_seed(0)
+    for _ in range(20):
+        pose, cut = random_crop(frames, mask, 4)
+        assert pose.shape == (3, 4, 2) and cut[0].all() and cut[1].all()
+        assert (pose[:, 1:, 0] - pose[:, :-1, 0] == 1).all()  # consecutive frames
+        assert pose[1, -1, 0] <= 5 and pose[2, 0, 0] == 0 and cut[2].tolist() == [True, True, True, False]
 
 
 def test_alpha_follows_the_skeleton_and_is_one_everywhere_for_NL(data):
