@@ -139,6 +139,7 @@ def train_classifiers(data: AttributeData, config: ClassifierConfig = Classifier
                       seed: int = 0, progress: bool = False) -> tuple[AttributeClassifiers, dict[str, list[float]]]:
     """Both classifiers, trained with cross entropy on ``part``; and each one's step losses."""
     sequences = data.sequences(part)
+    torch.manual_seed(seed)  # the initial weights
     classifiers = AttributeClassifiers(config, data.feature_dim, data.actions, data.styles)
     classifiers.fit_inputs(data.sequences("train"), data.quaternion_reference())
     features, mask, action, style = sequences.tensors()
