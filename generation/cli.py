@@ -4,7 +4,7 @@
   build-dataset FOLDER  encode a folder of BVH files into a cached training set
   render BVH...         draw clips as MP4 stick figures (and contact sheets)
   gallery FOLDER        render a few natural clips per content, with an index.json
-  train FOLDER          train a model (moglow, rnn, vae, hvrnn) on a BVH folder
+  train FOLDER          train a model (moglow, rnn, vae, hvrnn, erd, quaternet) on a BVH folder
   sample CHECKPOINT     generate motion for control signals or labels (npz, BVH, optional MP4)
   natural FOLDER        export held-out natural clips the same way (the NAT system)
   evaluate CHECKPOINT   held-out loss (MoGlow: negative log-likelihood per frame)
@@ -318,7 +318,7 @@ def parser() -> argparse.ArgumentParser:
                                         "validation). Writes CHECKPOINT (safetensors + JSON header) at every evaluation; "
                                         "--resume continues from it.")
     p.add_argument("folder", help="folder of .bvh files")
-    p.add_argument("--model", "--kind", choices=("moglow", "rnn", "vae", "hvrnn"), default="moglow", help="model kind (default %(default)s)")
+    p.add_argument("--model", "--kind", choices=("moglow", "rnn", "vae", "hvrnn", "erd", "quaternet"), default="moglow", help="model kind (default %(default)s)")
     p.add_argument("--preset", default="cpu", help="configuration preset: cpu, paper, or with an ablation such as cpu-MG-D or cpu-SL (default %(default)s)")
     p.add_argument("--classifiers", help="attribute classifiers' file for HVRNN's classifier loss")
     p.add_argument("--out", "-o", required=True, help="checkpoint path (.safetensors)")

@@ -13,12 +13,15 @@ from .moglow import MoGlow, moglow_preset
 from .rnn import RNNBaseline, rnn_preset
 from .vae import VAEBaseline, vae_preset
 from ..hvrnn.model import HVRNN, hvrnn_preset
+from ..hvrnn.baselines import ERD, QuaterNet, erd_preset, quaternet_preset
 
 MODELS: dict[str, tuple[type[MotionModel], Callable]] = {
     MoGlow.kind: (MoGlow, moglow_preset),
     RNNBaseline.kind: (RNNBaseline, rnn_preset),
     VAEBaseline.kind: (VAEBaseline, vae_preset),
     HVRNN.kind: (HVRNN, hvrnn_preset),
+    ERD.kind: (ERD, erd_preset),
+    QuaterNet.kind: (QuaterNet, quaternet_preset),
 }
 
 
