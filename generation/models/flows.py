@@ -159,19 +159,26 @@ class _CouplingFrameInverse:
     it); gates, cell state, scale and shift are computed in the parameters' dtype.
     """
 
+    @staticmethod
+    def _right_operand(weight: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
+        """weightᵀ for ``input @ weightᵀ`` in ``dtype``. A bfloat16 copy is laid out
+        contiguously, which oneDNN multiplies about a quarter faster than the transposed
+        view; float32 keeps the view (MKL is as fast with it) and so its exact results."""
+        return weight.T if dtype == weight.dtype else weight.to(dtype).T.contiguous()
+
     def __init__(self, coupling: AffineCoupling, network_dtype: torch.dtype | None = None) -> None:
         lstm = coupling.lstm
         self.dtype = network_dtype or coupling.out.weight.dtype
         self.split = coupling.split
         self.layers = [
             (
-                torch.cat([getattr(lstm, f"weight_ih_l{k}"), getattr(lstm, f"weight_hh_l{k}")], dim=1).T.to(self.dtype),
+                self._right_operand(torch.cat([getattr(lstm, f"weight_ih_l{k}"), getattr(lstm, f"weight_hh_l{k}")], dim=1), self.dtype),
                 (getattr(lstm, f"bias_ih_l{k}") + getattr(lstm, f"bias_hh_l{k}")).to(self.dtype),
             )
             for k in range(lstm.num_layers)
         ]
         self.hidden_size = lstm.hidden_size
-        self.out = coupling.out.weight.T.to(self.dtype), coupling.out.bias.to(self.dtype)
+        self.out = self._right_operand(coupling.out.weight, self.dtype), coupling.out.bias.to(self.dtype)
         self.state: list[tuple[torch.Tensor, torch.Tensor]] | None = None
 
     def __call__(self, y: torch.Tensor, context: torch.Tensor | None) -> torch.Tensor:
@@ -179,10 +186,11 @@ class _CouplingFrameInverse:
         if self.state is None:
             zeros = y.new_zeros(y.shape[0], self.hidden_size)
             self.state = [(zeros.to(self.dtype), zeros)] * len(self.layers)
-        size, inputs = self.hidden_size, [x_b, context]
+        # The context arrives in the network's dtype (cast once per frame by Flow).
+        size, inputs = self.hidden_size, [x_b.to(self.dtype), context]
         for k, (weight_t, bias) in enumerate(self.layers):
             hidden, cell = self.state[k]
-            gates = torch.addmm(bias, torch.cat([*inputs, hidden], dim=1).to(self.dtype), weight_t).to(y.dtype)
+            gates = torch.addmm(bias, torch.cat([*inputs, hidden], dim=1), weight_t).to(y.dtype)
             # nn.LSTM's gate order is (input, forget, cell, output); one sigmoid serves three.
             sigmoids = torch.sigmoid(gates)
             cell_input = torch.tanh(gates[:, 2 * size : 3 * size])
@@ -219,6 +227,8 @@ class Flow(nn.Module):
         steps = [transform.frame_inverse(network_dtype) for transform in reversed(self.transforms)]
 
         def invert(y: torch.Tensor, context: torch.Tensor | None) -> torch.Tensor:
+            if network_dtype is not None and context is not None:
+                context = context.to(network_dtype)  # once for all couplings
             for step in steps:
                 y = step(y, context)
             return y
