@@ -30,7 +30,6 @@ from django.db import transaction
 from django.db.models import F
 
 from generation.control import control_from_dict
-from generation.generator import Generator
 from generation.motion.dataset import load_body_motion
 from generation.motion.root import root_trajectory
 from generation.motion.types import Motion
@@ -154,8 +153,10 @@ def progress(study: Study) -> dict:
 # --- the work of one task ---------------------------------------------------------
 
 @lru_cache(maxsize=4)
-def _generator(path: str, digest: str) -> Generator:
+def _generator(path: str, digest: str):
     """A worker keeps a few models loaded; the digest keys the cache to the file's content."""
+    from generation.generator import Generator  # torch loads in workers, not in every web process
+
     return Generator.load(path)
 
 

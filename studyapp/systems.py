@@ -19,17 +19,18 @@ import tempfile
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import imageio_ffmpeg
 from django.conf import settings
 from django.core.files import File
 from django.db import transaction
 
-from generation.checkpoint import CheckpointError, CheckpointMeta, load_checkpoint
 from generation.files import atomic_output
-from generation.generator import Generator
-from generation.models import preset
 from studyapp.models import Stimulus, Study, System, new_token
+
+if TYPE_CHECKING:  # torch-backed modules load only when a checkpoint is handled
+    from generation.checkpoint import CheckpointMeta
 
 CHECKPOINT_SUFFIX = ".safetensors"
 VIDEO_SUFFIX = ".mp4"
@@ -89,6 +90,8 @@ def safetensors_header_problem(path: Path) -> str | None:
 
 def preset_name(meta: CheckpointMeta) -> str:
     """The named preset whose configuration the checkpoint has, or "custom"."""
+    from generation.models import preset
+
     for name in KNOWN_PRESETS:
         try:
             if dataclasses.asdict(preset(meta.kind, name)) == meta.hyperparameters:
@@ -100,6 +103,9 @@ def preset_name(meta: CheckpointMeta) -> str:
 
 def store_checkpoint(upload: File) -> StoredCheckpoint:
     """Validate an uploaded checkpoint completely and store it by digest (UploadRefused if not)."""
+    from generation.checkpoint import CheckpointError, load_checkpoint
+    from generation.generator import Generator
+
     _check_upload(upload, CHECKPOINT_SUFFIX, settings.MAX_CHECKPOINT_UPLOAD_BYTES, "checkpoint")
     name = Path(upload.name).name
     root = Path(settings.CHECKPOINT_ROOT)

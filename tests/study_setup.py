@@ -6,12 +6,15 @@ The checkpoints are trained for real on real clips, just small enough to take se
 from __future__ import annotations
 
 import dataclasses
+import functools
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
 from generation import models
-from generation.motion.dataset import DatasetOptions, build_dataset
+from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
+from generation.render import render_video
 from generation.train import TrainOptions, train
 
 # Two walking and two running takes hold one of each out (the default 10 % rounds up to one per content).
@@ -38,3 +41,18 @@ def train_tiny_moglow(clips: Path, out: Path, steps: int, cache: Path) -> Path:
         patch.setitem(models.MODELS, "moglow", (kind_class, lambda name: tiny if name == "tiny" else make(name)))
         train("moglow", "tiny", dataset, out, TrainOptions(steps=steps, eval_every=steps), progress=False)
     return out
+
+
+@functools.cache
+def study_files(motion_data: Path, base: Path) -> SimpleNamespace:
+    """Made once per test session under ``base``: the clip folder (``clips``), the dataset
+    cache under ``root/var/cache``, a MoGlow trained 20 steps (``good``) and one trained 2
+    (``early``, a BAD system), and a one-second rendered video (``video``)."""
+    root = base / "study-files"
+    clips = link_clips(motion_data, root / "clips")
+    cache = root / "var" / "cache"
+    good = train_tiny_moglow(clips, root / "moglow.safetensors", 20, cache)
+    early = train_tiny_moglow(clips, root / "early.safetensors", 2, cache)
+    video = render_video(load_body_motion(clips / "data" / f"dataset-1_{CLIPS[0]}.bvh", 20.0, 1.0),
+                         root / "bad-example.mp4", size=(160, 120))
+    return SimpleNamespace(root=root, clips=clips, good=good, early=early, video=video)

@@ -22,26 +22,17 @@ from django.test import Client
 from safetensors.torch import load_file, save_file
 
 from generation.checkpoint import FORMAT_KEY, load_checkpoint, read_meta, tensor_digest
-from generation.motion.dataset import load_body_motion
-from generation.render import render_video
 from studyapp.celery import app as celery_app
 from studyapp.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
 from studyapp.models import ControlSignal, Stimulus, Study, System
 from studyapp.stimuli import plan_stimuli
 from studyapp.tasks import generate_stimulus
-from tests.study_setup import CLIPS, link_clips, train_tiny_moglow
+from tests.study_setup import CLIPS, link_clips, study_files
 
 
 @pytest.fixture(scope="module")
 def files(motion_data, tmp_path_factory) -> SimpleNamespace:
-    root = tmp_path_factory.mktemp("study-files")
-    clips = link_clips(motion_data, root / "clips")
-    cache = root / "var" / "cache"
-    good = train_tiny_moglow(clips, root / "moglow.safetensors", 20, cache)
-    early = train_tiny_moglow(clips, root / "early.safetensors", 2, cache)
-    video = render_video(load_body_motion(clips / "data" / f"dataset-1_{CLIPS[0]}.bvh", 20.0, 1.0),
-                         root / "bad-example.mp4", size=(160, 120))
-    return SimpleNamespace(root=root, clips=clips, good=good, early=early, video=video)
+    return study_files(motion_data, tmp_path_factory.getbasetemp())
 
 
 @pytest.fixture
