@@ -179,30 +179,33 @@ def _step(handler):
     return view
 
 
+def _passed(participant: Participant, moment: str, key: str) -> HttpResponse:
+    """Record when the participant passed a step (``moment`` is its timestamp field); show the next page."""
+    setattr(participant, moment, timezone.now())
+    participant.save(update_fields=[moment])
+    return redirect("participant-page", key=key)
+
+
 @_step
 def consent(request: HttpRequest, key: str) -> HttpResponse:
     """Agree (or not) to take part."""
-    study, participant = _require_stage(request, key, "consent")
+    _, participant = _require_stage(request, key, "consent")
     if request.POST.get("agree") != "yes":
         return _message(request, "Thank you", "You chose not to take part. Please return the study on your platform.")
-    participant.consented_at = timezone.now()
-    participant.save(update_fields=["consented_at"])
-    return redirect("participant-page", key=key)
+    return _passed(participant, "consented_at", key)
 
 
 @_step
 def instructions(request: HttpRequest, key: str) -> HttpResponse:
     """Instructions read."""
-    study, participant = _require_stage(request, key, "instructions")
-    participant.instructed_at = timezone.now()
-    participant.save(update_fields=["instructed_at"])
-    return redirect("participant-page", key=key)
+    _, participant = _require_stage(request, key, "instructions")
+    return _passed(participant, "instructed_at", key)
 
 
 @_step
 def practice(request: HttpRequest, key: str) -> HttpResponse:
     """Move past a practice clip; its answer is not recorded."""
-    study, participant = _require_stage(request, key, "practice")
+    _, participant = _require_stage(request, key, "practice")
     if request.POST.get("index") == str(participant.training_done):  # a resubmitted form moves nothing
         Participant.objects.filter(pk=participant.pk, training_done=participant.training_done).update(
             training_done=participant.training_done + 1)
