@@ -17,9 +17,11 @@ from django.urls import reverse
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
+from studyapp.celery import app as celery_app
 from studyapp.controls import ControlError, add_control_file, add_held_out_controls, add_preset_controls
 from studyapp.forms import (CheckpointSystemForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
                             NaturalSystemForm, PresetControlsForm, StudyForm, VideoSystemForm)
+from studyapp.health import collect_health
 from studyapp.models import NATURAL_NAME, Stimulus, Study, System
 from studyapp.monitor import ratings_csv, study_monitor
 from studyapp.participant_views import PLATFORM_PARAMETERS
@@ -56,34 +58,32 @@ def study_edit(request: HttpRequest, pk: int | None = None) -> HttpResponse:
     return render(request, "studyapp/researcher/study_form.html", {"form": form, "study": study})
 
 
-def _bound(form_class, request: HttpRequest, action: str):
-    """The form bound to this POST if it is the one submitted, else an empty one."""
-    if request.method == "POST" and request.POST.get("action") == action:
-        return form_class(request.POST, request.FILES)
-    return form_class()
+def _forms_page(request: HttpRequest, study: Study, page: str, forms: dict, actions: dict,
+                refusal: type[Exception], context: dict) -> HttpResponse:
+    """A page of several forms, each posting ``action=<its key>``.
 
-
-def _run(form, request: HttpRequest, action, errors: tuple[type[Exception], ...]) -> bool:
-    """Validate a submitted form and run its action; a refused action becomes a form error."""
-    if not form.is_bound or not form.is_valid():
-        return False
-    try:
-        message = action(form.cleaned_data)
-    except errors as error:
-        form.add_error(None, str(error))
-        return False
-    messages.success(request, message)
-    return True
+    The submitted form is validated and its action run; the action's message is shown
+    after a redirect, and a refusal (``refusal``) becomes the form's error, with 400.
+    """
+    action = request.POST.get("action") if request.method == "POST" else None
+    bound = {key: form_class(request.POST, request.FILES) if key == action else form_class()
+             for key, form_class in forms.items()}
+    form = bound.get(action)
+    if form is not None and form.is_valid():
+        try:
+            messages.success(request, actions[action](form.cleaned_data))
+            return redirect(f"study-{page}", pk=study.pk)
+        except refusal as error:
+            form.add_error(None, str(error))
+    status = 400 if request.method == "POST" else 200
+    return render(request, f"studyapp/researcher/{page}.html", {"study": study, "forms": bound, **context},
+                  status=status)
 
 
 @login_required
 def study_systems(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
-    forms = {
-        "checkpoint": _bound(CheckpointSystemForm, request, "checkpoint"),
-        "natural": _bound(NaturalSystemForm, request, "natural"),
-        "videos": _bound(VideoSystemForm, request, "videos"),
-    }
+    forms = {"checkpoint": CheckpointSystemForm, "natural": NaturalSystemForm, "videos": VideoSystemForm}
     actions = {
         "checkpoint": lambda data: "Registered {}.".format(add_checkpoint_system(
             study, data["name"], data["checkpoint"], data["role"], data["temperature"]).name),
@@ -91,36 +91,20 @@ def study_systems(request: HttpRequest, pk: int) -> HttpResponse:
         "videos": lambda data: "Registered {} with {} video(s).".format(
             add_video_system(study, data["name"], data["videos"]).name, len(data["videos"])),
     }
-    if request.method == "POST":
-        action = request.POST.get("action")
-        if action in forms and _run(forms[action], request, actions[action], (UploadRefused,)):
-            return redirect("study-systems", pk=study.pk)
-    status = 400 if any(f.is_bound for f in forms.values()) else 200
-    return render(request, "studyapp/researcher/systems.html",
-                  {"study": study, "systems": study.systems.all(), "forms": forms}, status=status)
+    return _forms_page(request, study, "systems", forms, actions, UploadRefused, {"systems": study.systems.all()})
 
 
 @login_required
 def study_controls(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
-    forms = {
-        "held_out": _bound(HeldOutControlsForm, request, "held_out"),
-        "presets": _bound(PresetControlsForm, request, "presets"),
-        "file": _bound(ControlFileForm, request, "file"),
-    }
+    forms = {"held_out": HeldOutControlsForm, "presets": PresetControlsForm, "file": ControlFileForm}
     actions = {
         "held_out": lambda data: "{} held-out control(s).".format(
             len(add_held_out_controls(study, data["seconds"], data["count"]))),
         "presets": lambda data: f"{len(add_preset_controls(study, data['presets']))} synthetic control(s).",
         "file": lambda data: f"{len(add_control_file(study, data['description']))} control(s) from the file.",
     }
-    if request.method == "POST":
-        action = request.POST.get("action")
-        if action in forms and _run(forms[action], request, actions[action], (ControlError,)):
-            return redirect("study-controls", pk=study.pk)
-    status = 400 if any(f.is_bound for f in forms.values()) else 200
-    return render(request, "studyapp/researcher/controls.html",
-                  {"study": study, "controls": study.controls.all(), "forms": forms}, status=status)
+    return _forms_page(request, study, "controls", forms, actions, ControlError, {"controls": study.controls.all()})
 
 
 @login_required
@@ -138,9 +122,13 @@ def study_stimuli(request: HttpRequest, pk: int) -> HttpResponse:
         else:
             messages.success(request, f"{result.total} stimuli ({result.created} new); {result.queued} sent to the workers.")
             return redirect("study-stimuli", pk=study.pk)
-    stimuli = study.stimuli.select_related("system", "control")
-    return render(request, "studyapp/researcher/stimuli.html",
-                  {"study": study, "form": form, "stimuli": stimuli, "progress": progress(study)}, status=status)
+    state = progress(study)
+    # Queued clips with nobody to make them: say so rather than let the bar sit still.
+    waiting = state["counts"]["queued"] + state["counts"]["running"]
+    health = collect_health(celery_app, settings.HEALTH_TIMEOUT_S) if waiting else None
+    context = {"study": study, "form": form, "stimuli": study.stimuli.select_related("system", "control"),
+               "progress": state, "no_worker": health is not None and not health.workers, "health": health}
+    return render(request, "studyapp/researcher/stimuli.html", context, status=status)
 
 
 @never_cache

@@ -316,6 +316,7 @@ def test_generating_twice_makes_the_same_stimuli_and_queues_them_once(client, re
     assert Stimulus.objects.filter(system__role="natural", control__origin="synthetic").count() == 0
     assert set(Stimulus.objects.values_list("status", flat=True)) == {"queued"}
     assert len(list(queue.iterdir())) == 10
+    assert "no worker answers" in client.get(f"/studies/{study.pk}/stimuli/").content.decode()
 
     second = client.post(f"/studies/{study.pk}/stimuli/", {"seed": "0"})
     assert second.status_code == 302
