@@ -2,6 +2,7 @@
 
     python -m analysis report RATINGS.csv --out report/ [--motion DIR ...]
     python -m analysis objective DIR ... --out objective/
+    python -m analysis hvrnn-scores OUTPUTS.npz --out scores/
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from analysis import plots
+from analysis.attribute_scores import write_scores
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import ExclusionRules
 from analysis.motion_io import load_motion_sets
@@ -59,6 +61,12 @@ def _parser() -> argparse.ArgumentParser:
     report.add_argument("--foot-kind", choices=("heel", "toe"), default="heel",
                         help="heel for bipeds (default), toe for quadrupeds")
     _add_objective_parser(commands)
+    scores = commands.add_parser(
+        "hvrnn-scores", help="IS and FID per set and t-SNE maps (HVRNN Table 2, Fig. 4)",
+        description="Read the attribute-classifier outputs written by 'python -m generation hvrnn-eval'; "
+                    "write the IS/FID table and a t-SNE figure per classifier.")
+    scores.add_argument("outputs", help="classifier outputs (.npz)")
+    scores.add_argument("--out", required=True, help="folder to write tables and figures into")
     return parser
 
 
@@ -94,6 +102,14 @@ def _split(text: str | None) -> list[str] | None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if args.command == "hvrnn-scores":
+        try:
+            table = write_scores(args.outputs, args.out)
+        except AnalysisInputError as exc:
+            print(f"motion-analysis: error: {exc}", file=sys.stderr)
+            return 2
+        print(to_markdown(table.round(3)))
+        return 0
     if args.command == "objective":
         try:
             notes = objective_command(args)

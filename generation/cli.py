@@ -8,6 +8,8 @@
   sample CHECKPOINT     generate motion for control signals or labels (npz, BVH, optional MP4)
   natural FOLDER        export held-out natural clips the same way (the NAT system)
   evaluate CHECKPOINT   held-out loss (MoGlow: negative log-likelihood per frame)
+  hvrnn-classifiers, hvrnn-denoiser, hvrnn-eval FOLDER
+                        HVRNN's classifiers, denoiser and evaluation (generation/hvrnn_commands.py)
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from tqdm import tqdm
 
 from .control import PRESETS, held_out_paths, load_control_file, preset_path
 from .gallery import GalleryOptions, build_gallery
+from .hvrnn_commands import add_commands as add_hvrnn_commands
 from .motion.bvh import BVHError, motion_to_bvh, read_bvh, write_bvh
 from .motion.dataset import (DatasetOptions, MotionDataset, build_dataset, default_cache_dir, find_bvh_files,
                              load_body_motion)
@@ -375,6 +378,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu")
     p.set_defaults(run=evaluate_command)
+
+    add_hvrnn_commands(commands)
     return root
 
 

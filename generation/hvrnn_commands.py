@@ -1,0 +1,123 @@
+"""HVRNN's auxiliary commands of ``python -m generation``:
+
+  hvrnn-classifiers FOLDER  train the action and style classifiers on half the training takes
+  hvrnn-denoiser FOLDER     train the denoising autoencoder on the training takes
+  hvrnn-eval FOLDER         classifier outputs of held-out, real and generated sequences
+                            (then ``python -m analysis hvrnn-scores`` for Table 2 and Fig. 4)
+
+They live outside ``generation.hvrnn``, whose package imports the model registry (and
+so torch); torch-backed modules are imported inside the commands, so ``--help`` starts
+quickly.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+
+
+def add_commands(commands) -> None:
+    """Add the commands to the ``generation`` command line's subparsers."""
+    p = commands.add_parser("hvrnn-classifiers", help="train HVRNN's action and style classifiers",
+                            description="Train the attribute classifiers (Conv1D x3, pooling, linear) on the "
+                                        "classifier half of the training takes; report held-out accuracy.")
+    _data_arguments(p)
+    p.add_argument("--out", "-o", required=True, help="output file (.safetensors)")
+    p.add_argument("--steps", type=int, help="training steps per classifier (default: the configuration's)")
+    p.set_defaults(run=classifiers_command)
+
+    p = commands.add_parser("hvrnn-denoiser", help="train HVRNN's denoising autoencoder",
+                            description="Train the denoising autoencoder on the training takes; report the "
+                                        "held-out error of corrupted and denoised data.")
+    _data_arguments(p)
+    p.add_argument("--out", "-o", required=True, help="output file (.safetensors)")
+    p.add_argument("--steps", type=int, help="training steps (default: the configuration's)")
+    p.set_defaults(run=denoiser_command)
+
+    p = commands.add_parser("hvrnn-eval", help="classifier outputs for HVRNN's Table 2 and Fig. 4",
+                            description="Run the attribute classifiers on the held-out sequences (the reference), "
+                                        "the other half of the training takes (real) and sequences each checkpoint "
+                                        "generates for the held-out labels and lengths; write them to an .npz for "
+                                        "'python -m analysis hvrnn-scores'.")
+    _data_arguments(p)
+    p.add_argument("--classifiers", required=True, help="attribute classifiers' file (hvrnn-classifiers)")
+    p.add_argument("--checkpoint", action="append", default=[], metavar="NAME=PATH",
+                   help="a model to evaluate under a name (repeatable)")
+    p.add_argument("--temperature", type=float, default=1.0)
+    p.add_argument("--out", "-o", required=True, help="output file (.npz)")
+    p.set_defaults(run=eval_command)
+
+
+def _data_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("folder", help="folder of labelled .bvh files")
+    p.add_argument("--cache-dir", help="dataset cache folder")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--threads", type=int, help="CPU threads for torch")
+
+
+def _load(args: argparse.Namespace):
+    import torch
+
+    from .hvrnn.data import load_attribute_data
+
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    return load_attribute_data(args.folder, cache_dir=args.cache_dir)
+
+
+def classifiers_command(args: argparse.Namespace) -> int:
+    from .hvrnn.classifiers import ClassifierConfig, accuracy, train_classifiers
+
+    data = _load(args)
+    config = ClassifierConfig() if args.steps is None else dataclasses.replace(ClassifierConfig(), steps=args.steps)
+    start = time.perf_counter()
+    classifiers, history = train_classifiers(data, config, seed=args.seed, progress=True)
+    held_out = accuracy(classifiers, data.sequences("test"))
+    metrics = {"test_accuracy": held_out, "part": "classifier", "seed": args.seed,
+               "final_loss": {k: sum(v[-50:]) / len(v[-50:]) for k, v in history.items()},
+               "seconds": round(time.perf_counter() - start, 1)}
+    classifiers.save(args.out, data.dataset.fingerprint, metrics)
+    chance = {"action": 1 / len(data.actions), "style": 1 / len(data.styles)}
+    for kind, value in held_out.items():
+        print(f"{kind}: held-out accuracy {value:.3f} (chance {chance[kind]:.3f}), {len(data.sequences('test'))} sequences")
+    print(f"wrote {args.out}")
+    return 0
+
+
+def denoiser_command(args: argparse.Namespace) -> int:
+    from .hvrnn.denoiser import DenoiserConfig, denoising_errors, train_denoiser
+
+    data = _load(args)
+    config = DenoiserConfig() if args.steps is None else dataclasses.replace(DenoiserConfig(), steps=args.steps)
+    start = time.perf_counter()
+    denoiser, losses = train_denoiser(data, config, seed=args.seed, progress=True)
+    errors = denoising_errors(denoiser, data.sequences("test"), seed=args.seed)
+    denoiser.save(args.out, data.dataset.fingerprint, {"test_errors": errors, "seed": args.seed,
+                                                       "final_loss": sum(losses[-50:]) / len(losses[-50:]),
+                                                       "seconds": round(time.perf_counter() - start, 1)})
+    print(f"held-out mean squared error (standardised): corrupted {errors['corrupted']:.4f}, "
+          f"denoised {errors['denoised']:.4f}")
+    print(f"wrote {args.out}")
+    return 0
+
+
+def eval_command(args: argparse.Namespace) -> int:
+    from .hvrnn.classifiers import AttributeClassifiers
+    from .hvrnn.evaluate import evaluation_outputs, save_outputs
+
+    checkpoints = {}
+    for item in args.checkpoint:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path:
+            raise ValueError(f"--checkpoint takes NAME=PATH, got {item!r}")
+        if name in checkpoints:
+            raise ValueError(f"--checkpoint name {name!r} given twice")
+        checkpoints[name] = path
+    data = _load(args)
+    classifiers = AttributeClassifiers.load(args.classifiers)
+    outputs = evaluation_outputs(data, classifiers, checkpoints, seed=args.seed, temperature=args.temperature)
+    save_outputs(args.out, outputs, data)
+    sizes = ', '.join(f"{name} ({len(values['action'])})" for name, values in outputs.items())
+    print(f"wrote {args.out}: sets {sizes}")
+    return 0
