@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from generation.hvrnn.data import ROOT_DIMS, load_attribute_data
-from generation.hvrnn.denoiser import Denoiser, DenoiserConfig, denoising_errors, train_denoiser
+from generation.hvrnn.denoiser import Denoiser, DenoiserConfig, denoise_training_data, denoising_errors, train_denoiser
 
 TINY = DenoiserConfig(channels=(176, 176), steps=120, batch_size=16, crop_frames=48)
 
@@ -61,3 +61,15 @@ def test_applying_keeps_labels_padding_and_unit_quaternions(data, trained, tmp_p
     assert float(((after - before) ** 2).mean()) < 0.02
     loaded = Denoiser.load(denoiser.save(tmp_path / "denoiser.safetensors", data.dataset.fingerprint, {}))
     assert np.array_equal(loaded.apply(test).features, clean.features)
+
+
+def test_denoised_training_data_changes_training_clips_only(data, trained):
+    denoiser, _ = trained
+    cleaned = denoise_training_data(data, denoiser)
+    assert cleaned.dataset.fingerprint.startswith(data.dataset.fingerprint + "+denoised-")
+    assert np.array_equal(cleaned.sequences("test").features, data.sequences("test").features)
+    # "before" is read after the call: the original data must be left as it was.
+    before, after = data.sequences("train"), cleaned.sequences("train")
+    assert after.features.shape == before.features.shape and not np.array_equal(after.features, before.features)
+    quats = after.features[after.mask][:, ROOT_DIMS:].reshape(-1, 4)
+    assert np.allclose(np.linalg.norm(quats, axis=1), 1.0, atol=1e-5)

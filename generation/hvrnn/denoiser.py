@@ -22,7 +22,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..checkpoint import CheckpointError
+from ..checkpoint import CheckpointError, tensor_digest
 from .data import ROOT_DIMS, AttributeData, SequenceSet
 from .fitting import fit
 from .inputs import InputNormalizer
@@ -99,18 +99,18 @@ class Denoiser(nn.Module):
         return normalized + chosen * noise
 
     @torch.no_grad()
-    def apply(self, sequences: SequenceSet, batch_size: int = 64) -> SequenceSet:
-        """The sequences denoised: raw features, unit quaternions, zero padding, same labels."""
+    def clean(self, features: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """Denoised raw features (batch, frames, dims): unit quaternions, zero padding."""
         self.eval()
+        clean = self.inputs.invert(self(self.inputs(features), mask))
+        quats = clean[..., ROOT_DIMS:].unflatten(-1, (-1, 4))
+        quats = quats / quats.norm(dim=-1, keepdim=True).clamp_min(1e-8)
+        return torch.cat([clean[..., :ROOT_DIMS], quats.flatten(-2)], -1) * mask.unsqueeze(-1)
+
+    def apply(self, sequences: SequenceSet, batch_size: int = 64) -> SequenceSet:
+        """The sequences denoised, with the same labels and masks."""
         features, mask, _, _ = sequences.tensors()
-        parts = []
-        for i in range(0, len(sequences), batch_size):
-            x, m = features[i : i + batch_size], mask[i : i + batch_size]
-            clean = self.inputs.invert(self(self.inputs(x), m))
-            quats = clean[..., ROOT_DIMS:].unflatten(-1, (-1, 4))
-            quats = quats / quats.norm(dim=-1, keepdim=True).clamp_min(1e-8)
-            clean = torch.cat([clean[..., :ROOT_DIMS], quats.flatten(-2)], -1)
-            parts.append(clean * m.unsqueeze(-1))
+        parts = [self.clean(features[i : i + batch_size], mask[i : i + batch_size]) for i in range(0, len(sequences), batch_size)]
         return dataclasses.replace(sequences, features=torch.cat(parts).numpy())
 
     def save(self, path: str | os.PathLike, data_fingerprint: str, metrics: dict) -> Path:
@@ -174,3 +174,17 @@ def denoising_errors(denoiser: Denoiser, sequences: SequenceSet, seed: int = 0) 
     corrupted = denoiser.corrupt(clean, torch.Generator().manual_seed(seed))
     return {"corrupted": float(masked_mse(corrupted, clean, mask)),
             "denoised": float(masked_mse(denoiser(corrupted, mask), clean, mask))}
+
+
+def denoise_training_data(data: AttributeData, denoiser: Denoiser) -> AttributeData:
+    """``data`` with every training clip's angle features denoised (each clip whole;
+    held-out clips untouched), so any model trained on it learns from cleaned data.
+    The fingerprint records the denoiser, so checkpoints tell the two data apart."""
+    angles = data.dataset.arrays["angles"].copy()
+    for clip in data.clips("train"):
+        features = torch.as_tensor(angles[clip.start : clip.stop])[None]
+        angles[clip.start : clip.stop] = denoiser.clean(features, torch.ones(features.shape[:2], dtype=torch.bool))[0].numpy()
+    weights = tensor_digest(denoiser.state_dict())[:16]
+    dataset = dataclasses.replace(data.dataset, arrays={**data.dataset.arrays, "angles": angles},
+                                  fingerprint=f"{data.dataset.fingerprint}+denoised-{weights}")
+    return dataclasses.replace(data, dataset=dataset)
