@@ -44,7 +44,8 @@ from torch.nn import functional as F
 from ..models.attribute import AttributeModel
 from .rotation_losses import (
     QUATERNION_DISTANCES, gram_schmidt, hierarchical_distance, joint_weights, kl_diagonal_gaussians, masked_mean,
-    matrix_to_quaternion, matrix_validity, normalize_quaternion, quaternion_to_matrix, quaternion_validity,
+    matrix_to_quaternion, matrix_validity, normalize_quaternion, quaternion_distance, quaternion_to_matrix,
+    quaternion_validity,
 )
 
 ROOT_DIMS = 6  # forward and sideways velocity, hips height, yaw rate, pitch, roll
@@ -337,6 +338,9 @@ class HVRNN(AttributeModel):
         kl = masked_mean(kls, word_mask) / l  # per frame
         terms = {"reconstruction": masked_mean(reconstruction, mask), "kl": kl,
                  "validity": masked_mean(self.validity(raw), mask)}
+        with torch.no_grad():  # comparable across ablations: unweighted, in degrees and standardised units
+            terms["angle_degrees"] = masked_mean(self.rotation_error(features, pose).mean(-1), mask)
+            terms["root_squared_error"] = masked_mean(((features - pose)[..., :ROOT_DIMS] ** 2).mean(-1), mask)
         if c.word_codec:  # the motion-word autoencoder on its own
             own_raw = self.decode_word(encoded).flatten(1, 2)[:, :frames]
             terms["word"] = masked_mean(self.frame_error(own_raw, pose), mask)
@@ -352,6 +356,11 @@ class HVRNN(AttributeModel):
         metrics = {name: float(value.detach()) for name, value in terms.items()}
         metrics.update(beta=beta, classifier_weight=weight, word_drop=drop)
         return total, metrics
+
+    def rotation_error(self, features: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+        """The angle (degrees) of each joint's rotation from its target, (..., joints)."""
+        quats = [f[..., ROOT_DIMS:].unflatten(-1, (self.joints, 4)) for f in (features, target)]
+        return torch.rad2deg(2 * quaternion_distance(quats[0], normalize_quaternion(quats[1]), "d3"))
 
     def frame_error(self, raw: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """(batch, frames): weight · Σ_k α_k d_k plus root_weight · the root values' squared error."""
