@@ -89,16 +89,18 @@ def safetensors_header_problem(path: Path) -> str | None:
 
 
 def preset_name(meta: CheckpointMeta) -> str:
-    """The named preset whose configuration the checkpoint has, or "custom"."""
+    """The named presets whose configuration the checkpoint has ("paper/cpu" where they
+    are the same), or "custom"."""
     from generation.models import preset
 
+    matches = []
     for name in KNOWN_PRESETS:
         try:
             if dataclasses.asdict(preset(meta.kind, name)) == meta.hyperparameters:
-                return name
-        except (KeyError, ValueError):
-            break
-    return "custom"
+                matches.append(name)
+        except ValueError:  # a kind without this preset
+            continue
+    return "/".join(matches) or "custom"
 
 
 def store_checkpoint(upload: File) -> StoredCheckpoint:
