@@ -141,7 +141,7 @@ def _dataset_for_training(args: argparse.Namespace, attributes: bool):
 
         contents = tuple(args.contents.split(",")) if args.contents else None
         return load_attribute_data(args.folder, contents, cache_dir=args.cache_dir)
-    options = DatasetOptions(contents=tuple((args.contents or LOCOMOTION).split(",")))
+    options = DatasetOptions(contents=tuple((args.contents or LOCOMOTION).split(",")), reverse=args.reverse)
     return build_dataset(args.folder, options, cache_dir=args.cache_dir)
 
 
@@ -329,6 +329,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--eval-every", type=int, default=250, help="steps between validation and checkpoint (default %(default)s)")
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint at --out")
     p.add_argument("--contents", help="content labels to train on (default: locomotion for path models, all for attribute models)")
+    p.add_argument("--reverse", action="store_true", help="path models: also train on the training takes played backwards "
+                   "(as the MoGlow authors' locomotion set-up does; held-out takes are never augmented)")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu", help="cpu or cuda (default %(default)s)")
     p.add_argument("--threads", type=int, help="CPU threads for torch")
