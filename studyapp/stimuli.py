@@ -25,6 +25,7 @@ from functools import lru_cache
 from importlib import metadata
 from pathlib import Path
 
+import numpy as np
 from django.conf import settings
 from django.db import transaction
 from django.db.models import F
@@ -160,7 +161,7 @@ def _generator(path: str, digest: str):
     return Generator.load(path)
 
 
-def stimulus_motion(stimulus: Stimulus) -> tuple[Motion, object]:
+def stimulus_motion(stimulus: Stimulus) -> tuple[Motion, np.ndarray]:
     """The stimulus's motion and the floor path (frames × 2) drawn under it."""
     system, control = stimulus.system, stimulus.control
     if control is None:

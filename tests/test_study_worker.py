@@ -1,8 +1,8 @@
 """Stimuli made by a real Celery worker over Redis, surviving a worker process killed mid-render.
 
-Everything runs as a deployment would: ``manage.py`` commands and a ``celery worker``
-(prefork, one child) as separate processes sharing a SQLite file and a Redis queue of
-their own. While the child renders, it is killed with SIGKILL; the task (acks_late,
+Everything runs as a deployment would: the researcher's management commands and a
+``celery worker`` (prefork, one child) as separate processes sharing a SQLite file and a
+Redis queue of their own. While the child renders, it is killed with SIGKILL; the task (acks_late,
 reject_on_worker_lost) goes back on the queue, a new child finishes it, and no partial
 file is left.
 """
@@ -29,9 +29,9 @@ REPO = Path(__file__).resolve().parents[1]
 CLIP_SECONDS = 6.0  # long enough (about a second of rendering at the least) to catch the child at it
 
 
-# One process sets the study up through the same commands a researcher runs (each
-# process start costs seconds), then prints the study's id.
-SETUP = """
+# The researcher's side, in one process (each start costs seconds): the same commands
+# a researcher runs, ending with generate_stimuli --wait, which fails on a failed clip.
+RESEARCHER = """
 import io, sys
 import django
 django.setup()
@@ -44,7 +44,7 @@ call_command("create_study", "researcher", "Killed mid-render", "--size", "320",
 study = out.getvalue().strip()
 call_command("add_system", study, "MoGlow", checkpoint, stdout=io.StringIO())
 call_command("add_controls", study, "--file", controls, stdout=io.StringIO())
-print(study)
+call_command("generate_stimuli", study, "--wait", "--timeout", "120")
 """
 
 
@@ -84,11 +84,6 @@ def test_a_worker_killed_mid_render_is_retried_and_leaves_no_partial_file(motion
                     DJANGO_SUPERUSER_PASSWORD="pw-for-tests", OMP_NUM_THREADS="1")
     controls = tmp_path / "long.json"
     controls.write_text(json.dumps({"segments": [{"type": "straight", "speed": 120, "seconds": CLIP_SECONDS}]}))
-    setup = subprocess.run([sys.executable, "-c", SETUP, str(checkpoint), str(controls)], cwd=REPO, env=env,
-                           capture_output=True, text=True, timeout=180)
-    assert setup.returncode == 0, setup.stderr[-3000:]
-    study_id = setup.stdout.strip().splitlines()[-1]
-
     log_path = tmp_path / "worker.log"
     with log_path.open("wb") as log:
         worker = subprocess.Popen(
@@ -97,14 +92,13 @@ def test_a_worker_killed_mid_render_is_retried_and_leaves_no_partial_file(motion
              "--without-mingle", "--without-gossip"],
             cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         try:
-            generate = subprocess.Popen([sys.executable, "manage.py", "generate_stimuli", study_id, "--wait",
-                                         "--timeout", "120"], cwd=REPO, env=env, stdout=subprocess.PIPE,
-                                        stderr=subprocess.PIPE, text=True)
+            researcher = subprocess.Popen([sys.executable, "-c", RESEARCHER, str(checkpoint), str(controls)], cwd=REPO,
+                                          env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
             stimuli = var / "media" / "stimuli"
-            wait_for(lambda: stimuli.is_dir() and list(stimuli.glob(".*.part")), 90, "the render to start", log_path)
+            wait_for(lambda: stimuli.is_dir() and list(stimuli.glob(".*.part")), 120, "the render to start", log_path)
             [child] = children(worker.pid)
             os.kill(child, signal.SIGKILL)
-            out, err = generate.communicate(timeout=150)
+            out, err = researcher.communicate(timeout=150)
         finally:
             worker.send_signal(signal.SIGTERM)
             try:
@@ -113,7 +107,7 @@ def test_a_worker_killed_mid_render_is_retried_and_leaves_no_partial_file(motion
                 os.killpg(worker.pid, signal.SIGKILL)
                 worker.wait(timeout=5)
     worker_log = log_path.read_text(errors="replace")
-    assert generate.returncode == 0, f"{out}\n{err[-2000:]}\nworker log:\n{worker_log[-3000:]}"
+    assert researcher.returncode == 0, f"{out}\n{err[-2000:]}\nworker log:\n{worker_log[-3000:]}"
     assert "signal 9" in worker_log or "SIGKILL" in worker_log, worker_log[-3000:]
 
     with sqlite3.connect(var / "db.sqlite3") as db:
