@@ -102,7 +102,10 @@ def tsne_figure(outputs: ClassifierOutputs, kind: str = "action", perplexity: fl
     points = tsne(np.concatenate(activations), perplexity=min(perplexity, (sum(map(len, activations)) - 1) / 3))
     bounds = np.cumsum([0] + [len(a) for a in activations])
     labels = outputs.actions if kind == "action" else outputs.styles
-    colours = plt.get_cmap("tab20")(np.arange(len(labels)) % 20)
+    # tab20 without its two greys (the background is grey), then tab20b for more labels.
+    palette = np.concatenate([np.delete(plt.get_cmap("tab20")(np.arange(20)), [14, 15], axis=0),
+                              plt.get_cmap("tab20b")(np.arange(20))])
+    colours = palette[np.arange(len(labels)) % len(palette)]
     columns = min(4, len(names))
     rows = -(-len(names) // columns)
     fig, axes = plt.subplots(rows, columns, figsize=(3.2 * columns + 1.8, 3.2 * rows), squeeze=False)

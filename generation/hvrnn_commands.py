@@ -19,21 +19,12 @@ import time
 
 def add_commands(commands) -> None:
     """Add the commands to the ``generation`` command line's subparsers."""
-    p = commands.add_parser("hvrnn-classifiers", help="train HVRNN's action and style classifiers",
-                            description="Train the attribute classifiers (Conv1D x3, pooling, linear) on the "
-                                        "classifier half of the training takes; report held-out accuracy.")
-    _data_arguments(p)
-    p.add_argument("--out", "-o", required=True, help="output file (.safetensors)")
-    p.add_argument("--steps", type=int, help="training steps per classifier (default: the configuration's)")
-    p.set_defaults(run=classifiers_command)
-
-    p = commands.add_parser("hvrnn-denoiser", help="train HVRNN's denoising autoencoder",
-                            description="Train the denoising autoencoder on the training takes; report the "
-                                        "held-out error of corrupted and denoised data.")
-    _data_arguments(p)
-    p.add_argument("--out", "-o", required=True, help="output file (.safetensors)")
-    p.add_argument("--steps", type=int, help="training steps (default: the configuration's)")
-    p.set_defaults(run=denoiser_command)
+    _training_parser(commands, "hvrnn-classifiers", classifiers_command, "train HVRNN's action and style classifiers",
+                     "Train the attribute classifiers (Conv1D x3, pooling, linear) on the classifier half of the "
+                     "training takes; report held-out accuracy.")
+    _training_parser(commands, "hvrnn-denoiser", denoiser_command, "train HVRNN's denoising autoencoder",
+                     "Train the denoising autoencoder on the training takes; report the held-out error of "
+                     "corrupted and denoised data.")
 
     p = commands.add_parser("hvrnn-eval", help="classifier outputs for HVRNN's Table 2 and Fig. 4",
                             description="Run the attribute classifiers on the held-out sequences (the reference), "
@@ -47,6 +38,14 @@ def add_commands(commands) -> None:
     p.add_argument("--temperature", type=float, default=1.0)
     p.add_argument("--out", "-o", required=True, help="output file (.npz)")
     p.set_defaults(run=eval_command)
+
+
+def _training_parser(commands, name: str, run, help: str, description: str) -> None:
+    p = commands.add_parser(name, help=help, description=description)
+    _data_arguments(p)
+    p.add_argument("--out", "-o", required=True, help="output file (.safetensors)")
+    p.add_argument("--steps", type=int, help="training steps (default: the configuration's)")
+    p.set_defaults(run=run)
 
 
 def _data_arguments(p: argparse.ArgumentParser) -> None:

@@ -9,20 +9,15 @@ import torch
 from generation.checkpoint import load_checkpoint
 from generation.control import AttributeControl
 from generation.generator import Generator
-from generation.hvrnn.data import load_attribute_data
 from generation.hvrnn.kinematics import forward_kinematics
 from generation.models import model_class
 from generation.motion.kinematics import forward_kinematics as numpy_forward_kinematics
 from generation.motion.rotations import quat_to_matrix
 from generation.train import TrainOptions, train
+from tests.hvrnn_setup import data  # noqa: F401  (a fixture)
 
 TINY = {"erd": {"encoder": (32,), "hidden": 32, "decoder": (32,), "batch_size": 8},
         "quaternet": {"hidden": 32, "batch_size": 8}}
-
-
-@pytest.fixture(scope="module")
-def data(motion_data, pytestconfig):
-    return load_attribute_data(motion_data, cache_dir=pytestconfig.cache.mkdir("motion-dataset"), progress=False)
 
 
 @pytest.fixture(scope="module")

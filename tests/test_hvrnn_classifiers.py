@@ -7,17 +7,10 @@ import pytest
 import torch
 
 from generation.checkpoint import CheckpointError
-from generation.hvrnn.classifiers import (AttributeClassifiers, ClassifierConfig, accuracy, random_crops,
-                                          train_classifiers)
-from generation.hvrnn.data import ROOT_DIMS, load_attribute_data
+from generation.hvrnn.classifiers import AttributeClassifiers, accuracy, random_crops, train_classifiers
+from generation.hvrnn.data import ROOT_DIMS
 from generation.hvrnn.store import save_network
-
-TINY = ClassifierConfig(channels=(32, 32, 32), steps=150, batch_size=16, lr=3e-3)
-
-
-@pytest.fixture(scope="module")
-def data(motion_data, pytestconfig):
-    return load_attribute_data(motion_data, cache_dir=pytestconfig.cache.mkdir("motion-dataset"), progress=False)
+from tests.hvrnn_setup import TINY_CLASSIFIERS as TINY, data  # noqa: F401  (data: a fixture)
 
 
 @pytest.fixture(scope="module")

@@ -7,14 +7,8 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from generation.hvrnn.data import (FPS, MAX_FRAMES, ROOT_DIMS, AttributeData, Vocabulary, chunk_bounds,
-                                   load_attribute_data, split_halves)
-
-
-@pytest.fixture(scope="module")
-def data(motion_data, pytestconfig) -> AttributeData:
-    # The cache is keyed by a fingerprint of files and options, so reusing it across runs is safe.
-    return load_attribute_data(motion_data, cache_dir=pytestconfig.cache.mkdir("motion-dataset"), progress=False)
+from generation.hvrnn.data import FPS, MAX_FRAMES, ROOT_DIMS, Vocabulary, chunk_bounds, split_halves
+from tests.hvrnn_setup import data  # noqa: F401  (a fixture)
 
 
 def test_chunks_are_equal_pieces_of_at_most_the_limit():

@@ -6,15 +6,11 @@ import numpy as np
 import pytest
 import torch
 
-from generation.hvrnn.data import ROOT_DIMS, load_attribute_data
+from generation.hvrnn.data import ROOT_DIMS
 from generation.hvrnn.denoiser import Denoiser, DenoiserConfig, denoise_training_data, denoising_errors, train_denoiser
+from tests.hvrnn_setup import data  # noqa: F401  (a fixture)
 
 TINY = DenoiserConfig(channels=(176, 176), steps=120, batch_size=16, crop_frames=48)
-
-
-@pytest.fixture(scope="module")
-def data(motion_data, pytestconfig):
-    return load_attribute_data(motion_data, cache_dir=pytestconfig.cache.mkdir("motion-dataset"), progress=False)
 
 
 @pytest.fixture(scope="module")

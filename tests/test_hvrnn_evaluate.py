@@ -13,17 +13,11 @@ from analysis.attribute_scores import read_classifier_outputs, score_table
 from analysis.scores import frechet_distance, inception_score
 from analysis.tsne import conditional_affinities, kl_divergence, tsne
 from generation import cli as generation_cli
-from generation.hvrnn.classifiers import ClassifierConfig, train_classifiers
-from generation.hvrnn.data import ROOT_DIMS, load_attribute_data
+from generation.hvrnn.classifiers import train_classifiers
+from generation.hvrnn.data import ROOT_DIMS
 from generation.hvrnn.evaluate import classifier_outputs
 from generation.train import TrainOptions, train
-
-TINY = ClassifierConfig(channels=(32, 32, 32), steps=150, batch_size=16, lr=3e-3)
-
-
-@pytest.fixture(scope="module")
-def data(motion_data, pytestconfig):
-    return load_attribute_data(motion_data, cache_dir=pytestconfig.cache.mkdir("motion-dataset"), progress=False)
+from tests.hvrnn_setup import TINY_CLASSIFIERS as TINY, data  # noqa: F401  (data: a fixture)
 
 
 @pytest.fixture(scope="module")

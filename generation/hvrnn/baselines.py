@@ -96,6 +96,11 @@ class RecurrentBaseline(AttributeModel):
         """Raw outputs (batch, frames, pose_dim) for previous frames and one-hot codes (batch, codes)."""
         raise NotImplementedError
 
+    @staticmethod
+    def with_codes(inputs: torch.Tensor, codes: torch.Tensor) -> torch.Tensor:
+        """Each frame's input followed by its sequence's one-hot codes."""
+        return torch.cat([inputs, codes.unsqueeze(1).expand(-1, inputs.shape[1], -1)], -1)
+
     def frame_error(self, predicted: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """The training error of each frame (batch, frames) of normalised predictions."""
         raise NotImplementedError
@@ -132,13 +137,11 @@ class RecurrentBaseline(AttributeModel):
 
 
 @dataclass
-class ERDConfig:
-    """Hyperparameters; the defaults are ERD's sizes (the ``paper`` preset)."""
+class RecurrentConfig:
+    """What both baselines' configurations hold."""
 
-    encoder: tuple[int, ...] = (500, 500)
     hidden: int = 1000
     layers: int = 2
-    decoder: tuple[int, ...] = (500, 100)
     initial_kl_weight: float = 1e-3
     crop_frames: int = 0  # train on random crops of this many frames (0: whole sequences)
     # Read by the shared training loop.
@@ -147,6 +150,14 @@ class ERDConfig:
     batch_size: int = 32
     actions: tuple[str, ...] = ()
     styles: tuple[str, ...] = ()
+
+
+@dataclass
+class ERDConfig(RecurrentConfig):
+    """Hyperparameters; the defaults are ERD's sizes (the ``paper`` preset)."""
+
+    encoder: tuple[int, ...] = (500, 500)
+    decoder: tuple[int, ...] = (500, 100)
 
 
 class ERD(RecurrentBaseline):
@@ -161,8 +172,7 @@ class ERD(RecurrentBaseline):
         self.decoder = nn.Sequential(mlp([config.hidden, *config.decoder]), nn.Linear(config.decoder[-1], pose_dim))
 
     def run(self, inputs: torch.Tensor, codes: torch.Tensor, state: Any) -> tuple[torch.Tensor, Any]:
-        x = torch.cat([inputs, codes.unsqueeze(1).expand(-1, inputs.shape[1], -1)], -1)
-        h, state = self.recurrent(self.encoder(x), state)
+        h, state = self.recurrent(self.encoder(self.with_codes(inputs, codes)), state)
         return self.decoder(h), state
 
     def frame_error(self, predicted: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
@@ -170,19 +180,10 @@ class ERD(RecurrentBaseline):
 
 
 @dataclass
-class QuaterNetConfig:
+class QuaterNetConfig(RecurrentConfig):
     """Hyperparameters; the defaults are QuaterNet's sizes (the ``paper`` preset)."""
 
-    hidden: int = 1000
-    layers: int = 2
     position_weight: float = 1.0  # on the squared joint-position error, in skeleton sizes
-    initial_kl_weight: float = 1e-3
-    crop_frames: int = 0  # train on random crops of this many frames (0: whole sequences)
-    learning_rate: float = 1e-3
-    grad_clip: float = 0.1
-    batch_size: int = 32
-    actions: tuple[str, ...] = ()
-    styles: tuple[str, ...] = ()
 
 
 class QuaterNet(RecurrentBaseline):
@@ -212,8 +213,7 @@ class QuaterNet(RecurrentBaseline):
         self.size.copy_(rest.pow(2).sum(-1).mean().sqrt())
 
     def run(self, inputs: torch.Tensor, codes: torch.Tensor, state: Any) -> tuple[torch.Tensor, Any]:
-        x = torch.cat([inputs, codes.unsqueeze(1).expand(-1, inputs.shape[1], -1)], -1)
-        h, state = self.recurrent(x, state)
+        h, state = self.recurrent(self.with_codes(inputs, codes), state)
         return self.output(h), state
 
     def positions(self, features: torch.Tensor) -> torch.Tensor:
@@ -228,7 +228,7 @@ class QuaterNet(RecurrentBaseline):
         return root + self.config.position_weight * positions
 
 
-# The cpu presets: about a tenth of the parameters, and 60-frame crops as HVRNN's cpu preset.
+# The cpu presets: under a tenth of the parameters, and 60-frame crops as HVRNN's cpu preset.
 PRESETS = {
     "erd": {"paper": ERDConfig(),
             "cpu": ERDConfig(encoder=(128, 128), hidden=256, decoder=(128, 64), batch_size=16, crop_frames=60)},
