@@ -11,6 +11,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
+import torch
 
 from generation import models
 from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
@@ -37,9 +38,15 @@ def train_tiny_moglow(clips: Path, out: Path, steps: int, cache: Path) -> Path:
     kind_class, make = models.MODELS["moglow"]
     tiny = dataclasses.replace(make("cpu"), steps=2, tau=3, lstm_hidden=16, batch_size=8, warmup_steps=0)
     dataset = build_dataset(clips, DatasetOptions(), cache_dir=cache, progress=False)
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setitem(models.MODELS, "moglow", (kind_class, lambda name: tiny if name == "tiny" else make(name)))
-        train("moglow", "tiny", dataset, out, TrainOptions(steps=steps, eval_every=steps), progress=False)
+    # A model this small gains nothing from a second thread and loses much when the cores are busy.
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setitem(models.MODELS, "moglow", (kind_class, lambda name: tiny if name == "tiny" else make(name)))
+            train("moglow", "tiny", dataset, out, TrainOptions(steps=steps, eval_every=steps), progress=False)
+    finally:
+        torch.set_num_threads(threads)
     return out
 
 
