@@ -60,6 +60,8 @@ class CheckpointMeta:
             data = json.loads(text)
         except json.JSONDecodeError as error:
             raise CheckpointError(f"{path}: the checkpoint's JSON header is invalid ({error.msg})") from None
+        if not isinstance(data, dict):
+            raise CheckpointError(f"{path}: the checkpoint's JSON header is not an object")
         if data.pop("format_version", None) != FORMAT_VERSION:
             raise CheckpointError(f"{path}: checkpoint format version is not {FORMAT_VERSION}")
         names = {f.name for f in dataclasses.fields(cls)}
@@ -69,7 +71,20 @@ class CheckpointMeta:
             problems = [f"missing {', '.join(sorted(missing))}"] if missing else []
             problems += [f"unknown {', '.join(sorted(unknown))}"] if unknown else []
             raise CheckpointError(f"{path}: checkpoint JSON fields: {'; '.join(problems)}")
+        expected_types = {"kind": str, "hyperparameters": dict, "pose_dim": int, "control_dim": int, "features": dict,
+                          "stats": dict, "skeleton": dict, "data_fingerprint": str, "step": int, "metrics": dict}
+        for name, kind in expected_types.items():
+            value = data.get(name, kind())
+            if not isinstance(value, kind) or isinstance(value, bool):
+                raise CheckpointError(f"{path}: checkpoint JSON field {name} must be {JSON_TYPE_NAMES[kind]}, "
+                                      f"not {json.dumps(value)[:40]}")
+        for name in ("pose_dim", "control_dim"):
+            if data[name] < 1:
+                raise CheckpointError(f"{path}: checkpoint JSON field {name} must be positive, not {data[name]}")
         return cls(**data)
+
+
+JSON_TYPE_NAMES = {str: "a string", int: "an integer", dict: "an object"}
 
 
 def code_version() -> str:
@@ -155,9 +170,9 @@ def load_checkpoint(path: str | os.PathLike, device: str | torch.device = "cpu")
     try:
         cls = model_class(meta.kind)
         config = cls.Config(**meta.hyperparameters)
-    except (KeyError, TypeError, ValueError) as error:
-        raise CheckpointError(f"{path}: {error}") from None
-    model = cls(config, meta.pose_dim, meta.control_dim)
+        model = cls(config, meta.pose_dim, meta.control_dim)
+    except (KeyError, TypeError, ValueError, RuntimeError) as error:  # a header that builds no model
+        raise CheckpointError(f"{path}: the hyperparameters do not build a {meta.kind} model ({error})") from None
     expected = model.state_dict()
     missing = sorted(set(expected) - set(tensors))
     unexpected = sorted(set(tensors) - set(expected))

@@ -15,6 +15,7 @@ import hashlib
 import json
 import os
 import struct
+import subprocess
 import tempfile
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -122,11 +123,12 @@ def store_checkpoint(upload: File) -> StoredCheckpoint:
             raise UploadRefused(f"{name}: {problem}")
         try:
             model, meta = load_checkpoint(tmp)
-            Generator(model, meta)  # the features and statistics sampling needs are there
         except CheckpointError as error:
             raise UploadRefused(f"{name}: {str(error).removeprefix(f'{tmp}: ')}") from None
-        except (KeyError, TypeError, ValueError) as error:
-            raise UploadRefused(f"{name}: a {meta.kind} checkpoint that cannot drive sampling ({error})") from None
+        try:
+            Generator(model, meta)  # the features and statistics sampling needs are there
+        except (KeyError, TypeError, ValueError, AttributeError) as error:
+            raise UploadRefused(f"{name}: a {meta.kind} checkpoint that cannot drive sampling ({error!r})") from None
         parameters = sum(p.numel() for p in model.parameters())
         final = root / f"{digest}{CHECKPOINT_SUFFIX}"
         os.chmod(tmp, 0o644)
@@ -204,10 +206,24 @@ def video_duration(path: Path) -> float:
     return duration
 
 
+def strip_metadata(source: Path, target: Path) -> None:
+    """Copy the first video stream of an MP4 into ``target`` without its container's
+    metadata (titles, encoder, creation times) or other streams, so a served BAD video
+    says nothing about where it came from. The frames are copied, not re-encoded."""
+    command = [imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-y", "-i", str(source), "-map", "0:v:0", "-c", "copy",
+               "-map_metadata", "-1", "-map_chapters", "-1", "-fflags", "+bitexact", "-movflags", "+faststart",
+               "-f", "mp4", str(target)]
+    completed = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    if completed.returncode != 0:
+        detail = (completed.stderr.strip().splitlines() or ["ffmpeg failed"])[-1]
+        raise UploadRefused(f"its video could not be copied ({detail})")
+
+
 def add_video_system(study: Study, name: str, uploads: list[File]) -> System:
     """A BAD system whose stimuli are uploaded videos, stored as finished stimuli.
 
     All videos are checked before any is kept: one bad video refuses the whole upload.
+    Each is stored with its container metadata removed (``strip_metadata``).
     """
     if not uploads:
         raise UploadRefused("choose at least one video")
@@ -218,11 +234,15 @@ def add_video_system(study: Study, name: str, uploads: list[File]) -> System:
     with transaction.atomic(), ExitStack() as stack:
         system = System.objects.create(study=study, name=name, role=System.Role.BAD, kind="video",
                                        metadata={"videos": [Path(u.name).name for u in uploads]})
+        scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="video-upload-")))
         for upload in uploads:
             token = new_token()
             tmp = stack.enter_context(atomic_output(Path(settings.MEDIA_ROOT) / "stimuli" / f"{token}{VIDEO_SUFFIX}"))
-            digest = _copy(upload, tmp)
+            original = scratch / f"{token}{VIDEO_SUFFIX}"
+            digest = _copy(upload, original)
             try:
+                video_duration(original)  # an MP4 that decodes, before ffmpeg touches it
+                strip_metadata(original, tmp)
                 duration = video_duration(tmp)
             except UploadRefused as error:
                 raise UploadRefused(f"{Path(upload.name).name}: {error}") from None

@@ -8,24 +8,29 @@ is queued can be counted there), or a Redis address where nothing listens.
 from __future__ import annotations
 
 import io
+import json
 import pickle
 import struct
+import subprocess
 import time
+from datetime import timedelta
 from pathlib import Path
 from types import SimpleNamespace
 
+import imageio_ffmpeg
 import pytest
 import torch
 from django.contrib.auth.models import User
 from django.core.files.uploadedfile import SimpleUploadedFile
 from django.test import Client
+from django.utils import timezone
 from safetensors.torch import load_file, save_file
 
 from generation.checkpoint import FORMAT_KEY, load_checkpoint, read_meta, tensor_digest
 from studyapp.celery import app as celery_app
 from studyapp.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
 from studyapp.models import ControlSignal, Stimulus, Study, System
-from studyapp.stimuli import plan_stimuli
+from studyapp.stimuli import STALE_TASK_MINUTES, plan_stimuli, queue_stimuli
 from studyapp.tasks import generate_stimulus
 from tests.study_setup import CLIPS, link_clips, study_files
 
@@ -80,6 +85,15 @@ def upload_checkpoint(client, study: Study, data: bytes, filename: str = "model.
         "checkpoint": SimpleUploadedFile(filename, data)})
 
 
+def first_frame(video: Path) -> bytes:
+    frames = imageio_ffmpeg.read_frames(str(video))
+    next(frames)  # the stream's description
+    try:
+        return bytes(next(frames))
+    finally:
+        frames.close()
+
+
 def stored_files(folder: Path) -> list[str]:
     """Every file under ``folder`` (hidden ones too), relative to it."""
     return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file())
@@ -97,9 +111,40 @@ def test_researcher_pages_need_a_login(client):
     study = new_study(User.objects.create_user("owner"))
     for page in PAGES:
         response = client.get(page.format(pk=study.pk))
-        assert response.status_code == 302 and response["Location"].startswith("/admin/login/"), page
+        assert response.status_code == 302 and response["Location"].startswith("/login/"), page
     for action in ("open/", "report/", "stimuli/1/retry/"):
-        assert client.post(f"/studies/{study.pk}/{action}")["Location"].startswith("/admin/login/")
+        assert client.post(f"/studies/{study.pk}/{action}")["Location"].startswith("/login/")
+
+
+@pytest.mark.django_db
+def test_a_researcher_who_is_not_staff_logs_in_on_the_login_page(client):
+    User.objects.create_user("plain", password="pw-for-tests")
+    form = client.get("/login/?next=/studies/")
+    assert form.status_code == 200 and "csrfmiddlewaretoken" in form.content.decode()
+    wrong = client.post("/login/", {"username": "plain", "password": "wrong", "next": "/studies/"})
+    assert wrong.status_code == 200 and "do not match" in wrong.content.decode()
+    response = client.post("/login/", {"username": "plain", "password": "pw-for-tests", "next": "/studies/"})
+    assert response.status_code == 302 and response["Location"] == "/studies/"
+    assert client.get("/studies/").status_code == 200
+
+
+@pytest.mark.django_db
+def test_the_admin_shows_a_researcher_only_their_own_studies(client):
+    from django.contrib.auth.models import Permission
+
+    staff = User.objects.create_user("staff-researcher", password="pw", is_staff=True)
+    staff.user_permissions.set(Permission.objects.filter(content_type__app_label="studyapp"))
+    client.force_login(staff)
+    mine, theirs = new_study(staff), new_study(User.objects.create_user("someone-else"))
+    theirs.title = "Their secret study"
+    theirs.save()
+    for model in ("study", "system", "participant", "rating"):
+        assert client.get(f"/admin/studyapp/{model}/").status_code == 200, model
+    listing = client.get("/admin/studyapp/study/").content.decode()
+    assert f"/admin/studyapp/study/{mine.pk}/change/" in listing and "Their secret study" not in listing
+    assert client.get(f"/admin/studyapp/study/{theirs.pk}/change/").status_code == 302  # "does not exist"
+    form = client.get("/admin/studyapp/system/add/").content.decode()
+    assert f'value="{mine.pk}"' in form and f'value="{theirs.pk}"' not in form
 
 
 @pytest.mark.django_db
@@ -181,6 +226,18 @@ def resaved(checkpoint: Path, change) -> bytes:
     return data
 
 
+def with_header(checkpoint: Path, change) -> bytes:
+    """The checkpoint with its JSON description replaced by ``change(description)``."""
+    tensors = load_file(str(checkpoint))
+    description = json.loads(read_meta(checkpoint).to_json())
+    header = {FORMAT_KEY: json.dumps(change(description)), "digest": tensor_digest(tensors)}
+    buffer = checkpoint.parent / "reheaded.safetensors"
+    save_file(tensors, str(buffer), metadata=header)
+    data = buffer.read_bytes()
+    buffer.unlink()
+    return data
+
+
 def tampered(data: bytes) -> bytes:
     """One byte of tensor data flipped, the header left as it was."""
     (length,) = struct.unpack("<Q", data[:8])
@@ -198,6 +255,14 @@ BAD_UPLOADS = {
     "wrong shape": (lambda f: resaved(f.good, lambda t: t.update({sorted(t)[0]: torch.zeros(3, 1)})),
                     "model.safetensors", "has shape (3, 1)"),
     "wrong extension": (lambda f: f.good.read_bytes(), "model.pt", "must be a .safetensors file"),
+    "header a list": (lambda f: with_header(f.good, lambda d: [d]), "model.safetensors", "is not an object"),
+    "dimension a string": (lambda f: with_header(f.good, lambda d: {**d, "pose_dim": "63"}), "model.safetensors",
+                           "pose_dim must be an integer"),
+    "negative dimension": (lambda f: with_header(f.good, lambda d: {**d, "pose_dim": -5}), "model.safetensors",
+                           "pose_dim must be positive"),
+    "hyperparameters that build no model": (
+        lambda f: with_header(f.good, lambda d: {**d, "hyperparameters": {**d["hyperparameters"], "lstm_hidden": -1}}),
+        "model.safetensors", "do not build a"),
 }
 
 
@@ -239,14 +304,21 @@ def test_bad_videos_become_finished_stimuli_and_a_fake_video_is_refused(client, 
     assert text.status_code == 400 and "no ftyp box" in text.content.decode()
     assert not System.objects.exists() and stored_files(site / "media") == []
 
+    titled = site / "titled.mp4"  # a video whose container names the model it came from
+    subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-i", str(files.video), "-c", "copy",
+                    "-metadata", "title=MoGlow-early-checkpoint", str(titled)], check=True)
+    assert b"MoGlow-early-checkpoint" in titled.read_bytes()
     response = client.post(f"/studies/{study.pk}/systems/", {"action": "videos", "name": "BAD", "videos": [
-        SimpleUploadedFile("good.mp4", files.video.read_bytes())]})
+        SimpleUploadedFile("good.mp4", titled.read_bytes())]})
+    titled.unlink()
     assert response.status_code == 302
     stimulus = Stimulus.objects.get()
     assert (stimulus.system.role, stimulus.status, stimulus.control) == ("bad", "done", None)
     assert stimulus.duration_s == pytest.approx(1.0, abs=0.06)
-    assert stimulus.video_path().read_bytes() == files.video.read_bytes()
+    assert b"MoGlow-early-checkpoint" not in stimulus.video_path().read_bytes()  # served without its metadata
+    assert first_frame(stimulus.video_path()) == first_frame(files.video)  # the same pictures
     assert stored_files(site / "media") == [f"stimuli/{stimulus.token}.mp4"]
+    assert "Last-Modified" not in client.get(stimulus.video_url).headers  # render times would group systems
 
 
 # --- controls --------------------------------------------------------------------
@@ -340,6 +412,31 @@ def test_a_stopped_broker_is_a_clear_message_and_nothing_is_queued(client, resea
     assert set(Stimulus.objects.values_list("task_id", flat=True)) == {""}
 
 
+def run_task(stimulus: Stimulus, task_id: str | None = None) -> dict:
+    """Run the stimulus's generation task in this process, as a worker would run the message
+    the row was last sent with (or the message ``task_id``)."""
+    task_id = task_id or Stimulus.objects.get(pk=stimulus.pk).task_id
+    return generate_stimulus.apply((stimulus.pk,), task_id=task_id).get()
+
+
+@pytest.mark.django_db
+def test_a_stimulus_sent_twice_is_rendered_once_and_a_stuck_one_is_sent_again(client, researcher, site, files, queue):
+    study = study_with_everything(client, researcher, files)
+    stimuli, _ = plan_stimuli(study)
+    stimulus = stimuli[0]
+    assert queue_stimuli([stimulus]) == 1
+    first = Stimulus.objects.get(pk=stimulus.pk).task_id
+    assert queue_stimuli([Stimulus.objects.get(pk=stimulus.pk)]) == 0  # queued and recent: not sent again
+    assert queue_stimuli([stimulus]) == 0  # a stale copy of the row (a second click) sends nothing either
+    Stimulus.objects.filter(pk=stimulus.pk).update(updated=timezone.now() - timedelta(minutes=STALE_TASK_MINUTES + 1))
+    assert queue_stimuli([Stimulus.objects.get(pk=stimulus.pk)]) == 1  # stuck: sent again, with a new task id
+    second = Stimulus.objects.get(pk=stimulus.pk).task_id
+    assert second != first
+    assert run_task(stimulus, task_id=first)["status"] == "nothing to do"  # the superseded message
+    assert run_task(stimulus, task_id=second)["status"] == "done"
+    assert Stimulus.objects.get(pk=stimulus.pk).attempts == 1
+
+
 @pytest.mark.django_db
 def test_a_task_renders_model_and_natural_clips_once_and_reports_a_failure(client, researcher, site, files, queue, settings):
     study = study_with_everything(client, researcher, files)
@@ -352,19 +449,19 @@ def test_a_task_renders_model_and_natural_clips_once_and_reports_a_failure(clien
     assert client.get(f"/media/stimuli/{stale.name}").status_code == 404  # never served
 
     for stimulus in (model, natural):
-        assert generate_stimulus.run(stimulus.pk)["status"] == "done"
+        assert run_task(stimulus)["status"] == "done"
         stimulus.refresh_from_db()
         assert (stimulus.status, stimulus.attempts, stimulus.error) == ("done", 1, "")
         assert stimulus.duration_s == pytest.approx(1.0)
         assert client.get(stimulus.video_url).status_code == 200
     assert not stale.exists()
-    assert generate_stimulus.run(model.pk)["status"] == "nothing to do"
+    assert run_task(model)["status"] == "nothing to do"
     model.refresh_from_db()
     assert model.attempts == 1
 
     broken = Stimulus.objects.filter(system__name="Early").first()
     broken.system.checkpoint_path().rename(site / "moved.safetensors")
-    assert generate_stimulus.run(broken.pk)["status"] == "failed"
+    assert run_task(broken)["status"] == "failed"
     progress = client.get(f"/studies/{study.pk}/stimuli/progress.json").json()
     assert progress["counts"]["failed"] == 1 and progress["counts"]["done"] == 2
     assert progress["failed"][0]["system"] == "Early" and "checkpoint of Early is missing" in progress["failed"][0]["error"]
@@ -375,6 +472,6 @@ def test_a_task_renders_model_and_natural_clips_once_and_reports_a_failure(clien
     assert client.post(f"/studies/{study.pk}/stimuli/{broken.pk}/retry/").status_code == 302
     broken.refresh_from_db()
     assert broken.status == "queued"
-    assert generate_stimulus.run(broken.pk)["status"] == "done"
+    assert run_task(broken)["status"] == "done"
     broken.refresh_from_db()
     assert (broken.status, broken.attempts) == ("done", 2)
