@@ -62,8 +62,11 @@ def _plan(study: Study, loads: dict[int, int], rng: random.Random) -> list[tuple
     if not any(s.system.role != System.Role.BAD for s in rendered):
         raise StudyNotReady("no clips have been rendered for this study yet")
     by_role = {role: [s for s in rendered if s.system.role == role] for role in System.Role.values}
+    # BAD clips are never analysed, so they have no target; NAT clips are (NAT is a
+    # system like the others), so NAT checks too stop at the target.
     checks = (_least_loaded(by_role[System.Role.BAD], loads, study.bad_checks, rng)
-              + _least_loaded(by_role[System.Role.NATURAL], loads, study.natural_checks, rng))
+              + _least_loaded(by_role[System.Role.NATURAL], loads, study.natural_checks, rng,
+                              cap=study.ratings_per_stimulus))
     taken = {s.id for s in checks}
     pool = [s for s in rendered if s.system.role != System.Role.BAD and s.id not in taken]
     rated = _least_loaded(pool, loads, study.clips_per_participant - len(checks), rng, cap=study.ratings_per_stimulus)
@@ -77,7 +80,8 @@ def _plan(study: Study, loads: dict[int, int], rng: random.Random) -> list[tuple
 
 
 def _training_clips(study: Study, exclude: set[int], rng: random.Random) -> list[int]:
-    """Practice clips: one per system in turn (models, NAT and BAD alike), not among the rated ones."""
+    """Practice clips: one per system in turn, a BAD one first when there is one (so that
+    every participant sees what broken motion looks like), none among the rated ones."""
     per_system: dict[int, list[int]] = {}
     for stimulus in Stimulus.objects.filter(study=study, status=Stimulus.Status.DONE).exclude(id__in=exclude):
         per_system.setdefault(stimulus.system_id, []).append(stimulus.id)
@@ -85,12 +89,48 @@ def _training_clips(study: Study, exclude: set[int], rng: random.Random) -> list
         rng.shuffle(ids)
     systems = list(per_system)
     rng.shuffle(systems)
+    bad = set(System.objects.filter(study=study, role=System.Role.BAD).values_list("id", flat=True))
+    systems.sort(key=lambda system: system not in bad)  # stable: the shuffle orders the rest
     chosen: list[int] = []
     while len(chosen) < study.training_clips and any(per_system.values()):
         for system in systems:
             if per_system[system] and len(chosen) < study.training_clips:
                 chosen.append(per_system[system].pop())
+    rng.shuffle(chosen)  # the BAD example at a random place among them
     return chosen
+
+
+def renew_reservations(participant: Participant) -> Participant:
+    """Mark the participant as active now; a participant back after ``reservation_minutes``
+    keeps only the unrated clips that still fit under their targets.
+
+    While a participant is idle that long, their unrated clips stop counting towards the
+    targets and may be given to others; rating them on return would push those stimuli
+    past their targets. Attention checks are kept (BAD has no target). Unrated
+    assignments are reservations, not data, so releasing one deletes it.
+    """
+    study = participant.study
+    now = timezone.now()
+    idle_limit = timedelta(minutes=study.reservation_minutes)
+    if participant.finished_at is not None or now - participant.last_seen <= idle_limit:
+        Participant.objects.filter(pk=participant.pk).update(last_seen=now)  # the common case: no lock
+        participant.last_seen = now
+        return participant
+    with transaction.atomic():  # the same lock as enrol(), which may be handing these clips out
+        Study.objects.select_for_update().get(pk=study.pk)
+        participant = Participant.objects.select_for_update().get(pk=participant.pk)
+        if now - participant.last_seen > idle_limit:  # not renewed by a request racing this one
+            loads = stimulus_loads(study)  # without this participant's clips: their last_seen is stale
+            for assignment in participant.assignments.filter(rating__isnull=True, is_check=False).order_by("position"):
+                if loads.get(assignment.stimulus_id, 0) >= study.ratings_per_stimulus:
+                    assignment.delete()
+                else:
+                    loads[assignment.stimulus_id] = loads.get(assignment.stimulus_id, 0) + 1
+            if not participant.assignments.filter(rating__isnull=True).exists():
+                participant.finished_at = now
+        participant.last_seen = now
+        participant.save(update_fields=["last_seen", "finished_at"])
+    return participant
 
 
 def enrol(study: Study, platform_id: str, platform_data: dict, user_agent: str = "",

@@ -10,6 +10,7 @@ the rating form names its assignment by another.
 
 from __future__ import annotations
 
+from functools import wraps
 from urllib.parse import urlencode, urlparse
 
 from django.db import IntegrityError
@@ -19,7 +20,7 @@ from django.utils import timezone
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
-from studyapp.assignment import StudyFull, StudyNotReady, enrol
+from studyapp.assignment import StudyFull, StudyNotReady, enrol, renew_reservations
 from studyapp.models import Participant, Stimulus, Study, new_token
 from studyapp.ratings import ClientTimes, RatingRejected, current_assignment, record_rating
 
@@ -29,6 +30,9 @@ PLATFORM_PARAMETERS = {
     Study.Platform.MTURK: ("workerId", "assignmentId", "hitId", "turkSubmitTo"),
     Study.Platform.LINK: ("pid",),
 }
+# MTurk shows the study in an iframe of its own site; other platforms link to it, so
+# their pages keep Django's X-Frame-Options: DENY.
+MTURK_FRAME_ANCESTORS = "frame-ancestors https://*.mturk.com"
 PROLIFIC_COMPLETION_URL = "https://app.prolific.com/submissions/complete"
 MTURK_SUBMIT_HOSTS = {"www.mturk.com", "workersandbox.mturk.com"}
 MAX_ID_LENGTH = 100
@@ -38,13 +42,27 @@ def _message(request: HttpRequest, title: str, text: str, status: int = 200) -> 
     return render(request, "studyapp/participant/message.html", {"title": title, "text": text}, status=status)
 
 
+def _framable_by_platform(view):
+    """Let MTurk frame the pages of MTurk studies (and no one else frame any study)."""
+    @wraps(view)
+    def framed(request: HttpRequest, key: str) -> HttpResponse:
+        response = view(request, key)
+        if Study.objects.filter(key=key, platform=Study.Platform.MTURK).exists():
+            response.xframe_options_exempt = True
+            response["Content-Security-Policy"] = MTURK_FRAME_ANCESTORS
+        return response
+    return framed
+
+
 def _session_key(study: Study) -> str:
     return f"participant:{study.key}"
 
 
-def _open_study(key: str) -> Study:
+def _study(key: str, must_be_open: bool = False) -> Study:
+    """The study of an entry key. Only new participants need it open: closing a study
+    lets those already taking part finish and get their completion code."""
     study = Study.objects.filter(key=key).first()
-    if study is None or not study.is_open:
+    if study is None or (must_be_open and not study.is_open):
         raise Http404("no open study here")
     return study
 
@@ -68,10 +86,11 @@ def stage(participant: Participant) -> str:
 
 
 @never_cache
+@_framable_by_platform
 @require_safe
 def enter(request: HttpRequest, key: str) -> HttpResponse:
     """The entry link: find or create the participant of this platform id, then go to their page."""
-    study = _open_study(key)
+    study = _study(key, must_be_open=True)
     names = PLATFORM_PARAMETERS[study.platform]
     data = {name: request.GET[name][:MAX_ID_LENGTH] for name in names if request.GET.get(name)}
     if study.platform == Study.Platform.MTURK and data.get("assignmentId") == "ASSIGNMENT_ID_NOT_AVAILABLE":
@@ -126,14 +145,15 @@ def _completion(study: Study, participant: Participant) -> dict:
 
 
 @never_cache
+@_framable_by_platform
 @require_safe
 def page(request: HttpRequest, key: str) -> HttpResponse:
     """Whatever page the participant is on."""
-    study = _open_study(key)
+    study = _study(key)
     participant = _participant(request, study)
     if participant is None:
         return _message(request, study.title, "Please open the study through the link your platform gave you.", 403)
-    Participant.objects.filter(pk=participant.pk).update(last_seen=timezone.now())
+    participant = renew_reservations(participant)
     current = stage(participant)
     if current == "consent":
         return render(request, "studyapp/participant/consent.html", {"study": study})
@@ -151,13 +171,14 @@ def page(request: HttpRequest, key: str) -> HttpResponse:
             assignment.shown_at = timezone.now()
             assignment.save(update_fields=["shown_at"])
         total = participant.assignments.count()
+        done = participant.assignments.filter(rating__isnull=False).count()
         return _clip_page(request, study, assignment.stimulus, "participant-rate", {"assignment": assignment.token},
-                          f"Clip {assignment.position + 1} of {total}", assignment.position, total)
+                          f"Clip {done + 1} of {total}", done, total)
     return render(request, "studyapp/participant/done.html", {"study": study, **_completion(study, participant)})
 
 
 def _require_stage(request: HttpRequest, key: str, expected: str) -> tuple[Study, Participant]:
-    study = _open_study(key)
+    study = _study(key)
     participant = _participant(request, study)
     if participant is None:
         raise RatingRejected("no participant session: open the study through its link", status=403)
@@ -168,14 +189,14 @@ def _require_stage(request: HttpRequest, key: str, expected: str) -> tuple[Study
 
 def _step(handler):
     """Run a POST step; a rejected step answers with its 4xx and a message, changing nothing."""
+    @_framable_by_platform
     @require_POST
+    @wraps(handler)
     def view(request: HttpRequest, key: str) -> HttpResponse:
         try:
             return handler(request, key)
         except RatingRejected as rejection:
             return _message(request, "That did not work", str(rejection), rejection.status)
-    view.__name__ = view.__qualname__ = handler.__name__
-    view.__doc__ = handler.__doc__
     return view
 
 
@@ -228,10 +249,16 @@ def _optional_float(request: HttpRequest, name: str) -> float | None:
 @_step
 def rate(request: HttpRequest, key: str) -> HttpResponse:
     """Store the rating of the clip on screen."""
-    study = _open_study(key)
+    study = _study(key)
     participant = _participant(request, study)
     if participant is None:
         raise RatingRejected("no participant session: open the study through its link", status=403)
+    token = request.POST.get("assignment", "")
+    was_reserved = participant.assignments.filter(token=token, rating__isnull=True).exists()
+    participant = renew_reservations(participant)
+    if was_reserved and not participant.assignments.filter(token=token).exists():
+        raise RatingRejected("that clip was given to another participant while this page was idle; "
+                             "please reload the page to go on with the next one", status=409)
     if stage(participant) not in ("rate", "done"):  # after "done", record_rating says why not
         raise RatingRejected(f"ratings come after the {stage(participant)} step", status=409)
     text = request.POST.get("value", "")
@@ -241,5 +268,5 @@ def rate(request: HttpRequest, key: str) -> HttpResponse:
         raise RatingRejected(f"the rating must be a whole number from {study.scale_min} to {study.scale_max}, "
                              f"not {text[:20]!r}") from None
     times = ClientTimes(*(_optional_float(request, name) for name in ("started_s", "ended_s", "answered_s", "played_until_s")))
-    record_rating(participant, request.POST.get("assignment", ""), value, times)
+    record_rating(participant, token, value, times)
     return redirect("participant-page", key=key)

@@ -127,6 +127,66 @@ def test_an_idle_participant_stops_holding_clips():
     assert enrol(study, "second", {}).assignments.count() == 3
 
 
+def test_nat_attention_checks_never_pass_the_target():
+    study = make_study(controls=2, clips_per_participant=4, ratings_per_stimulus=1, bad_checks=1, natural_checks=1)
+    for i in range(20):
+        try:
+            enrol(study, f"p{i}", {}, rng=random.Random(i))
+        except StudyFull:
+            break
+    loads = stimulus_loads(study)
+    rated = Stimulus.objects.filter(study=study).exclude(system__role=System.Role.BAD)
+    assert max(loads[s.id] for s in rated) == 1  # NAT included: its ratings are analysed like any system's
+
+
+def test_an_idle_participant_back_after_their_clips_went_to_others_keeps_only_what_fits():
+    study = make_study(controls=1, clips_per_participant=3, ratings_per_stimulus=1, bad_checks=0, natural_checks=0,
+                       reservation_minutes=30, training_clips=0)
+    idle_client = Client()
+    idle = through_practice(idle_client, study, "idle")
+    token = on_screen_token(idle_client, study)
+    Participant.objects.filter(pk=idle.pk).update(last_seen=timezone.now() - timedelta(minutes=31))
+    assert enrol(study, "second", {}).assignments.count() == 3  # the idle one's clips went to the second
+    make_shown_long_ago(idle)
+    response = post(idle_client, study, "rate", assignment=token, value=3, **WATCHED)
+    assert response.status_code == 409 and "given to another participant" in response.content.decode()
+    assert Rating.objects.count() == 0
+    page = idle_client.get(reverse("participant-page", args=[study.key])).content.decode()
+    assert "C0MPL3TE" in page  # nothing left to rate: the completion page
+    assert max(stimulus_loads(study).values()) == 1
+
+
+def test_closing_a_study_lets_participants_under_way_finish():
+    study = make_study(clips_per_participant=3)
+    client = Client()
+    participant = through_practice(client, study)
+    rate_current(client, study, participant, 3)
+    Study.objects.filter(pk=study.pk).update(is_open=False)
+    for _ in range(2):
+        assert rate_current(client, study, participant, 3).status_code == 302
+    assert "C0MPL3TE" in client.get(reverse("participant-page", args=[study.key])).content.decode()
+    assert enter(Client(), study, "latecomer").status_code == 404  # but nobody new starts
+
+
+def test_practice_shows_a_bad_example_whatever_the_number_of_systems():
+    study = make_study(controls=3, training_clips=2, ratings_per_stimulus=100)
+    for i in range(10):
+        participant = enrol(study, f"p{i}", {}, rng=random.Random(i))
+        roles = set(Stimulus.objects.filter(pk__in=participant.training).values_list("system__role", flat=True))
+        assert System.Role.BAD in roles and len(participant.training) == 2
+
+
+def test_only_mturk_may_frame_the_pages_of_an_mturk_study():
+    mturk = make_study(platform=Study.Platform.MTURK)
+    response = Client().get(reverse("participant-enter", args=[mturk.key]), {"workerId": "W1", "assignmentId": "A1"},
+                            follow=True)
+    assert "X-Frame-Options" not in response.headers
+    assert response.headers["Content-Security-Policy"] == "frame-ancestors https://*.mturk.com"
+    prolific = make_study(owner_name="other", platform=Study.Platform.PROLIFIC)
+    response = enter(Client(), prolific)
+    assert response.headers["X-Frame-Options"] == "DENY" and "Content-Security-Policy" not in response.headers
+
+
 @pytest.mark.parametrize(("role", "value", "excluded"), [
     (System.Role.BAD, 4, True), (System.Role.BAD, 3, False), (System.Role.NATURAL, 1, True),
     (System.Role.NATURAL, 2, False),
