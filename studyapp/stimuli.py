@@ -21,6 +21,7 @@ import json
 import uuid
 from collections import Counter
 from dataclasses import dataclass
+from datetime import datetime, timedelta
 from functools import lru_cache
 from importlib import metadata
 from pathlib import Path
@@ -29,6 +30,7 @@ import numpy as np
 from django.conf import settings
 from django.db import transaction
 from django.db.models import F
+from django.utils import timezone
 
 from generation.control import control_from_dict
 from generation.motion.dataset import load_body_motion
@@ -45,6 +47,11 @@ try:
     CODE_VERSION = metadata.version("motion-study")
 except metadata.PackageNotFoundError:
     CODE_VERSION = "unknown"
+
+
+# A queued or running row unchanged this long has lost its task; generating again re-sends
+# it. Rendering one clip takes seconds; a long queue is the only reason to wait this long.
+STALE_TASK_MINUTES = 30
 
 
 class BrokerUnavailable(RuntimeError):
@@ -92,16 +99,28 @@ def plan_stimuli(study: Study, seed: int = 0) -> tuple[list[Stimulus], int]:
     return stimuli, created
 
 
-def queue_stimuli(stimuli: list[Stimulus], timeout_s: float | None = None) -> int:
-    """Send each row not yet queued (or failed) to a worker; how many were sent.
+def _sendable(stimulus: Stimulus, now: datetime) -> bool:
+    """Pending or failed; or queued or running with no news for STALE_TASK_MINUTES (its
+    message was lost, or its worker died without the broker redelivering it)."""
+    if stimulus.status in (Stimulus.Status.PENDING, Stimulus.Status.FAILED):
+        return True
+    stuck = stimulus.status in (Stimulus.Status.QUEUED, Stimulus.Status.RUNNING)
+    return stuck and now - stimulus.updated > timedelta(minutes=STALE_TASK_MINUTES)
 
-    Raises BrokerUnavailable, with the rows left as they were, when the broker does not
-    answer within ``timeout_s`` (default: settings.HEALTH_TIMEOUT_S).
+
+def queue_stimuli(stimuli: list[Stimulus], timeout_s: float | None = None) -> int:
+    """Send each row that needs it (``_sendable``) to a worker; how many were sent.
+
+    Each send gives the row a new task id and only the task with the row's current id
+    may work on it (``claim``), so a row sent twice (two clicks, a stuck row re-sent) is
+    rendered once. Raises BrokerUnavailable, with the rows left as they were, when the
+    broker does not answer within ``timeout_s`` (default: settings.HEALTH_TIMEOUT_S).
     """
     from studyapp.celery import app
     from studyapp.tasks import generate_stimulus
 
-    todo = [s for s in stimuli if s.status in (Stimulus.Status.PENDING, Stimulus.Status.FAILED)]
+    now = timezone.now()
+    todo = [s for s in stimuli if _sendable(s, now)]
     if not todo:
         return 0
     timeout_s = settings.HEALTH_TIMEOUT_S if timeout_s is None else timeout_s
@@ -113,12 +132,17 @@ def queue_stimuli(stimuli: list[Stimulus], timeout_s: float | None = None) -> in
         sent = 0
         for stimulus in todo:
             task_id = str(uuid.uuid4())
-            # Marked queued before sending: a fast worker may mark it running first.
-            Stimulus.objects.filter(pk=stimulus.pk).update(status=Stimulus.Status.QUEUED, task_id=task_id, error="")
+            # Marked queued before sending (a fast worker may mark it running first), and
+            # only if nobody changed the row since it was read: two clicks send it once.
+            marked = Stimulus.objects.filter(pk=stimulus.pk, status=stimulus.status, task_id=stimulus.task_id).update(
+                status=Stimulus.Status.QUEUED, task_id=task_id, error="", updated=timezone.now())
+            if not marked:
+                continue
             try:
                 generate_stimulus.apply_async((stimulus.pk,), task_id=task_id, connection=connection, retry=False)
             except Exception as error:  # kombu raises many kinds; all mean "not sent"
-                Stimulus.objects.filter(pk=stimulus.pk, task_id=task_id).update(status=stimulus.status, task_id="")
+                Stimulus.objects.filter(pk=stimulus.pk, task_id=task_id).update(
+                    status=stimulus.status, task_id=stimulus.task_id, updated=stimulus.updated)
                 raise BrokerUnavailable(f"sending to the task queue failed after {sent} of {len(todo)} "
                                         f"({type(error).__name__}: {error}); the rest stay as they were") from None
             stimulus.status, stimulus.task_id = Stimulus.Status.QUEUED, task_id
@@ -201,14 +225,19 @@ def render_stimulus(stimulus: Stimulus) -> float:
     return motion.n_frames / motion.fps
 
 
-def claim(stimulus_id: int) -> Stimulus | None:
-    """Mark the row running and count the attempt; None when there is nothing to do."""
+def claim(stimulus_id: int, task_id: str) -> Stimulus | None:
+    """Mark the row running and count the attempt; None when there is nothing to do:
+    the row is gone, done, or was sent again since this task's message (another task
+    id), in which case the later task does the work."""
     with transaction.atomic():
         stimulus = (Stimulus.objects.select_for_update().select_related("study", "system", "control")
                     .filter(pk=stimulus_id).first())
-        if stimulus is None or (stimulus.status == Stimulus.Status.DONE and stimulus.video_path().is_file()):
+        if stimulus is None or stimulus.task_id != task_id:
             return None
-        Stimulus.objects.filter(pk=stimulus.pk).update(status=Stimulus.Status.RUNNING, attempts=F("attempts") + 1, error="")
+        if stimulus.status == Stimulus.Status.DONE and stimulus.video_path().is_file():
+            return None
+        Stimulus.objects.filter(pk=stimulus.pk).update(status=Stimulus.Status.RUNNING, attempts=F("attempts") + 1,
+                                                       error="", updated=timezone.now())
     stimulus.refresh_from_db()
     return stimulus
 
@@ -216,11 +245,12 @@ def claim(stimulus_id: int) -> Stimulus | None:
 def finish(stimulus: Stimulus, duration_s: float | None = None, error: str = "") -> None:
     """Record the attempt's outcome: done with its duration, or failed with the reason."""
     status = Stimulus.Status.FAILED if error else Stimulus.Status.DONE
-    Stimulus.objects.filter(pk=stimulus.pk).update(status=status, duration_s=duration_s, error=error)
+    Stimulus.objects.filter(pk=stimulus.pk, task_id=stimulus.task_id).update(
+        status=status, duration_s=duration_s, error=error, updated=timezone.now())
 
 
 def retry_stimulus(stimulus: Stimulus, timeout_s: float | None = None) -> int:
-    """Queue a failed stimulus again (BrokerUnavailable if the broker is down)."""
+    """Queue a failed (or stuck) stimulus again (BrokerUnavailable if the broker is down)."""
     return queue_stimuli([stimulus], timeout_s)
 
 

@@ -33,13 +33,14 @@ def render_natural_clip(bvh_path: str, out_dir: str, options: dict) -> dict:
 
 # acks_late with reject_on_worker_lost: a worker process killed mid-render (out of
 # memory, a deploy) puts the message back, so another attempt finishes the clip.
-@shared_task(acks_late=True, reject_on_worker_lost=True)
-def generate_stimulus(stimulus_id: int) -> dict:
+@shared_task(bind=True, acks_late=True, reject_on_worker_lost=True)
+def generate_stimulus(self, stimulus_id: int) -> dict:
     """Render one stimulus: queued -> running -> done (or failed with the reason).
 
-    Idempotent: a stimulus already done with its video in place is left alone.
+    Idempotent: a stimulus already done with its video in place is left alone, and so is
+    one that was sent again since this message (the later task renders it).
     """
-    stimulus = stimuli.claim(stimulus_id)
+    stimulus = stimuli.claim(stimulus_id, self.request.id)
     if stimulus is None:
         return {"stimulus": stimulus_id, "status": "nothing to do"}
     try:
