@@ -1,12 +1,43 @@
-"""Django admin for every model of the study app; the study pages are the main interface."""
+"""Django admin for every model of the study app; the study pages are the main interface.
+
+A researcher who is staff sees only the rows of their own studies, as on the study pages;
+a superuser sees everything.
+"""
 
 from django.contrib import admin
 
 from studyapp.models import Assignment, ControlSignal, Participant, Rating, Stimulus, Study, System
 
 
+class OwnStudiesOnly(admin.ModelAdmin):
+    """Rows (and the choices in foreign-key fields) limited to the user's own studies.
+
+    ``owner_path`` is the lookup from this model to the study's owner.
+    """
+
+    owner_path = "study__owner"
+
+    def get_queryset(self, request):
+        rows = super().get_queryset(request)
+        return rows if request.user.is_superuser else rows.filter(**{self.owner_path: request.user})
+
+    def formfield_for_foreignkey(self, db_field, request, **kwargs):
+        field = super().formfield_for_foreignkey(db_field, request, **kwargs)
+        related = db_field.related_model
+        if not request.user.is_superuser and related in OWNER_PATHS:
+            field.queryset = field.queryset.filter(**{OWNER_PATHS[related]: request.user})
+        return field
+
+
+# From each model to the owner of its study.
+OWNER_PATHS = {Study: "owner", System: "study__owner", ControlSignal: "study__owner", Stimulus: "study__owner",
+               Participant: "study__owner", Assignment: "participant__study__owner",
+               Rating: "assignment__participant__study__owner"}
+
+
 @admin.register(Study)
-class StudyAdmin(admin.ModelAdmin):
+class StudyAdmin(OwnStudiesOnly):
+    owner_path = OWNER_PATHS[Study]
     list_display = ["title", "owner", "scale_min", "scale_max", "platform", "is_open", "created"]
     list_filter = ["is_open", "platform"]
     search_fields = ["title"]
@@ -14,42 +45,44 @@ class StudyAdmin(admin.ModelAdmin):
 
 
 @admin.register(System)
-class SystemAdmin(admin.ModelAdmin):
+class SystemAdmin(OwnStudiesOnly):
     list_display = ["name", "study", "role", "kind", "temperature"]
-    list_filter = ["role", "study"]
+    list_filter = ["role"]
     readonly_fields = ["checkpoint", "checkpoint_digest", "created"]
 
 
 @admin.register(ControlSignal)
-class ControlSignalAdmin(admin.ModelAdmin):
+class ControlSignalAdmin(OwnStudiesOnly):
     list_display = ["name", "study", "origin", "seconds", "source_clip"]
-    list_filter = ["origin", "study"]
+    list_filter = ["origin"]
 
 
 @admin.register(Stimulus)
-class StimulusAdmin(admin.ModelAdmin):
+class StimulusAdmin(OwnStudiesOnly):
     list_display = ["token", "study", "system", "control", "status", "attempts", "duration_s", "updated"]
-    list_filter = ["status", "study", "system"]
+    list_filter = ["status"]
     readonly_fields = ["token", "content_key", "task_id", "updated"]
 
 
 @admin.register(Participant)
-class ParticipantAdmin(admin.ModelAdmin):
+class ParticipantAdmin(OwnStudiesOnly):
     list_display = ["platform_id", "study", "started_at", "finished_at", "excluded", "exclusion_reason"]
-    list_filter = ["excluded", "study"]
+    list_filter = ["excluded"]
     search_fields = ["platform_id", "code"]
     readonly_fields = ["code", "started_at"]
 
 
 @admin.register(Assignment)
-class AssignmentAdmin(admin.ModelAdmin):
+class AssignmentAdmin(OwnStudiesOnly):
+    owner_path = OWNER_PATHS[Assignment]
     list_display = ["participant", "position", "stimulus", "is_check", "shown_at"]
     list_filter = ["is_check"]
     readonly_fields = ["token"]
 
 
 @admin.register(Rating)
-class RatingAdmin(admin.ModelAdmin):
+class RatingAdmin(OwnStudiesOnly):
+    owner_path = OWNER_PATHS[Rating]
     list_display = ["assignment", "value", "answered_at", "answered_before_end"]
     list_filter = ["answered_before_end"]
     readonly_fields = ["answered_at"]

@@ -78,8 +78,13 @@ def _resolve_inside(document_root: Path, relative_path: str) -> Path:
     return target
 
 
-def serve_with_ranges(request: HttpRequest, path: str, document_root: str | Path) -> HttpResponse | StreamingHttpResponse:
-    """A view answering GET and HEAD for `document_root/path`, with range support."""
+def serve_with_ranges(request: HttpRequest, path: str, document_root: str | Path,
+                      reveal_mtime: bool = True) -> HttpResponse | StreamingHttpResponse:
+    """A view answering GET and HEAD for `document_root/path`, with range support.
+
+    ``reveal_mtime`` False leaves out Last-Modified: when each stimulus was rendered
+    would tell a participant which clips came from the same system.
+    """
     if request.method not in ("GET", "HEAD"):
         return HttpResponseNotAllowed(["GET", "HEAD"])
     target = _resolve_inside(Path(document_root), path)
@@ -103,7 +108,8 @@ def serve_with_ranges(request: HttpRequest, path: str, document_root: str | Path
         response["Content-Encoding"] = encoding
     response["Content-Length"] = str(length)
     response["Accept-Ranges"] = "bytes"
-    response["Last-Modified"] = http_date(stat.st_mtime)
+    if reveal_mtime:
+        response["Last-Modified"] = http_date(stat.st_mtime)
     if span is not None:
         response["Content-Range"] = f"bytes {first}-{last}/{size}"
     return response

@@ -2,6 +2,7 @@
 
 from django.conf import settings
 from django.contrib import admin
+from django.contrib.auth import views as auth_views
 from django.urls import include, path
 
 from studyapp import participant_views, views
@@ -13,6 +14,8 @@ urlpatterns = [
     path("analysis/", views.analysis_upload, name="analysis"),
     path("analysis/<str:digest>/", views.analysis_report, name="analysis-report"),
     path("admin/", admin.site.urls),
+    path("login/", auth_views.LoginView.as_view(), name="login"),
+    path("logout/", auth_views.LogoutView.as_view(), name="logout"),
     path("studies/", include("studyapp.researcher_urls")),
     # Participants: the entry link, the one page they are on, and its steps.
     path("p/<str:key>/", participant_views.enter, name="participant-enter"),

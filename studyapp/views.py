@@ -26,6 +26,7 @@ def _http_status(report: HealthReport) -> int:
     return 200 if report.database.ok else 503
 
 
+@login_required  # its natural clips could be recognised among a study's NAT stimuli
 @require_safe
 def gallery(request: HttpRequest) -> HttpResponse:
     """The rendered natural clips, or how to build them, under the health summary."""
@@ -45,6 +46,7 @@ def gallery(request: HttpRequest) -> HttpResponse:
 
 
 @never_cache
+@login_required  # /health.json stays public for the container health checks
 @require_safe
 def health_page(request: HttpRequest) -> HttpResponse:
     report = _health()
@@ -60,7 +62,7 @@ def health_json(request: HttpRequest) -> JsonResponse:
 
 def media_file(request: HttpRequest, path: str) -> HttpResponseBase:
     """A file under MEDIA_ROOT (rendered clips), seekable through range requests."""
-    return serve_with_ranges(request, path, settings.MEDIA_ROOT)
+    return serve_with_ranges(request, path, settings.MEDIA_ROOT, reveal_mtime=not path.startswith("stimuli/"))
 
 
 def static_file(request: HttpRequest, path: str) -> HttpResponseBase:

@@ -38,7 +38,7 @@ def upload(client, data: bytes, reference: str = "NAT"):
 @pytest.mark.django_db
 def test_analysis_pages_require_login(client, media_root):
     response = client.get("/analysis/")
-    assert response.status_code == 302 and "/admin/login/" in response["Location"]
+    assert response.status_code == 302 and "/login/" in response["Location"]
     assert client.get("/analysis/" + "0" * 64 + "/").status_code == 302
 
 

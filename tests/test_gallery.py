@@ -20,6 +20,13 @@ def media_root(tmp_path: Path, settings) -> Path:
     return tmp_path
 
 
+@pytest.fixture
+def client(client, django_user_model):
+    """The gallery is a researcher's page: a logged-in client."""
+    client.force_login(django_user_model.objects.create_user("researcher"))
+    return client
+
+
 def write_index(media_root: Path, text: str) -> Path:
     folder = media_root / "gallery"
     folder.mkdir(exist_ok=True)
@@ -74,3 +81,14 @@ def test_a_broken_index_is_reported_not_a_server_error(client, media_root, text:
 
     assert response.status_code == 200
     assert "could not be read" in response.content.decode()
+
+
+@pytest.mark.django_db
+def test_the_gallery_and_the_health_page_need_a_login_and_health_json_does_not(media_root) -> None:
+    from django.test import Client
+
+    anonymous = Client()
+    for page in ("/", "/health/"):
+        response = anonymous.get(page)
+        assert response.status_code == 302 and response["Location"].startswith("/login/"), page
+    assert anonymous.get("/health.json").status_code in (200, 503)  # container health checks read it

@@ -23,6 +23,13 @@ def broker_down(monkeypatch: pytest.MonkeyPatch, closed_port: int) -> None:
 
 
 @pytest.fixture
+def client(client, django_user_model):
+    """The health page is a researcher's page (the JSON is public): a logged-in client."""
+    client.force_login(django_user_model.objects.create_user("researcher"))
+    return client
+
+
+@pytest.fixture
 def short_timeout(settings) -> None:
     settings.HEALTH_TIMEOUT_S = 0.3
 

@@ -120,7 +120,7 @@ def test_three_participants_and_the_researchers_export(browser, live_server, cli
     # The researcher logs in through the login page and downloads the table.
     context = browser.new_context(accept_downloads=True)
     page = context.new_page()
-    page.goto(f"{live_server.url}{reverse('admin:login')}")
+    page.goto(f"{live_server.url}{reverse('login')}")
     page.fill("input[name=username]", study.owner.username)
     page.fill("input[name=password]", PASSWORD)
     page.click("input[type=submit]")
