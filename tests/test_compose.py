@@ -36,14 +36,19 @@ def test_web_and_worker_run_the_app_against_postgres_and_redis() -> None:
         assert service["build"] == "."
 
 
-def test_web_and_worker_share_the_media_volume() -> None:
+def test_web_and_worker_share_media_checkpoints_and_the_motion_data() -> None:
     compose = load_compose()
     services = compose["services"]
 
-    assert "media" in compose["volumes"]
+    assert {"media", "var"} <= compose["volumes"].keys()
     mounts = {name: services[name]["volumes"] for name in ("web", "worker")}
-    assert mounts["web"] == mounts["worker"] == ["media:/data/media"]
-    assert services["web"]["environment"]["MEDIA_ROOT"] == "/data/media"
+    assert mounts["web"] == mounts["worker"]
+    assert {"media:/data/media", "var:/data/var"} <= set(mounts["web"])
+    assert any(mount.endswith(":/data/motion:ro") for mount in mounts["web"])
+    environment = services["web"]["environment"]
+    assert environment["MEDIA_ROOT"] == "/data/media"
+    assert environment["STUDYAPP_VAR_DIR"] == "/data/var"  # where uploaded checkpoints are stored
+    assert environment["MOTION_DATA"] == "/data/motion"
 
 
 def test_app_services_wait_for_healthy_dependencies() -> None:
