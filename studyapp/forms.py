@@ -15,10 +15,26 @@ from studyapp.models import Study, System
 
 
 class StudyForm(forms.ModelForm):
-    """Every setting of a study; ``Study.clean`` checks them together."""
+    """Every setting of a study; ``Study.clean`` checks them together.
+
+    What participants are shown and judged by (the question, the scale and its labels,
+    the attention-check thresholds, the camera and video size) is fixed once anyone has
+    started: changing it would mix answers to two instruments in one table, re-read old
+    ratings on a new scale, or add a second set of clips drawn differently.
+    """
+
+    INSTRUMENT = ("question", "scale_min", "scale_max", "label_min", "label_max", "bad_threshold",
+                  "natural_threshold", "camera", "video_width", "video_height")
 
     redirect_url = forms.URLField(required=False, assume_scheme="https",
                                   help_text=Study._meta.get_field("redirect_url").help_text)
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        if self.instance.pk and self.instance.participants.exists():
+            for name in self.INSTRUMENT:
+                self.fields[name].disabled = True  # posted values are ignored
+                self.fields[name].help_text = "fixed: participants have started this study"
 
     class Meta:
         model = Study

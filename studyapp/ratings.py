@@ -103,7 +103,8 @@ def record_rating(participant: Participant, assignment_token: str, value: int, t
 
 EXPORT_COLUMNS = (
     "participant", "system", "stimulus", "task", "control_class", "value", "scale_min", "scale_max",
-    "clip_duration_s", "shown_at", "answered_at", "played_until_s", "answered_before_end",
+    "clip_duration_s", "shown_at", "answered_at", "client_started_s", "client_ended_s", "client_answered_s",
+    "played_until_s", "answered_before_end",
     "excluded_participant", "discarded_early", "exclusion_reason",
 )
 
@@ -132,6 +133,9 @@ def ratings_rows(study: Study) -> list[dict]:
             "clip_duration_s": stimulus.duration_s,
             "shown_at": assignment.shown_at.isoformat() if assignment.shown_at else "",
             "answered_at": rating.answered_at.isoformat(),
+            "client_started_s": rating.client_started_s,
+            "client_ended_s": rating.client_ended_s,
+            "client_answered_s": rating.client_answered_s,
             "played_until_s": rating.played_until_s,
             "answered_before_end": early,
             "excluded_participant": participant.excluded,

@@ -335,6 +335,9 @@ def test_the_export_has_one_row_per_rating_with_the_flags():
     assert all(r["excluded_participant"] for r in rows)
     assert {r["system"] for r in rows} <= {"MoGlow", "RNN", "NAT", "BAD"}
     assert "BAD" in {r["system"] for r in rows}
+    # The browser's timings travel with each rating (rate_current posts WATCHED).
+    assert {(r["client_started_s"], r["client_ended_s"], r["client_answered_s"], r["played_until_s"])
+            for r in rows} == {(0.1, 4.2, 5.0, 4.0)}
 
 
 def test_participants_finish_while_the_task_queue_is_down():

@@ -29,7 +29,7 @@ from safetensors.torch import load_file, save_file
 from generation.checkpoint import FORMAT_KEY, load_checkpoint, read_meta, tensor_digest
 from studyapp.celery import app as celery_app
 from studyapp.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
-from studyapp.models import ControlSignal, Stimulus, Study, System
+from studyapp.models import ControlSignal, Participant, Stimulus, Study, System
 from studyapp.stimuli import STALE_TASK_MINUTES, plan_stimuli, queue_stimuli
 from studyapp.tasks import generate_stimulus
 from tests.study_setup import CLIPS, link_clips, study_files
@@ -187,6 +187,15 @@ def test_the_study_form_checks_the_study_and_needs_csrf(client, researcher):
     assert strict.post("/studies/new/", fields).status_code == 403
     assert strict.post(f"/studies/{study.pk}/systems/", {"action": "natural", "name": "NAT"}).status_code == 403
     assert Study.objects.count() == 1 and not System.objects.exists()
+
+    # Once a participant has started, the instrument is fixed; the rest can still change.
+    Participant.objects.create(study=study, platform_id="p1")
+    edited = client.post(f"/studies/{study.pk}/", {**fields, "scale_max": 5, "camera": '{"azimuth": 90}',
+                                                   "question": "Other?", "ratings_per_stimulus": 8})
+    study.refresh_from_db()
+    assert edited.status_code == 302
+    assert (study.scale_max, study.camera, study.question, study.ratings_per_stimulus) == (10, {"azimuth": 20},
+                                                                                            "How natural?", 8)
 
 
 # --- systems ---------------------------------------------------------------------
