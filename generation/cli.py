@@ -26,7 +26,7 @@ from .control import PRESETS, held_out_paths, load_control_file, preset_path
 from .gallery import GalleryOptions, build_gallery
 from .hvrnn_commands import add_commands as add_hvrnn_commands
 from .motion.bvh import BVHError, motion_to_bvh, read_bvh, write_bvh
-from .motion.dataset import (DatasetOptions, MotionDataset, build_dataset, default_cache_dir, find_bvh_files,
+from .motion.dataset import (SPLITS, DatasetOptions, MotionDataset, build_dataset, default_cache_dir, find_bvh_files,
                              load_body_motion)
 from .motion.npz import save_motion_npz
 from .motion.root import RootOptions, root_trajectory
@@ -62,7 +62,7 @@ def info(args: argparse.Namespace) -> int:
     path = Path(args.path)
     if path.suffix.lower() == ".npz":
         dataset = MotionDataset.load(path)
-        for split in ("train", "test"):
+        for split in SPLITS:
             clips = dataset.select(split)
             windows = dataset.windows(split, standardize=False)["pose"]
             print(f"{split}: {len(clips)} clips ({len(dataset.select(split, augmented=False))} takes), {len(windows)} windows")
@@ -87,6 +87,7 @@ def build(args: argparse.Namespace) -> int:
         reverse=args.reverse,
         contents=tuple(args.contents.split(",")) if args.contents else None,
         holdout_fraction=args.holdout,
+        validation_fraction=args.validation,
         seed=args.seed,
         angle_representation=args.representation,
         scale=args.scale,
@@ -94,10 +95,11 @@ def build(args: argparse.Namespace) -> int:
     dataset = build_dataset(args.folder, options, cache_dir=args.cache_dir)
     if args.out:
         dataset.save(args.out)
-    train, test = dataset.windows("train", standardize=False), dataset.windows("test", standardize=False)
+    windows = {split: len(dataset.windows(split, standardize=False)["pose"]) for split in SPLITS}
     print(f"dataset {dataset.fingerprint[:12]}: {len(dataset.select('train', augmented=False))} training takes "
-          f"({len(train['pose'])} windows of {options.window_frames} frames with augmentation), "
-          f"{len(dataset.select('test'))} held-out takes ({len(test['pose'])} windows)")
+          f"({windows['train']} windows of {options.window_frames} frames with augmentation), "
+          f"{len(dataset.select('validation'))} validation takes ({windows['validation']} windows), "
+          f"{len(dataset.select('test'))} held-out test takes ({windows['test']} windows)")
     print(f"cached in {args.cache_dir or default_cache_dir()}" + (f"; saved to {args.out}" if args.out else ""))
     return 0
 
@@ -294,7 +296,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--no-mirror", action="store_true", help="do not add left-right mirrored copies")
     p.add_argument("--reverse", action="store_true", help="add time-reversed copies")
     p.add_argument("--contents", help="comma-separated content labels to keep, e.g. walk,run")
-    p.add_argument("--holdout", type=float, default=0.1, help="fraction of each content's takes held out (default %(default)s)")
+    p.add_argument("--holdout", type=float, default=0.1,
+                   help="fraction of each content's takes held out for testing (default %(default)s)")
+    p.add_argument("--validation", type=float, default=0.1,
+                   help="fraction of each content's other takes held out of training to choose checkpoints "
+                        "(default %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="seed of the held-out choice (default %(default)s)")
     p.add_argument("--representation", choices=("quaternion", "expmap"), default="quaternion", help="joint rotations as (default %(default)s)")
     p.add_argument("--scale", type=float, default=1.0, help="multiply lengths by this to get centimetres (default %(default)s)")

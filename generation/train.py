@@ -1,8 +1,10 @@
 """Training any model on a motion dataset, with validation, checkpoints and resuming.
 
 One loop serves every model: Adam, an optional Noam warm-up (MoGlow), gradient-norm
-clipping, random minibatches of training windows, and at each evaluation the held-out
-loss (MoGlow's held-out NLL) and a checkpoint written atomically.
+clipping, random minibatches of training windows, and at each evaluation the validation
+loss (MoGlow's NLL on the validation takes) and a checkpoint written atomically. The
+validation takes are held out of training for choosing checkpoints; the test takes are
+left alone for ``generation evaluate`` and the papers' tables.
 
 Path-controlled models learn from a ``MotionDataset``'s windows of poses and control;
 attribute-controlled models (``AttributeModel``: HVRNN, ERD, QuaterNet) from an
@@ -69,7 +71,7 @@ class TrainingData:
     """A dataset as the loop sees it: batches by name, and what a checkpoint records of it."""
 
     train: dict[str, torch.Tensor]
-    test: dict[str, torch.Tensor]
+    validation: dict[str, torch.Tensor]
     pose_dim: int
     control_dim: int
     features: dict
@@ -87,7 +89,7 @@ def training_data(cls: type[MotionModel], dataset, device: str) -> TrainingData:
         train_part = attribute_tensors(dataset, ATTRIBUTE_TRAINING_PART, cls.standardization, device)
         motion = dataset.dataset
         return TrainingData(
-            train_part, attribute_tensors(dataset, "test", cls.standardization, device),
+            train_part, attribute_tensors(dataset, "validation", cls.standardization, device),
             dataset.feature_dim, len(dataset.actions) + len(dataset.styles),
             {"type": "angles", "dataset_options": motion.options.to_dict(), "angle_spec": motion.angle_spec.to_dict(),
              "part": ATTRIBUTE_TRAINING_PART},
@@ -99,7 +101,7 @@ def training_data(cls: type[MotionModel], dataset, device: str) -> TrainingData:
         raise ValueError(f"a {cls.kind} model learns from a MotionDataset's windows")
     train_part = tensors(dataset, "train", device)
     return TrainingData(
-        train_part, tensors(dataset, "test", device), train_part["pose"].shape[-1], train_part["control"].shape[-1],
+        train_part, tensors(dataset, "validation", device), train_part["pose"].shape[-1], train_part["control"].shape[-1],
         {"type": "positions", "dataset_options": dataset.options.to_dict()},
         {k: dataset.stats[k].to_dict() for k in KEYS}, dataset.skeleton.to_dict(), dataset.fingerprint, {},
     )
@@ -141,7 +143,7 @@ def checkpoint_meta(model: MotionModel, data: TrainingData, step: int, metrics: 
 
 
 def best_path(out: Path) -> Path:
-    """Where the checkpoint with the lowest held-out loss so far is kept."""
+    """Where the checkpoint with the lowest validation loss so far is kept."""
     return out.with_name(out.name.removesuffix(".safetensors") + ".best.safetensors")
 
 
@@ -160,13 +162,13 @@ def train(
     ``dataset`` is a ``MotionDataset`` (path models) or an ``AttributeData`` (attribute
     models). ``overrides`` replaces fields of the preset's configuration.
     ``out`` always holds the latest state (and its optimiser, for resuming);
-    ``NAME.best.safetensors`` beside it the state with the lowest held-out loss.
+    ``NAME.best.safetensors`` beside it the state with the lowest validation loss.
     """
     out = Path(out)
     torch.manual_seed(options.seed)
     cls = model_class(kind)
     data = training_data(cls, dataset, options.device)
-    train_data, val_data = data.train, data.test
+    train_data, val_data = data.train, data.validation
 
     history: list[dict] = []
     if resume and out.exists():
@@ -216,7 +218,7 @@ def train(
             bar.set_postfix(train=f"{history[-1]['train_loss']:.3f}", val=f"{val:.3f}")
             meta = checkpoint_meta(model, data, done, {"val_loss": val, "history": history})
             save_checkpoint(out, model, meta, optimizer)
-            # Small baselines overfit the few held-out takes early: keep the best as well.
+            # Small baselines overfit the few training takes early: keep the best as well.
             if val <= min(h["val_loss"] for h in history):
                 save_checkpoint(best_path(out), model, meta)
     bar.close()

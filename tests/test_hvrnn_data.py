@@ -89,5 +89,5 @@ def test_standardisers_scale_all_or_only_the_root(data):
     assert np.allclose(root_only.features[root_only.mask][:, :ROOT_DIMS], real[:, :ROOT_DIMS], atol=1e-5)
     with pytest.raises(ValueError, match="scope 'joints'"):
         data.standardizer("joints")
-    with pytest.raises(ValueError, match="unknown part 'validation'"):
-        data.sequences("validation")
+    with pytest.raises(ValueError, match="unknown part 'holdout'"):
+        data.sequences("holdout")

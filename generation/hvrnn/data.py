@@ -36,7 +36,7 @@ FPS = 30.0
 MAX_FRAMES = 200
 HOLDOUT_FRACTION = 0.2
 ROOT_DIMS = 6  # forward and sideways velocity, hips height, yaw rate, pitch, roll
-PARTS = ("train", "classifier", "model", "test")
+PARTS = ("train", "classifier", "model", "validation", "test")
 
 
 def dataset_options(contents: tuple[str, ...] | None = None, seed: int = 0) -> DatasetOptions:
@@ -152,10 +152,11 @@ class AttributeData:
         return self.dataset.angle_spec.size
 
     def clips(self, part: str) -> list[Clip]:
-        """The unaugmented clips with angles of one part: train, classifier, model or test."""
+        """The unaugmented clips with angles of one part: train (split into the classifier
+        and model halves), validation or test."""
         if part not in PARTS:
             raise ValueError(f"unknown part {part!r}; use one of {PARTS}")
-        split = "test" if part == "test" else "train"
+        split = part if part in ("validation", "test") else "train"
         clips = [c for c in self.dataset.select(split, augmented=False) if c.has_angles]
         if part == "classifier":
             return [c for c in clips if c.take in self.classifier_takes]

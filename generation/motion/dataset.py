@@ -33,7 +33,7 @@ from .root import RootOptions, hips_index
 from .types import Motion, Skeleton
 
 FORMAT_VERSION = 1  # bump when the cached arrays change meaning
-SPLITS = ("train", "test")
+SPLITS = ("train", "validation", "test")
 
 
 @dataclass(frozen=True)
@@ -47,6 +47,9 @@ class DatasetOptions:
     reverse: bool = False
     contents: tuple[str, ...] | None = None  # keep only these content labels
     holdout_fraction: float = 0.1  # of the takes of each content, held out for testing
+    # Of each content's remaining takes, held out for choosing checkpoints during training:
+    # never trained on, and never reported, so held-out (test) figures stay unbiased.
+    validation_fraction: float = 0.1
     seed: int = 0
     angle_representation: str = "quaternion"
     mirror_pairs: dict[str, str] | None = None
@@ -304,7 +307,9 @@ def build_dataset(
     if cached.is_file():
         return MotionDataset.load(cached)
 
-    held_out = split_takes([(take_of(f.stem), labels[f][0]) for f in files], options.holdout_fraction, options.seed)
+    takes = [(take_of(f.stem), labels[f][0]) for f in files]
+    held_out = split_takes(takes, options.holdout_fraction, options.seed)
+    validation = split_takes([t for t in takes if t[0] not in held_out], options.validation_fraction, options.seed + 1)
     skeleton = spec = None
     clips, parts = [], {"pose": [], "control": [], "angles": []}
     rows = 0
@@ -314,7 +319,8 @@ def build_dataset(
             skeleton, spec = body.skeleton, angle_feature_spec(body.skeleton, options.angle_representation)
         elif body.skeleton.names != skeleton.names:
             raise ValueError(f"{path}: its skeleton differs from the first file's; one dataset needs one skeleton")
-        split = "test" if take_of(path.stem) in held_out else "train"
+        take = take_of(path.stem)
+        split = "test" if take in held_out else "validation" if take in validation else "train"
         for augmentation, motion in _augmented(body, options, split == "train"):
             encoded = encode_positions(motion, options.root)
             angles = encode_angles(motion, spec).values if motion.rotations is not None else np.full((motion.n_frames, spec.size), np.nan)
