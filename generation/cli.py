@@ -159,9 +159,18 @@ def train_command(args: argparse.Namespace) -> int:
     if args.threads:
         torch.set_num_threads(args.threads)
     attributes = issubclass(model_class(args.model), AttributeModel)
-    if args.classifiers and not attributes:
-        raise ValueError(f"--classifiers is for attribute-controlled models, not {args.model}")
+    for option in ("classifiers", "denoiser"):
+        if getattr(args, option) and not attributes:
+            raise ValueError(f"--{option} is for attribute-controlled models, not {args.model}")
     dataset = _dataset_for_training(args, attributes)
+    if args.denoiser:  # HVRNN Sec. 3.1: the training data is cleaned before the model learns from it
+        from .hvrnn.denoiser import Denoiser, denoise_training_data
+
+        denoiser = Denoiser.load(args.denoiser)
+        if denoiser.feature_dim != dataset.feature_dim:
+            raise ValueError(f"{args.denoiser}: the denoiser reads {denoiser.feature_dim} features per frame, "
+                             f"this data has {dataset.feature_dim}")
+        dataset = denoise_training_data(dataset, denoiser)
     options = TrainOptions(steps=args.steps, eval_every=args.eval_every, seed=args.seed, device=args.device)
     overrides = {"classifiers": args.classifiers} if args.classifiers else None
     meta = train(args.model, args.preset, dataset, args.out, options, resume=args.resume, overrides=overrides)
@@ -330,6 +339,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--model", "--kind", choices=("moglow", "rnn", "vae", "hvrnn", "erd", "quaternet"), default="moglow", help="model kind (default %(default)s)")
     p.add_argument("--preset", default="cpu", help="configuration preset: cpu, paper, or with an ablation such as cpu-MG-D or cpu-SL (default %(default)s)")
     p.add_argument("--classifiers", help="attribute classifiers' file for HVRNN's classifier loss")
+    p.add_argument("--denoiser", help="attribute models: a denoiser (hvrnn-denoiser) that cleans the training "
+                                      "takes first, as HVRNN's paper does; the checkpoint's data fingerprint records it")
     p.add_argument("--out", "-o", required=True, help="checkpoint path (.safetensors)")
     p.add_argument("--steps", type=int, default=4000, help="total training steps (default %(default)s)")
     p.add_argument("--eval-every", type=int, default=250, help="steps between validation and checkpoint (default %(default)s)")

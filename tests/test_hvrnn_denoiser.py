@@ -69,3 +69,20 @@ def test_denoised_training_data_changes_training_clips_only(data, trained):
     assert after.features.shape == before.features.shape and not np.array_equal(after.features, before.features)
     quats = after.features[after.mask][:, ROOT_DIMS:].reshape(-1, 4)
     assert np.allclose(np.linalg.norm(quats, axis=1), 1.0, atol=1e-5)
+
+
+def test_train_cleans_the_training_takes_with_a_denoiser_file(data, trained, motion_data, pytestconfig, tmp_path, capsys):
+    from generation.checkpoint import read_meta
+    from generation.cli import main
+
+    denoiser, _ = trained
+    path = denoiser.save(tmp_path / "denoiser.safetensors", data.dataset.fingerprint, {})
+    out = tmp_path / "erd.safetensors"
+    cache = str(pytestconfig.cache.mkdir("motion-dataset"))
+    common = [str(motion_data), "--cache-dir", cache, "--steps", "1", "--eval-every", "1", "--threads", "1"]
+    assert main(["train", *common, "--model", "erd", "--preset", "cpu", "--denoiser", str(path), "--out", str(out)]) == 0
+    assert read_meta(out).data_fingerprint.startswith(data.dataset.fingerprint + "+denoised-")
+    capsys.readouterr()
+    assert main(["train", *common, "--model", "rnn", "--preset", "cpu", "--denoiser", str(path),
+                 "--out", str(tmp_path / "rnn.safetensors")]) == 2
+    assert "--denoiser is for attribute-controlled models" in capsys.readouterr().err

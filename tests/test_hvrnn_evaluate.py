@@ -98,6 +98,14 @@ def test_commands_write_scores_and_figures_for_a_trained_model(data, classifiers
     assert (tmp_path / "scores" / "tables" / "table2_is_fid.csv").is_file()
     assert generation_cli.main(["hvrnn-eval", str(motion_data), "--cache-dir", cache, "--classifiers",
                                 str(classifiers_path), "--checkpoint", f"real={erd}", "--out", str(outputs)]) == 2
+    # A path-controlled model is refused by name, not with a traceback.
+    moglow = tmp_path / "moglow.safetensors"
+    train("moglow", "cpu", data.dataset, moglow, TrainOptions(steps=1, eval_every=1), progress=False,
+          overrides={"steps": 1, "tau": 1, "lstm_hidden": 4, "lstm_layers": 1, "batch_size": 2})
+    capsys.readouterr()
+    assert generation_cli.main(["hvrnn-eval", str(motion_data), "--cache-dir", cache, "--classifiers",
+                                str(classifiers_path), "--checkpoint", f"flow={moglow}", "--out", str(outputs)]) == 2
+    assert "a moglow model follows a path" in capsys.readouterr().err
 
 
 def test_a_damaged_outputs_file_is_refused_by_name(tmp_path):

@@ -131,6 +131,33 @@ def test_the_classifier_loss_enters_with_its_weight_and_reaches_the_model(data):
     assert all(p.grad is None for c in model.classifiers for p in c.parameters())  # the classifiers stay frozen
 
 
+def test_the_initial_state_keeps_its_spread_through_a_kl_term(data):
+    batch = {k: v[:4] for k, v in batches(data).items()}
+    losses = {}
+    for weight in (0.0, 1.0):
+        model = build(data, initial_kl_weight=weight).eval()  # eval: no schedules, so the terms are comparable
+        torch.manual_seed(3)
+        losses[weight], metrics = model.loss(**batch)
+    # The same draws either way; the difference is the KL of the four sequences' Gaussians.
+    assert (losses[1.0] - losses[0.0]).item() == pytest.approx(metrics["initial_kl"], rel=1e-4)
+    model.train()
+    model.initial.logvar.grad = None
+    model.loss(**batch)[0].backward()
+    assert model.initial.logvar.grad.abs().sum() > 0  # the spread is learned, and pulled towards 1
+
+
+def test_fed_back_words_are_re_encoded_with_the_signs_of_real_words(data):
+    for codec in (True, False):
+        model = build(data, word_codec=codec)
+        word_hat = torch.randn(5, model.decoder[-1].out_features)
+        fed = model.fed_back(word_hat)
+        frames = model.align(model.normalise(model.decode_word(word_hat))[0]).flatten(-2)
+        assert torch.allclose(fed, model.encode_word(frames))
+        if not codec:  # the raw poses: every quaternion on its reference's side, as real inputs are
+            quats = fed.unflatten(-1, (model.config.word_length, -1))[..., 6:].unflatten(-1, (model.joints, 4))
+            assert ((quats * model.reference).sum(-1) >= 0).all()
+
+
 def test_classifier_loss_needs_the_classifiers_file(data):
     with pytest.raises(ValueError, match="needs the attribute classifiers' file"):
         build(data, classifier_weight=0.1)

@@ -4,10 +4,8 @@ Both step through a sequence frame by frame: the input at frame t is frame t −
 learned start frame before the first) with the one-hot action and style codes, and the
 output is frame t; training feeds the real previous frame (teacher forcing), generation
 feeds back its own output. Their only randomness is the recurrent network's initial
-state, drawn from a learned Gaussian of each (action, style) pair. A KL term to
-N(0, I), weighted by ``initial_kl_weight``, keeps that Gaussian's spread from
-collapsing: the reconstruction loss alone would shrink it to nothing and make the
-model deterministic.
+state, drawn from a learned Gaussian of each (action, style) pair
+(``initial_state.LabelledInitialState``, whose KL term is weighted by ``initial_kl_weight``).
 
 * ERD (Fragkiadaki et al., 2015): an encoder MLP, a two-layer LSTM and a decoder MLP;
   paper sizes 500-500, 2 × 1000 and 500-100. It learns by squared error on the
@@ -34,16 +32,9 @@ from torch import nn
 from ..models.attribute import AttributeModel
 from .data import ROOT_DIMS
 from .kinematics import forward_kinematics
-from .model import random_crop
-from .rotation_losses import kl_diagonal_gaussians, masked_mean, normalize_quaternion, quaternion_to_matrix
-
-
-def mlp(sizes: list[int]) -> nn.Sequential:
-    """Linear layers with ReLU after each."""
-    layers: list[nn.Module] = []
-    for a, b in zip(sizes[:-1], sizes[1:]):
-        layers += [nn.Linear(a, b), nn.ReLU()]
-    return nn.Sequential(*layers)
+from .model import mlp, random_crop
+from .initial_state import LabelledInitialState
+from .rotation_losses import align_quaternions, masked_mean, normalize_quaternion, quaternion_to_matrix
 
 
 class RecurrentBaseline(AttributeModel):
@@ -60,8 +51,7 @@ class RecurrentBaseline(AttributeModel):
         self.joints = (pose_dim - ROOT_DIMS) // 4
         combinations = len(self.actions) * len(self.styles)
         size = self.state_parts * config.layers * config.hidden
-        self.initial_mean = nn.Parameter(torch.zeros(combinations, size))
-        self.initial_logvar = nn.Parameter(torch.zeros(combinations, size))
+        self.initial = LabelledInitialState(combinations, size)
         self.start = nn.Parameter(torch.zeros(pose_dim))  # the input before the first frame
         # Set by prepare(): each joint's sign reference.
         self.register_buffer("reference", torch.tensor([1.0, 0.0, 0.0, 0.0]).repeat(self.joints, 1))
@@ -71,9 +61,7 @@ class RecurrentBaseline(AttributeModel):
 
     def align(self, features: torch.Tensor) -> torch.Tensor:
         """Features with every quaternion flipped into the hemisphere of ``reference``."""
-        quats = features[..., ROOT_DIMS:].unflatten(-1, (self.joints, 4))
-        quats = torch.where((quats * self.reference).sum(-1, keepdim=True) < 0, -quats, quats)
-        return torch.cat([features[..., :ROOT_DIMS], quats.flatten(-2)], -1)
+        return align_quaternions(features, self.reference, ROOT_DIMS)
 
     def normalise(self, raw: torch.Tensor) -> torch.Tensor:
         """Network outputs with each joint's quaternion scaled to unit length."""
@@ -83,11 +71,7 @@ class RecurrentBaseline(AttributeModel):
     def initial_state(self, action: torch.Tensor, style: torch.Tensor, temperature: float,
                       generator: torch.Generator | None = None) -> tuple[Any, torch.Tensor]:
         """The recurrent state drawn from each pair's Gaussian, and its KL from N(0, I) (batch,)."""
-        index = self.combination(action, style)
-        mean, logvar = self.initial_mean[index], self.initial_logvar[index]
-        noise = torch.randn(mean.shape, generator=generator, device=mean.device, dtype=mean.dtype)
-        sample = mean + temperature * (0.5 * logvar).exp() * noise
-        kl = kl_diagonal_gaussians(mean, logvar, torch.zeros_like(mean), torch.zeros_like(logvar))
+        sample, kl = self.initial(self.combination(action, style), temperature, generator)
         layers = sample.unflatten(-1, (self.state_parts, self.config.layers, self.config.hidden))
         states = tuple(layers[:, i].transpose(0, 1).contiguous() for i in range(self.state_parts))
         return (states if self.state_parts == 2 else states[0]), kl
@@ -167,9 +151,9 @@ class ERD(RecurrentBaseline):
 
     def __init__(self, config: ERDConfig, pose_dim: int, control_dim: int) -> None:
         super().__init__(config, pose_dim, control_dim)
-        self.encoder = mlp([pose_dim + control_dim, *config.encoder])
+        self.encoder = nn.Sequential(mlp([pose_dim + control_dim, *config.encoder]), nn.ReLU())
         self.recurrent = nn.LSTM(config.encoder[-1], config.hidden, config.layers, batch_first=True)
-        self.decoder = nn.Sequential(mlp([config.hidden, *config.decoder]), nn.Linear(config.decoder[-1], pose_dim))
+        self.decoder = mlp([config.hidden, *config.decoder, pose_dim])
 
     def run(self, inputs: torch.Tensor, codes: torch.Tensor, state: Any) -> tuple[torch.Tensor, Any]:
         h, state = self.recurrent(self.encoder(self.with_codes(inputs, codes)), state)

@@ -212,10 +212,6 @@ class AttributeData:
         scatter = np.einsum("tja,tjb->jab", quats, quats)
         return np.linalg.eigh(scatter)[1][..., -1].astype(np.float32)
 
-    def labels_dict(self) -> dict:
-        """The vocabularies, for a checkpoint's JSON."""
-        return {"actions": list(self.actions.names), "styles": list(self.styles.names)}
-
 
 def load_attribute_data(folder: str | os.PathLike, contents: tuple[str, ...] | None = None,
                         cache_dir: str | os.PathLike | None = None, progress: bool = True, seed: int = 0) -> AttributeData:

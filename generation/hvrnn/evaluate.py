@@ -43,14 +43,18 @@ def classifier_outputs(classifiers: AttributeClassifiers, sequences: SequenceSet
     return result
 
 
+def require_attribute_model(generator: Generator, name: str | os.PathLike) -> None:
+    if not generator.attributes:
+        raise ValueError(f"{name}: a {generator.meta.kind} model follows a path; IS and FID compare "
+                         "action- and style-controlled models (hvrnn, erd, quaternet)")
+
+
 @torch.no_grad()
 def generate_like(generator: Generator, like: SequenceSet, seed: int = 0, temperature: float = 1.0,
                   batch_size: int = 64) -> SequenceSet:
     """A generated sequence (raw angle features) for each of ``like``'s label pairs and masks."""
+    require_attribute_model(generator, "the model")
     model = generator.model
-    if not generator.attributes:
-        raise ValueError(f"a {generator.meta.kind} model follows a path; the attribute evaluation needs "
-                         "an attribute-controlled model (hvrnn, erd, quaternet)")
     torch_generator = torch.Generator(device=generator.device).manual_seed(seed)
     frames = like.features.shape[1]
     parts = []
@@ -63,7 +67,9 @@ def generate_like(generator: Generator, like: SequenceSet, seed: int = 0, temper
 
 
 def check_compatible(generator: Generator, classifiers: AttributeClassifiers, path: str | os.PathLike) -> None:
-    """Refuse a checkpoint whose frame rate, feature size or labels differ from the classifiers'."""
+    """Refuse a checkpoint that is not label-controlled, or whose feature size or labels
+    differ from the classifiers'."""
+    require_attribute_model(generator, path)
     for kind, names in (("action", generator.model.actions), ("style", generator.model.styles)):
         if tuple(names) != classifiers.vocabularies[kind].names:
             raise ValueError(f"{path}: the model's {kind}s differ from the classifiers'; "

@@ -14,6 +14,7 @@ import torch
 from torch import nn
 
 from .data import ROOT_DIMS, SequenceSet
+from .rotation_losses import align_quaternions
 
 # Some quaternion components barely move in the data; dividing by their tiny spread
 # would turn a few degrees of another take's posture into hundreds of standard
@@ -34,9 +35,7 @@ class InputNormalizer(nn.Module):
 
     def align(self, features: torch.Tensor) -> torch.Tensor:
         """The same rotations, each quaternion on the reference's side."""
-        root, quats = features[..., :ROOT_DIMS], features[..., ROOT_DIMS:].unflatten(-1, (-1, 4))
-        flip = (quats * self.reference).sum(-1, keepdim=True) < 0
-        return torch.cat([root, torch.where(flip, -quats, quats).flatten(-2)], -1)
+        return align_quaternions(features, self.reference, ROOT_DIMS)
 
     def forward(self, features: torch.Tensor) -> torch.Tensor:
         return (self.align(features) - self.mean) / self.std

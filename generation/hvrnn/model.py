@@ -12,7 +12,8 @@ words with control features a = f_c(c) of the one-hot action and style c:
     decoder     ŵ_t = f_dec(f_z(z_t), h_{t-1}, a),   x̂_t = normalise(f_dec^w(ŵ_t))
     transition  h_t = f_h(f_w(w_t), f_z(z_t), a; h_{t-1})   (two stacked GRU cells)
 
-h_0 is drawn from a learned Gaussian of the (action, style) pair. Output normalisation
+h_0 is drawn from a learned Gaussian of the (action, style) pair
+(``initial_state.LabelledInitialState``). Output normalisation
 makes every joint rotation valid: quaternions are scaled to unit length, or 6-D outputs
 become matrices by Gram–Schmidt. Root values (velocities, height, pitch, roll) are
 standardised, quaternions are not (``standardization = "root"``).
@@ -20,7 +21,8 @@ standardised, quaternions are not (``standardization = "root"``).
 The loss (Sec. 3.5) per frame is the hierarchical geodesic distance Σ_k α_k d(q̂_k, q_k)
 (times ``reconstruction_weight``) plus the root values' squared error, plus β(step) ×
 the KL of posterior from prior per frame, the motion-word autoencoder's own
-reconstruction, the rotation-validity penalty, and λ_CL(step) × the classifier loss
+reconstruction, the rotation-validity penalty, ``initial_kl_weight`` × the initial
+state's KL from N(0, I), and λ_CL(step) × the classifier loss
 (feature matching on the attribute classifiers' intermediate activations and cross
 entropy of their predictions on the labels). β is 0 while warming up, rises linearly
 while annealing, and stays 1 while cooling down. With a probability that grows over
@@ -42,13 +44,14 @@ from torch import nn
 from torch.nn import functional as F
 
 from ..models.attribute import AttributeModel
+from .data import ROOT_DIMS
+from .initial_state import LabelledInitialState
 from .rotation_losses import (
-    QUATERNION_DISTANCES, gram_schmidt, hierarchical_distance, joint_weights, kl_diagonal_gaussians, masked_mean,
-    matrix_to_quaternion, matrix_validity, normalize_quaternion, quaternion_distance, quaternion_to_matrix,
+    QUATERNION_DISTANCES, align_quaternions, gram_schmidt, hierarchical_distance, joint_weights, kl_diagonal_gaussians,
+    masked_mean, matrix_to_quaternion, matrix_validity, normalize_quaternion, quaternion_distance, quaternion_to_matrix,
     quaternion_validity,
 )
 
-ROOT_DIMS = 6  # forward and sideways velocity, hips height, yaw rate, pitch, roll
 
 
 @dataclass
@@ -72,6 +75,7 @@ class HVRNNConfig:
     root_weight: float = 1.0  # on the squared error of the six standardised root values
     word_weight: float = 1.0  # on the motion-word autoencoder's reconstruction
     validity_weight: float = 1.0  # on the rotation-validity penalty of the raw outputs
+    initial_kl_weight: float = 1e-3  # on the initial state's KL from N(0, I), per sequence
     classifier_weight: float = 0.1  # λ_CL (0: ablation NC)
     classifiers: str = ""  # the attribute classifiers' file (generation.hvrnn.classifiers), needed when λ_CL > 0
     classifier_start: int = 2000  # steps before the classifier loss starts ...
@@ -144,8 +148,7 @@ class HVRNN(AttributeModel):
         cell_inputs = [2 * c.feature_dim + c.control_features] + [c.state_dim] * (c.state_layers - 1)
         self.cells = nn.ModuleList(nn.GRUCell(n, c.state_dim) for n in cell_inputs)  # f_h
         combinations = len(self.actions) * len(self.styles)
-        self.initial_mean = nn.Parameter(torch.zeros(combinations, c.state_layers * c.state_dim))
-        self.initial_logvar = nn.Parameter(torch.full((combinations, c.state_layers * c.state_dim), -2.0))
+        self.initial = LabelledInitialState(combinations, c.state_layers * c.state_dim, initial_logvar=-2.0)
         # Constants of the training data, set by prepare(): α_k, the root values'
         # standardisation, and a rotation per joint whose hemisphere every input
         # quaternion is flipped into (q and −q are one rotation; the encoder should
@@ -186,6 +189,9 @@ class HVRNN(AttributeModel):
             if list(classifiers.vocabularies["action"].names) != list(self.actions) or \
                     list(classifiers.vocabularies["style"].names) != list(self.styles):
                 raise ValueError(f"{self.config.classifiers}: the classifiers' labels differ from the training data's")
+            if classifiers.feature_dim != self.pose_dim:  # found now, not when the classifier loss starts
+                raise ValueError(f"{self.config.classifiers}: the classifiers read {classifiers.feature_dim} features "
+                                 f"per frame, the model makes {self.pose_dim}")
             self.use_classifiers((classifiers["action"], classifiers["style"]))
 
     def use_classifiers(self, classifiers: tuple[Any, ...]) -> None:
@@ -197,9 +203,7 @@ class HVRNN(AttributeModel):
 
     def align(self, features: torch.Tensor) -> torch.Tensor:
         """Features with every quaternion flipped into the hemisphere of ``reference``."""
-        quats = features[..., ROOT_DIMS:].unflatten(-1, (self.joints, 4))
-        quats = torch.where((quats * self.reference).sum(-1, keepdim=True) < 0, -quats, quats)
-        return torch.cat([features[..., :ROOT_DIMS], quats.flatten(-2)], -1)
+        return align_quaternions(features, self.reference, ROOT_DIMS)
 
     def raw_features(self, features: torch.Tensor) -> torch.Tensor:
         """Features with the root values' standardisation undone (what the classifiers read)."""
@@ -246,8 +250,7 @@ class HVRNN(AttributeModel):
         else:
             rotations = gram_schmidt(joints.unflatten(-1, (self.joints, 6)))
             quats = matrix_to_quaternion(rotations)
-            quats = torch.where((quats * self.reference).sum(-1, keepdim=True) < 0, -quats, quats)
-        return torch.cat([root, quats.flatten(-2)], -1), rotations
+        return self.align(torch.cat([root, quats.flatten(-2)], -1)), rotations
 
     def validity(self, raw: torch.Tensor) -> torch.Tensor:
         """The rotation-validity penalty of raw frames (...,), summed over joints."""
@@ -257,12 +260,11 @@ class HVRNN(AttributeModel):
         return matrix_validity(joints.unflatten(-1, (self.joints, 6))).sum(-1)
 
     def initial_state(self, action: torch.Tensor, style: torch.Tensor, temperature: float,
-                      generator: torch.Generator | None = None) -> list[torch.Tensor]:
-        """h_0 drawn from the Gaussian of each sequence's (action, style) pair, one per GRU layer."""
-        index = self.combination(action, style)
-        mean, logvar = self.initial_mean[index], self.initial_logvar[index]
-        noise = torch.randn(mean.shape, generator=generator, device=mean.device, dtype=mean.dtype)
-        return list((mean + temperature * (0.5 * logvar).exp() * noise).chunk(self.config.state_layers, -1))
+                      generator: torch.Generator | None = None) -> tuple[list[torch.Tensor], torch.Tensor]:
+        """h_0 drawn from the Gaussian of each sequence's (action, style) pair, one per GRU
+        layer, and each Gaussian's KL from N(0, I) (batch,)."""
+        state, kl = self.initial(self.combination(action, style), temperature, generator)
+        return list(state.chunk(self.config.state_layers, -1)), kl
 
     def transition(self, word_features: torch.Tensor, latent_features: torch.Tensor, a: torch.Tensor,
                    state: list[torch.Tensor]) -> list[torch.Tensor]:
@@ -280,11 +282,12 @@ class HVRNN(AttributeModel):
         return phi_z, self.decoder(torch.cat([phi_z, h, a], -1))
 
     def fed_back(self, word_hat: torch.Tensor) -> torch.Tensor:
-        """The word the transition reads after generating ŵ: ŵ itself with the word codec,
-        else its frames with their rotations normalised (what a real word would hold)."""
-        if self.config.word_codec:
-            return word_hat
-        return self.normalise(self.decode_word(word_hat))[0].flatten(-2)
+        """The word the transition reads after generating ŵ: its frames decoded, their
+        rotations normalised and sign-aligned as the real inputs are, and encoded again, so
+        that it is a word of the kind the encoder makes of real motion (without the word
+        codec, the frames themselves)."""
+        frames = self.align(self.normalise(self.decode_word(word_hat))[0])
+        return self.encode_word(frames.flatten(-2))
 
     def as_words(self, x: torch.Tensor) -> torch.Tensor:
         """(batch, frames, pose_dim) padded with zeros to whole words: (batch, words, l·pose_dim)."""
@@ -311,7 +314,7 @@ class HVRNN(AttributeModel):
         encoded = self.encode_word(words)
         phi_w = self.word_features(encoded)  # f_w of every real word at once
         a = self.control_net(self.one_hot(action, style))
-        state = self.initial_state(action, style, 1.0)
+        state, initial_kl = self.initial_state(action, style, 1.0)
         drop = self.word_drop_probability(step) if training else 0.0
         states, posteriors, word_hats = [], [], []
         for t in range(words.shape[1]):
@@ -345,7 +348,9 @@ class HVRNN(AttributeModel):
             own_raw = self.decode_word(encoded).flatten(1, 2)[:, :frames]
             terms["word"] = masked_mean(self.frame_error(own_raw, pose), mask)
         beta = self.kl_weight(step) if training else 1.0
+        terms["initial_kl"] = initial_kl.mean()
         total = terms["reconstruction"] + beta * kl + c.validity_weight * terms["validity"]
+        total = total + c.initial_kl_weight * terms["initial_kl"]
         total = total + c.word_weight * terms.get("word", 0.0)
         weight = self.classifier_loss_weight(step) if training else 0.0
         if weight > 0 and self.classifiers:
@@ -398,7 +403,7 @@ class HVRNN(AttributeModel):
         device = self.alpha.device
         action, style = action.to(device), style.to(device)
         a = self.control_net(self.one_hot(action, style))
-        state = self.initial_state(action, style, temperature, generator)
+        state, _ = self.initial_state(action, style, temperature, generator)
         out = []
         for _ in range(math.ceil(frames / self.config.word_length)):
             h = state[-1]

@@ -149,3 +149,12 @@ def kl_diagonal_gaussians(
     return 0.5 * (
         logvar_p - logvar_q + (logvar_q.exp() + (mean_q - mean_p) ** 2) / logvar_p.exp() - 1.0
     ).sum(-1)
+
+
+def align_quaternions(features: torch.Tensor, reference: torch.Tensor, root_dims: int) -> torch.Tensor:
+    """Features (..., root_dims + 4J) with every joint's quaternion flipped onto the side
+    of its ``reference`` (J, 4). q and −q are one rotation; networks and squared errors
+    should see one sign."""
+    root, quats = features[..., :root_dims], features[..., root_dims:].unflatten(-1, (-1, 4))
+    flip = (quats * reference).sum(-1, keepdim=True) < 0
+    return torch.cat([root, torch.where(flip, -quats, quats).flatten(-2)], -1)
