@@ -62,6 +62,16 @@ class AttributeControl:
     fps: float
     name: str = ""
 
+    def __post_init__(self) -> None:
+        if not self.action or not self.style:
+            raise ValueError("attribute control needs an action and a style label")
+        if self.frames < 1 or not self.fps > 0:
+            raise ValueError(f"attribute control needs frames >= 1 and fps > 0, got {self.frames} and {self.fps}")
+
+    @property
+    def n_frames(self) -> int:
+        return self.frames
+
     def to_dict(self) -> dict:
         return {"type": "attributes", "name": self.name, "action": self.action, "style": self.style,
                 "frames": self.frames, "fps": self.fps}
@@ -183,4 +193,20 @@ def held_out_paths(dataset, seconds: float | None = None) -> list[PathControl]:
             control = control[: int(round(seconds * fps))]
         if len(control) >= 2:
             result.append(PathControl(control, fps, clip.name))
+    return result
+
+
+def held_out_attributes(dataset, seconds: float | None = None) -> list[AttributeControl]:
+    """The action and style labels of each labelled held-out natural clip, for as long as
+    the clip lasts (or ``seconds``, if shorter): what a label-controlled model is asked
+    to do where the clip shows what a person did."""
+    fps = dataset.options.fps
+    result = []
+    for clip in dataset.select("test", augmented=False):
+        if clip.content is None or clip.style is None:
+            continue
+        frames = clip.stop - clip.start
+        if seconds is not None:
+            frames = min(frames, int(round(seconds * fps)))
+        result.append(AttributeControl(clip.content, clip.style, frames, fps, clip.name))
     return result

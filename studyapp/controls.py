@@ -1,15 +1,22 @@
 """Choosing a study's control signals: held out from the motion data, or synthetic.
 
+A study's checkpoints decide the kind of control: a path (MoGlow and its baselines) or an
+action and a style label (HVRNN, ERD, QuaterNet); one study holds one kind, since it
+holds models trained on one dataset.
+
 Held-out controls come from the test split of the very dataset the study's checkpoints
 were trained on (same files, same options, so the same split): the models never saw
-these clips, and the NAT system shows the clip each one came from. Synthetic controls
-are ``generation.control``'s presets or a JSON/YAML description. Both follow the frame
-rate the checkpoints were trained at. Adding a control again is harmless; adding a
-different control under a taken name is refused.
+these clips, and the NAT system shows the clip each one came from. A held-out path is
+the clip's own path; a held-out label control is the clip's action and style. Synthetic
+controls are ``generation.control``'s path presets or a JSON/YAML description, or
+chosen pairs of labels. All follow the frame rate the checkpoints were trained at.
+Adding a control again is harmless; adding a different control under a taken name is
+refused.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import tempfile
 from itertools import zip_longest
@@ -18,7 +25,8 @@ from pathlib import Path
 from django.conf import settings
 from django.core.files import File
 
-from generation.control import PathControl, held_out_paths, load_control_file, preset_path
+from generation.control import (AttributeControl, Control, held_out_attributes, held_out_paths, load_control_file,
+                                preset_path)
 from generation.motion.dataset import DatasetOptions, build_dataset, find_bvh_files
 from studyapp.models import ControlSignal, Study
 
@@ -45,7 +53,34 @@ def training_options(study: Study) -> DatasetOptions:
     return DatasetOptions.from_dict(systems[0].metadata["dataset_options"])
 
 
-def _save(study: Study, control: PathControl, origin: str, source_clip: str = "") -> ControlSignal:
+def control_kind(study: Study) -> str:
+    """"path" or "attributes": what the study's checkpoints are controlled by."""
+    kinds = {s.metadata.get("control", "path") for s in study.systems.exclude(checkpoint="")}
+    if len(kinds) > 1:  # training_options refuses such a study too; say it in these words
+        raise ControlError("the study mixes path-controlled and label-controlled models; one study needs one kind")
+    return kinds.pop() if kinds else "path"
+
+
+def study_labels(study: Study) -> tuple[list[str], list[str]]:
+    """The actions and styles every label-controlled system of the study knows."""
+    systems = [s for s in study.systems.exclude(checkpoint="") if s.metadata.get("labels")]
+    if not systems:
+        return [], []
+    known = [systems[0].metadata["labels"][kind] for kind in ("actions", "styles")]
+    for system in systems[1:]:
+        known = [[name for name in names if name in system.metadata["labels"][kind]]
+                 for names, kind in zip(known, ("actions", "styles"))]
+    return known[0], known[1]
+
+
+def _require(study: Study, kind: str) -> None:
+    if control_kind(study) != kind:
+        raise ControlError("this study's models follow a path: add held-out or synthetic paths" if kind == "attributes"
+                           else "this study's models are controlled by action and style labels: add held-out or "
+                                "chosen label pairs, not paths")
+
+
+def _save(study: Study, control: Control, origin: str, source_clip: str = "") -> ControlSignal:
     data = control.to_dict()
     existing = study.controls.filter(name=control.name).first()
     if existing is not None:
@@ -56,9 +91,9 @@ def _save(study: Study, control: PathControl, origin: str, source_clip: str = ""
                                         source_clip=source_clip, seconds=control.n_frames / control.fps)
 
 
-def _spread(controls: list[PathControl], contents: dict[str, str | None], count: int | None) -> list[PathControl]:
+def _spread(controls: list[Control], contents: dict[str, str | None], count: int | None) -> list[Control]:
     """``count`` controls taking each content label in turn, so a short list still varies."""
-    by_content: dict[str | None, list[PathControl]] = {}
+    by_content: dict[str | None, list[Control]] = {}
     for control in controls:
         by_content.setdefault(contents[control.name], []).append(control)
     interleaved = [c for group in zip_longest(*by_content.values()) for c in group if c is not None]
@@ -82,16 +117,40 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
                            "its held-out clips could have been training clips")
     files = {path.stem: path for path in find_bvh_files(folder)}
     contents = {clip.name: clip.content for clip in dataset.select("test", augmented=False)}
-    chosen = _spread(held_out_paths(dataset, seconds), contents, count)
+    if control_kind(study) == "path":
+        held_out = held_out_paths(dataset, seconds)
+    else:  # only what every model of the study can be asked for
+        actions, styles = study_labels(study)
+        held_out = [c for c in held_out_attributes(dataset, seconds) if c.action in actions and c.style in styles]
     result = []
-    for control in chosen:
-        named = PathControl(control.velocities, control.fps, f"{control.name}-{seconds:g}s")
-        result.append(_save(study, named, ControlSignal.Origin.HELD_OUT, str(files[control.name].relative_to(folder))))
+    for control in _spread(held_out, contents, count):
+        source = str(files[control.name].relative_to(folder))
+        named = dataclasses.replace(control, name=f"{control.name}-{seconds:g}s")
+        result.append(_save(study, named, ControlSignal.Origin.HELD_OUT, source))
     return result
+
+
+def add_label_controls(study: Study, actions: list[str], styles: list[str], seconds: float) -> list[ControlSignal]:
+    """Synthetic label controls: every chosen action with every chosen style, ``seconds`` long."""
+    _require(study, "attributes")
+    known_actions, known_styles = study_labels(study)
+    for names, known, kind in ((actions, known_actions, "action"), (styles, known_styles, "style")):
+        if not names:
+            raise ControlError(f"choose at least one {kind}")
+        unknown = [name for name in names if name not in known]
+        if unknown:
+            raise ControlError(f"not every model knows the {kind}(s) {', '.join(unknown)}")
+    if not seconds > 0:
+        raise ControlError(f"seconds must be positive, got {seconds}")
+    fps = training_options(study).fps
+    frames = int(round(seconds * fps))
+    return [_save(study, AttributeControl(action, style, frames, fps, f"{action}-{style}-{seconds:g}s"),
+                  ControlSignal.Origin.SYNTHETIC) for action in actions for style in styles]
 
 
 def add_preset_controls(study: Study, names: list[str]) -> list[ControlSignal]:
     """Synthetic controls from ``generation.control.PRESETS`` by name."""
+    _require(study, "path")
     fps = training_options(study).fps
     try:
         controls = [preset_path(name, fps) for name in names]
@@ -107,6 +166,7 @@ def add_control_file(study: Study, upload: File) -> list[ControlSignal]:
         raise ControlError(f"{name or 'the file'}: a control description must be {', '.join(CONTROL_FILE_SUFFIXES)}")
     if upload.size > MAX_CONTROL_FILE_BYTES:
         raise ControlError(f"{name}: {upload.size / 1e6:.1f} MB is over the {MAX_CONTROL_FILE_BYTES / 1e6:.0f} MB limit")
+    _require(study, "path")
     fps = training_options(study).fps
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / name
@@ -118,4 +178,5 @@ def add_control_file(study: Study, upload: File) -> list[ControlSignal]:
     return [_save(study, control, ControlSignal.Origin.SYNTHETIC) for control in controls]
 
 
-__all__ = ["ControlError", "add_control_file", "add_held_out_controls", "add_preset_controls", "training_options"]
+__all__ = ["ControlError", "add_control_file", "add_held_out_controls", "add_label_controls", "add_preset_controls",
+           "control_kind", "study_labels", "training_options"]

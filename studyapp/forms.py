@@ -93,6 +93,19 @@ class PresetControlsForm(forms.Form):
     presets = forms.MultipleChoiceField(choices=[(name, name) for name in PRESETS], widget=forms.CheckboxSelectMultiple)
 
 
+class LabelControlsForm(forms.Form):
+    """Every chosen action with every chosen style, for label-controlled models."""
+
+    actions = forms.MultipleChoiceField(widget=forms.CheckboxSelectMultiple)
+    styles = forms.MultipleChoiceField(widget=forms.CheckboxSelectMultiple)
+    seconds = forms.FloatField(initial=4.0, min_value=0.5, max_value=60.0)
+
+    def __init__(self, *args, labels: tuple[list[str], list[str]] = ([], []), **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        for field, names in zip(("actions", "styles"), labels):
+            self.fields[field].choices = [(name, name) for name in names]
+
+
 class ControlFileForm(forms.Form):
     description = forms.FileField(help_text="a JSON or YAML path description (one path or a list), "
                                             "as generation.control.load_control_file reads")

@@ -8,6 +8,8 @@ what a form means is done by the service modules (``systems``, ``controls``,
 
 from __future__ import annotations
 
+from functools import partial
+
 from django.conf import settings
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
@@ -18,9 +20,10 @@ from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
 from studyapp.celery import app as celery_app
-from studyapp.controls import ControlError, add_control_file, add_held_out_controls, add_preset_controls
+from studyapp.controls import (ControlError, add_control_file, add_held_out_controls, add_label_controls,
+                               add_preset_controls, control_kind, study_labels)
 from studyapp.forms import (CheckpointSystemForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
-                            NaturalSystemForm, PresetControlsForm, StudyForm, VideoSystemForm)
+                            LabelControlsForm, NaturalSystemForm, PresetControlsForm, StudyForm, VideoSystemForm)
 from studyapp.health import collect_health
 from studyapp.models import NATURAL_NAME, Stimulus, Study, System
 from studyapp.monitor import ratings_csv, study_monitor
@@ -97,14 +100,26 @@ def study_systems(request: HttpRequest, pk: int) -> HttpResponse:
 @login_required
 def study_controls(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
-    forms = {"held_out": HeldOutControlsForm, "presets": PresetControlsForm, "file": ControlFileForm}
+    try:
+        kind = control_kind(study)
+    except ControlError as error:
+        messages.error(request, str(error))
+        kind = "path"
+    forms: dict = {"held_out": HeldOutControlsForm}
+    if kind == "path":
+        forms.update(presets=PresetControlsForm, file=ControlFileForm)
+    else:
+        forms["labels"] = partial(LabelControlsForm, labels=study_labels(study))
     actions = {
         "held_out": lambda data: "{} held-out control(s).".format(
             len(add_held_out_controls(study, data["seconds"], data["count"]))),
         "presets": lambda data: f"{len(add_preset_controls(study, data['presets']))} synthetic control(s).",
         "file": lambda data: f"{len(add_control_file(study, data['description']))} control(s) from the file.",
+        "labels": lambda data: "{} label control(s).".format(
+            len(add_label_controls(study, data["actions"], data["styles"], data["seconds"]))),
     }
-    return _forms_page(request, study, "controls", forms, actions, ControlError, {"controls": study.controls.all()})
+    return _forms_page(request, study, "controls", forms, actions, ControlError,
+                       {"controls": study.controls.all(), "kind": kind})
 
 
 @login_required

@@ -32,7 +32,7 @@ from django.db import transaction
 from django.db.models import F
 from django.utils import timezone
 
-from generation.control import control_from_dict
+from generation.control import PathControl, control_from_dict
 from generation.motion.dataset import load_body_motion
 from generation.motion.root import root_trajectory
 from generation.motion.types import Motion
@@ -203,7 +203,9 @@ def stimulus_motion(stimulus: Stimulus) -> tuple[Motion, np.ndarray]:
     signal = control_from_dict(control.control)
     motion = _generator(str(path), system.checkpoint_digest).sample(
         signal, n=1, seed=stimulus.seed, temperature=system.temperature)[0]
-    return motion, signal.path().xz
+    if isinstance(signal, PathControl):
+        return motion, signal.path().xz  # the path the model was told to follow
+    return motion, root_trajectory(motion, training_options(stimulus.study).root).xz  # labels: where it went
 
 
 def remove_partial_files(stimulus: Stimulus) -> int:

@@ -141,7 +141,11 @@ def store_checkpoint(upload: File) -> StoredCheckpoint:
 def checkpoint_metadata(stored: StoredCheckpoint, original_name: str) -> dict:
     """What the systems page shows and generation needs about a stored checkpoint."""
     meta = stored.meta
+    labelled = meta.features.get("type") == "angles"
+    labels = {"actions": meta.hyperparameters["actions"], "styles": meta.hyperparameters["styles"]} if labelled else None
     return {
+        "control": "attributes" if labelled else "path",  # what its controls must be
+        "labels": labels,
         "file": original_name,
         "preset": preset_name(meta),
         "step": meta.step,

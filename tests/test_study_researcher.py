@@ -339,6 +339,8 @@ def test_controls_come_from_held_out_clips_presets_and_files(client, researcher,
     assert before.status_code == 400 and "register a model checkpoint first" in before.content.decode()
     upload_checkpoint(client, study, files.good.read_bytes())
 
+    page = client.get(f"/studies/{study.pk}/controls/").content.decode()
+    assert page.count("Add presets") == 1 and page.count("Add from file") == 1 and "Add label controls" not in page
     assert client.post(f"/studies/{study.pk}/controls/", {"action": "held_out", "seconds": "2", "count": ""}).status_code == 302
     held = list(study.controls.filter(origin="held-out").order_by("name"))
     # One walking and one running take are held out of the five clips.
@@ -369,6 +371,51 @@ def test_held_out_controls_refuse_data_the_models_were_not_trained_on(client, re
     (settings.MOTION_DATA / "data" / f"dataset-1_{CLIPS[-1]}.bvh").unlink()
     response = client.post(f"/studies/{study.pk}/controls/", {"action": "held_out", "seconds": "2"})
     assert response.status_code == 400 and "is not the data the checkpoints were trained on" in response.content.decode()
+    assert not ControlSignal.objects.exists()
+
+
+@pytest.mark.django_db
+def test_a_label_controlled_model_gets_label_controls_and_its_stimuli_render(client, researcher, site, files, queue,
+                                                                            settings):
+    settings.MOTION_DATA = files.labelled
+    study = new_study(researcher)
+    assert upload_checkpoint(client, study, files.erd.read_bytes(), name="ERD").status_code == 302
+    erd = System.objects.get(name="ERD")
+    assert erd.metadata["control"] == "attributes" and "walk" in erd.metadata["labels"]["actions"]
+    assert client.post(f"/studies/{study.pk}/systems/", {"action": "natural", "name": "NAT"}).status_code == 302
+    page = client.get(f"/studies/{study.pk}/controls/").content.decode()
+    assert page.count("Add label controls") == 1 and "Add presets" not in page
+
+    assert client.post(f"/studies/{study.pk}/controls/", {"action": "held_out", "seconds": "2", "count": ""}).status_code == 302
+    held = list(study.controls.filter(origin="held-out"))
+    assert held and all(c.control["type"] == "attributes" and c.source_clip for c in held)
+    assert {c.control["action"] for c in held} == {"walk", "run"} and all(c.control["fps"] == 30.0 for c in held)
+    response = client.post(f"/studies/{study.pk}/controls/", {"action": "labels", "actions": ["walk"],
+                                                              "styles": ["happy", "normal"], "seconds": "1"})
+    assert response.status_code == 302
+    assert sorted(study.controls.filter(origin="synthetic").values_list("name", flat=True)) == [
+        "walk-happy-1s", "walk-normal-1s"]
+    refused = client.post(f"/studies/{study.pk}/controls/", {"action": "presets", "presets": ["walk-circle"]})
+    assert refused.status_code == 400  # not a form of this study's page: nothing added
+    assert study.controls.count() == len(held) + 2
+
+    stimuli, _ = plan_stimuli(study)
+    assert len(stimuli) == 2 * len(held) + 2  # ERD for every control, NAT for the held-out ones
+    queue_stimuli(stimuli)
+    for stimulus in (s for s in stimuli if s.system.name == "ERD"):
+        assert run_task(stimulus)["status"] == "done", Stimulus.objects.get(pk=stimulus.pk).error
+        stimulus.refresh_from_db()
+        expected = stimulus.control.seconds
+        assert stimulus.duration_s == pytest.approx(expected, abs=0.05) and stimulus.video_path().is_file()
+
+
+@pytest.mark.django_db
+def test_path_and_label_controlled_models_do_not_share_a_study(client, researcher, site, files):
+    study = new_study(researcher)
+    upload_checkpoint(client, study, files.good.read_bytes())
+    upload_checkpoint(client, study, files.erd.read_bytes(), name="ERD")
+    response = client.post(f"/studies/{study.pk}/controls/", {"action": "held_out", "seconds": "2"})
+    assert response.status_code == 400 and "one study needs one" in response.content.decode()
     assert not ControlSignal.objects.exists()
 
 

@@ -157,12 +157,18 @@ class AttributeData:
         if part not in PARTS:
             raise ValueError(f"unknown part {part!r}; use one of {PARTS}")
         split = part if part in ("validation", "test") else "train"
-        clips = [c for c in self.dataset.select(split, augmented=False) if c.has_angles]
+        clips = [c for c in self.dataset.select(split, augmented=False) if c.has_angles and self.knows(c)]
         if part == "classifier":
             return [c for c in clips if c.take in self.classifier_takes]
         if part == "model":
             return [c for c in clips if c.take not in self.classifier_takes]
         return clips
+
+    def knows(self, clip: Clip) -> bool:
+        """Whether the clip's action and style are among the training clips' labels. A
+        held-out clip with a label no training clip has cannot be asked of a model, so
+        the parts leave it out."""
+        return clip.content in self.actions.names and clip.style in self.styles.names
 
     def standardizer(self, scope: str = "all") -> Standardizer:
         """The training clips' statistics: for every dimension (``all``), or for the six
@@ -180,7 +186,8 @@ class AttributeData:
         """Every clip of ``part`` cut into padded sequences, standardised if asked."""
         clips = self.clips(part)
         if not clips:
-            raise ValueError(f"the {part} part of the dataset has no clips with joint rotations")
+            raise ValueError(f"the {part} part of the dataset has no clips with joint rotations and labels that "
+                             "training clips have too (too few takes of each content?)")
         pieces, takes, actions, styles = [], [], [], []
         for clip in clips:
             angles = self.dataset.arrays["angles"][clip.start : clip.stop]

@@ -5,13 +5,14 @@ from pathlib import Path
 from django.core.files import File
 from django.core.management.base import BaseCommand, CommandError
 
-from studyapp.controls import ControlError, add_control_file, add_held_out_controls, add_preset_controls
+from studyapp.controls import ControlError, add_control_file, add_held_out_controls, add_label_controls, add_preset_controls
 
 from ._study import study_by_id
 
 
 class Command(BaseCommand):
-    help = "Add control signals to a study: held-out clips of MOTION_DATA, presets, or JSON/YAML descriptions."
+    help = ("Add control signals to a study: held-out clips of MOTION_DATA; for path-controlled models presets or "
+            "JSON/YAML descriptions, for label-controlled ones (HVRNN, ERD, QuaterNet) pairs of actions and styles.")
 
     def add_arguments(self, parser):
         parser.add_argument("study_id", type=int)
@@ -19,17 +20,23 @@ class Command(BaseCommand):
         parser.add_argument("--count", type=int, help="how many held-out controls (default: all)")
         parser.add_argument("--preset", nargs="+", default=[], help="names from generation.control.PRESETS")
         parser.add_argument("--file", nargs="+", default=[], help="JSON or YAML path descriptions")
+        parser.add_argument("--actions", nargs="+", default=[], help="label controls: these actions ...")
+        parser.add_argument("--styles", nargs="+", default=[], help="... each with each of these styles")
+        parser.add_argument("--seconds", type=float, default=4.0, help="length of label controls (default 4)")
 
     def handle(self, *args, **options):
         study = study_by_id(options["study_id"])
-        if not (options["held_out"] or options["preset"] or options["file"]):
-            raise CommandError("nothing to add: give --held-out SECONDS, --preset NAME ... or --file PATH ...")
+        if not (options["held_out"] or options["preset"] or options["file"] or options["actions"] or options["styles"]):
+            raise CommandError("nothing to add: give --held-out SECONDS, --preset NAME ..., --file PATH ... "
+                               "or --actions A ... --styles S ...")
         added = []
         try:
             if options["held_out"]:
                 added += add_held_out_controls(study, options["held_out"], options["count"])
             if options["preset"]:
                 added += add_preset_controls(study, options["preset"])
+            if options["actions"] or options["styles"]:
+                added += add_label_controls(study, options["actions"], options["styles"], options["seconds"])
             for path in options["file"]:
                 if not Path(path).is_file():
                     raise CommandError(f"{path}: no such file")
