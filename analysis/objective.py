@@ -1,4 +1,5 @@
-"""The objective metrics of all systems at once: MoGlow Table 3 and the Fig. 5 curves."""
+"""The objective metrics of all systems at once: MoGlow Table 3 and the Fig. 5 curves,
+with jitter and foot sliding (``analysis.smoothness``) beside them."""
 
 from __future__ import annotations
 
@@ -11,20 +12,22 @@ from analysis.bones import bone_length_rmse
 from analysis.errors import AnalysisInputError
 from analysis.footsteps import DEFAULT_MIN_CONTACT_S, HUMAN_TOLERANCES, find_foot_joints, footstep_summary
 from analysis.motion_io import SystemClips
+from analysis.smoothness import lower_foot_speed, mean_joint_acceleration
 
-METRIC_COLUMNS = ("v_tol_95", "step_duration_mean", "step_duration_sd", "bone_length_rmse")
+METRIC_COLUMNS = ("v_tol_95", "step_duration_mean", "step_duration_sd", "bone_length_rmse", "joint_acceleration",
+                  "lower_foot_speed")
 
 
 def objective_metrics(motion: dict[str, SystemClips], foot_joints: Sequence[str] | None = None,
                       foot_kind: str = "heel", tolerances: np.ndarray = HUMAN_TOLERANCES,
                       min_contact_s: float = DEFAULT_MIN_CONTACT_S
                       ) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
-    """Footstep and bone-length metrics per system.
+    """Footstep, bone-length, jitter and foot-sliding metrics per system.
 
     Returns (table with columns system, n_clips, steps_per_s, v_tol_95,
-    step_duration_mean, step_duration_sd, bone_length_rmse; curves with columns system,
-    v_tol, footsteps, f_est; notes on anything not computed). Foot joints are found by
-    name (`find_foot_joints`) unless given.
+    step_duration_mean, step_duration_sd, bone_length_rmse, joint_acceleration,
+    lower_foot_speed; curves with columns system, v_tol, footsteps, f_est; notes on
+    anything not computed). Foot joints are found by name (`find_foot_joints`) unless given.
     """
     rows, curves, notes = [], [], []
     for system, clips in sorted(motion.items()):
@@ -32,8 +35,8 @@ def objective_metrics(motion: dict[str, SystemClips], foot_joints: Sequence[str]
         unknown = [f for f in feet if f not in clips.names]
         if unknown:
             raise AnalysisInputError(f"system {system!r} has no joint(s) {', '.join(unknown)}")
-        summary, curve = footstep_summary(clips.clips, clips.fps, [clips.names.index(f) for f in feet],
-                                          tolerances, min_contact_s)
+        foot_indices = [clips.names.index(f) for f in feet]
+        summary, curve = footstep_summary(clips.clips, clips.fps, foot_indices, tolerances, min_contact_s)
         if not np.isfinite(summary["v_tol_95"]):
             notes.append(f"{system}: no footsteps at any tolerance up to {tolerances[-1]:g} cm/s; "
                          "v_tol^(95) and step durations not computed.")
@@ -45,8 +48,9 @@ def objective_metrics(motion: dict[str, SystemClips], foot_joints: Sequence[str]
                          "error not computed.")
         else:
             rmse = bone_length_rmse(clips.clips, clips.parents, clips.offsets)
-        rows.append({"system": system, "n_clips": len(clips.clips), **summary,
-                     "bone_length_rmse": rmse})
+        rows.append({"system": system, "n_clips": len(clips.clips), **summary, "bone_length_rmse": rmse,
+                     "joint_acceleration": mean_joint_acceleration(clips.clips, clips.fps),
+                     "lower_foot_speed": lower_foot_speed(clips.clips, clips.fps, foot_indices)})
         curves.append(curve.assign(system=system))
     table = pd.DataFrame(rows).drop(columns="n_step_durations")
     curve_table = pd.concat(curves, ignore_index=True)[["system", "v_tol", "footsteps", "f_est"]]

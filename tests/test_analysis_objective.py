@@ -24,6 +24,7 @@ from analysis.errors import AnalysisInputError
 from analysis.footsteps import (FootSpeeds, find_foot_joints, footstep_summary,
                                 footstep_tolerance_curve, step_durations, v_tol_95)
 from analysis.scores import frechet_distance, inception_score
+from analysis.smoothness import lower_foot_speed, mean_joint_acceleration
 
 
 @pytest.fixture(scope="module")
@@ -122,6 +123,40 @@ def test_bone_length_error_of_natural_data_is_zero_and_grows_with_noise(walks):
     assert errors == sorted(errors) and errors[0] > 0.3
     # isotropic 3-D noise of sd s on both ends changes a long bone's length by about s*sqrt(2)
     assert errors[-1] == pytest.approx(4.0 * np.sqrt(2), rel=0.25)
+
+
+def test_joint_acceleration_is_zero_for_steady_motion_and_matches_a_hand_computation():
+    t = np.arange(40)[:, None, None] / 20.0
+    steady = np.concatenate([t * [[100.0, 0, 0]], t * [[0, 0, 50.0]]], axis=1)  # two joints at constant velocity
+    assert mean_joint_acceleration([steady], 20.0) == pytest.approx(0.0, abs=1e-9)
+    # One joint displaced by 1 cm in one frame: second differences 1, -2, 1 around it.
+    bumped = steady.copy()
+    bumped[10, 0, 1] += 1.0
+    frames, joints = 38, 2
+    assert mean_joint_acceleration([bumped], 20.0) == pytest.approx((1 + 2 + 1) / (frames * joints) * 400)
+
+
+def test_lower_foot_speed_tells_a_planted_foot_from_a_gliding_one():
+    frames = 21
+    planted = np.zeros((frames, 2, 3))
+    planted[:, 0] = [0, 0, 0]  # on the floor, still
+    planted[:, 1] = np.c_[np.linspace(0, 100, frames), np.full(frames, 10.0), np.zeros(frames)]  # swinging, raised
+    assert lower_foot_speed([planted], 20.0, [0, 1]) == pytest.approx(0.0)
+    gliding = planted.copy()
+    gliding[:, 0, 0] = np.linspace(0, 120, frames)  # the lower foot slides 120 cm in one second
+    assert lower_foot_speed([gliding], 20.0, [0, 1]) == pytest.approx(120.0)
+
+
+def test_natural_walking_has_planted_feet_and_little_jitter(walks):
+    from generation.motion.resample import resample
+
+    clips = [resample(w, 20.0) for w in walks[:6]]
+    feet = [clips[0].skeleton.index(n) for n in find_foot_joints(clips[0].skeleton.names, "heel")]
+    speed = lower_foot_speed([c.positions for c in clips], 20.0, feet)
+    walking = np.mean([np.linalg.norm(np.diff(c.positions[:, clips[0].skeleton.index("Hips"), [0, 2]], axis=0),
+                                      axis=-1).mean() * 20 for c in clips])
+    assert speed < 0.3 * walking  # the weight-bearing heel is nearly still while the body moves
+    assert 100 < mean_joint_acceleration([c.positions for c in clips], 20.0) < 1500
 
 
 def test_the_floor_root_of_bandai_namco_is_not_a_bone(walks):
