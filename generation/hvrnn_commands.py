@@ -19,9 +19,12 @@ import time
 
 def add_commands(commands) -> None:
     """Add the commands to the ``generation`` command line's subparsers."""
-    _training_parser(commands, "hvrnn-classifiers", classifiers_command, "train HVRNN's action and style classifiers",
-                     "Train the attribute classifiers (Conv1D x3, pooling, linear) on the classifier half of the "
-                     "training takes; report held-out accuracy.")
+    p = _training_parser(commands, "hvrnn-classifiers", classifiers_command,
+                         "train HVRNN's action and style classifiers",
+                         "Train the attribute classifiers (Conv1D x3, pooling, linear) on the classifier half of "
+                         "the training takes; report held-out accuracy.")
+    p.add_argument("--channels", type=int, nargs=3, metavar="C",
+                   help="output channels of the three convolutions (default: the configuration's)")
     _training_parser(commands, "hvrnn-denoiser", denoiser_command, "train HVRNN's denoising autoencoder",
                      "Train the denoising autoencoder on the training takes; report the held-out error of "
                      "corrupted and denoised data.")
@@ -40,12 +43,13 @@ def add_commands(commands) -> None:
     p.set_defaults(run=eval_command)
 
 
-def _training_parser(commands, name: str, run, help: str, description: str) -> None:
+def _training_parser(commands, name: str, run, help: str, description: str) -> argparse.ArgumentParser:
     p = commands.add_parser(name, help=help, description=description)
     _data_arguments(p)
     p.add_argument("--out", "-o", required=True, help="output file (.safetensors)")
     p.add_argument("--steps", type=int, help="training steps (default: the configuration's)")
     p.set_defaults(run=run)
+    return p
 
 
 def _data_arguments(p: argparse.ArgumentParser) -> None:
@@ -69,7 +73,8 @@ def classifiers_command(args: argparse.Namespace) -> int:
     from .hvrnn.classifiers import ClassifierConfig, accuracy, train_classifiers
 
     data = _load(args)
-    config = ClassifierConfig() if args.steps is None else dataclasses.replace(ClassifierConfig(), steps=args.steps)
+    changes = {"steps": args.steps, "channels": tuple(args.channels) if args.channels else None}
+    config = dataclasses.replace(ClassifierConfig(), **{k: v for k, v in changes.items() if v is not None})
     start = time.perf_counter()
     classifiers, history = train_classifiers(data, config, seed=args.seed, progress=True)
     held_out = accuracy(classifiers, data.sequences("test"))
