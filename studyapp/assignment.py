@@ -100,9 +100,10 @@ def _training_clips(study: Study, exclude: set[int], rng: random.Random) -> list
     return chosen
 
 
-def renew_reservations(participant: Participant) -> Participant:
-    """Mark the participant as active now; a participant back after ``reservation_minutes``
-    keeps only the unrated clips that still fit under their targets.
+def renew_reservations(participant: Participant, touch: bool = True) -> Participant:
+    """Mark the participant as active now (``touch`` False: leave that to the caller, who
+    saves ``last_seen`` itself); a participant back after ``reservation_minutes`` keeps
+    only the unrated clips that still fit under their targets.
 
     While a participant is idle that long, their unrated clips stop counting towards the
     targets and may be given to others; rating them on return would push those stimuli
@@ -113,8 +114,9 @@ def renew_reservations(participant: Participant) -> Participant:
     now = timezone.now()
     idle_limit = timedelta(minutes=study.reservation_minutes)
     if participant.finished_at is not None or now - participant.last_seen <= idle_limit:
-        Participant.objects.filter(pk=participant.pk).update(last_seen=now)  # the common case: no lock
-        participant.last_seen = now
+        if touch:  # the common case: no lock, one write
+            Participant.objects.filter(pk=participant.pk).update(last_seen=now)
+            participant.last_seen = now
         return participant
     with transaction.atomic():  # the same lock as enrol(), which may be handing these clips out
         Study.objects.select_for_update().get(pk=study.pk)

@@ -255,7 +255,7 @@ def rate(request: HttpRequest, key: str) -> HttpResponse:
         raise RatingRejected("no participant session: open the study through its link", status=403)
     token = request.POST.get("assignment", "")
     was_reserved = participant.assignments.filter(token=token, rating__isnull=True).exists()
-    participant = renew_reservations(participant)
+    participant = renew_reservations(participant, touch=False)  # record_rating saves last_seen
     if was_reserved and not participant.assignments.filter(token=token).exists():
         raise RatingRejected("that clip was given to another participant while this page was idle; "
                              "please reload the page to go on with the next one", status=409)

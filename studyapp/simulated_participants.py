@@ -47,12 +47,13 @@ class SimulatedParticipant:
     """One participant with their own cookies; ``run()`` goes through the whole study."""
 
     def __init__(self, entry_url: str, platform_id: str, id_parameter: str = "PROLIFIC_PID",
-                 rng: random.Random | None = None, timeout_s: float = 60.0) -> None:
+                 rng: random.Random | None = None, timeout_s: float = 60.0, watch_s: float = 0.0) -> None:
         separator = "&" if "?" in entry_url else "?"
         self.entry_url = f"{entry_url}{separator}{urllib.parse.urlencode({id_parameter: platform_id})}"
         self.outcome = Outcome(platform_id)
         self.rng = rng or random.Random(platform_id)
         self.timeout_s = timeout_s
+        self.watch_s = watch_s  # time spent on each clip's page before answering, as a person watches it
         self.opener = urllib.request.build_opener(urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar()))
 
     def _open(self, url: str, data: dict | None = None) -> tuple[str, str]:
@@ -73,6 +74,7 @@ class SimulatedParticipant:
         if action.endswith("/consent/"):
             data["agree"] = "yes"
         elif points:
+            time.sleep(self.watch_s)
             data.update(value=str(self.rng.choice(points)), started_s="0.05", ended_s="0.5",
                         answered_s="0.6", played_until_s="0.45")
         if action.endswith("/rate/"):
@@ -99,9 +101,11 @@ class SimulatedParticipant:
 
 
 def run_participants(entry_url: str, count: int, concurrency: int | None = None,
-                     id_parameter: str = "PROLIFIC_PID", prefix: str = "sim") -> list[Outcome]:
-    """``count`` participants, ``concurrency`` at a time (default: all at once)."""
-    participants = [SimulatedParticipant(entry_url, f"{prefix}-{i:05d}", id_parameter) for i in range(count)]
+                     id_parameter: str = "PROLIFIC_PID", prefix: str = "sim", watch_s: float = 0.0) -> list[Outcome]:
+    """``count`` participants, ``concurrency`` at a time (default: all at once), each
+    spending ``watch_s`` on every clip's page before answering."""
+    participants = [SimulatedParticipant(entry_url, f"{prefix}-{i:05d}", id_parameter, watch_s=watch_s)
+                    for i in range(count)]
     with ThreadPoolExecutor(max_workers=concurrency or count) as pool:
         return list(pool.map(SimulatedParticipant.run, participants))
 
@@ -123,9 +127,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--id-parameter", default="PROLIFIC_PID",
                         help="query parameter carrying the id: PROLIFIC_PID, workerId or pid (default %(default)s)")
     parser.add_argument("--prefix", default="sim", help="platform ids are PREFIX-00000, ... (default %(default)s)")
+    parser.add_argument("--watch", type=float, default=0.0,
+                        help="seconds on each clip's page before answering (default %(default)s: answer at once)")
     args = parser.parse_args(argv)
     start = time.perf_counter()
-    outcomes = run_participants(args.entry_url, args.participants, args.concurrency, args.id_parameter, args.prefix)
+    outcomes = run_participants(args.entry_url, args.participants, args.concurrency, args.id_parameter, args.prefix,
+                                args.watch)
     seconds = time.perf_counter() - start
     latencies = [s for o in outcomes for s in o.rating_latencies_s]
     finished = sum(o.finished for o in outcomes)

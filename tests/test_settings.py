@@ -78,3 +78,27 @@ def test_an_unreadable_debug_value_is_an_error_not_a_guess(tmp_path: Path) -> No
 
     assert completed.returncode != 0
     assert "DEBUG='maybe' is not a boolean" in completed.stderr
+
+
+# A view that fails, requested once with DEBUG off, as in production.
+FAILING_REQUEST = """
+import django
+django.setup()
+from django.test import Client
+from django.urls import path
+import studyapp.urls
+def failing(request):
+    raise RuntimeError("a deliberate failure")
+studyapp.urls.urlpatterns.append(path("failing/", failing))
+print(Client(raise_request_exception=False).get("/failing/").status_code)
+"""
+
+
+def test_with_debug_off_a_server_error_is_logged_to_stderr(tmp_path: Path) -> None:
+    environment = {k: v for k, v in os.environ.items() if k not in DEPLOYMENT_VARIABLES}
+    environment.update(DJANGO_SETTINGS_MODULE="studyapp.settings", STUDYAPP_VAR_DIR=str(tmp_path), DEBUG="0",
+                       SECRET_KEY="s3cret-for-the-log-test", ALLOWED_HOSTS="testserver")
+    completed = subprocess.run([sys.executable, "-c", FAILING_REQUEST], cwd=REPO_ROOT, env=environment,
+                               capture_output=True, text=True, timeout=60)
+    assert completed.stdout.strip() == "500"
+    assert "RuntimeError: a deliberate failure" in completed.stderr  # not only mailed to ADMINS, who are none
