@@ -7,11 +7,15 @@ implementation measured on this machine with the paper-sized model: 17.9 frames/
 batch 1 and 570 frames/s at batch 64. That code is not part of this repository, so its
 figures are constants here rather than re-measured in each run.
 
-MoGlow samples in both of its precisions: float32 (the default) and bfloat16 (the
-coupling networks' matrix products on the CPU's bf16 units). Targets: the paper preset
+MoGlow samples in float32 (the default) and, on CPUs with bfloat16 units (AVX512-BF16 or
+AMX), also in bfloat16 (the coupling networks' matrix products on those units; elsewhere
+torch emulates bfloat16 far slower, so it is not measured). Targets: the paper preset
 samples faster than real time (20 fps) at batch 1, a 4-second clip for each of 64
 control signals takes under a minute, and ours beats the reference by 2x at both batch
-sizes (each in the faster of the two precisions, named in the output).
+sizes (each in the faster of the two precisions, named in the output). A second
+reference, measured in the same run, is the ceiling of float32 sampling on this machine:
+the coupling networks' matrix products of one frame alone, at the same shapes, with
+nothing else (they are where sampling spends its time, in any implementation).
 
     python benchmarks/bench_models.py [--json] [--threads N] [--models moglow ...]
 """
@@ -30,10 +34,12 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.machine import describe_machine  # noqa: E402
 from generation.models import model_class, preset  # noqa: E402
+from generation.models.moglow import cpu_has_bfloat16_units  # noqa: E402
 from generation.motion.dataset import DatasetOptions, build_dataset  # noqa: E402
 
 REFERENCE_FPS = {1: 17.9, 64: 570.0}  # official MoGlow, paper-sized, this machine
-PRECISIONS = ("float32", "bfloat16")  # MoGlow's; the baselines sample in float32 only
+# MoGlow's precisions worth timing here; the baselines sample in float32 only.
+PRECISIONS = ("float32", "bfloat16") if cpu_has_bfloat16_units() else ("float32",)
 LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right")
 
 
@@ -53,6 +59,35 @@ def sampling_fps(model, control: torch.Tensor, batch: int, precision: str, frame
         best = min(best, time.perf_counter() - start)
     generated = frames - model.context_frames
     return batch * generated / best
+
+
+def coupling_products(model, batch: int) -> list[tuple[torch.Tensor, torch.Tensor]]:
+    """Random (left, right) operands of every matrix product that sampling one frame of
+    ``batch`` sequences makes in MoGlow's coupling networks, at their float32 shapes: per
+    LSTM layer (input, h) @ [W_ih W_hh]ᵀ, then the output layer."""
+    products = []
+    for module in model.modules():
+        if isinstance(module, torch.nn.LSTM):
+            for k in range(module.num_layers):
+                weight = torch.cat([getattr(module, f"weight_ih_l{k}"), getattr(module, f"weight_hh_l{k}")], dim=1)
+                products.append((torch.randn(batch, weight.shape[1]), weight.detach().T))
+        elif isinstance(module, torch.nn.Linear):
+            products.append((torch.randn(batch, module.in_features), module.weight.detach().T))
+    return products
+
+
+def matrix_product_ceiling(model, batch: int, repeats: int = 5) -> tuple[float, float]:
+    """(frames/s, GFLOP/s) of the coupling networks' matrix products alone: what float32
+    sampling could reach on this machine if it did nothing else."""
+    products = coupling_products(model, batch)
+    flops = sum(2 * left.shape[0] * left.shape[1] * right.shape[1] for left, right in products)
+    best = float("inf")
+    for _ in range(repeats + 1):  # the first pass warms up
+        start = time.perf_counter()
+        for left, right in products:
+            torch.mm(left, right)
+        best = min(best, time.perf_counter() - start)
+    return batch / best, flops / best / 1e9
 
 
 def training_steps_per_s(model, pose, control, steps: int = 5) -> float:
@@ -86,9 +121,14 @@ def run(data: str, kinds: tuple[str, ...] = ("moglow", "rnn", "vae")) -> dict:
                    "train_steps_per_s": round(training_steps_per_s(model, pose, control), 2),
                    "train_batch": config.batch_size}
             model.eval()
-            for precision in model.precisions:
+            for precision in (p for p in model.precisions if p in PRECISIONS):
                 for batch in (1, 64):
                     row[f"sample_fps_batch{batch}_{precision}"] = round(sampling_fps(model, control, batch, precision), 1)
+            if kind == "moglow":
+                for batch in (1, 64):
+                    fps, gflops = matrix_product_ceiling(model, batch)
+                    row[f"products_only_fps_batch{batch}"] = round(fps, 1)
+                    row[f"products_gflops_batch{batch}"] = round(gflops, 1)
             rows.append(row)
             print(json.dumps(row), file=sys.stderr, flush=True)
     result = {"benchmark": "model sampling and training speed", "rows": rows, "reference_fps": REFERENCE_FPS}
@@ -132,6 +172,14 @@ def main() -> int:
         for r in result["rows"]:
             print(f"{r['model']:<8}{r['preset']:<8}{r['parameters']:>12,}{r['train_steps_per_s']:>15}"
                   + "".join(f"{r.get(key, '-'):>14}" for key, _ in columns))
+        for r in result["rows"]:
+            if "products_only_fps_batch1" in r:
+                print(f"{r['model']} {r['preset']} float32 vs its coupling networks' matrix products alone "
+                      f"(the ceiling on this machine): " + ", ".join(
+                          f"batch {b}: {r[f'sample_fps_batch{b}_float32']} vs {r[f'products_only_fps_batch{b}']} frames/s "
+                          f"({r[f'products_gflops_batch{b}']} GFLOP/s)" for b in (1, 64)))
+        if "bfloat16" not in PRECISIONS:
+            print("bfloat16 not measured: this CPU has no bfloat16 units (AVX512-BF16 or AMX)")
         for p in PRECISIONS if result["targets"] else ():
             print(f"MoGlow paper in {p} vs official implementation: {result[f'ratio_batch1_{p}']}x at batch 1, "
                   f"{result[f'ratio_batch64_{p}']}x at batch 64")

@@ -10,7 +10,8 @@ clip's page first, as a person watching a clip does). Reported: rating submissio
 second over the whole run (every page of every participant is fetched too), the median
 and 95th-percentile latency of a rating submission (the POST and the redirect to the
 next clip's page, as a participant waits for it), and a check that the database holds
-exactly the ratings that were submitted. The latency target applies to the watching
+exactly the ratings the server accepted (answered with its redirect; a rating whose
+next page then fails is still counted). The latency target applies to the watching
 load: at saturation latency is queueing by construction.
 
 The simulated participants run in this process, on the same 2 cores as the server, so
@@ -222,14 +223,18 @@ def main() -> int:
             print(f"{row['setup']:<32} {row['load']:<14} {row['finished']}/{row['participants']} finished, "
                   f"{row['ratings_submitted']} ratings in {row['seconds']:.1f} s = {row['ratings_per_s']:.0f}/s, "
                   f"median {row['median_ms']:.0f} ms, p95 {row['p95_ms']:.0f} ms, "
-                  f"database holds exactly the submitted ratings: {row['exactly_stored']}")
+                  f"database holds exactly the accepted ratings: {row['exactly_stored']}")
             for error in row["errors"]:
                 print(f"   error: {error}")
             for error in row["server_errors"]:
                 print(f"   server: {error}")
         print(f"gunicorn + PostgreSQL: {result['throughput_ratio']:.2f}x the reference's rating throughput at "
               f"saturation; p95 {watching['p95_ms']:.0f} ms while watching (target {TARGET_P95_S * 1000:.0f} ms)")
-    ok = all(r["exactly_stored"] and not r["errors"] for r in rows) and watching["p95_ms"] / 1000 < TARGET_P95_S
+    # Every setup must store exactly what was accepted; the production one must also serve
+    # every request. The reference's errors (SQLite's lock timeouts at saturation) are reported.
+    production = [r for r in rows if r["setup"].startswith("gunicorn")]
+    ok = (all(r["exactly_stored"] for r in rows) and not any(r["errors"] for r in production)
+          and watching["p95_ms"] / 1000 < TARGET_P95_S)
     return 0 if ok else 1
 
 

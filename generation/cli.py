@@ -198,6 +198,7 @@ def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
 
 def sample_command(args: argparse.Namespace) -> int:
     from .generator import Generator
+    from .models.moglow import cpu_has_bfloat16_units
 
     generator = Generator.load(args.checkpoint, args.device)
     if generator.attributes:
@@ -205,6 +206,9 @@ def sample_command(args: argparse.Namespace) -> int:
     if args.action or args.style:
         raise ValueError(f"--action and --style are for attribute-controlled models; {args.checkpoint} follows a path (--control)")
     controls = _controls(args, generator.fps, generator.meta.features["dataset_options"])
+    if args.precision == "bfloat16" and generator.device.type == "cpu" and not cpu_has_bfloat16_units():
+        print("warning: this CPU has no bfloat16 units (AVX512-BF16 or AMX); torch emulates them, "
+              "so --precision bfloat16 samples far slower than float32 here", file=sys.stderr)
     out = Path(args.out)
     for control in tqdm(controls, desc="sampling", unit="control", disable=len(controls) < 2):
         motions = generator.sample(control, n=args.n, seed=args.seed, temperature=args.temperature,
@@ -367,8 +371,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--temperature", type=float, default=1.0, help="sampling temperature (default %(default)s)")
     p.add_argument("--precision", choices=("float32", "bfloat16"), default="float32",
-                   help="MoGlow's coupling networks in bfloat16: several times faster for large --n on CPUs "
-                        "with AMX, samples close to float32's (default %(default)s)")
+                   help="MoGlow's coupling networks in bfloat16: faster for large --n on CPUs with AMX or "
+                        "AVX512-BF16 (far slower on others), samples close to float32's (default %(default)s)")
     p.add_argument("--seconds", type=float, default=4.0, help="length of held-out control or of attribute-controlled clips (default %(default)s)")
     p.add_argument("--data", help="motion folder for held-out control (default $MOTION_DATA)")
     p.add_argument("--cache-dir", help="dataset cache folder")

@@ -37,10 +37,18 @@ class Outcome:
 
     platform_id: str
     finished: bool = False
-    ratings: int = 0
+    ratings: int = 0  # accepted by the server (answered with the redirect to the next page)
     rating_latencies_s: list[float] = field(default_factory=list)
     final_page: str = ""
     error: str = ""
+
+
+class _KeepRedirects(urllib.request.HTTPRedirectHandler):
+    """Hand a redirect back as an HTTPError instead of following it, so that an accepted
+    rating (the redirect) is counted even when the next page then fails."""
+
+    def redirect_request(self, *args, **kwargs) -> None:
+        return None
 
 
 class SimulatedParticipant:
@@ -54,7 +62,9 @@ class SimulatedParticipant:
         self.rng = rng or random.Random(platform_id)
         self.timeout_s = timeout_s
         self.watch_s = watch_s  # time spent on each clip's page before answering, as a person watches it
-        self.opener = urllib.request.build_opener(urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar()))
+        cookies = urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar())
+        self.opener = urllib.request.build_opener(cookies)
+        self.rating_opener = urllib.request.build_opener(cookies, _KeepRedirects)
 
     def _open(self, url: str, data: dict | None = None) -> tuple[str, str]:
         """(final URL, body) after redirects; a 4xx/5xx raises urllib.error.HTTPError."""
@@ -79,11 +89,24 @@ class SimulatedParticipant:
                         answered_s="0.6", played_until_s="0.45")
         if action.endswith("/rate/"):
             start = time.perf_counter()
-            result = self._open(url, data)
-            self.outcome.rating_latencies_s.append(time.perf_counter() - start)
+            next_page = self._rate(url, data)
             self.outcome.ratings += 1
+            result = self._open(next_page)
+            self.outcome.rating_latencies_s.append(time.perf_counter() - start)
             return result
         return self._open(url, data)
+
+    def _rate(self, url: str, data: dict) -> str:
+        """POST a rating; the URL of the page the server redirects to once it has stored it."""
+        request = urllib.request.Request(url, urllib.parse.urlencode(data).encode())
+        try:
+            with self.rating_opener.open(request, timeout=self.timeout_s) as response:
+                status, headers = response.status, response.headers
+        except urllib.error.HTTPError as answer:
+            if answer.code in (302, 303):
+                return urllib.parse.urljoin(url, answer.headers["Location"])
+            raise
+        raise urllib.error.HTTPError(url, status, "a rating was answered without a redirect", headers, None)
 
     def run(self, max_pages: int = 500) -> Outcome:
         try:

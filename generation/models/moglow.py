@@ -50,6 +50,15 @@ class MoGlowConfig:
 NETWORK_DTYPES = {"float32": None, "bfloat16": torch.bfloat16}
 
 
+def cpu_has_bfloat16_units() -> bool:
+    """Whether this CPU multiplies bfloat16 natively (AVX512-BF16 or AMX).
+
+    Without those units torch emulates bfloat16, and sampling in it is many times slower
+    than in float32.
+    """
+    return torch.ops.mkldnn._is_mkldnn_bf16_supported()
+
+
 class MoGlow(MotionModel):
     kind = "moglow"
     Config = MoGlowConfig
