@@ -34,6 +34,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.machine import describe_machine  # noqa: E402
 from generation.models import model_class, preset  # noqa: E402
+from generation.models.flows import AffineCoupling  # noqa: E402
 from generation.models.moglow import cpu_has_bfloat16_units  # noqa: E402
 from generation.motion.dataset import DatasetOptions, build_dataset  # noqa: E402
 
@@ -61,18 +62,16 @@ def sampling_fps(model, control: torch.Tensor, batch: int, precision: str, frame
     return batch * generated / best
 
 
-def coupling_products(model, batch: int) -> list[tuple[torch.Tensor, torch.Tensor]]:
-    """Random (left, right) operands of every matrix product that sampling one frame of
-    ``batch`` sequences makes in MoGlow's coupling networks, at their float32 shapes: per
-    LSTM layer (input, h) @ [W_ih W_hh]ᵀ, then the output layer."""
+def coupling_products(model, batch: int) -> list[tuple[torch.Tensor, torch.Tensor, torch.Tensor]]:
+    """(bias, left, right) of every matrix product that sampling one frame of ``batch``
+    sequences makes in MoGlow's coupling networks: the float32 sampler's own operands
+    (per LSTM layer, (input, h) @ [W_ih W_hh]ᵀ; then the output layer), with random inputs."""
     products = []
-    for module in model.modules():
-        if isinstance(module, torch.nn.LSTM):
-            for k in range(module.num_layers):
-                weight = torch.cat([getattr(module, f"weight_ih_l{k}"), getattr(module, f"weight_hh_l{k}")], dim=1)
-                products.append((torch.randn(batch, weight.shape[1]), weight.detach().T))
-        elif isinstance(module, torch.nn.Linear):
-            products.append((torch.randn(batch, module.in_features), module.weight.detach().T))
+    for transform in model.flow.transforms:
+        if isinstance(transform, AffineCoupling):
+            frame = transform.frame_inverse()
+            for weight_t, bias in [*frame.layers, frame.out]:
+                products.append((bias, torch.randn(batch, weight_t.shape[0]), weight_t))
     return products
 
 
@@ -81,13 +80,13 @@ def matrix_product_ceiling(model, batch: int, frames: int = 10, repeats: int = 3
     frames in a row, best of ``repeats``: what float32 sampling could reach on this machine
     if it did nothing else."""
     products = coupling_products(model, batch)
-    flops = sum(2 * left.shape[0] * left.shape[1] * right.shape[1] for left, right in products)
+    flops = sum(2 * left.shape[0] * left.shape[1] * right.shape[1] for _, left, right in products)
     best = float("inf")
     for _ in range(repeats + 1):  # the first pass warms up
         start = time.perf_counter()
         for _ in range(frames):
-            for left, right in products:
-                torch.mm(left, right)
+            for bias, left, right in products:
+                torch.addmm(bias, left, right)
         best = min(best, (time.perf_counter() - start) / frames)
     return batch / best, flops / best / 1e9
 

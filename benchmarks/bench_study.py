@@ -212,7 +212,7 @@ def main() -> int:
                                 args.participants, watch_s))
         with throwaway_postgres() as url:
             rows.append(measure("gunicorn + PostgreSQL", url, "gunicorn", args.participants, watch_s))
-    saturated_reference, saturated, _, watching = rows
+    saturated_reference, saturated, _, watching = rows  # the order of the loop above
     result = {"machine": describe_machine(), "rows": rows,
               "throughput_ratio": saturated["ratings_per_s"] / saturated_reference["ratings_per_s"]}
     if args.json:
@@ -232,8 +232,7 @@ def main() -> int:
               f"saturation; p95 {watching['p95_ms']:.0f} ms while watching (target {TARGET_P95_S * 1000:.0f} ms)")
     # Every setup must store exactly what was accepted; the production one must also serve
     # every request. The reference's errors (SQLite's lock timeouts at saturation) are reported.
-    production = [r for r in rows if r["setup"].startswith("gunicorn")]
-    ok = (all(r["exactly_stored"] for r in rows) and not any(r["errors"] for r in production)
+    ok = (all(r["exactly_stored"] for r in rows) and not (saturated["errors"] or watching["errors"])
           and watching["p95_ms"] / 1000 < TARGET_P95_S)
     return 0 if ok else 1
 

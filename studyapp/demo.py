@@ -32,12 +32,12 @@ LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right")
 DEMO_STUDY = "Demo: naturalness of generated locomotion"
 # (system name, model kind, training steps, role, checkpoint). The baselines train in
 # minutes and keep the state with the lowest validation loss ("best"); MoGlow's is the
-# project's own hour of training (README, "Trained on the real data"), committed as
-# COMMITTED_MOGLOW and trained again by the demo only if that file is missing. The BAD
+# project's own hour of training (README, "Trained on the real data"), committed under
+# COMMITTED_MODELS and trained again by the demo only if that file is missing. The BAD
 # system is MoGlow stopped after a few steps, whose motion is visibly broken.
-DEMO_MODELS = (("MoGlow", "moglow", 4000, "model", "last"), ("RNN", "rnn", 400, "model", "best"),
+DEMO_MODELS = (("MoGlow", "moglow", 4000, "model", "committed"), ("RNN", "rnn", 400, "model", "best"),
                ("VAE", "vae", 1000, "model", "best"), ("BAD", "moglow", 15, "bad", "last"))
-COMMITTED_MOGLOW = REPO / "models" / "moglow-cpu.safetensors"
+COMMITTED_MODELS = REPO / "models"
 HELD_OUT_CONTROLS, CONTROL_SECONDS = 4, 6.0
 SYNTHETIC_CONTROLS = ("walk-circle", "walk-backward", "stand-still", "sidestep-left")
 
@@ -85,8 +85,11 @@ def render_gallery(data: Path, media_root: Path) -> int:
 
 
 def model_path(models: Path, kind: str, steps: int, which: str) -> Path:
-    if (kind, steps) == ("moglow", 4000) and COMMITTED_MOGLOW.is_file():
-        return COMMITTED_MOGLOW
+    """A demo model's checkpoint: the project's committed one where ``which`` asks for it
+    and it is there, else the last or best state of the demo's own training run."""
+    committed = COMMITTED_MODELS / f"{kind}-cpu.safetensors"
+    if which == "committed" and committed.is_file():
+        return committed
     return models / f"{kind}-cpu-{steps}steps{'.best' if which == 'best' else ''}.safetensors"
 
 
