@@ -212,7 +212,7 @@ def sample_command(args: argparse.Namespace) -> int:
     out = Path(args.out)
     for control in tqdm(controls, desc="sampling", unit="control", disable=len(controls) < 2):
         motions = generator.sample(control, n=args.n, seed=args.seed, temperature=args.temperature,
-                                   precision=args.precision)
+                                   warmup_seconds=args.warmup_seconds, precision=args.precision)
         path = control.path()
         for i, motion in enumerate(motions):
             stem = f"{control.name}_{i:02d}"
@@ -370,6 +370,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--n", type=int, default=1, help="samples per control (default %(default)s)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--temperature", type=float, default=1.0, help="sampling temperature (default %(default)s)")
+    p.add_argument("--warmup-seconds", type=float,
+                   help="path models: motion generated before the kept clip and discarded, holding the first "
+                        "control frame (default: 1 s for MoGlow, as in its paper; 0 for the baselines)")
     p.add_argument("--precision", choices=("float32", "bfloat16"), default="float32",
                    help="MoGlow's coupling networks in bfloat16: faster for large --n on CPUs with AMX or "
                         "AVX512-BF16 (far slower on others), samples close to float32's (default %(default)s)")

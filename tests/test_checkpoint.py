@@ -184,6 +184,20 @@ def test_sample_command_writes_npz_bvh_and_video_per_clip(checkpoint, tmp_path, 
         np.testing.assert_allclose(load_motion(out / "turn-0_01.bvh").positions, clip["positions"], atol=1e-4)
 
 
+def test_sample_command_warmup_seconds_changes_what_precedes_the_kept_clip(checkpoint, tmp_path, capsys):
+    from generation.cli import main
+
+    def sampled(*extra: str) -> np.ndarray:
+        out = tmp_path / "-".join(extra or ("default",))
+        assert main(["sample", str(checkpoint), "-c", "walk-straight", "--out", str(out), *extra]) == 0, capsys.readouterr().err
+        with np.load(out / "walk-straight_00.npz") as clip:
+            return clip["positions"]
+
+    default, one_second, none = sampled(), sampled("--warmup-seconds", "1"), sampled("--warmup-seconds", "0")
+    np.testing.assert_array_equal(default, one_second)  # MoGlow's default is the paper's one second
+    assert none.shape == default.shape and not np.allclose(none, default)
+
+
 def test_evaluate_command_reports_held_out_nll(checkpoint, clips_folder, dataset, tmp_path, capsys):
     from generation.cli import main
 
