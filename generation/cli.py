@@ -162,6 +162,8 @@ def train_command(args: argparse.Namespace) -> int:
     for option in ("classifiers", "denoiser"):
         if getattr(args, option) and not attributes:
             raise ValueError(f"--{option} is for attribute-controlled models, not {args.model}")
+    if args.rotation_output and args.model != "hvrnn":
+        raise ValueError(f"--rotation-output is for HVRNN, not {args.model}")
     dataset = _dataset_for_training(args, attributes)
     if args.denoiser:  # HVRNN Sec. 3.1: the training data is cleaned before the model learns from it
         from .hvrnn.denoiser import Denoiser, denoise_training_data
@@ -172,8 +174,9 @@ def train_command(args: argparse.Namespace) -> int:
                              f"this data has {dataset.feature_dim}")
         dataset = denoise_training_data(dataset, denoiser)
     options = TrainOptions(steps=args.steps, eval_every=args.eval_every, seed=args.seed, device=args.device)
-    overrides = {"classifiers": args.classifiers} if args.classifiers else None
-    meta = train(args.model, args.preset, dataset, args.out, options, resume=args.resume, overrides=overrides)
+    overrides = {name: value for name, value in (("classifiers", args.classifiers),
+                                                 ("rotation_output", args.rotation_output)) if value}
+    meta = train(args.model, args.preset, dataset, args.out, options, resume=args.resume, overrides=overrides or None)
     last = meta.metrics["history"][-1]
     print(f"{args.out}: step {meta.step}, held-out loss {last['val_loss']:.4f}, "
           f"training loss {last['train_loss']:.4f}, {last['seconds']:.0f} s of training")
@@ -343,6 +346,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--model", "--kind", choices=("moglow", "rnn", "vae", "hvrnn", "erd", "quaternet"), default="moglow", help="model kind (default %(default)s)")
     p.add_argument("--preset", default="cpu", help="configuration preset: cpu, paper, or with an ablation such as cpu-MG-D or cpu-SL (default %(default)s)")
     p.add_argument("--classifiers", help="attribute classifiers' file for HVRNN's classifier loss")
+    p.add_argument("--rotation-output", help="HVRNN: what its decoder outputs per joint: quaternion (default), matrix "
+                                             "(6-D, Gram-Schmidt) or axis_angle (a rotation vector)")
     p.add_argument("--denoiser", help="attribute models: a denoiser (hvrnn-denoiser) that cleans the training "
                                       "takes first, as HVRNN's paper does; the checkpoint's data fingerprint records it")
     p.add_argument("--out", "-o", required=True, help="checkpoint path (.safetensors)")

@@ -9,7 +9,7 @@ import torch
 from scipy.spatial.transform import Rotation
 
 from generation.hvrnn.rotation_losses import (
-    gram_schmidt, hierarchical_distance, joint_weights, kl_diagonal_gaussians, matrix_to_quaternion, matrix_validity,
+    axis_angle_to_quaternion, gram_schmidt, hierarchical_distance, joint_weights, kl_diagonal_gaussians, matrix_to_quaternion, matrix_validity,
     normalize_quaternion, quaternion_distance, quaternion_to_matrix, quaternion_validity, rotation_matrix_distance,
 )
 
@@ -63,6 +63,20 @@ def test_quaternion_matrix_conversions_match_scipy_both_ways():
     # Near-180° rotations, where the w-based formula alone breaks down.
     flips = Rotation.from_rotvec(np.pi * np.eye(3) * 0.999999)
     assert quaternion_distance(matrix_to_quaternion(torch.as_tensor(flips.as_matrix())), wxyz(flips), "d2").max() < 1e-12
+
+
+def test_axis_angle_to_quaternion_matches_scipy_and_has_a_finite_gradient_at_zero():
+    rotations = random_rotations(200, 3)
+    vectors = torch.as_tensor(rotations.as_rotvec())
+    vectors[:3] *= torch.tensor([0.0, 1e-5, 1e-3])[:, None]  # zero and tiny rotations too
+    expected = wxyz(Rotation.from_rotvec(vectors.numpy()))
+    got = axis_angle_to_quaternion(vectors)
+    # Same rotation, either sign.
+    np.testing.assert_allclose(quaternion_distance(got, expected, "d2").numpy(), 0, atol=1e-12)
+    np.testing.assert_allclose(got.norm(dim=-1).numpy(), 1, atol=1e-12)
+    zero = torch.zeros(1, 3, dtype=torch.float64, requires_grad=True)
+    axis_angle_to_quaternion(zero).sum().backward()
+    assert torch.isfinite(zero.grad).all()
 
 
 def test_gram_schmidt_gives_orthonormal_matrices_with_determinant_one():

@@ -46,9 +46,10 @@ def batches(data, frames: int = 60):
     return {"pose": features, "mask": mask, "action": action, "style": style}
 
 
-def test_loss_falls_on_real_data(data):
+@pytest.mark.parametrize("output", ["quaternion", "axis_angle"])
+def test_loss_falls_on_real_data(data, output):
     torch.set_num_threads(1)
-    model = build(data)
+    model = build(data, rotation_output=output)
     batch = batches(data)
     optimizer = torch.optim.Adam(model.parameters(), lr=3e-3)
     generator = torch.Generator().manual_seed(0)
@@ -163,7 +164,7 @@ def test_classifier_loss_needs_the_classifiers_file(data):
         build(data, classifier_weight=0.1)
 
 
-@pytest.mark.parametrize("output", ["quaternion", "matrix"])
+@pytest.mark.parametrize("output", ["quaternion", "matrix", "axis_angle"])
 def test_generated_rotations_are_unit_quaternions(data, output):
     model = build(data, rotation_output=output).eval()
     action, style = torch.tensor([0, 3]), torch.tensor([1, 2])
@@ -211,3 +212,23 @@ def test_unknown_labels_and_path_control_are_refused_by_name(checkpoint, data):
         generator.sample(preset_path("walk-straight", data.fps))
     with pytest.raises(ValueError, match="trained at 30 fps"):
         generator.sample(AttributeControl("walk", "happy", 30, 20.0))
+
+
+def test_train_command_chooses_the_rotation_output(motion_data, pytestconfig, tmp_path, capsys):
+    from generation.checkpoint import read_meta
+    from generation.cli import main
+
+    cache = str(pytestconfig.cache.mkdir("motion-dataset"))
+    common = [str(motion_data), "--cache-dir", cache, "--steps", "1", "--eval-every", "1", "--threads", "1",
+              "--preset", "cpu-NC"]  # NC: no classifier loss, so no classifiers' file
+    out = tmp_path / "hvrnn.safetensors"
+    assert main(["train", *common, "--model", "hvrnn", "--rotation-output", "axis_angle", "--out", str(out)]) == 0
+    assert read_meta(out).hyperparameters["rotation_output"] == "axis_angle"
+    capsys.readouterr()
+    assert main(["train", *common, "--model", "hvrnn", "--rotation-output", "euler",
+                 "--out", str(tmp_path / "bad.safetensors")]) == 2
+    assert "rotation_output must be one of" in capsys.readouterr().err
+    assert main(["train", *common, "--model", "rnn", "--rotation-output", "matrix",
+                 "--out", str(tmp_path / "rnn.safetensors")]) == 2
+    assert "--rotation-output is for HVRNN" in capsys.readouterr().err
+    assert not (tmp_path / "bad.safetensors").exists() and not (tmp_path / "rnn.safetensors").exists()

@@ -14,8 +14,9 @@ words with control features a = f_c(c) of the one-hot action and style c:
 
 h_0 is drawn from a learned Gaussian of the (action, style) pair
 (``initial_state.LabelledInitialState``). Output normalisation
-makes every joint rotation valid: quaternions are scaled to unit length, or 6-D outputs
-become matrices by Gram–Schmidt. Root values (velocities, height, pitch, roll) are
+makes every joint rotation valid: quaternions are scaled to unit length, 6-D outputs
+become matrices by Gram–Schmidt, or rotation vectors (axis-angle, valid as they are)
+become quaternions. Root values (velocities, height, pitch, roll) are
 standardised, quaternions are not (``standardization = "root"``).
 
 The loss (Sec. 3.5) per frame is the hierarchical geodesic distance Σ_k α_k d(q̂_k, q_k)
@@ -47,10 +48,13 @@ from ..models.attribute import AttributeModel
 from .data import ROOT_DIMS
 from .initial_state import LabelledInitialState
 from .rotation_losses import (
-    QUATERNION_DISTANCES, align_quaternions, gram_schmidt, hierarchical_distance, joint_weights, kl_diagonal_gaussians,
-    masked_mean, matrix_to_quaternion, matrix_validity, normalize_quaternion, quaternion_distance, quaternion_to_matrix,
-    quaternion_validity,
+    QUATERNION_DISTANCES, align_quaternions, axis_angle_to_quaternion, gram_schmidt, hierarchical_distance, joint_weights,
+    kl_diagonal_gaussians, masked_mean, matrix_to_quaternion, matrix_validity, normalize_quaternion, quaternion_distance,
+    quaternion_to_matrix, quaternion_validity,
 )
+
+# Numbers a decoded frame carries per joint for each rotation output.
+ROTATION_OUTPUT_SIZES = {"quaternion": 4, "matrix": 6, "axis_angle": 3}
 
 
 
@@ -67,7 +71,9 @@ class HVRNNConfig:
     state_dim: int = 512  # units of each GRU cell of f_h
     state_layers: int = 2
     control_features: int = 8  # a = f_c(c)
-    rotation_output: str = "quaternion"  # or "matrix": 6-D per joint made a rotation by Gram–Schmidt
+    # "quaternion", "matrix" (6-D per joint made a rotation by Gram–Schmidt) or
+    # "axis_angle" (a rotation vector per joint, valid as it is)
+    rotation_output: str = "quaternion"
     distance: str = "d2"  # quaternion distance d1, d2 or d3 (matrices always use the SO(3) angle)
     word_codec: bool = True  # False (ablation SL): words are the raw poses, no f_enc^w / f_dec^w
     hierarchical: bool = True  # False (ablation NL): every α_k = 1
@@ -122,8 +128,8 @@ class HVRNN(AttributeModel):
 
     def __init__(self, config: HVRNNConfig, pose_dim: int, control_dim: int) -> None:
         super().__init__(config, pose_dim, control_dim)
-        if config.rotation_output not in ("quaternion", "matrix"):
-            raise ValueError(f"rotation_output must be 'quaternion' or 'matrix', not {config.rotation_output!r}")
+        if config.rotation_output not in ROTATION_OUTPUT_SIZES:
+            raise ValueError(f"rotation_output must be one of {tuple(ROTATION_OUTPUT_SIZES)}, not {config.rotation_output!r}")
         if config.distance not in QUATERNION_DISTANCES:
             raise ValueError(f"distance must be one of {QUATERNION_DISTANCES}, not {config.distance!r}")
         if (pose_dim - ROOT_DIMS) % 4 or pose_dim <= ROOT_DIMS:
@@ -132,7 +138,7 @@ class HVRNN(AttributeModel):
             raise ValueError(f"word_length must be at least 1, not {config.word_length}")
         self.joints = (pose_dim - ROOT_DIMS) // 4
         c, l = config, config.word_length
-        per_joint = 4 if c.rotation_output == "quaternion" else 6
+        per_joint = ROTATION_OUTPUT_SIZES[c.rotation_output]
         self.raw_dim = ROOT_DIMS + self.joints * per_joint  # one decoded frame before normalisation
         word_dim = c.word_dim if c.word_codec else l * pose_dim
         decoded_word = c.word_dim if c.word_codec else l * self.raw_dim
@@ -247,6 +253,9 @@ class HVRNN(AttributeModel):
         if self.config.rotation_output == "quaternion":
             rotations = normalize_quaternion(joints.unflatten(-1, (self.joints, 4)))
             quats = rotations
+        elif self.config.rotation_output == "axis_angle":
+            rotations = axis_angle_to_quaternion(joints.unflatten(-1, (self.joints, 3)))
+            quats = rotations
         else:
             rotations = gram_schmidt(joints.unflatten(-1, (self.joints, 6)))
             quats = matrix_to_quaternion(rotations)
@@ -257,6 +266,8 @@ class HVRNN(AttributeModel):
         joints = raw[..., ROOT_DIMS:]
         if self.config.rotation_output == "quaternion":
             return quaternion_validity(joints.unflatten(-1, (self.joints, 4))).sum(-1)
+        if self.config.rotation_output == "axis_angle":  # every rotation vector is a rotation
+            return joints.new_zeros(joints.shape[:-1])
         return matrix_validity(joints.unflatten(-1, (self.joints, 6))).sum(-1)
 
     def initial_state(self, action: torch.Tensor, style: torch.Tensor, temperature: float,
@@ -372,7 +383,7 @@ class HVRNN(AttributeModel):
         c = self.config
         _, rotations = self.normalise(raw)
         target_quats = target[..., ROOT_DIMS:].unflatten(-1, (self.joints, 4))
-        if c.rotation_output == "quaternion":
+        if c.rotation_output != "matrix":  # quaternion and axis-angle outputs are compared as quaternions
             angular = hierarchical_distance(rotations, normalize_quaternion(target_quats), self.alpha, c.distance)
         else:
             angular = hierarchical_distance(rotations, quaternion_to_matrix(normalize_quaternion(target_quats)), self.alpha, "so3")

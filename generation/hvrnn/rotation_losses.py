@@ -96,6 +96,16 @@ def matrix_to_quaternion(r: torch.Tensor) -> torch.Tensor:
     return normalize_quaternion(chosen)
 
 
+def axis_angle_to_quaternion(v: torch.Tensor) -> torch.Tensor:
+    """Unit quaternions (..., 4) of rotation vectors (..., 3): the angle ‖v‖ about v/‖v‖.
+    Every vector is a valid rotation, so axis-angle outputs need no normalisation."""
+    angle = (v * v).sum(-1, keepdim=True).clamp_min(1e-12).sqrt()
+    half = 0.5 * angle
+    # sin(θ/2)/θ by its series near 0, where the quotient loses precision.
+    scale = torch.where(angle < 1e-3, 0.5 - angle**2 / 48, torch.sin(half) / angle)
+    return torch.cat([torch.cos(half), v * scale], dim=-1)
+
+
 def quaternion_validity(raw: torch.Tensor) -> torch.Tensor:
     """(‖q‖ − 1)² of unnormalised network outputs (..., 4): zero for valid rotations."""
     return (raw.norm(dim=-1) - 1.0) ** 2
