@@ -4,6 +4,7 @@
   hvrnn-denoiser FOLDER     train the denoising autoencoder on the training takes
   hvrnn-eval FOLDER         classifier outputs of held-out, real and generated sequences
                             (then ``python -m analysis hvrnn-scores`` for Table 2 and Fig. 4)
+  hvrnn-label FOLDER        the action and style the classifiers see in each clip (a CSV)
 
 They live outside ``generation.hvrnn``, whose package imports the model registry (and
 so torch); torch-backed modules are imported inside the commands, so ``--help`` starts
@@ -41,6 +42,18 @@ def add_commands(commands) -> None:
     p.add_argument("--temperature", type=float, default=1.0)
     p.add_argument("--out", "-o", required=True, help="output file (.npz)")
     p.set_defaults(run=eval_command)
+
+    p = commands.add_parser("hvrnn-label", help="label clips with the attribute classifiers",
+                            description="Write the action and style the attribute classifiers see in every clip of a "
+                                        "BVH folder (labelled or not; side-file labels are listed beside them) to a "
+                                        "CSV, as HVRNN labels unlabelled data. The clips must share the skeleton "
+                                        "the classifiers were trained on.")
+    p.add_argument("folder", help="folder of .bvh files")
+    p.add_argument("--classifiers", required=True, help="attribute classifiers' file (hvrnn-classifiers)")
+    p.add_argument("--cache-dir", help="dataset cache folder")
+    p.add_argument("--threads", type=int, help="CPU threads for torch")
+    p.add_argument("--out", "-o", required=True, help="output file (.csv)")
+    p.set_defaults(run=label_command)
 
 
 def _training_parser(commands, name: str, run, help: str, description: str) -> argparse.ArgumentParser:
@@ -124,4 +137,35 @@ def eval_command(args: argparse.Namespace) -> int:
     save_outputs(args.out, outputs, data)
     sizes = ', '.join(f"{name} ({len(values['action'])})" for name, values in outputs.items())
     print(f"wrote {args.out}: sets {sizes}")
+    return 0
+
+
+def label_command(args: argparse.Namespace) -> int:
+    import csv
+    import io
+
+    import torch
+
+    from .files import write_atomic
+    from .hvrnn.classifiers import AttributeClassifiers
+    from .hvrnn.data import dataset_options
+    from .hvrnn.labelling import label_clips
+    from .motion.dataset import build_dataset
+
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    classifiers = AttributeClassifiers.load(args.classifiers)
+    rows = label_clips(classifiers, build_dataset(args.folder, dataset_options(), cache_dir=args.cache_dir))
+    table = io.StringIO()
+    writer = csv.DictWriter(table, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    write_atomic(args.out, table.getvalue().encode())
+    labelled = [r for r in rows if r["content"] and r["style"]]
+    print(f"wrote {args.out}: {len(rows)} clips, {len(rows) - len(labelled)} without labels")
+    if labelled:
+        agree = {kind: sum(r[f"predicted_{kind}"] == r[label] for r in labelled) / len(labelled)
+                 for kind, label in (("action", "content"), ("style", "style"))}
+        print(f"on the {len(labelled)} clips with labels the classifiers agree on the action in {agree['action']:.0%} "
+              f"and the style in {agree['style']:.0%} (clips they were trained on included)")
     return 0

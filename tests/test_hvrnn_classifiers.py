@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
@@ -74,3 +76,36 @@ def test_saved_classifiers_load_identically_and_bad_files_are_refused(data, trai
     damaged.write_bytes(path.read_bytes()[:-8] + b"\x00" * 8)
     with pytest.raises(CheckpointError, match="digest"):
         AttributeClassifiers.load(damaged)
+
+
+def test_labelling_names_the_held_out_clips_well_above_chance_and_ignores_side_files(
+        data, trained, motion_data, pytestconfig, tmp_path, capsys):
+    import csv
+    import shutil
+
+    from generation.cli import main
+    from generation.hvrnn.labelling import label_clips
+
+    classifiers, _ = trained
+    rows = {r["clip"]: r for r in label_clips(classifiers, data.dataset)}
+    held_out = data.clips("test")
+    for kind, label in (("action", "content"), ("style", "style")):
+        right = np.mean([rows[c.name][f"predicted_{kind}"] == getattr(c, label) for c in held_out])
+        assert right > 4 / len(classifiers.vocabularies[kind].names), (kind, right)
+    # The same clips without their label files: labelled alike, with empty given labels.
+    unlabelled = tmp_path / "unlabelled"
+    unlabelled.mkdir()
+    for clip in held_out[:3]:
+        shutil.copy(Path(motion_data) / "data" / f"{clip.name}.bvh", unlabelled)
+    path = classifiers.save(tmp_path / "classifiers.safetensors", data.dataset.fingerprint, {})
+    out = tmp_path / "labels.csv"
+    assert main(["hvrnn-label", str(unlabelled), "--classifiers", str(path), "--out", str(out),
+                 "--cache-dir", str(tmp_path / "cache")]) == 0, capsys.readouterr().err
+    assert "3 clips, 3 without labels" in capsys.readouterr().out
+    with out.open() as f:
+        written = list(csv.DictReader(f))
+    assert [r["clip"] for r in written] == sorted(c.name for c in held_out[:3])
+    for r in written:
+        assert r["content"] == r["style"] == ""
+        for key in ("predicted_action", "predicted_style"):
+            assert r[key] == rows[r["clip"]][key]

@@ -72,6 +72,17 @@ class SequenceSet:
     style: np.ndarray  # (n,) int64 indices into the style vocabulary
     takes: tuple[str, ...]  # the take each sequence was cut from
 
+    @classmethod
+    def from_pieces(cls, pieces: list[np.ndarray], action: list[int], style: list[int], takes: list[str],
+                    max_frames: int = MAX_FRAMES) -> "SequenceSet":
+        """Sequences of at most ``max_frames`` frames each (frames, dims), zero-padded and masked."""
+        features = np.zeros((len(pieces), max_frames, pieces[0].shape[-1]), dtype=np.float32)
+        mask = np.zeros((len(pieces), max_frames), dtype=bool)
+        for i, piece in enumerate(pieces):
+            features[i, : len(piece)] = piece
+            mask[i, : len(piece)] = True
+        return cls(features, mask, np.asarray(action, dtype=np.int64), np.asarray(style, dtype=np.int64), tuple(takes))
+
     def __len__(self) -> int:
         return len(self.features)
 
@@ -199,12 +210,7 @@ class AttributeData:
                 takes.append(clip.take)
                 actions.append(action)
                 styles.append(style)
-        features = np.zeros((len(pieces), max_frames, self.feature_dim), dtype=np.float32)
-        mask = np.zeros((len(pieces), max_frames), dtype=bool)
-        for i, piece in enumerate(pieces):
-            features[i, : len(piece)] = piece
-            mask[i, : len(piece)] = True
-        return SequenceSet(features, mask, np.asarray(actions, dtype=np.int64), np.asarray(styles, dtype=np.int64), tuple(takes))
+        return SequenceSet.from_pieces(pieces, actions, styles, takes, max_frames)
 
     def quaternion_reference(self) -> np.ndarray:
         """Per joint, the sign-free average rotation of the training frames (joints, 4).
