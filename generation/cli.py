@@ -143,7 +143,8 @@ def _dataset_for_training(args: argparse.Namespace, attributes: bool):
 
         contents = tuple(args.contents.split(",")) if args.contents else None
         return load_attribute_data(args.folder, contents, cache_dir=args.cache_dir)
-    options = DatasetOptions(contents=tuple((args.contents or LOCOMOTION).split(",")), reverse=args.reverse)
+    options = DatasetOptions(contents=tuple((args.contents or LOCOMOTION).split(",")), reverse=args.reverse,
+                             overlap=args.overlap)
     return build_dataset(args.folder, options, cache_dir=args.cache_dir)
 
 
@@ -253,8 +254,7 @@ def natural_command(args: argparse.Namespace) -> int:
     options = DatasetOptions(contents=tuple(args.contents.split(",")) if args.contents else None)
     dataset = build_dataset(args.folder, options, cache_dir=args.cache_dir)
     clips = dataset.select(args.split, augmented=False)
-    folder = Path(args.folder)
-    files = {p.stem: p for p in find_bvh_files(folder)}
+    files = {p.stem: p for p in find_bvh_files(args.folder)}
     out = Path(args.out)
     for clip in tqdm(clips, desc="natural clips", unit="clip", disable=len(clips) < 2):
         motion = load_body_motion(files[clip.name], options.fps, args.seconds, options.scale, options.root)
@@ -303,7 +303,7 @@ def parser() -> argparse.ArgumentParser:
                             description="Read every BVH file (and its JSON labels) in FOLDER, resample, augment the "
                                         "training takes, encode MoGlow and joint-angle features, split by take, and "
                                         "cache the result under a fingerprint of the inputs and options.")
-    p.add_argument("folder", help="folder of .bvh files (or with a data/ subfolder of them)")
+    p.add_argument("folder", nargs="+", help="folder of .bvh files (or with a data/ subfolder of them); several are pooled")
     p.add_argument("--out", help="also save the dataset to this .npz")
     p.add_argument("--cache-dir", help="where cached datasets live (default $MOTION_CACHE_DIR or var/cache)")
     p.add_argument("--fps", type=float, default=20.0, help="frame rate to resample to (default %(default)s)")
@@ -342,7 +342,7 @@ def parser() -> argparse.ArgumentParser:
                             description="Train a model on the locomotion clips of FOLDER (held-out takes for "
                                         "validation). Writes CHECKPOINT (safetensors + JSON header) at every evaluation; "
                                         "--resume continues from it.")
-    p.add_argument("folder", help="folder of .bvh files")
+    p.add_argument("folder", nargs="+", help="folder of .bvh files; several are pooled (clip names must differ)")
     p.add_argument("--model", "--kind", choices=("moglow", "rnn", "vae", "hvrnn", "erd", "quaternet"), default="moglow", help="model kind (default %(default)s)")
     p.add_argument("--preset", default="cpu", help="configuration preset: cpu, paper, or with an ablation such as cpu-MG-D or cpu-SL (default %(default)s)")
     p.add_argument("--classifiers", help="attribute classifiers' file for HVRNN's classifier loss")
@@ -357,6 +357,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--contents", help="content labels to train on (default: locomotion for path models, all for attribute models)")
     p.add_argument("--reverse", action="store_true", help="path models: also train on the training takes played backwards "
                    "(as the MoGlow authors' locomotion set-up does; held-out takes are never augmented)")
+    p.add_argument("--overlap", type=float, default=0.5, help="path models: overlap of consecutive 4-s training "
+                   "windows; short takes give more windows with more overlap (default %(default)s)")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu", help="cpu or cuda (default %(default)s)")
     p.add_argument("--threads", type=int, help="CPU threads for torch")
@@ -382,7 +384,7 @@ def parser() -> argparse.ArgumentParser:
                    help="MoGlow's coupling networks in bfloat16: faster for large --n on CPUs with AMX or "
                         "AVX512-BF16 (far slower on others), samples close to float32's (default %(default)s)")
     p.add_argument("--seconds", type=float, default=4.0, help="length of held-out control or of attribute-controlled clips (default %(default)s)")
-    p.add_argument("--data", help="motion folder for held-out control (default $MOTION_DATA)")
+    p.add_argument("--data", nargs="+", help="motion folder(s) for held-out control (default $MOTION_DATA)")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu")
     p.add_argument("--render", action="store_true", help="also render each clip to MP4")
@@ -393,7 +395,7 @@ def parser() -> argparse.ArgumentParser:
                             description="Write the natural clips of a dataset split as npz (and optionally MP4), "
                                         "processed exactly as the models' training data: the NAT system of a study "
                                         "or of the objective metrics.")
-    p.add_argument("folder", help="folder of .bvh files")
+    p.add_argument("folder", nargs="+", help="folder of .bvh files; several are pooled (clip names must differ)")
     p.add_argument("--out", "-o", required=True, help="output folder")
     p.add_argument("--split", choices=("test", "train"), default="test", help="which takes (default: held-out)")
     p.add_argument("--contents", default=LOCOMOTION, help="content labels (default: locomotion)")
@@ -405,7 +407,7 @@ def parser() -> argparse.ArgumentParser:
 
     p = commands.add_parser("evaluate", help="held-out loss of a checkpoint")
     p.add_argument("checkpoint")
-    p.add_argument("--data", help="motion folder (default $MOTION_DATA)")
+    p.add_argument("--data", nargs="+", help="motion folder(s) (default $MOTION_DATA)")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu")
     p.set_defaults(run=evaluate_command)

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
 import pytest
 
-from generation.motion.dataset import DatasetOptions, MotionDataset, build_dataset, split_takes
+from generation.motion.dataset import DatasetOptions, MotionDataset, build_dataset, find_bvh_files, split_takes
 
 CLIPS = [f"{c}_{s}_001" for c in ("walk", "walk-left", "run") for s in ("normal", "happy", "old")] + ["walk_normal_002"]
 
@@ -95,3 +96,29 @@ def test_split_holds_out_a_fraction_of_each_content_reproducibly():
 def test_unknown_content_filter_is_a_clear_error(small_folder, tmp_path):
     with pytest.raises(ValueError, match="no clips .* have content in"):
         build_dataset(small_folder, DatasetOptions(contents=("swim",)), cache_dir=tmp_path, progress=False)
+
+
+def test_several_folders_pool_their_clips_and_labels(small_folder, tmp_path):
+    other = tmp_path / "other"
+    (other / "cfg").mkdir(parents=True)
+    (other / "cfg" / "content_label.txt").write_text("lab-2_walk\nlab-2_run\n")
+    (other / "cfg" / "style_label.txt").write_text("lab-2_calm\nlab-2_brisk\n")
+    source = next((small_folder / "data").glob("*.bvh"))
+    (other / "lab-2_take.bvh").write_bytes(source.read_bytes())
+    (other / "lab-2_take.json").write_text('{"content": 1, "style": 0}')
+
+    files = find_bvh_files([small_folder, other])
+    assert files[-1].name == "lab-2_take.bvh" and len(files) == len(CLIPS) + 1
+    assert find_bvh_files(f"{small_folder}{os.pathsep}{other}") == files
+    dataset = build_dataset([small_folder, other], DatasetOptions(holdout_fraction=0.0, validation_fraction=0.0),
+                            cache_dir=tmp_path / "cache", progress=False)
+    assert {(c.name, c.content, c.style) for c in dataset.clips if c.name == "lab-2_take"} == {("lab-2_take", "run", "calm")}
+
+
+def test_pooled_folders_with_the_same_clip_name_are_refused(small_folder, tmp_path):
+    other = tmp_path / "copy"
+    other.mkdir()
+    source = next((small_folder / "data").glob("*.bvh"))
+    (other / source.name).write_bytes(source.read_bytes())
+    with pytest.raises(ValueError, match="also in"):
+        find_bvh_files([small_folder, other])

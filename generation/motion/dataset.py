@@ -19,6 +19,7 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 from tqdm import tqdm
@@ -203,9 +204,34 @@ class MotionDataset:
         )
 
 
-def find_bvh_files(folder: str | os.PathLike) -> list[Path]:
-    """BVH files in ``folder`` or its ``data/`` subfolder, sorted by name."""
-    folder = Path(folder)
+def motion_folders(folders: str | os.PathLike | Sequence[str | os.PathLike]) -> list[Path]:
+    """One folder, or several (a sequence, or one string joined with ``os.pathsep`` as
+    in ``MOTION_DATA=/data/a:/data/b``), as a list of paths."""
+    if isinstance(folders, (str, os.PathLike)):
+        folders = [part for part in str(folders).split(os.pathsep) if part]
+    result = [Path(folder) for folder in folders]
+    if not result:
+        raise FileNotFoundError("no motion folder given")
+    return result
+
+
+def find_bvh_files(folders: str | os.PathLike | Sequence[str | os.PathLike]) -> list[Path]:
+    """BVH files in each folder or its ``data/`` subfolder, sorted by name within each
+    folder. Several folders pool their clips; their file names must differ, because a
+    file's stem names its take."""
+    files: list[Path] = []
+    for folder in motion_folders(folders):
+        files += _bvh_files_in(folder)
+    stems: dict[str, Path] = {}
+    for path in files:
+        if path.stem in stems:
+            raise ValueError(f"{path}: a clip named {path.stem!r} is also in {stems[path.stem].parent}; "
+                             "clips of pooled folders need different names")
+        stems[path.stem] = path
+    return files
+
+
+def _bvh_files_in(folder: Path) -> list[Path]:
     if not folder.is_dir():
         raise FileNotFoundError(f"motion folder {folder} does not exist")
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".bvh")
@@ -289,18 +315,20 @@ def default_cache_dir() -> Path:
 
 
 def build_dataset(
-    folder: str | os.PathLike,
+    folder: str | os.PathLike | Sequence[str | os.PathLike],
     options: DatasetOptions = DatasetOptions(),
     cache_dir: str | os.PathLike | None = None,
     progress: bool = True,
 ) -> MotionDataset:
-    """Read, encode and split every BVH clip in ``folder``; reuse the cache when valid."""
+    """Read, encode and split every BVH clip in ``folder`` (or several folders, pooled);
+    reuse the cache when valid."""
     files = find_bvh_files(folder)
     labels = {f: read_labels(f) for f in files}
     if options.contents is not None:
         files = [f for f in files if labels[f][0] in options.contents]
         if not files:
-            raise ValueError(f"no clips in {folder} have content in {list(options.contents)}")
+            folders = ", ".join(str(f) for f in motion_folders(folder))
+            raise ValueError(f"no clips in {folders} have content in {list(options.contents)}")
     key = fingerprint(files, options)
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     cached = cache / f"dataset-{key[:20]}.npz"
