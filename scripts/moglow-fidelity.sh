@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# MoGlow's objective evaluation (Table 3 and Fig. 5 of its paper) on the locomotion of
+# both Bandai-Namco datasets, from BVH files to the tables, one resumable step after another:
+#   MoGlow (`cpu`), its MG-D ablation, and the RNN and VAE baselines, trained on the same
+#   windows with the same split by take; the held-out natural takes (NAT); samples of every
+#   model for the held-out takes' control and for synthetic controls; `analysis objective`.
+#
+#   scripts/moglow-fidelity.sh [OUT]        (default var/fidelity)
+#
+# Read from the environment: DATA (motion folders joined with ':', default both
+# Bandai-Namco folders beside the project), MOGLOW_STEPS (default 40000: many hours on one
+# core; a run stopped part-way continues from its checkpoint with --resume), BASELINE_STEPS
+# (default 2000), THREADS (torch threads, default 1), SAMPLES (per control, default 4).
+# Each step's output goes to OUT/logs/NAME.log. Training steps resume; sampling and
+# evaluation are redone every run, so the tables always describe the checkpoints as they are.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+OUT=${1:-var/fidelity}
+PY=${PYTHON:-.venv/bin/python}
+DATA=${DATA:-$(realpath ../shared/data/bandai-namco-1):$(realpath ../shared/data/bandai-namco-2-locomotion)}
+IFS=: read -r -a FOLDERS <<< "$DATA"
+MOGLOW_STEPS=${MOGLOW_STEPS:-40000}
+BASELINE_STEPS=${BASELINE_STEPS:-2000}
+THREADS=${THREADS:-1}
+SAMPLES=${SAMPLES:-4}
+CONTENTS=walk,run,dash,walk-back,walk-left,walk-right,walk-turn-left,walk-turn-right
+SYNTHETIC=(walk-straight walk-circle sidestep-left walk-backward stand-still)
+MODELS=$OUT/models
+mkdir -p "$MODELS" "$OUT/logs"
+
+run() {  # run NAME COMMAND...: COMMAND's output into OUT/logs/NAME.log
+    local name=$1; shift
+    echo "$(date +%T) $name ..."
+    local start=$SECONDS
+    "$@" > "$OUT/logs/$name.log" 2>&1 || { echo "$name failed; see $OUT/logs/$name.log"; exit 1; }
+    echo "$(date +%T) $name done in $((SECONDS - start)) s"
+}
+
+train() {  # train NAME KIND PRESET STEPS EVAL_EVERY: trains, or continues, MODELS/NAME.safetensors
+    local name=$1 kind=$2 preset=$3 steps=$4 every=$5 resume=()
+    [ -e "$MODELS/$name.safetensors" ] && resume=(--resume)
+    # Sec. 4.2 of the paper: mirroring and time reversal; 75 % window overlap because the
+    # dataset-2 takes are short (about 5 s).
+    run "train-$name" $PY -m generation train "${FOLDERS[@]}" --model "$kind" --preset "$preset" \
+        --contents "$CONTENTS" --reverse --overlap 0.75 --steps "$steps" --eval-every "$every" \
+        --threads "$THREADS" --out "$MODELS/$name.safetensors" "${resume[@]}"
+}
+
+train MoGlow moglow cpu "$MOGLOW_STEPS" 500
+train MG-D moglow cpu-MG-D "$MOGLOW_STEPS" 500
+train RNN rnn cpu "$BASELINE_STEPS" 100
+train VAE vae cpu "$BASELINE_STEPS" 100
+
+rm -rf "$OUT/held-out" "$OUT/synthetic"
+run natural $PY -m generation natural "${FOLDERS[@]}" --contents "$CONTENTS" --out "$OUT/held-out/NAT"
+for name in MoGlow MG-D RNN VAE; do
+    run "sample-$name" $PY -m generation sample "$MODELS/$name.safetensors" -c held-out --data "${FOLDERS[@]}" \
+        --n "$SAMPLES" --seed 1 --out "$OUT/held-out/$name"
+    for control in "${SYNTHETIC[@]}"; do
+        run "sample-$control-$name" $PY -m generation sample "$MODELS/$name.safetensors" -c "$control" \
+            --n "$SAMPLES" --seed 1 --out "$OUT/synthetic/$control/$name"
+    done
+done
+run objective-held-out $PY -m analysis objective "$OUT/held-out" --out "$OUT/tables/held-out"
+for control in "${SYNTHETIC[@]}"; do
+    # NAT's held-out takes stand beside each synthetic control as the reference row.
+    cp -r "$OUT/held-out/NAT" "$OUT/synthetic/$control/NAT"
+    run "objective-$control" $PY -m analysis objective "$OUT/synthetic/$control" --out "$OUT/tables/$control"
+done
+for name in MoGlow MG-D RNN VAE; do
+    run "evaluate-$name" $PY -m generation evaluate "$MODELS/$name.safetensors" --data "${FOLDERS[@]}"
+done
+echo "tables in $OUT/tables; held-out losses in $OUT/logs/evaluate-*.log"
