@@ -168,15 +168,32 @@ def _exclusion_sentence(report: DesignReport, row) -> str:
             f"{kept}.")
 
 
+def _in_cell(table: pd.DataFrame, task: str, cc: str) -> pd.DataFrame:
+    return table[(table["task"] == task) & (table["control_class"] == cc)] if len(table) else table
+
+
+def _interval(value: float, low: float, high: float, decimals: int) -> str:
+    bounds = "n < 6" if pd.isna(low) else f"{low:.{decimals}f}, {high:.{decimals}f}"
+    return f"{value:.{decimals}f} [{bounds}]"
+
+
 def _side_by_side_sentence(report: DesignReport, task: str, cc: str) -> str:
-    pairs = report.table("wilcoxon_pairs")
-    pairs = pairs[(pairs["task"] == task) & (pairs["control_class"] == cc) & pairs["p"].notna()]
+    scores = _in_cell(report.table("system_medians_means"), task, cc).sort_values(
+        ["median", "mean"], ascending=False)
+    text = (f" In {cc}, the median ratings [95 % CI] were "
+            + ", ".join(f"{r.system} {_interval(r.median, r.median_ci_low, r.median_ci_high, 0)}"
+                        for r in scores.itertuples(index=False))
+            + " and the means "
+            + ", ".join(f"{r.system} {_interval(r.mean, r.ci_low, r.ci_high, 1)}"
+                        for r in scores.itertuples(index=False)) + ".")
+    pairs = _in_cell(report.table("wilcoxon_pairs"), task, cc)
+    pairs = pairs[pairs["p"].notna()] if len(pairs) else pairs
     if pairs.empty:
-        return ""
+        return text
     higher = [f"{r.higher} > {r.system_b if r.higher == r.system_a else r.system_a}"
               for r in pairs[pairs["reject"]].itertuples(index=False)]
     same = [f"{r.system_a} and {r.system_b}" for r in pairs[~pairs["reject"]].itertuples(index=False)]
-    text = (f" In {cc}, two-sided Wilcoxon signed-rank tests on the per-page rating differences "
+    text += (f" Two-sided Wilcoxon signed-rank tests on the per-page rating differences "
             f"of each pair of systems, Holm-Bonferroni corrected over the {len(pairs)} pairs "
             f"(family-wise α = {report.alpha:g}), found {len(higher)} significant difference(s)")
     text += f", the first system rated higher: {'; '.join(higher)}" if higher else ""
@@ -185,8 +202,8 @@ def _side_by_side_sentence(report: DesignReport, task: str, cc: str) -> str:
 
 
 def _pairwise_sentence(report: DesignReport, task: str, cc: str) -> str:
-    pairs = report.table("preference_pairs")
-    pairs = pairs[(pairs["task"] == task) & (pairs["control_class"] == cc) & pairs["p"].notna()]
+    pairs = _in_cell(report.table("preference_pairs"), task, cc)
+    pairs = pairs[pairs["p"].notna()]
     if pairs.empty:
         return ""
     ties = int(pairs["no_preference"].sum())
@@ -197,12 +214,18 @@ def _pairwise_sentence(report: DesignReport, task: str, cc: str) -> str:
         other = r.system_b if r.preferred == r.system_a else r.system_a
         found.append(f"{r.preferred} over {other} ({share * 100:.0f} % of preferences, 95 % CI "
                      f"{low * 100:.0f}-{high * 100:.0f} %, Holm-adjusted {_p_text(r.p_holm)})")
+    scale = _in_cell(report.table("bradley_terry"), task, cc).sort_values("strength", ascending=False)
     text = (f" In {cc}, {int(pairs['n_pages'].sum())} pages compared {len(pairs)} pairs; "
             f"{ties} were answered 'no preference' and left out of the preference shares, the "
             f"exact two-sided binomial (sign) tests and the Bradley-Terry scale. With "
             f"Holm-Bonferroni correction over the pairs (family-wise α = {report.alpha:g}), "
             f"{len(found)} preference(s) were significant")
-    return text + (f": {'; '.join(found)}." if found else ".")
+    text += f": {'; '.join(found)}." if found else "."
+    if len(scale):
+        text += (" On the Bradley-Terry scale (log-odds, centred, [95 % CI]): "
+                 + ", ".join(f"{r.system} {_interval(r.strength, r.ci_low, r.ci_high, 2)}"
+                             for r in scale.itertuples(index=False)) + ".")
+    return text
 
 
 def design_summary_text(report: DesignReport) -> str:
