@@ -7,10 +7,11 @@ ratings per participant, how many more participants. The observed difference is 
 as the true one, so these are planning numbers with the uncertainty of the estimate
 itself; they say nothing about whether the difference is real.
 
-Each pair is tested at alpha / m, m the number of pairs in its cell (Bonferroni). That is
-the threshold Holm's procedure applies to the smallest p-value and lower than the
-threshold it applies to every other one, so the numbers are, if anything, too high for
-the Holm-corrected tests; for the single design's Tukey HSD they are close (Tukey's
+Each pair is tested at alpha / m (Bonferroni), m the number of pairs compared in its cell:
+every pair of systems for single and side-by-side pages, the pairs shown for pairwise.
+That is the threshold Holm's procedure applies to the smallest p-value and lower than
+the threshold it applies to every other one, so the numbers are, if anything, too high
+for the Holm-corrected tests; for the single design's Tukey HSD they are close (Tukey's
 critical value lies between the unadjusted and the Bonferroni one).
 
 Closed forms, per design:
@@ -93,14 +94,10 @@ def _z(alpha_pair: float, power: float) -> float:
     return float(sps.norm.ppf(1 - alpha_pair / 2) + sps.norm.ppf(power))
 
 
-def _pair_count(k: int) -> int:
-    return k * (k - 1) // 2
-
-
 def _single_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
     stats = frame.groupby("system", sort=True)["value"].agg(["size", "mean", "var"])
     stats = stats[stats["size"] >= 2]
-    alpha_pair = alpha / max(1, _pair_count(len(stats)))
+    alpha_pair = alpha / max(1, len(stats) * (len(stats) - 1) // 2)
     participants = frame["participant"].nunique()
     rows = []
     for i, a in enumerate(stats.index):
@@ -137,8 +134,7 @@ def walsh_positive_share(differences) -> float:
 
 def _side_by_side_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
     diffs = page_differences(frame, groupby=())
-    k = frame["system"].nunique()
-    alpha_pair = alpha / max(1, _pair_count(k))
+    alpha_pair = alpha / max(1, diffs.groupby(["system_a", "system_b"]).ngroups)
     rows = []
     for (a, b), pair in diffs.groupby(["system_a", "system_b"], sort=True):
         d = pair["difference"].to_numpy()
@@ -179,8 +175,7 @@ def sign_test_trials_for_power(share: float, alpha: float, power: float) -> floa
 
 def _pairwise_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
     pages = preference_pages(frame, groupby=())
-    k = len(set(pages["system_a"]) | set(pages["system_b"]))
-    alpha_pair = alpha / max(1, _pair_count(k))
+    alpha_pair = alpha / max(1, pages.groupby(["system_a", "system_b"]).ngroups)
     rows = []
     for (a, b), pair in pages.groupby(["system_a", "system_b"], sort=True):
         decided = pair[pair["answer"] != NO_PREFERENCE]
