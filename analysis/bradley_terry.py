@@ -78,6 +78,8 @@ def fit_bradley_terry(wins: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
 def _not_connected_reason(wins: np.ndarray, label: np.ndarray, count: int) -> str:
     if len(wins) < 2:
         return "fewer than two systems were compared"
+    if not wins.any():
+        return "no page stated a preference"
     never_lost = np.flatnonzero((wins.sum(axis=0) == 0))
     never_won = np.flatnonzero((wins.sum(axis=1) == 0))
     if len(never_lost) or len(never_won):

@@ -106,8 +106,11 @@ def _side_by_side_tables(kept: pd.DataFrame, alpha: float, notes: list[str]) -> 
     untested = pairs[pairs["method"] == "not computed"] if len(pairs) else pairs
     notes += [f"No Wilcoxon test of {r.system_a} and {r.system_b} in {r.task} · {r.control_class}: "
               "no page rated them differently." for r in untested.itertuples(index=False)]
-    comparable, compare_notes = comparable_cells(usable)
-    notes += [n.replace("No ANOVA or Tukey HSD", "No mixed model") for n in compare_notes]
+    comparable, _ = comparable_cells(usable)
+    left_out = sorted(set(map(tuple, usable[list(CELL)].drop_duplicates().to_numpy()))
+                      - set(map(tuple, comparable[list(CELL)].drop_duplicates().to_numpy())))
+    notes += [f"No mixed model for {task} · {cc}: fewer than two systems, or no rating "
+              "variation within any system." for task, cc in left_out]
     mixed = mixed_model_means(comparable) if len(comparable) else pd.DataFrame()
     return {
         "system_medians_means": ("Median and mean rating per system with 95 % intervals",

@@ -49,7 +49,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats as sps
 
-from analysis.designs import NO_PREFERENCE, PAGE, PAIRWISE, SIDE_BY_SIDE, table_design
+from analysis.designs import NO_PREFERENCE, PAIRWISE, SIDE_BY_SIDE, table_design
 from analysis.pairwise import preference_pages
 from analysis.side_by_side import page_differences
 from analysis.stats import CELL, iter_cells
@@ -73,7 +73,7 @@ def more_ratings_for_power(kept: pd.DataFrame, alpha: float = 0.05, power: float
     *groupby, system_a, system_b, effect (single: mean_a - mean_b; side-by-side: p' - 1/2;
     pairwise: share preferring a - 1/2), alpha_pair (alpha / pairs in the cell), unit
     (``ratings per system`` or ``pages``), n_now, power_now (at n_now, same approximation),
-    n_needed (NaN when the observed effect is zero), n_more (n_needed - n_now, at least
+    n_needed (NaN when the observed effect is zero or cannot be estimated), n_more (n_needed - n_now, at least
     0), per_participant (units per participant so far), participants_more.
     """
     design = table_design(kept)
@@ -212,7 +212,7 @@ def power_summary(table: pd.DataFrame, alpha: float = 0.05, power: float = 0.8) 
                  for r in short.itertuples(index=False)]
         found = (f"for {power * 100:g} % power to detect the difference observed so far, "
                  + ("; ".join(parts) if parts else "no pair needs more")
-                 + (f"; {unreachable} pair(s) show no difference at all, which no number of "
-                    "ratings can detect." if unreachable else "."))
+                 + (f"; {unreachable} pair(s) show no difference, or too few answers to "
+                    "estimate one, so no number can be given." if unreachable else "."))
     return (f"**Power.** At α = {alpha:g}, split over each cell's pairs (Bonferroni), "
             f"{found} " + SEQUENTIAL_LOOKS_NOTE)

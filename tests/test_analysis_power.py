@@ -109,4 +109,4 @@ def test_a_pair_without_any_difference_needs_no_number_and_says_so():
     power = more_ratings_for_power(pd.DataFrame(rows)).iloc[0]
     assert np.isnan(power["n_needed"]) and np.isnan(power["n_more"])
     text = power_summary(more_ratings_for_power(pd.DataFrame(rows)))
-    assert "1 pair(s) show no difference at all" in text and SEQUENTIAL_LOOKS_NOTE in text
+    assert "1 pair(s) show no difference, or too few answers" in text and SEQUENTIAL_LOOKS_NOTE in text
