@@ -79,6 +79,11 @@ def validate_design_columns(df: pd.DataFrame, design: str) -> pd.DataFrame:
     if design == SIDE_BY_SIDE:
         if "position" in df.columns:
             df["position"] = _positive_integers(df["position"], "position", allow_empty=False)
+            shared = df.duplicated([*PAGE, "position"], keep=False)
+            if shared.any():
+                raise AnalysisInputError(
+                    f"two clips share position {df.loc[shared, 'position'].iloc[0]} on page "
+                    f"{_page_name(df, shared)} (first at row {_first(shared)})")
         _no_system_twice_on_a_page(df)
         return df
     for column, allowed in (("side", SIDES), ("answer", ANSWERS)):
@@ -90,6 +95,11 @@ def validate_design_columns(df: pd.DataFrame, design: str) -> pd.DataFrame:
                 f"holds {df.loc[bad, column].iloc[0]!r}")
     if "strength" in df.columns:
         df["strength"] = _positive_integers(df["strength"], "strength", allow_empty=True)
+        undecided = df["strength"].notna() & (df["answer"] == NO_PREFERENCE)
+        if undecided.any():
+            raise AnalysisInputError(
+                f"'strength' qualifies a preference, but row {_first(undecided)} gives one "
+                f"with answer {NO_PREFERENCE!r}")
     pages = df.groupby(list(PAGE), sort=False)
     shape_ok = (pages["side"].transform("size") == 2) & (pages["side"].transform("nunique") == 2)
     if not shape_ok.all():

@@ -64,14 +64,20 @@ def test_a_side_by_side_table_needs_a_page_column():
 
 
 def test_a_system_twice_on_one_page_is_refused_with_the_row():
-    rows = [sbs_row("p1", "c1", "A", 40), sbs_row("p1", "c2", "A", 50), sbs_row("p1", "c2", "A", 60)]
+    rows = [sbs_row("p1", "c1", "A", 40), sbs_row("p1", "c2", "A", 50, 1), sbs_row("p1", "c2", "A", 60, 2)]
     with pytest.raises(AnalysisInputError, match="'A' appears twice on page 'c2'.*row 2"):
+        read_ratings(csv_of(rows))
+
+
+def test_two_clips_at_one_position_of_a_page_are_refused():
+    rows = [sbs_row("p1", "c1", "A", 40, 1), sbs_row("p1", "c1", "B", 50, 2), sbs_row("p1", "c1", "C", 60, 2)]
+    with pytest.raises(AnalysisInputError, match="two clips share position 2 on page 'c1'.*row 2"):
         read_ratings(csv_of(rows))
 
 
 def test_a_side_by_side_slider_value_outside_its_scale_is_refused():
     with pytest.raises(AnalysisInputError, match="outside their declared scale, first at row 2"):
-        read_ratings(csv_of([sbs_row("p1", "c1", "A", 40), sbs_row("p1", "c1", "B", 101)]))
+        read_ratings(csv_of([sbs_row("p1", "c1", "A", 40, 1), sbs_row("p1", "c1", "B", 101, 2)]))
 
 
 def test_a_pairwise_table_needs_no_value_and_normalises_its_answers():
@@ -91,6 +97,8 @@ def test_a_pairwise_table_needs_no_value_and_normalises_its_answers():
     (lambda rows: [*rows[:3], {**rows[3], "answer": "maybe"}], "'answer' must be one of left, right, none; row 4"),
     (lambda rows: [*rows[:3], {**rows[3], "side": "top"}], "'side' must be one of left, right; row 4"),
     (lambda rows: [*rows[:3], {**rows[3], "strength": "1.5"}], "'strength' must hold whole numbers from 1"),
+    (lambda rows: [*rows[:2], *({**r, "answer": "none", "strength": 2} for r in rows[2:])],
+     "'strength' qualifies a preference, but row 3 gives one with answer 'none'"),
 ])
 def test_broken_pairwise_pages_are_refused_naming_page_and_row(change, message):
     rows = pair_rows("p1", "q1", "A", "B", "left") + pair_rows("p1", "q2", "A", "NAT", "right")
