@@ -57,17 +57,16 @@ def preference_pages(data: pd.DataFrame, groupby: Sequence[str] = CELL) -> pd.Da
     attention check's, say) compares nothing and is left out.
     """
     page = [*dict.fromkeys([*groupby, *PAGE])]
-    wide = data.pivot_table(index=page, columns="side", values="system", aggfunc="first")
-    wide = wide.reindex(columns=list(SIDES)).dropna()
-    answers = data.groupby(page, sort=True)["answer"].first()
-    pages = pd.DataFrame({"system_left": wide["left"], "system_right": wide["right"],
-                          "answer": answers.reindex(wide.index)}).reset_index()
+    left, right = (data[data["side"] == side].set_index(page) for side in SIDES)
+    pages = pd.concat({"system_left": left["system"], "system_right": right["system"],
+                       "answer": left["answer"]}, axis=1, join="inner").sort_index().reset_index()
     decided = pages["answer"] != NO_PREFERENCE
     left_won = pages["answer"] == "left"
     pages["winner"] = np.where(decided, np.where(left_won, pages["system_left"], pages["system_right"]), "")
     pages["loser"] = np.where(decided, np.where(left_won, pages["system_right"], pages["system_left"]), "")
-    pages["system_a"] = pages[["system_left", "system_right"]].min(axis=1)
-    pages["system_b"] = pages[["system_left", "system_right"]].max(axis=1)
+    left_first = (pages["system_left"] <= pages["system_right"]).to_numpy()
+    pages["system_a"] = np.where(left_first, pages["system_left"], pages["system_right"])
+    pages["system_b"] = np.where(left_first, pages["system_right"], pages["system_left"])
     return pages
 
 
