@@ -97,24 +97,24 @@ def _z(alpha_pair: float, power: float) -> float:
 def _single_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
     stats = frame.groupby("system", sort=True)["value"].agg(["size", "mean", "var"])
     stats = stats[stats["size"] >= 2]
-    alpha_pair = alpha / max(1, len(stats) * (len(stats) - 1) // 2)
-    participants = frame["participant"].nunique()
-    rows = []
-    for i, a in enumerate(stats.index):
-        for b in stats.index[i + 1:]:
-            d = stats.at[a, "mean"] - stats.at[b, "mean"]
-            spread = stats.at[a, "var"] + stats.at[b, "var"]
-            n_now = int(min(stats.at[a, "size"], stats.at[b, "size"]))
-            se_now = np.sqrt(stats.at[a, "var"] / stats.at[a, "size"] + stats.at[b, "var"] / stats.at[b, "size"])
-            rows.append({"system_a": a, "system_b": b, "effect": d, "n_now": n_now,
-                         "n_needed": np.ceil(_z(alpha_pair, power) ** 2 * spread / d**2) if d else np.nan,
-                         "power_now": _normal_power(abs(d) / se_now if se_now else np.inf, alpha_pair),
-                         "per_participant": n_now / participants})
-    return _finish(rows, alpha_pair, "ratings per system")
+    k = len(stats)
+    alpha_pair = alpha / max(1, k * (k - 1) // 2)
+    a, b = np.triu_indices(k, 1)
+    n, mean, var = (stats[c].to_numpy(np.float64) for c in ("size", "mean", "var"))
+    d = mean[a] - mean[b]
+    n_now = np.minimum(n[a], n[b])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        needed = np.where(d != 0, np.ceil(_z(alpha_pair, power) ** 2 * (var[a] + var[b]) / d**2), np.nan)
+        standardised = np.abs(d) / np.sqrt(var[a] / n[a] + var[b] / n[b])
+    table = pd.DataFrame({"system_a": stats.index[a], "system_b": stats.index[b], "effect": d,
+                          "n_now": n_now.astype(np.int64), "n_needed": needed,
+                          "power_now": _normal_power(np.nan_to_num(standardised, nan=np.inf), alpha_pair),
+                          "per_participant": n_now / frame["participant"].nunique()})
+    return table.assign(alpha_pair=alpha_pair, unit="ratings per system")
 
 
-def _normal_power(standardised: float, alpha_pair: float) -> float:
-    return float(sps.norm.cdf(standardised - sps.norm.ppf(1 - alpha_pair / 2)))
+def _normal_power(standardised, alpha_pair: float):
+    return sps.norm.cdf(standardised - sps.norm.ppf(1 - alpha_pair / 2))
 
 
 def walsh_positive_share(differences) -> float:
