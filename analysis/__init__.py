@@ -8,13 +8,19 @@ y up; fps; joint names and parents), and writes the tables and figures of MoGlow
 - `read_ratings`, `build_report`, `write_report`: the whole pipeline (also
   ``python -m analysis report``);
 - `analysis.stats`, `analysis.mixed`: ANOVA, Tukey HSD, CIs, the mixed model;
+- `analysis.side_by_side`, `analysis.pairwise`, `analysis.bradley_terry`: the statistics
+  of side-by-side and pairwise designs (`analysis.designs`);
+- `more_ratings_for_power` (`analysis.power`): ratings needed for 80 % power per pair;
 - `analysis.footsteps`, `analysis.bones`, `analysis.scores`: objective metrics.
 """
 
 from analysis.errors import AnalysisInputError
+from analysis.design_report import DesignReport
 from analysis.exclusions import ExclusionRules, apply_exclusions, exclusion_summary
+from analysis.power import more_ratings_for_power
 from analysis.ratings import read_ratings, validate_ratings
 from analysis.report import Report, build_report, write_report
 
-__all__ = ["AnalysisInputError", "ExclusionRules", "Report", "apply_exclusions", "build_report",
-           "exclusion_summary", "read_ratings", "validate_ratings", "write_report"]
+__all__ = ["AnalysisInputError", "DesignReport", "ExclusionRules", "Report", "apply_exclusions",
+           "build_report", "exclusion_summary", "more_ratings_for_power", "read_ratings",
+           "validate_ratings", "write_report"]

@@ -11,6 +11,12 @@ Other scales: a threshold t on the 1-5 reference scale maps linearly onto
 integer ratings are compared with that real-valued threshold without rounding. On 1-10,
 BAD >= 7.75 means BAD >= 8 and NAT < 3.25 means NAT <= 3.
 
+Pairwise designs (`analysis.designs`) have no ratings to threshold. There rule 1 reads:
+a participant who prefers the attention-check clip on any page that shows one (a BAD
+versus NAT page in the studies this project runs) is excluded; "no preference" there
+does not exclude. Rule 2 discards a page, both its rows, when either clip was answered
+before it finished playing.
+
 Nothing is deleted. Each rating gets ``excluded_participant``, ``discarded_early``,
 ``kept`` and ``exclusion_reason``; a rating that breaks both rules is counted under the
 participant exclusion, so ratings collected = discarded by each reason + kept.
@@ -21,6 +27,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import pandas as pd
+
+from analysis.designs import PAGE, PAIRWISE, table_design
 
 REFERENCE_SCALE = (1, 5)
 
@@ -48,8 +56,11 @@ def apply_exclusions(ratings: pd.DataFrame, rules: ExclusionRules = ExclusionRul
     ``exclusion_reason`` is one of ``""`` (kept), ``"rated a BAD clip high"``,
     ``"rated a NAT clip low"`` and ``"answered before clip end"`` (with the configured
     system names); a participant who failed both attention rules is attributed to the
-    BAD rule.
+    BAD rule. Pairwise tables get the preference rule instead (reason ``"preferred a
+    BAD clip"``).
     """
+    if table_design(ratings) == PAIRWISE:
+        return _apply_preference_exclusions(ratings, rules)
     df = ratings.copy()
     failed_bad = (df["system"] == rules.attention_system) & (
         df["value"] >= scaled_threshold(rules.bad_at_or_above, df["scale_min"], df["scale_max"])
@@ -70,6 +81,23 @@ def apply_exclusions(ratings: pd.DataFrame, rules: ExclusionRules = ExclusionRul
     reason = pd.Series("", index=df.index, dtype=object)
     reason[by_bad] = f"rated a {rules.attention_system} clip high"
     reason[by_nat] = f"rated a {rules.natural_system} clip low"
+    reason[df["discarded_early"]] = "answered before clip end"
+    df["exclusion_reason"] = reason
+    return df
+
+
+def _apply_preference_exclusions(ratings: pd.DataFrame, rules: ExclusionRules) -> pd.DataFrame:
+    df = ratings.copy()
+    preferred_bad = (df["system"] == rules.attention_system) & (df["answer"] == df["side"])
+    df["excluded_participant"] = df["participant"].isin(set(df.loc[preferred_bad, "participant"]))
+    if rules.discard_early and "answered_before_end" in df.columns:
+        early_page = df.groupby(list(PAGE), sort=False)["answered_before_end"].transform("any")
+        df["discarded_early"] = early_page & ~df["excluded_participant"]
+    else:
+        df["discarded_early"] = False
+    df["kept"] = ~(df["excluded_participant"] | df["discarded_early"])
+    reason = pd.Series("", index=df.index, dtype=object)
+    reason[df["excluded_participant"]] = f"preferred a {rules.attention_system} clip"
     reason[df["discarded_early"]] = "answered before clip end"
     df["exclusion_reason"] = reason
     return df
@@ -101,7 +129,9 @@ def exclusion_notes(flagged: pd.DataFrame, rules: ExclusionRules = ExclusionRule
                 f"The web app's discarded_early flag disagrees with the recomputed rule on "
                 f"{differ} rating(s); the recomputed flags were used."
             )
-    for system in (rules.attention_system, rules.natural_system):
+    ruled = ((rules.attention_system,) if table_design(flagged) == PAIRWISE
+             else (rules.attention_system, rules.natural_system))
+    for system in ruled:
         if not (flagged["system"] == system).any():
             notes.append(f"No ratings of {system} clips: its attention rule excluded nobody.")
     return notes

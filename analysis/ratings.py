@@ -30,6 +30,11 @@ Optional columns:
   app wrote. Analysis recomputes them from the rules and reports any disagreement; they
   are kept as ``app_excluded_participant`` and ``app_discarded_early``.
 
+Side-by-side and pairwise tables carry a ``design`` column and the page structure
+described in `analysis.designs` (``page``, ``position``; ``side``, ``answer``,
+``strength``); pairwise tables need no ``value`` or scale columns. Without a ``design``
+column a table is ``single`` and reads as it always has.
+
 Any other column is carried through untouched. The web app's export is the minimal
 schema plus task, control_class, clip_duration_s, shown_at, answered_at and the two flags.
 """
@@ -42,6 +47,8 @@ from typing import IO
 import numpy as np
 import pandas as pd
 
+from analysis.designs import (SINGLE, needs_scale, required_columns, table_design,
+                              validate_design_columns)
 from analysis.errors import AnalysisInputError
 
 REQUIRED_COLUMNS = ("participant", "system", "stimulus", "value", "scale_min", "scale_max")
@@ -71,11 +78,14 @@ def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
     when the timings allow it, and the app's own flags renamed with an ``app_`` prefix.
     Raises AnalysisInputError naming the offending column and rows otherwise.
     """
-    missing = [c for c in REQUIRED_COLUMNS if c not in ratings.columns]
+    design = table_design(ratings)
+    required = required_columns(design, REQUIRED_COLUMNS)
+    missing = [c for c in required if c not in ratings.columns]
     if missing:
         raise AnalysisInputError(
             f"ratings table lacks the required column(s) {', '.join(missing)}; the minimal "
-            f"schema is {', '.join(REQUIRED_COLUMNS)} (see docs/ratings-schema.md)"
+            f"schema{'' if design == SINGLE else f' of a {design} table'} is "
+            f"{', '.join(required)} (see docs/ratings-schema.md)"
         )
     if len(ratings) == 0:
         raise AnalysisInputError("ratings table has no rows")
@@ -90,6 +100,20 @@ def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
                 f"column {column!r} is empty in {int(empty.sum())} row(s), first at row "
                 f"{_row_number(df, empty)}"
             )
+    if needs_scale(design):
+        _check_scale(df)
+    df = validate_design_columns(df, design)
+    early = _answered_before_end(df)
+    if early is not None:
+        df["answered_before_end"] = early
+    for column in APP_FLAG_COLUMNS.values():
+        if column in df.columns:
+            df[column] = _booleans(df[column], column)
+    return df.reset_index(drop=True)
+
+
+def _check_scale(df: pd.DataFrame) -> None:
+    """Integer values on one declared scale per task (in place)."""
     for column in ("value", "scale_min", "scale_max"):
         df[column] = _integers(df[column], column)
     bad_scale = df["scale_min"] >= df["scale_max"]
@@ -113,13 +137,6 @@ def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
             f"task(s) {', '.join(map(str, mixed))} mix rating scales; ratings on different "
             "scales cannot enter one ANOVA (give each scale its own task)"
         )
-    early = _answered_before_end(df)
-    if early is not None:
-        df["answered_before_end"] = early
-    for column in APP_FLAG_COLUMNS.values():
-        if column in df.columns:
-            df[column] = _booleans(df[column], column)
-    return df.reset_index(drop=True)
 
 
 def _answered_before_end(df: pd.DataFrame) -> pd.Series | None:

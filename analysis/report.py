@@ -21,12 +21,16 @@ import pandas as pd
 
 from analysis import plots
 from analysis.correlation import subjective_objective_correlation
+from analysis.design_report import (POWER, DesignReport, build_design_report,
+                                    design_summary_text, write_design_report)
+from analysis.designs import SINGLE, table_design
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import (ExclusionRules, apply_exclusions, exclusion_notes,
                                  exclusion_summary, removed_by_reason)
 from analysis.mixed import mixed_model_means
 from analysis.motion_io import SystemClips
 from analysis.objective import METRIC_COLUMNS, objective_metrics
+from analysis.power import more_ratings_for_power, power_summary
 from analysis.stats import (CELL, anova, comparable_cells, pvalue_matrix, system_means,
                             too_few_ratings, tukey_hsd)
 from analysis.tables import objective_table, pvalue_display, significance_table, slug, write_table
@@ -51,6 +55,7 @@ class Report:
     objective_display: pd.DataFrame | None = None
     footstep_curves: pd.DataFrame | None = None
     correlation: pd.DataFrame | None = None
+    power: pd.DataFrame | None = None  # more ratings for 80 % power per pair (analysis.power)
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -80,8 +85,13 @@ def _resolve_reference(reference: str | None, compared: set[str], rated: set[str
 def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = None,
                  reference: str | None = None, rules: ExclusionRules = ExclusionRules(),
                  systems: Sequence[str] | None = None, compare_attention_checks: bool = False,
-                 foot_joints: Sequence[str] | None = None, foot_kind: str = "heel") -> Report:
+                 foot_joints: Sequence[str] | None = None,
+                 foot_kind: str = "heel") -> Report | DesignReport:
     """Run the whole analysis on a validated ratings table (see `analysis.ratings`).
+
+    Side-by-side and pairwise tables (their ``design`` column) get their own analysis,
+    a `DesignReport` (`analysis.design_report`); `write_report` and `summary_text` take
+    either.
 
     ``reference`` marks significance in Table 2 (default NAT when rated). ``systems``,
     when given, lists the systems expected; any other system in the ratings is an error.
@@ -95,6 +105,12 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
             raise AnalysisInputError(
                 f"unknown system(s) in the ratings: {', '.join(sorted(unknown))}; expected "
                 f"{', '.join(systems)}")
+    if table_design(ratings) != SINGLE:
+        if motion:
+            raise AnalysisInputError(
+                "objective metrics (--motion) are reported with single-design ratings; run "
+                "'python -m analysis objective' on the motion alone")
+        return build_design_report(ratings, reference, rules, compare_attention_checks)
     flagged = apply_exclusions(ratings, rules)
     notes = exclusion_notes(flagged, rules)
     kept = flagged[flagged["kept"]]
@@ -116,6 +132,7 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
     anova_table = anova(comparable) if len(comparable) else pd.DataFrame()
     tukey_table = tukey_hsd(comparable) if len(comparable) else pd.DataFrame()
     mixed_table = mixed_model_means(comparable) if len(comparable) else pd.DataFrame()
+    power_table = more_ratings_for_power(usable, power=POWER)
     if len(mixed_table) and mixed_table["at_boundary"].any():
         where = mixed_table.loc[mixed_table["at_boundary"], list(CELL)].drop_duplicates()
         notes.append("Mixed model: participant variance estimated at zero in "
@@ -135,7 +152,8 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
         flagged=flagged, exclusions=exclusion_summary(flagged), removed=removed_by_reason(flagged),
         means=means, anova=anova_table, tukey=tukey_table, mixed=mixed_table,
         significance_display=significance_table(means, tukey_table, reference, too_few),
-        pvalues_display=pvalues, reference=reference, rules=rules, notes=notes)
+        pvalues_display=pvalues, reference=reference, rules=rules, notes=notes,
+        power=power_table)
     if motion:
         _add_objective(report, motion, foot_joints, foot_kind)
     return report
@@ -176,8 +194,10 @@ def _comparison_text(report: Report, task: str, control_class: str) -> str:
     return text + f" Tukey HSD post-hoc tests (family-wise error rate 0.05) found {found}."
 
 
-def summary_text(report: Report) -> str:
+def summary_text(report: Report | DesignReport) -> str:
     """Paragraphs in the style of MoGlow Sec. 5.2 that a researcher can paste."""
+    if isinstance(report, DesignReport):
+        return design_summary_text(report)
     rules = report.rules
     out = []
     for row in report.exclusions.itertuples(index=False):
@@ -200,19 +220,23 @@ def summary_text(report: Report) -> str:
     if report.reference:
         out.append("Table 2 reports means with 95 % confidence intervals; ** and * mark a "
                    f"significant difference from {report.reference} at p < 0.01 and p < 0.05.")
+    if report.power is not None and len(report.power):
+        out.append(power_summary(report.power, power=POWER))
     return "\n\n".join(out) + "\n"
 
 
-def write_report(report: Report, folder: str | Path) -> list[Path]:
+def write_report(report: Report | DesignReport, folder: str | Path) -> list[Path]:
     """Write the report folder (tables, figures, summary.md); return the files written."""
+    if isinstance(report, DesignReport):
+        return write_design_report(report, folder)
     folder = Path(folder)
     tables, figures = folder / "tables", folder / "figures"
     written = []
     tidy = {"exclusions": report.exclusions, "excluded_participants": report.removed,
             "system_means": report.means, "anova": report.anova, "tukey_hsd": report.tukey,
-            "mixed_model_means": report.mixed}
+            "mixed_model_means": report.mixed, "power_more_ratings": report.power}
     for name, table in tidy.items():
-        if len(table):
+        if table is not None and len(table):
             written += write_table(table, tables, name)
     written += write_table(report.significance_display, tables, "table2_significance",
                            caption="Mean ratings ± 95 % CI per system (MoGlow Table 2 layout).")

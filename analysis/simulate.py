@@ -1,14 +1,25 @@
 """Synthetic ratings in the schema of `analysis.ratings`, for power analysis and testing.
 
-`simulate_ratings` draws a study with known effects: every participant has their own
-offset (rater leniency), systems have true means on a 1-5 scale, ratings are rounded
-and clipped to the scale, and a chosen share of participants fail attention checks or
-answer early. Seeded: the same arguments give the same table.
+One function per design (`analysis.designs`), each drawing a study with known effects:
+
+- `simulate_ratings` (single): every participant has their own offset (rater
+  leniency), systems have true means on a 1-5 scale, ratings are rounded and clipped to
+  the scale;
+- `simulate_side_by_side`: pages of all systems' clips for one control, rated 0-100;
+  besides the rater's offset, each control shifts all clips on its page alike (some
+  controls are harder), which is what pairing by page removes;
+- `simulate_pairwise`: pages of two systems, preferences drawn from a Bradley-Terry
+  model with known strengths, a share of pages answered "no preference", sides random.
+
+In each, a chosen share of participants is inattentive (answers at random, attention
+checks included) and a share of answers is given before the clip ended. Seeded: the same
+arguments give the same table.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from itertools import combinations
 
 import numpy as np
 import pandas as pd
@@ -57,3 +68,91 @@ def simulate_ratings(system_means: Mapping[str, float], n_ratings: int,
         "clip_duration_s": duration,
         "played_until_s": played,
     })
+
+
+def _early_playback(rng: np.random.Generator, n: int, early_share: float,
+                    duration: float = 10.0) -> np.ndarray:
+    early = rng.random(n) < early_share
+    return np.where(early, rng.uniform(1.0, duration - 1.0, n), duration)
+
+
+def simulate_side_by_side(system_means: Mapping[str, float], n_participants: int,
+                          pages_per_participant: int = 10, controls: int = 40,
+                          participant_sd: float = 8.0, control_sd: float = 6.0,
+                          rating_sd: float = 15.0, inattentive_share: float = 0.05,
+                          early_share: float = 0.02, task: str = "gesture",
+                          control_class: str = "held-out", seed: int = 0) -> pd.DataFrame:
+    """Side-by-side pages on a 0-100 slider: every page shows every system once.
+
+    ``system_means`` are the true means on 0-100 (list NAT and BAD among them to have
+    attention checks). A participant sees ``pages_per_participant`` different controls.
+    """
+    if pages_per_participant > controls:
+        raise ValueError("a participant sees each control at most once: pages_per_participant "
+                         f"({pages_per_participant}) must not exceed controls ({controls})")
+    rng = np.random.default_rng(seed)
+    systems = np.array(list(system_means))
+    means = np.array(list(system_means.values()), dtype=np.float64)
+    k = len(systems)
+    control_shift = rng.normal(0.0, control_sd, controls)
+    rows = []
+    for p in range(n_participants):
+        offset = rng.normal(0.0, participant_sd)
+        inattentive = rng.random() < inattentive_share
+        for c in rng.choice(controls, pages_per_participant, replace=False):
+            raw = means + offset + control_shift[c] + rng.normal(0.0, rating_sd, k)
+            if inattentive:
+                raw = rng.uniform(0.0, 100.0, k)
+            rows.append(pd.DataFrame({
+                "participant": f"p{p}", "system": systems, "stimulus": np.char.add(systems, f"_c{c}"),
+                "page": f"c{c}", "position": rng.permutation(k) + 1,
+                "value": np.clip(np.rint(raw), 0, 100).astype(np.int64)}))
+    table = pd.concat(rows, ignore_index=True)
+    table.insert(0, "design", "side-by-side")
+    table["task"], table["control_class"] = task, control_class
+    table["scale_min"], table["scale_max"] = 0, 100
+    table["clip_duration_s"] = 10.0
+    table["played_until_s"] = _early_playback(rng, len(table), early_share)
+    return table
+
+
+def simulate_pairwise(strengths: Mapping[str, float], n_participants: int,
+                      pages_per_participant: int = 20,
+                      pairs: Sequence[tuple[str, str]] | None = None,
+                      no_preference_share: float = 0.1, inattentive_share: float = 0.05,
+                      early_share: float = 0.02, task: str = "gesture",
+                      control_class: str = "held-out", controls: int = 40,
+                      seed: int = 0) -> pd.DataFrame:
+    """Pairwise pages with preferences from a Bradley-Terry model.
+
+    ``strengths`` are log-strengths: system i beats j with probability
+    1 / (1 + exp(s_j - s_i)). ``pairs`` defaults to every pair of systems; each page
+    draws one at random, with sides at random. A page is answered "none" with
+    probability ``no_preference_share``; inattentive participants answer at random.
+    """
+    rng = np.random.default_rng(seed)
+    pairs = list(pairs) if pairs is not None else list(combinations(strengths, 2))
+    rows = []
+    for p in range(n_participants):
+        inattentive = rng.random() < inattentive_share
+        for page in range(pages_per_participant):
+            a, b = pairs[rng.integers(len(pairs))]
+            left, right = (a, b) if rng.random() < 0.5 else (b, a)
+            p_left = 1.0 / (1.0 + np.exp(strengths[right] - strengths[left]))
+            if rng.random() < no_preference_share:
+                answer = "none"
+            elif inattentive:
+                answer = "left" if rng.random() < 0.5 else "right"
+            else:
+                answer = "left" if rng.random() < p_left else "right"
+            control = f"c{rng.integers(controls)}"
+            for side, system in (("left", left), ("right", right)):
+                rows.append({"participant": f"p{p}", "system": system,
+                             "stimulus": f"{system}_{control}", "page": f"q{page}",
+                             "side": side, "answer": answer})
+    table = pd.DataFrame(rows)
+    table.insert(0, "design", "pairwise")
+    table["task"], table["control_class"] = task, control_class
+    table["clip_duration_s"] = 10.0
+    table["played_until_s"] = _early_playback(rng, len(table), early_share)
+    return table

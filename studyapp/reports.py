@@ -20,6 +20,7 @@ import pandas as pd
 from django.utils.html import escape
 from django.utils.safestring import SafeString, mark_safe
 
+from analysis.design_report import DesignReport
 from analysis.errors import AnalysisInputError
 from analysis.ratings import read_ratings
 from analysis.report import Report, build_report, summary_text, write_report
@@ -71,7 +72,7 @@ def create_report(media_root: Path, ratings_csv: bytes, reference: str | None) -
     return digest
 
 
-def _analyse(folder: Path) -> Report:
+def _analyse(folder: Path) -> Report | DesignReport:
     reference = (folder / REFERENCE_NAME).read_text() or None
     return build_report(read_ratings(folder / RATINGS_NAME), reference=reference)
 
@@ -97,15 +98,26 @@ def report_page(media_root: Path, digest: str) -> ReportPage:
     if not (folder / RATINGS_NAME).is_file():
         raise FileNotFoundError(digest)
     report = _analyse(folder)
+    if isinstance(report, DesignReport):  # side-by-side and pairwise: their own tables
+        tables = [("Exclusions", _html(report.exclusions))]
+        tables += [(title, _html(table)) for title, table in report.tables.values() if len(table)]
+    else:
+        tables = _single_design_tables(report)
+    figures = sorted(str(p.relative_to(media_root)) for p in (folder / "figures").glob("*.svg"))
+    files = sorted(str(p.relative_to(media_root)) for p in (folder / "tables").iterdir())
+    return ReportPage(digest, _paragraphs(summary_text(report)), tables, figures, files, report.notes)
+
+
+def _single_design_tables(report: Report) -> list[tuple[str, SafeString]]:
     tables = [("Mean ratings ± 95 % CI (MoGlow Table 2 layout)", _html(report.significance_display)),
               ("Exclusions", _html(report.exclusions)),
               ("One-way ANOVA", _html(report.anova)),
               ("Tukey HSD, all pairs", _html(report.tukey)),
               ("Linear mixed model (participant random intercept)", _html(report.mixed))]
     tables += [(f"Adjusted p-values, {task} · {cc}", _html(m)) for (task, cc), m in report.pvalues_display.items()]
-    figures = sorted(str(p.relative_to(media_root)) for p in (folder / "figures").glob("*.svg"))
-    files = sorted(str(p.relative_to(media_root)) for p in (folder / "tables").iterdir())
-    return ReportPage(digest, _paragraphs(summary_text(report)), tables, figures, files, report.notes)
+    if report.power is not None and len(report.power):
+        tables.append(("Ratings needed for 80 % power per pair", _html(report.power)))
+    return tables
 
 
 __all__ = ["AnalysisInputError", "ReportPage", "create_report", "report_folder", "report_page"]

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from django.contrib.auth.models import User
 
-from analysis.simulate import simulate_ratings
+from analysis.simulate import simulate_pairwise, simulate_ratings, simulate_side_by_side
 
 
 @pytest.fixture
@@ -58,6 +58,22 @@ def test_uploaded_ratings_give_the_report_tables_and_figures(client, media_root,
     # The same upload again is the same report, not a second one.
     assert upload(client, ratings_csv())["Location"] == response["Location"]
     assert len(list((media_root / "reports").iterdir())) == 1
+
+
+@pytest.mark.django_db
+@pytest.mark.parametrize(("table", "expected"), [
+    (simulate_side_by_side({"NAT": 75, "A": 60, "B": 50}, 8, seed=1),
+     ("Wilcoxon signed-rank tests on per-page differences", "significance_matrix.svg")),
+    (simulate_pairwise({"NAT": 1.0, "A": 0.2, "B": 0.0}, 12, seed=1),
+     ("Bradley-Terry strengths", "preferences.svg")),
+])
+def test_side_by_side_and_pairwise_uploads_get_their_own_report(client, media_root, researcher,
+                                                                table, expected):
+    response = upload(client, table.to_csv(index=False).encode())
+    assert response.status_code == 302
+    html = client.get(response["Location"]).content.decode()
+    assert all(text in html for text in expected)
+    assert "Ratings needed for 80 % power per pair" in html and "Tukey HSD" not in html
 
 
 @pytest.mark.django_db
