@@ -20,11 +20,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from urllib.parse import urlencode, urlparse
 
+from django.db.models import Count
 from django.http import HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.utils import timezone
 
-from studyapp.assignment import renew_reservations
+from studyapp.assignment import is_idle, renew_reservations
 from studyapp.models import Participant, Stimulus, Study
 from studyapp.ratings import ClientTimes, RatingRejected, current_assignment, record_rating
 
@@ -104,8 +105,8 @@ def _rating_page(study: Study, participant: Participant) -> dict:
     if assignment.shown_at is None:
         assignment.shown_at = timezone.now()
         assignment.save(update_fields=["shown_at"])
-    total = participant.assignments.count()
-    done = participant.assignments.filter(rating__isnull=False).count()
+    counts = participant.assignments.aggregate(total=Count("pk"), done=Count("rating"))
+    total, done = counts["total"], counts["done"]
     return _clip_page(study, assignment.stimulus, "participant-rate", {"assignment": assignment.token},
                       f"Clip {done + 1} of {total}", done, total)
 
@@ -126,11 +127,12 @@ def _optional_float(request: HttpRequest, name: str) -> float | None:
 def _rate(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
     """Store the rating of the clip on screen."""
     token = request.POST.get("assignment", "")
-    was_reserved = participant.assignments.filter(token=token, rating__isnull=True).exists()
-    participant = renew_reservations(participant, touch=False)  # record_rating saves last_seen
-    if was_reserved and not participant.assignments.filter(token=token).exists():
-        raise RatingRejected("that clip was given to another participant while this page was idle; "
-                             "please reload the page to go on with the next one", status=409)
+    if is_idle(participant, timezone.now()):  # away so long that the clip may have gone to another
+        was_reserved = participant.assignments.filter(token=token, rating__isnull=True).exists()
+        participant = renew_reservations(participant, touch=False)  # record_rating saves last_seen
+        if was_reserved and not participant.assignments.filter(token=token).exists():
+            raise RatingRejected("that clip was given to another participant while this page was idle; "
+                                 "please reload the page to go on with the next one", status=409)
     text = request.POST.get("value", "")
     try:
         value = int(text)

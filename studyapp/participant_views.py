@@ -36,20 +36,16 @@ MAX_ID_LENGTH = 100
 ParticipantView = Callable[[HttpRequest, Study, Participant], HttpResponse]
 
 
-def _framable_by_platform(view):
+def _framed(study: Study, response: HttpResponse) -> HttpResponse:
     """Let MTurk frame the pages of MTurk studies (and no one else frame any study)."""
-    @wraps(view)
-    def framed(request: HttpRequest, key: str) -> HttpResponse:
-        response = view(request, key)
-        if Study.objects.filter(key=key, platform=Study.Platform.MTURK).exists():
-            response.xframe_options_exempt = True
-            response["Content-Security-Policy"] = MTURK_FRAME_ANCESTORS
-        return response
-    return framed
+    if study.platform == Study.Platform.MTURK:
+        response.xframe_options_exempt = True
+        response["Content-Security-Policy"] = MTURK_FRAME_ANCESTORS
+    return response
 
 
-def _session_key(study: Study) -> str:
-    return f"participant:{study.key}"
+def _session_key(study_key: str) -> str:
+    return f"participant:{study_key}"
 
 
 def _study(key: str, must_be_open: bool = False) -> Study:
@@ -61,9 +57,12 @@ def _study(key: str, must_be_open: bool = False) -> Study:
     return study
 
 
-def _participant(request: HttpRequest, study: Study) -> Participant | None:
-    pk = request.session.get(_session_key(study))
-    return Participant.objects.filter(pk=pk, study=study).first() if pk else None
+def _participant(request: HttpRequest, key: str) -> tuple[Study, Participant | None]:
+    """The study of an entry key (404 if none) and this browser's participant in it, if
+    any: one query for both when there is one, as on every page of the path."""
+    pk = request.session.get(_session_key(key))
+    participant = Participant.objects.select_related("study").filter(pk=pk, study__key=key).first() if pk else None
+    return (participant.study, participant) if participant else (_study(key), None)
 
 
 def participant_access(step: Step | None = None) -> Callable[[ParticipantView], Callable[..., HttpResponse]]:
@@ -74,36 +73,41 @@ def participant_access(step: Step | None = None) -> Callable[[ParticipantView], 
     def decorate(view: ParticipantView) -> Callable[..., HttpResponse]:
         @wraps(view)
         def guarded(request: HttpRequest, key: str) -> HttpResponse:
-            study = _study(key)
-            participant = _participant(request, study)
+            study, participant = _participant(request, key)
             if participant is None:
-                return message(request, study.title, "Please open the study through the link your platform gave "
-                               "you.", 403)
+                return _framed(study, message(request, study.title, "Please open the study through the link your "
+                                              "platform gave you.", 403))
             if step is None:
-                return view(request, study, participant)
+                return _framed(study, view(request, study, participant))
             try:
                 if not may_post(step, participant):
                     raise RatingRejected(f"this step is not the current one (expected {step.name}, "
                                          f"at {stage(participant)})", status=409)
-                return view(request, study, participant)
+                response = view(request, study, participant)
             except RatingRejected as rejection:
-                return message(request, "That did not work", str(rejection), rejection.status)
+                response = message(request, "That did not work", str(rejection), rejection.status)
+            return _framed(study, response)
         return guarded
     return decorate
 
 
 @never_cache
-@_framable_by_platform
 @require_safe
 def enter(request: HttpRequest, key: str) -> HttpResponse:
     """The entry link: find or create the participant of this platform id, then go to their page."""
     study = _study(key, must_be_open=True)
+    return _framed(study, _enrolled(request, study))
+
+
+def _enrolled(request: HttpRequest, study: Study) -> HttpResponse:
+    key = study.key
     names = PLATFORM_PARAMETERS[study.platform]
     data = {name: request.GET[name][:MAX_ID_LENGTH] for name in names if request.GET.get(name)}
     if study.platform == Study.Platform.MTURK and data.get("assignmentId") == "ASSIGNMENT_ID_NOT_AVAILABLE":
         return message(request, study.title, "This is a preview. Accept the task to take part.")
     platform_id = data.get(names[0])
-    existing = _participant(request, study)
+    pk = request.session.get(_session_key(key))
+    existing = Participant.objects.filter(pk=pk, study=study).first() if pk else None
     if existing and (platform_id is None or existing.platform_id == platform_id):
         return redirect("participant-page", key=key)
     if platform_id is None:
@@ -122,17 +126,16 @@ def enter(request: HttpRequest, key: str) -> HttpResponse:
             return message(request, "Not ready yet", "This study has no clips yet. Please try again later.", 503)
         except IntegrityError:  # the same id arriving twice at once: the other request enrolled it
             participant = Participant.objects.get(study=study, platform_id=platform_id)
-    request.session[_session_key(study)] = participant.pk
+    request.session[_session_key(key)] = participant.pk
     return redirect("participant-page", key=key)
 
 
 def step_form(step: Step) -> Callable[..., HttpResponse]:
     """The view that takes ``step``'s form (POST only)."""
-    return _framable_by_platform(require_POST(participant_access(step)(step.submit)))
+    return require_POST(participant_access(step)(step.submit))
 
 
 @never_cache
-@_framable_by_platform
 @require_safe
 @participant_access()
 def page(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:

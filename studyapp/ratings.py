@@ -68,37 +68,50 @@ def record_rating(participant: Participant, assignment_token: str, value: int, t
     study = participant.study
     if value not in study.scale:
         raise RatingRejected(f"rating {value} is outside the scale {study.scale_min}-{study.scale_max}")
-    with transaction.atomic():
-        participant = Participant.objects.select_for_update().get(pk=participant.pk)
-        if participant.finished_at is not None:
-            raise RatingRejected("this participant has already finished the study", status=409)
-        assignment = (Assignment.objects.select_related("stimulus__system")
-                      .filter(participant=participant, token=assignment_token).first())
-        if assignment is None:
-            raise RatingRejected("that clip is not assigned to this participant", status=403)
-        if Rating.objects.filter(assignment=assignment).exists():
-            raise RatingRejected("that clip has already been rated", status=409)
-        current = current_assignment(participant)
-        if current is None or current.pk != assignment.pk:
-            raise RatingRejected("that clip is not the one on screen now", status=409)
-        now = timezone.now()
-        early = answered_early(assignment, now, times)
-        try:
-            with transaction.atomic():
-                rating = Rating.objects.create(
-                    assignment=assignment, value=value, client_started_s=times.started_s,
-                    client_ended_s=times.ended_s, client_answered_s=times.answered_s,
-                    played_until_s=times.played_until_s, answered_before_end=early)
-        except IntegrityError:  # a second submission racing this one
-            raise RatingRejected("that clip has already been rated", status=409) from None
-        reason = _exclusion(study, assignment.stimulus.system, value)
-        if reason and not participant.excluded:
-            participant.excluded, participant.exclusion_reason = True, reason
-        if current_assignment(participant) is None:
-            participant.finished_at = now
-        participant.last_seen = now
-        participant.save(update_fields=["excluded", "exclusion_reason", "finished_at", "last_seen"])
+    try:
+        with transaction.atomic():
+            rating = _store_rating(study, participant, assignment_token, value, times)
+    except IntegrityError:  # a second submission racing this one; the transaction stored nothing
+        raise RatingRejected("that clip has already been rated", status=409) from None
     return rating
+
+
+def _store_rating(study: Study, participant: Participant, assignment_token: str, value: int,
+                  times: ClientTimes) -> Rating:
+    # The participant's row lock orders their own concurrent requests (two tabs, a double
+    # click, a return that releases clips); other participants never wait for it.
+    finished_at, excluded = (Participant.objects.select_for_update().filter(pk=participant.pk)
+                             .values_list("finished_at", "excluded").get())
+    if finished_at is not None:
+        raise RatingRejected("this participant has already finished the study", status=409)
+    # The clip on screen is the first unrated one; the second tells whether any is left.
+    unrated = list(participant.assignments.filter(rating__isnull=True).select_related("stimulus__system")
+                   .order_by("position")[:2])
+    if not unrated or unrated[0].token != assignment_token:
+        raise _refusal(participant, assignment_token)
+    assignment, now = unrated[0], timezone.now()
+    rating = Rating.objects.create(
+        assignment=assignment, value=value, client_started_s=times.started_s, client_ended_s=times.ended_s,
+        client_answered_s=times.answered_s, played_until_s=times.played_until_s,
+        answered_before_end=answered_early(assignment, now, times))
+    changes: dict[str, object] = {"last_seen": now}
+    reason = _exclusion(study, assignment.stimulus.system, value)
+    if reason and not excluded:
+        changes.update(excluded=True, exclusion_reason=reason)
+    if len(unrated) == 1:
+        changes["finished_at"] = now
+    Participant.objects.filter(pk=participant.pk).update(**changes)
+    return rating
+
+
+def _refusal(participant: Participant, assignment_token: str) -> RatingRejected:
+    """Why ``assignment_token`` is not the clip on screen (asked only when it is not)."""
+    assignment = Assignment.objects.filter(participant=participant, token=assignment_token).first()
+    if assignment is None:
+        return RatingRejected("that clip is not assigned to this participant", status=403)
+    if Rating.objects.filter(assignment=assignment).exists():
+        return RatingRejected("that clip has already been rated", status=409)
+    return RatingRejected("that clip is not the one on screen now", status=409)
 
 
 EXPORT_COLUMNS = (
