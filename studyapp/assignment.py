@@ -32,9 +32,27 @@ class StudyNotReady(Exception):
     """The study has no rendered clips to rate yet."""
 
 
+def _reservation(study: Study) -> timedelta:
+    """How long an unfinished participant's unrated clips stay reserved after ``last_seen``:
+    ``reservation_minutes`` and a hundredth, because ``last_seen`` is written only when it
+    is older than that hundredth (``last_seen_is_stale``)."""
+    return timedelta(minutes=study.reservation_minutes) * 1.01
+
+
+def last_seen_is_stale(participant: Participant, now: datetime) -> bool:
+    """Whether ``last_seen`` needs writing: older than a hundredth of the reservation time
+    (54 s at 90 minutes), so that a participant going from clip to clip costs no write."""
+    return now - participant.last_seen > timedelta(minutes=participant.study.reservation_minutes) / 100
+
+
+def is_idle(participant: Participant, now: datetime) -> bool:
+    """Away longer than their reservation: their unrated clips may have gone to others."""
+    return participant.finished_at is None and now - participant.last_seen > _reservation(participant.study)
+
+
 def stimulus_loads(study: Study) -> dict[int, int]:
     """Load of each rendered stimulus of the study: kept ratings + live reservations."""
-    cutoff = timezone.now() - timedelta(minutes=study.reservation_minutes)
+    cutoff = timezone.now() - _reservation(study)
     kept = Q(assignments__rating__isnull=False)
     if study.discard_early:
         kept &= Q(assignments__rating__answered_before_end=False)
@@ -100,16 +118,10 @@ def _training_clips(study: Study, exclude: set[int], rng: random.Random) -> list
     return chosen
 
 
-def is_idle(participant: Participant, now: datetime) -> bool:
-    """Away longer than the study's ``reservation_minutes``: their unrated clips may have gone to others."""
-    return participant.finished_at is None and now - participant.last_seen > timedelta(
-        minutes=participant.study.reservation_minutes)
-
-
-def renew_reservations(participant: Participant, touch: bool = True) -> Participant:
-    """Mark the participant as active now (``touch`` False: leave that to the caller, who
-    saves ``last_seen`` itself); a participant back after ``reservation_minutes`` keeps
-    only the unrated clips that still fit under their targets.
+def renew_reservations(participant: Participant) -> Participant:
+    """Mark the participant as active now (see ``last_seen_is_stale``); a participant back
+    after ``reservation_minutes`` keeps only the unrated clips that still fit under their
+    targets.
 
     While a participant is idle that long, their unrated clips stop counting towards the
     targets and may be given to others; rating them on return would push those stimuli
@@ -119,10 +131,7 @@ def renew_reservations(participant: Participant, touch: bool = True) -> Particip
     study = participant.study
     now = timezone.now()
     if not is_idle(participant, now):
-        # The common case: no lock, and a write only when last_seen is older than a
-        # hundredth of the reservation time (54 s at 90 minutes), so that a reservation
-        # lapses at most 1 % early and a page costs no commit.
-        if touch and now - participant.last_seen > timedelta(minutes=study.reservation_minutes) / 100:
+        if last_seen_is_stale(participant, now):  # the common case: no lock, rarely a write
             Participant.objects.filter(pk=participant.pk).update(last_seen=now)
             participant.last_seen = now
         return participant

@@ -129,7 +129,7 @@ def _rate(request: HttpRequest, study: Study, participant: Participant) -> HttpR
     token = request.POST.get("assignment", "")
     if is_idle(participant, timezone.now()):  # away so long that the clip may have gone to another
         was_reserved = participant.assignments.filter(token=token, rating__isnull=True).exists()
-        participant = renew_reservations(participant, touch=False)  # record_rating saves last_seen
+        participant = renew_reservations(participant)
         if was_reserved and not participant.assignments.filter(token=token).exists():
             raise RatingRejected("that clip was given to another participant while this page was idle; "
                                  "please reload the page to go on with the next one", status=409)

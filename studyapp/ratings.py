@@ -14,6 +14,7 @@ from datetime import timedelta
 from django.db import IntegrityError, transaction
 from django.utils import timezone
 
+from studyapp.assignment import last_seen_is_stale
 from studyapp.models import Assignment, Participant, Rating, Study, System
 
 
@@ -78,29 +79,27 @@ def record_rating(participant: Participant, assignment_token: str, value: int, t
 
 def _store_rating(study: Study, participant: Participant, assignment_token: str, value: int,
                   times: ClientTimes) -> Rating:
-    # The participant's row lock orders their own concurrent requests (two tabs, a double
-    # click, a return that releases clips); other participants never wait for it.
-    finished_at, excluded = (Participant.objects.select_for_update().filter(pk=participant.pk)
-                             .values_list("finished_at", "excluded").get())
-    if finished_at is not None:
-        raise RatingRejected("this participant has already finished the study", status=409)
     # The clip on screen is the first unrated one; the second tells whether any is left.
+    # Locking their rows orders the participant's own concurrent requests (two tabs, a
+    # double click) and no one else's; a race past them ends at the rating's unique
+    # assignment (IntegrityError).
     unrated = list(participant.assignments.filter(rating__isnull=True).select_related("stimulus__system")
-                   .order_by("position")[:2])
-    if not unrated or unrated[0].token != assignment_token:
+                   .select_for_update(of=("self",)).order_by("position")[:2])
+    if not unrated:
+        raise RatingRejected("this participant has already finished the study", status=409)
+    if unrated[0].token != assignment_token:
         raise _refusal(participant, assignment_token)
     assignment, now = unrated[0], timezone.now()
     rating = Rating.objects.create(
         assignment=assignment, value=value, client_started_s=times.started_s, client_ended_s=times.ended_s,
         client_answered_s=times.answered_s, played_until_s=times.played_until_s,
         answered_before_end=answered_early(assignment, now, times))
-    changes: dict[str, object] = {"last_seen": now}
+    changes = {"finished_at": now} if len(unrated) == 1 else {}
+    if changes or last_seen_is_stale(participant, now):
+        Participant.objects.filter(pk=participant.pk).update(last_seen=now, **changes)
     reason = _exclusion(study, assignment.stimulus.system, value)
-    if reason and not excluded:
-        changes.update(excluded=True, exclusion_reason=reason)
-    if len(unrated) == 1:
-        changes["finished_at"] = now
-    Participant.objects.filter(pk=participant.pk).update(**changes)
+    if reason and not participant.excluded:  # the first reason stays
+        Participant.objects.filter(pk=participant.pk, excluded=False).update(excluded=True, exclusion_reason=reason)
     return rating
 
 
