@@ -2,7 +2,7 @@
 
 The steps themselves (what each page shows, what its form does, in which order) are
 declared in ``participant_path.PATH``; this module finds the participant of the browser's
-session and guards each step with ``participant_access``. Each form posts to its step's
+cookie and guards each step with ``participant_access``. Each form posts to its step's
 URL and redirects back to the one page URL.
 """
 
@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from functools import wraps
 
+from django.conf import settings
 from django.db import IntegrityError
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import redirect, render
@@ -44,8 +45,25 @@ def _framed(study: Study, response: HttpResponse) -> HttpResponse:
     return response
 
 
-def _session_key(study_key: str) -> str:
-    return f"participant:{study_key}"
+def _cookie(study_key: str) -> tuple[str, str]:
+    """The name and the signing salt of the cookie naming this browser's participant of a study."""
+    return f"participant-{study_key}", f"studyapp.participant:{study_key}"
+
+
+def _participant_pk(request: HttpRequest, study_key: str) -> str | None:
+    name, salt = _cookie(study_key)
+    return request.get_signed_cookie(name, default=None, salt=salt, max_age=settings.SESSION_COOKIE_AGE)
+
+
+def _remember(response: HttpResponse, participant: Participant) -> HttpResponse:
+    """Name the participant in a signed cookie that only their study's pages receive. Not
+    the session: reading it costs every page a query, and participants need nothing else
+    from it."""
+    name, salt = _cookie(participant.study.key)
+    response.set_signed_cookie(name, str(participant.pk), salt=salt, max_age=settings.SESSION_COOKIE_AGE,
+                               path=f"/p/{participant.study.key}/", secure=settings.SESSION_COOKIE_SECURE,
+                               httponly=True, samesite=settings.SESSION_COOKIE_SAMESITE)
+    return response
 
 
 def _study(key: str, must_be_open: bool = False) -> Study:
@@ -60,13 +78,13 @@ def _study(key: str, must_be_open: bool = False) -> Study:
 def _participant(request: HttpRequest, key: str) -> tuple[Study, Participant | None]:
     """The study of an entry key (404 if none) and this browser's participant in it, if
     any: one query for both when there is one, as on every page of the path."""
-    pk = request.session.get(_session_key(key))
+    pk = _participant_pk(request, key)
     participant = Participant.objects.select_related("study").filter(pk=pk, study__key=key).first() if pk else None
     return (participant.study, participant) if participant else (_study(key), None)
 
 
 def participant_access(step: Step | None = None) -> Callable[[ParticipantView], Callable[..., HttpResponse]]:
-    """Decorate a view of the participant of this browser's session; it is called with
+    """Decorate a view of this browser's participant (its cookie); it is called with
     (request, study, participant). Without a participant: 403. With ``step``: only while
     the participant may send that step's form (409 otherwise), and a step that refuses
     (RatingRejected) answers with its 4xx and a message, having changed nothing."""
@@ -106,7 +124,7 @@ def _enrolled(request: HttpRequest, study: Study) -> HttpResponse:
     if study.platform == Study.Platform.MTURK and data.get("assignmentId") == "ASSIGNMENT_ID_NOT_AVAILABLE":
         return message(request, study.title, "This is a preview. Accept the task to take part.")
     platform_id = data.get(names[0])
-    pk = request.session.get(_session_key(key))
+    pk = _participant_pk(request, key)
     existing = Participant.objects.filter(pk=pk, study=study).first() if pk else None
     if existing and (platform_id is None or existing.platform_id == platform_id):
         return redirect("participant-page", key=key)
@@ -126,8 +144,8 @@ def _enrolled(request: HttpRequest, study: Study) -> HttpResponse:
             return message(request, "Not ready yet", "This study has no clips yet. Please try again later.", 503)
         except IntegrityError:  # the same id arriving twice at once: the other request enrolled it
             participant = Participant.objects.get(study=study, platform_id=platform_id)
-    request.session[_session_key(key)] = participant.pk
-    return redirect("participant-page", key=key)
+    participant.study = study
+    return _remember(redirect("participant-page", key=key), participant)
 
 
 def step_form(step: Step) -> Callable[..., HttpResponse]:

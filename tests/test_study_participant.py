@@ -364,10 +364,10 @@ def test_a_rating_step_costs_a_few_queries(django_assert_max_num_queries):
     participant = through_practice(client, study)
     token = on_screen_token(client, study)
     make_shown_long_ago(participant)
-    # The POST (session, participant and study, the clip on screen and the next, the
-    # rating) and the next page (session, participant and study, its clip, shown_at,
-    # progress), with the transaction's two statements.
-    with django_assert_max_num_queries(11):
+    # The POST (participant and study, the clip on screen and the next, the rating, with
+    # the transaction's two statements) and the next page (participant and study, its
+    # clip, shown_at, progress).
+    with django_assert_max_num_queries(9):
         response = post(client, study, "rate", assignment=token, value=3, **WATCHED)
         client.get(response["Location"])
     assert Rating.objects.filter(assignment__token=token).count() == 1
@@ -391,3 +391,15 @@ def test_last_seen_is_written_once_a_hundredth_of_the_reservation_and_reservatio
     assert all(stimulus_loads(study)[s] == 1 for s in unrated)
     Participant.objects.filter(pk=participant.pk).update(last_seen=timezone.now() - timedelta(minutes=102))
     assert all(stimulus_loads(study)[s] == 0 for s in unrated)
+
+
+def test_the_participant_cookie_is_signed_and_sent_only_to_its_study():
+    study = make_study()
+    client = Client()
+    enter(client, study, "first")
+    cookie = client.cookies[f"participant-{study.key}"]
+    assert cookie["path"] == f"/p/{study.key}/" and cookie["httponly"]
+    other = Participant.objects.create(study=study, platform_id="other")
+    pk = str(Participant.objects.get(platform_id="first").pk)
+    client.cookies[f"participant-{study.key}"] = cookie.value.replace(pk, str(other.pk), 1)  # a forged id
+    assert client.get(reverse("participant-page", args=[study.key])).status_code == 403
