@@ -15,7 +15,7 @@ arriving together see each other's reservations and never push a stimulus past i
 from __future__ import annotations
 
 import random
-from datetime import timedelta
+from datetime import datetime, timedelta
 
 from django.db import transaction
 from django.db.models import Count, Q
@@ -32,9 +32,27 @@ class StudyNotReady(Exception):
     """The study has no rendered clips to rate yet."""
 
 
+def _reservation(study: Study) -> timedelta:
+    """How long an unfinished participant's unrated clips stay reserved after ``last_seen``:
+    ``reservation_minutes`` and a hundredth, because ``last_seen`` is written only when it
+    is older than that hundredth (``last_seen_is_stale``)."""
+    return timedelta(minutes=study.reservation_minutes) * 1.01
+
+
+def last_seen_is_stale(participant: Participant, now: datetime) -> bool:
+    """Whether ``last_seen`` needs writing: older than a hundredth of the reservation time
+    (54 s at 90 minutes), so that a participant going from clip to clip costs no write."""
+    return now - participant.last_seen > timedelta(minutes=participant.study.reservation_minutes) / 100
+
+
+def is_idle(participant: Participant, now: datetime) -> bool:
+    """Away longer than their reservation: their unrated clips may have gone to others."""
+    return participant.finished_at is None and now - participant.last_seen > _reservation(participant.study)
+
+
 def stimulus_loads(study: Study) -> dict[int, int]:
     """Load of each rendered stimulus of the study: kept ratings + live reservations."""
-    cutoff = timezone.now() - timedelta(minutes=study.reservation_minutes)
+    cutoff = timezone.now() - _reservation(study)
     kept = Q(assignments__rating__isnull=False)
     if study.discard_early:
         kept &= Q(assignments__rating__answered_before_end=False)
@@ -100,10 +118,10 @@ def _training_clips(study: Study, exclude: set[int], rng: random.Random) -> list
     return chosen
 
 
-def renew_reservations(participant: Participant, touch: bool = True) -> Participant:
-    """Mark the participant as active now (``touch`` False: leave that to the caller, who
-    saves ``last_seen`` itself); a participant back after ``reservation_minutes`` keeps
-    only the unrated clips that still fit under their targets.
+def renew_reservations(participant: Participant) -> Participant:
+    """Mark the participant as active now (see ``last_seen_is_stale``); a participant back
+    after ``reservation_minutes`` keeps only the unrated clips that still fit under their
+    targets.
 
     While a participant is idle that long, their unrated clips stop counting towards the
     targets and may be given to others; rating them on return would push those stimuli
@@ -112,16 +130,15 @@ def renew_reservations(participant: Participant, touch: bool = True) -> Particip
     """
     study = participant.study
     now = timezone.now()
-    idle_limit = timedelta(minutes=study.reservation_minutes)
-    if participant.finished_at is not None or now - participant.last_seen <= idle_limit:
-        if touch:  # the common case: no lock, one write
+    if not is_idle(participant, now):
+        if last_seen_is_stale(participant, now):  # the common case: no lock, rarely a write
             Participant.objects.filter(pk=participant.pk).update(last_seen=now)
             participant.last_seen = now
         return participant
     with transaction.atomic():  # the same lock as enrol(), which may be handing these clips out
         Study.objects.select_for_update().get(pk=study.pk)
-        participant = Participant.objects.select_for_update().get(pk=participant.pk)
-        if now - participant.last_seen > idle_limit:  # not renewed by a request racing this one
+        participant = Participant.objects.select_for_update().select_related("study").get(pk=participant.pk)
+        if is_idle(participant, now):  # not renewed by a request racing this one
             loads = stimulus_loads(study)  # without this participant's clips: their last_seen is stale
             for assignment in participant.assignments.filter(rating__isnull=True, is_check=False).order_by("position"):
                 if loads.get(assignment.stimulus_id, 0) >= study.ratings_per_stimulus:

@@ -14,6 +14,7 @@ from datetime import timedelta
 from django.db import IntegrityError, transaction
 from django.utils import timezone
 
+from studyapp.assignment import last_seen_is_stale
 from studyapp.models import Assignment, Participant, Rating, Study, System
 
 
@@ -68,37 +69,48 @@ def record_rating(participant: Participant, assignment_token: str, value: int, t
     study = participant.study
     if value not in study.scale:
         raise RatingRejected(f"rating {value} is outside the scale {study.scale_min}-{study.scale_max}")
-    with transaction.atomic():
-        participant = Participant.objects.select_for_update().get(pk=participant.pk)
-        if participant.finished_at is not None:
-            raise RatingRejected("this participant has already finished the study", status=409)
-        assignment = (Assignment.objects.select_related("stimulus__system")
-                      .filter(participant=participant, token=assignment_token).first())
-        if assignment is None:
-            raise RatingRejected("that clip is not assigned to this participant", status=403)
-        if Rating.objects.filter(assignment=assignment).exists():
-            raise RatingRejected("that clip has already been rated", status=409)
-        current = current_assignment(participant)
-        if current is None or current.pk != assignment.pk:
-            raise RatingRejected("that clip is not the one on screen now", status=409)
-        now = timezone.now()
-        early = answered_early(assignment, now, times)
-        try:
-            with transaction.atomic():
-                rating = Rating.objects.create(
-                    assignment=assignment, value=value, client_started_s=times.started_s,
-                    client_ended_s=times.ended_s, client_answered_s=times.answered_s,
-                    played_until_s=times.played_until_s, answered_before_end=early)
-        except IntegrityError:  # a second submission racing this one
-            raise RatingRejected("that clip has already been rated", status=409) from None
-        reason = _exclusion(study, assignment.stimulus.system, value)
-        if reason and not participant.excluded:
-            participant.excluded, participant.exclusion_reason = True, reason
-        if current_assignment(participant) is None:
-            participant.finished_at = now
-        participant.last_seen = now
-        participant.save(update_fields=["excluded", "exclusion_reason", "finished_at", "last_seen"])
+    try:
+        with transaction.atomic():
+            rating = _store_rating(study, participant, assignment_token, value, times)
+    except IntegrityError:  # a second submission racing this one; the transaction stored nothing
+        raise RatingRejected("that clip has already been rated", status=409) from None
     return rating
+
+
+def _store_rating(study: Study, participant: Participant, assignment_token: str, value: int,
+                  times: ClientTimes) -> Rating:
+    # The clip on screen is the first unrated one; the second tells whether any is left.
+    # Locking their rows orders the participant's own concurrent requests (two tabs, a
+    # double click) and no one else's; a race past them ends at the rating's unique
+    # assignment (IntegrityError).
+    unrated = list(participant.assignments.filter(rating__isnull=True).select_related("stimulus__system")
+                   .select_for_update(of=("self",)).order_by("position")[:2])
+    if not unrated:
+        raise RatingRejected("this participant has already finished the study", status=409)
+    if unrated[0].token != assignment_token:
+        raise _refusal(participant, assignment_token)
+    assignment, now = unrated[0], timezone.now()
+    rating = Rating.objects.create(
+        assignment=assignment, value=value, client_started_s=times.started_s, client_ended_s=times.ended_s,
+        client_answered_s=times.answered_s, played_until_s=times.played_until_s,
+        answered_before_end=answered_early(assignment, now, times))
+    changes = {"finished_at": now} if len(unrated) == 1 else {}
+    if changes or last_seen_is_stale(participant, now):
+        Participant.objects.filter(pk=participant.pk).update(last_seen=now, **changes)
+    reason = _exclusion(study, assignment.stimulus.system, value)
+    if reason and not participant.excluded:  # the first reason stays
+        Participant.objects.filter(pk=participant.pk, excluded=False).update(excluded=True, exclusion_reason=reason)
+    return rating
+
+
+def _refusal(participant: Participant, assignment_token: str) -> RatingRejected:
+    """Why ``assignment_token`` is not the clip on screen (asked only when it is not)."""
+    assignment = Assignment.objects.filter(participant=participant, token=assignment_token).first()
+    if assignment is None:
+        return RatingRejected("that clip is not assigned to this participant", status=403)
+    if Rating.objects.filter(assignment=assignment).exists():
+        return RatingRejected("that clip has already been rated", status=409)
+    return RatingRejected("that clip is not the one on screen now", status=409)
 
 
 EXPORT_COLUMNS = (

@@ -22,6 +22,7 @@ from django.views.decorators.http import require_POST, require_safe
 from studyapp.celery import app as celery_app
 from studyapp.controls import (ControlError, add_control_file, add_held_out_controls, add_label_controls,
                                add_preset_controls, control_kind, study_labels)
+from studyapp.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
 from studyapp.forms import (CheckpointSystemForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
                             LabelControlsForm, NaturalSystemForm, PresetControlsForm, StudyForm, VideoSystemForm)
 from studyapp.health import collect_health
@@ -29,7 +30,7 @@ from studyapp.models import NATURAL_NAME, Stimulus, Study, System
 from studyapp.monitor import ratings_csv, study_monitor
 from studyapp.participant_views import PLATFORM_PARAMETERS
 from studyapp.reports import AnalysisInputError, create_report
-from studyapp.stimuli import BrokerUnavailable, generate_stimuli, progress, retry_stimulus
+from studyapp.stimuli import progress
 from studyapp.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
 
 # Prolific fills these placeholders in a study URL; MTurk appends its own ids.

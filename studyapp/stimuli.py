@@ -6,22 +6,20 @@ camera, video size and code version), so planning again finds the same rows and 
 duplicates a stimulus. Models and BAD checkpoints get every control; NAT only the
 held-out ones, since a synthetic path has no natural clip.
 
-``queue_stimuli`` hands rows to Celery, checking the broker first with a bounded wait
-so a stopped broker is a clear message, not a hung page. ``render_stimulus`` is the
-work a task does: sample (or read the natural clip), render with the study's camera
-and write ``MEDIA_ROOT/stimuli/<token>.mp4`` atomically. A killed attempt leaves only
-a hidden ``.<token>.mp4.*.part`` temporary, which the next attempt removes and the media
-view never serves.
+``render_stimulus`` is the work a task does: sample (or read the natural clip), render
+with the study's camera and write ``MEDIA_ROOT/stimuli/<token>.mp4`` atomically. A
+killed attempt leaves only a hidden ``.<token>.mp4.*.part`` temporary, which the next
+attempt removes and the media view never serves.
+
+This module knows nothing of the task queue: ``dispatch`` sends the rows to the
+workers, and ``tasks`` calls ``claim``, ``render_stimulus`` and ``finish``.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import uuid
 from collections import Counter
-from dataclasses import dataclass
-from datetime import datetime, timedelta
 from functools import lru_cache
 from importlib import metadata
 from pathlib import Path
@@ -38,7 +36,6 @@ from generation.motion.root import root_trajectory
 from generation.motion.types import Motion
 from generation.render import Camera, render_video
 from studyapp.controls import training_options
-from studyapp.health import check_broker
 from studyapp.models import ControlSignal, Stimulus, Study, System
 
 # The package version, not the git commit: a commit that changes no rendering code
@@ -47,15 +44,6 @@ try:
     CODE_VERSION = metadata.version("motion-study")
 except metadata.PackageNotFoundError:
     CODE_VERSION = "unknown"
-
-
-# A queued or running row unchanged this long has lost its task; generating again re-sends
-# it. Rendering one clip takes seconds; a long queue is the only reason to wait this long.
-STALE_TASK_MINUTES = 30
-
-
-class BrokerUnavailable(RuntimeError):
-    """The task queue's broker did not answer; nothing was queued."""
 
 
 def content_key(study: Study, system: System, control: ControlSignal, seed: int) -> str:
@@ -97,70 +85,6 @@ def plan_stimuli(study: Study, seed: int = 0) -> tuple[list[Stimulus], int]:
             stimuli.append(stimulus)
             created += new
     return stimuli, created
-
-
-def _sendable(stimulus: Stimulus, now: datetime) -> bool:
-    """Pending or failed; or queued or running with no news for STALE_TASK_MINUTES (its
-    message was lost, or its worker died without the broker redelivering it)."""
-    if stimulus.status in (Stimulus.Status.PENDING, Stimulus.Status.FAILED):
-        return True
-    stuck = stimulus.status in (Stimulus.Status.QUEUED, Stimulus.Status.RUNNING)
-    return stuck and now - stimulus.updated > timedelta(minutes=STALE_TASK_MINUTES)
-
-
-def queue_stimuli(stimuli: list[Stimulus], timeout_s: float | None = None) -> int:
-    """Send each row that needs it (``_sendable``) to a worker; how many were sent.
-
-    Each send gives the row a new task id and only the task with the row's current id
-    may work on it (``claim``), so a row sent twice (two clicks, a stuck row re-sent) is
-    rendered once. Raises BrokerUnavailable, with the rows left as they were, when the
-    broker does not answer within ``timeout_s`` (default: settings.HEALTH_TIMEOUT_S).
-    """
-    from studyapp.celery import app
-    from studyapp.tasks import generate_stimulus
-
-    now = timezone.now()
-    todo = [s for s in stimuli if _sendable(s, now)]
-    if not todo:
-        return 0
-    timeout_s = settings.HEALTH_TIMEOUT_S if timeout_s is None else timeout_s
-    with app.connection_for_write(connect_timeout=timeout_s) as connection:
-        broker = check_broker(connection, timeout_s)
-        if not broker.ok:
-            raise BrokerUnavailable(f"the task queue's broker does not answer ({broker.detail}); "
-                                    "nothing was queued: start it (and a worker), then generate again")
-        sent = 0
-        for stimulus in todo:
-            task_id = str(uuid.uuid4())
-            # Marked queued before sending (a fast worker may mark it running first), and
-            # only if nobody changed the row since it was read: two clicks send it once.
-            marked = Stimulus.objects.filter(pk=stimulus.pk, status=stimulus.status, task_id=stimulus.task_id).update(
-                status=Stimulus.Status.QUEUED, task_id=task_id, error="", updated=timezone.now())
-            if not marked:
-                continue
-            try:
-                generate_stimulus.apply_async((stimulus.pk,), task_id=task_id, connection=connection, retry=False)
-            except Exception as error:  # kombu raises many kinds; all mean "not sent"
-                Stimulus.objects.filter(pk=stimulus.pk, task_id=task_id).update(
-                    status=stimulus.status, task_id=stimulus.task_id, updated=stimulus.updated)
-                raise BrokerUnavailable(f"sending to the task queue failed after {sent} of {len(todo)} "
-                                        f"({type(error).__name__}: {error}); the rest stay as they were") from None
-            stimulus.status, stimulus.task_id = Stimulus.Status.QUEUED, task_id
-            sent += 1
-    return sent
-
-
-@dataclass(frozen=True)
-class Generation:
-    total: int
-    created: int
-    queued: int
-
-
-def generate_stimuli(study: Study, seed: int = 0, timeout_s: float | None = None) -> Generation:
-    """Plan every stimulus of the study and queue the ones not done; BrokerUnavailable if it cannot."""
-    stimuli, created = plan_stimuli(study, seed)
-    return Generation(len(stimuli), created, queue_stimuli(stimuli, timeout_s))
 
 
 def progress(study: Study) -> dict:
@@ -251,10 +175,4 @@ def finish(stimulus: Stimulus, duration_s: float | None = None, error: str = "")
         status=status, duration_s=duration_s, error=error, updated=timezone.now())
 
 
-def retry_stimulus(stimulus: Stimulus, timeout_s: float | None = None) -> int:
-    """Queue a failed (or stuck) stimulus again (BrokerUnavailable if the broker is down)."""
-    return queue_stimuli([stimulus], timeout_s)
-
-
-__all__ = ["BrokerUnavailable", "Generation", "claim", "content_key", "finish", "generate_stimuli", "plan_stimuli",
-           "progress", "queue_stimuli", "remove_partial_files", "render_stimulus", "retry_stimulus"]
+__all__ = ["claim", "content_key", "finish", "plan_stimuli", "progress", "remove_partial_files", "render_stimulus"]

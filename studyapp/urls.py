@@ -6,6 +6,7 @@ from django.contrib.auth import views as auth_views
 from django.urls import include, path
 
 from studyapp import participant_views, views
+from studyapp.participant_path import PATH
 
 urlpatterns = [
     path("", views.gallery, name="gallery"),
@@ -17,13 +18,12 @@ urlpatterns = [
     path("login/", auth_views.LoginView.as_view(), name="login"),
     path("logout/", auth_views.LogoutView.as_view(), name="logout"),
     path("studies/", include("studyapp.researcher_urls")),
-    # Participants: the entry link, the one page they are on, and its steps.
+    # Participants: the entry link, the one page they are on, and its steps' forms as
+    # participant_path.PATH declares them (/p/KEY/consent/, /p/KEY/rate/, ...).
     path("p/<str:key>/", participant_views.enter, name="participant-enter"),
     path("p/<str:key>/now/", participant_views.page, name="participant-page"),
-    path("p/<str:key>/consent/", participant_views.consent, name="participant-consent"),
-    path("p/<str:key>/instructions/", participant_views.instructions, name="participant-instructions"),
-    path("p/<str:key>/practice/", participant_views.practice, name="participant-practice"),
-    path("p/<str:key>/rate/", participant_views.rate, name="participant-rate"),
+    *(path(f"p/<str:key>/{step.name}/", participant_views.step_form(step), name=f"participant-{step.name}")
+      for step in PATH if step.submit),
 ]
 
 if settings.SERVE_FILES:

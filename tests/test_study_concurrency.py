@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections import Counter
 
 import pytest
+from django.db import connection
 
 from studyapp.models import Participant, Rating, Stimulus, System
 from studyapp.simulated_participants import run_participants
@@ -31,3 +32,17 @@ def test_simultaneous_participants_never_pass_a_target_and_lose_no_rating(live_s
     per_stimulus = Counter(Rating.objects.values_list("assignment__stimulus_id", flat=True))
     rated = Stimulus.objects.filter(study=study).exclude(system__role=System.Role.BAD)
     assert all(per_stimulus[s.id] == study.ratings_per_stimulus for s in rated)
+
+
+@pytest.mark.django_db(transaction=True)
+def test_watching_participants_on_the_embedded_database_lose_nothing(live_server):
+    # The demo's setup in small: a threaded server and SQLite (WAL, immediate transactions).
+    assert connection.vendor != "sqlite" or connection.cursor().execute("PRAGMA journal_mode").fetchone() == ("wal",)
+    study = make_study(controls=10, clips_per_participant=5, ratings_per_stimulus=30, bad_checks=1,
+                       natural_checks=1, training_clips=1, clip_seconds=0.01)
+    outcomes = run_participants(f"{live_server.url}/p/{study.key}/", count=30, watch_s=0.3)
+
+    assert [o.error for o in outcomes if o.error] == []
+    assert all(o.finished for o in outcomes)
+    assert Rating.objects.count() == Rating.objects.values("assignment").distinct().count() == 30 * 5
+    assert sum(o.ratings for o in outcomes) == 30 * 5

@@ -356,3 +356,50 @@ def test_participants_finish_while_the_task_queue_is_down():
         app.conf.broker_url = original
     participant.refresh_from_db()
     assert participant.finished_at is not None
+
+
+def test_a_rating_step_costs_a_few_queries(django_assert_max_num_queries):
+    study = make_study()
+    client = Client()
+    participant = through_practice(client, study)
+    token = on_screen_token(client, study)
+    make_shown_long_ago(participant)
+    # The POST (participant and study, the clip on screen and the next, the rating, with
+    # the transaction's two statements) and the next page (participant and study, its
+    # clip, shown_at, progress).
+    with django_assert_max_num_queries(9):
+        response = post(client, study, "rate", assignment=token, value=3, **WATCHED)
+        client.get(response["Location"])
+    assert Rating.objects.filter(assignment__token=token).count() == 1
+
+
+def test_last_seen_is_written_once_a_hundredth_of_the_reservation_and_reservations_make_up_for_it():
+    study = make_study(reservation_minutes=100, clips_per_participant=4, bad_checks=0, natural_checks=0)
+    client = Client()
+    participant = through_practice(client, study)
+    recent = timezone.now() - timedelta(seconds=30)  # under a minute, the hundredth of 100 minutes
+    Participant.objects.filter(pk=participant.pk).update(last_seen=recent)
+    rate_current(client, study, participant, 3)
+    assert Participant.objects.get(pk=participant.pk).last_seen == recent  # no write for it
+    stale = timezone.now() - timedelta(minutes=2)
+    Participant.objects.filter(pk=participant.pk).update(last_seen=stale)
+    rate_current(client, study, participant, 3)
+    assert Participant.objects.get(pk=participant.pk).last_seen > stale
+    # A last_seen up to a hundredth late still holds the clips: 100.5 minutes ago is not idle.
+    Participant.objects.filter(pk=participant.pk).update(last_seen=timezone.now() - timedelta(minutes=100.5))
+    unrated = participant.assignments.filter(rating__isnull=True).values_list("stimulus_id", flat=True)
+    assert all(stimulus_loads(study)[s] == 1 for s in unrated)
+    Participant.objects.filter(pk=participant.pk).update(last_seen=timezone.now() - timedelta(minutes=102))
+    assert all(stimulus_loads(study)[s] == 0 for s in unrated)
+
+
+def test_the_participant_cookie_is_signed_and_sent_only_to_its_study():
+    study = make_study()
+    client = Client()
+    enter(client, study, "first")
+    cookie = client.cookies[f"participant-{study.key}"]
+    assert cookie["path"] == f"/p/{study.key}/" and cookie["httponly"]
+    other = Participant.objects.create(study=study, platform_id="other")
+    pk = str(Participant.objects.get(platform_id="first").pk)
+    client.cookies[f"participant-{study.key}"] = cookie.value.replace(pk, str(other.pk), 1)  # a forged id
+    assert client.get(reverse("participant-page", args=[study.key])).status_code == 403

@@ -30,7 +30,8 @@ from generation.checkpoint import FORMAT_KEY, load_checkpoint, read_meta, tensor
 from studyapp.celery import app as celery_app
 from studyapp.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
 from studyapp.models import ControlSignal, Participant, Stimulus, Study, System
-from studyapp.stimuli import STALE_TASK_MINUTES, plan_stimuli, queue_stimuli
+from studyapp.dispatch import STALE_TASK_MINUTES, queue_stimuli
+from studyapp.stimuli import plan_stimuli
 from studyapp.tasks import generate_stimulus
 from tests.study_setup import CLIPS, link_clips, study_files
 

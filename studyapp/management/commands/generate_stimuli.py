@@ -4,7 +4,8 @@ import time
 
 from django.core.management.base import BaseCommand, CommandError
 
-from studyapp.stimuli import BrokerUnavailable, generate_stimuli, progress
+from studyapp.dispatch import BrokerUnavailable, generate_stimuli
+from studyapp.stimuli import progress
 
 from ._study import study_by_id
 

@@ -1,0 +1,97 @@
+"""Sending a study's stimuli to the Celery workers: queueing, broker errors and re-sending.
+
+``generate_stimuli`` plans the rows (``stimuli.plan_stimuli``) and queues those not done.
+``queue_stimuli`` checks the broker first with a bounded wait, so a stopped broker is a
+clear message, not a hung page, and re-sends rows whose task was lost. The domain logic
+(what a stimulus is, how it is rendered) stays in ``stimuli``, which knows nothing of
+Celery; this module and ``tasks`` are its only links to the queue.
+"""
+
+from __future__ import annotations
+
+import uuid
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+
+from django.conf import settings
+from django.utils import timezone
+
+from studyapp.celery import app
+from studyapp.health import check_broker
+from studyapp.models import Stimulus, Study
+from studyapp.stimuli import plan_stimuli
+from studyapp.tasks import generate_stimulus
+
+# A queued or running row unchanged this long has lost its task; generating again re-sends
+# it. Rendering one clip takes seconds; a long queue is the only reason to wait this long.
+STALE_TASK_MINUTES = 30
+
+
+class BrokerUnavailable(RuntimeError):
+    """The task queue's broker did not answer; nothing was queued."""
+
+
+def _sendable(stimulus: Stimulus, now: datetime) -> bool:
+    """Pending or failed; or queued or running with no news for STALE_TASK_MINUTES (its
+    message was lost, or its worker died without the broker redelivering it)."""
+    if stimulus.status in (Stimulus.Status.PENDING, Stimulus.Status.FAILED):
+        return True
+    stuck = stimulus.status in (Stimulus.Status.QUEUED, Stimulus.Status.RUNNING)
+    return stuck and now - stimulus.updated > timedelta(minutes=STALE_TASK_MINUTES)
+
+
+def queue_stimuli(stimuli: list[Stimulus], timeout_s: float | None = None) -> int:
+    """Send each row that needs it (``_sendable``) to a worker; how many were sent.
+
+    Each send gives the row a new task id and only the task with the row's current id
+    may work on it (``stimuli.claim``), so a row sent twice (two clicks, a stuck row
+    re-sent) is rendered once. Raises BrokerUnavailable, with the rows left as they were,
+    when the broker does not answer within ``timeout_s`` (default: settings.HEALTH_TIMEOUT_S).
+    """
+    now = timezone.now()
+    todo = [s for s in stimuli if _sendable(s, now)]
+    if not todo:
+        return 0
+    timeout_s = settings.HEALTH_TIMEOUT_S if timeout_s is None else timeout_s
+    with app.connection_for_write(connect_timeout=timeout_s) as connection:
+        broker = check_broker(connection, timeout_s)
+        if not broker.ok:
+            raise BrokerUnavailable(f"the task queue's broker does not answer ({broker.detail}); "
+                                    "nothing was queued: start it (and a worker), then generate again")
+        sent = 0
+        for stimulus in todo:
+            task_id = str(uuid.uuid4())
+            # Marked queued before sending (a fast worker may mark it running first), and
+            # only if nobody changed the row since it was read: two clicks send it once.
+            marked = Stimulus.objects.filter(pk=stimulus.pk, status=stimulus.status, task_id=stimulus.task_id).update(
+                status=Stimulus.Status.QUEUED, task_id=task_id, error="", updated=timezone.now())
+            if not marked:
+                continue
+            try:
+                generate_stimulus.apply_async((stimulus.pk,), task_id=task_id, connection=connection, retry=False)
+            except Exception as error:  # kombu raises many kinds; all mean "not sent"
+                Stimulus.objects.filter(pk=stimulus.pk, task_id=task_id).update(
+                    status=stimulus.status, task_id=stimulus.task_id, updated=stimulus.updated)
+                raise BrokerUnavailable(f"sending to the task queue failed after {sent} of {len(todo)} "
+                                        f"({type(error).__name__}: {error}); the rest stay as they were") from None
+            stimulus.status, stimulus.task_id = Stimulus.Status.QUEUED, task_id
+            sent += 1
+    return sent
+
+
+@dataclass(frozen=True)
+class Generation:
+    total: int
+    created: int
+    queued: int
+
+
+def generate_stimuli(study: Study, seed: int = 0, timeout_s: float | None = None) -> Generation:
+    """Plan every stimulus of the study and queue the ones not done; BrokerUnavailable if it cannot."""
+    stimuli, created = plan_stimuli(study, seed)
+    return Generation(len(stimuli), created, queue_stimuli(stimuli, timeout_s))
+
+
+def retry_stimulus(stimulus: Stimulus, timeout_s: float | None = None) -> int:
+    """Queue a failed (or stuck) stimulus again (BrokerUnavailable if the broker is down)."""
+    return queue_stimuli([stimulus], timeout_s)

@@ -1,0 +1,191 @@
+"""The participant's path through a study, declared once: ``PATH``, its steps in order.
+
+    entry link -> consent -> instructions -> practice clips -> one clip per page -> completion
+
+Each ``Step`` says when the participant is on it (``pending``: the first pending
+step is theirs, so a reload or a return on another day shows the page they left), what
+its page shows (a template and its context) and what its form does (``submit``, which
+redirects to the one page URL; the last step has no form). ``stage()`` reads the table,
+``participant_views`` renders and guards the steps through it, and ``urls`` gives each
+form its URL, /p/KEY/<step name>/. A new page type (a questionnaire, a multi-clip page)
+is one entry here and one template.
+
+Nothing on these pages names a system: clips are served by random tokens and the rating
+form names its assignment by another.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from urllib.parse import urlencode, urlparse
+
+from django.db.models import Count
+from django.http import HttpRequest, HttpResponse
+from django.shortcuts import get_object_or_404, redirect, render
+from django.utils import timezone
+
+from studyapp.assignment import is_idle, renew_reservations
+from studyapp.models import Participant, Stimulus, Study
+from studyapp.ratings import ClientTimes, RatingRejected, current_assignment, record_rating
+
+PROLIFIC_COMPLETION_URL = "https://app.prolific.com/submissions/complete"
+MTURK_SUBMIT_HOSTS = {"www.mturk.com", "workersandbox.mturk.com"}
+
+PageContext = Callable[[Study, Participant], dict]
+Submit = Callable[[HttpRequest, Study, Participant], HttpResponse]
+
+
+@dataclass(frozen=True)
+class Step:
+    """One page of the path; its form posts to /p/KEY/<name>/ (URL name ``participant-<name>``)."""
+
+    name: str
+    template: str  # under studyapp/templates/studyapp/participant/
+    pending: Callable[[Participant], bool]  # not passed yet
+    page: PageContext = lambda study, participant: {}
+    submit: Submit | None = None
+    # Its form is still passed to ``submit`` once the participant has gone past the step,
+    # so that submit can say why it refuses (a rating sent again after the last clip).
+    takes_late_posts: bool = False
+
+
+def message(request: HttpRequest, title: str, text: str, status: int = 200) -> HttpResponse:
+    """A page with a title and one notice, and no form: the end of the path, for now."""
+    return render(request, "studyapp/participant/message.html", {"title": title, "text": text}, status=status)
+
+
+def _next_page(study: Study) -> HttpResponse:
+    return redirect("participant-page", key=study.key)
+
+
+def _passing(moment: str) -> Submit:
+    """A submit that records when the participant passed the step (``moment`` is its timestamp field)."""
+    def submit(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
+        setattr(participant, moment, timezone.now())
+        participant.save(update_fields=[moment])
+        return _next_page(study)
+    return submit
+
+
+def _consent(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
+    """Agree (or not) to take part."""
+    if request.POST.get("agree") != "yes":
+        return message(request, "Thank you", "You chose not to take part. Please return the study on your platform.")
+    return _passing("consented_at")(request, study, participant)
+
+
+def _clip_page(study: Study, stimulus: Stimulus, action: str, form: dict, heading: str, done: int,
+               total: int) -> dict:
+    return {
+        "video_url": stimulus.video_url, "action": action, "form": form, "heading": heading,
+        "scale": list(study.scale), "keys": len(study.scale) <= 10, "done": done, "total": total,
+        "percent": round(100 * done / total) if total else 100,
+    }
+
+
+def _practice_page(study: Study, participant: Participant) -> dict:
+    index = participant.training_done
+    stimulus = get_object_or_404(Stimulus, pk=participant.training[index])
+    return _clip_page(study, stimulus, "participant-practice", {"index": index},
+                      f"Practice clip {index + 1} of {len(participant.training)} (not recorded)",
+                      index, len(participant.training))
+
+
+def _practice(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
+    """Move past a practice clip; its answer is not recorded."""
+    if request.POST.get("index") == str(participant.training_done):  # a resubmitted form moves nothing
+        Participant.objects.filter(pk=participant.pk, training_done=participant.training_done).update(
+            training_done=participant.training_done + 1)
+    return _next_page(study)
+
+
+def _rating_page(study: Study, participant: Participant) -> dict:
+    assignment = current_assignment(participant)
+    if assignment.shown_at is None:
+        assignment.shown_at = timezone.now()
+        assignment.save(update_fields=["shown_at"])
+    counts = participant.assignments.aggregate(total=Count("pk"), done=Count("rating"))
+    total, done = counts["total"], counts["done"]
+    return _clip_page(study, assignment.stimulus, "participant-rate", {"assignment": assignment.token},
+                      f"Clip {done + 1} of {total}", done, total)
+
+
+def _optional_float(request: HttpRequest, name: str) -> float | None:
+    text = request.POST.get(name, "").strip()
+    if not text:
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise RatingRejected(f"{name} must be a number of seconds, not {text[:20]!r}") from None
+    if not 0 <= value < 1e6:
+        raise RatingRejected(f"{name} must lie between 0 and a million seconds, not {value}")
+    return value
+
+
+def _rate(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
+    """Store the rating of the clip on screen."""
+    token = request.POST.get("assignment", "")
+    if is_idle(participant, timezone.now()):  # away so long that the clip may have gone to another
+        was_reserved = participant.assignments.filter(token=token, rating__isnull=True).exists()
+        participant = renew_reservations(participant)
+        if was_reserved and not participant.assignments.filter(token=token).exists():
+            raise RatingRejected("that clip was given to another participant while this page was idle; "
+                                 "please reload the page to go on with the next one", status=409)
+    text = request.POST.get("value", "")
+    try:
+        value = int(text)
+    except ValueError:
+        raise RatingRejected(f"the rating must be a whole number from {study.scale_min} to {study.scale_max}, "
+                             f"not {text[:20]!r}") from None
+    times = ClientTimes(*(_optional_float(request, name) for name in ("started_s", "ended_s", "answered_s", "played_until_s")))
+    record_rating(participant, token, value, times)  # after the last clip, it says why not
+    return _next_page(study)
+
+
+def _completion_page(study: Study, participant: Participant) -> dict:
+    """Where a finished participant goes and what code they are given."""
+    code, target = study.completion_code, study.redirect_url
+    mturk_submit = None
+    if study.platform == Study.Platform.PROLIFIC and code and not target:
+        target = f"{PROLIFIC_COMPLETION_URL}?{urlencode({'cc': code})}"
+    if study.platform == Study.Platform.MTURK:
+        submit_to = participant.platform_data.get("turkSubmitTo", "")
+        parsed = urlparse(submit_to)
+        if parsed.scheme == "https" and parsed.hostname in MTURK_SUBMIT_HOSTS:
+            mturk_submit = {"url": f"{submit_to.rstrip('/')}/mturk/externalSubmit",
+                            "assignment_id": participant.platform_data.get("assignmentId", "")}
+    return {"code": code, "redirect_url": target, "mturk_submit": mturk_submit}
+
+
+PATH: tuple[Step, ...] = (
+    Step("consent", "consent.html", pending=lambda p: p.consented_at is None, submit=_consent),
+    Step("instructions", "instructions.html", pending=lambda p: p.instructed_at is None,
+         submit=_passing("instructed_at")),
+    Step("practice", "clip.html", pending=lambda p: p.training_done < len(p.training), page=_practice_page,
+         submit=_practice),
+    Step("rate", "clip.html", pending=lambda p: p.finished_at is None, page=_rating_page, submit=_rate,
+         takes_late_posts=True),
+    Step("done", "done.html", pending=lambda p: True, page=_completion_page),
+)
+
+
+def current_step(participant: Participant) -> Step:
+    """The step the participant is on: the first one not passed."""
+    return next(step for step in PATH if step.pending(participant))
+
+
+def stage(participant: Participant) -> str:
+    """The name of the step the participant is on."""
+    return current_step(participant).name
+
+
+def may_post(step: Step, participant: Participant) -> bool:
+    """Whether ``step``'s form may be sent now: the participant is on it (or past it, where it takes late posts)."""
+    current = PATH.index(current_step(participant))
+    here = PATH.index(step)
+    return current == here or (step.takes_late_posts and current > here)
+
+
+__all__ = ["PATH", "Step", "current_step", "may_post", "message", "stage"]
