@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 
+from generation import registry
 from generation.checkpoint import CheckpointError, load_checkpoint, read_meta, save_checkpoint
 from generation.control import preset_path
 from generation.generator import Generator
@@ -37,13 +38,11 @@ def dataset(clips_folder, tmp_path_factory):
 @pytest.fixture(scope="module")
 def tiny_preset(monkeypatch_module):
     """A MoGlow small enough to train in seconds, registered as the preset 'tiny'."""
-    import dataclasses
-
-    from generation import models
-
-    kind_class, make = models.MODELS["moglow"]
-    tiny = dataclasses.replace(make("cpu"), steps=2, tau=3, lstm_hidden=16, batch_size=8, warmup_steps=0)
-    monkeypatch_module.setitem(models.MODELS, "moglow", (kind_class, lambda name: tiny if name == "tiny" else make(name)))
+    presets = registry.MODELS["moglow"].presets
+    cpu = presets["cpu"]
+    tiny = registry.Preset({**cpu.model, "steps": 2, "tau": 3, "lstm_hidden": 16},
+                           {**cpu.training, "batch_size": 8, "warmup_steps": 0})
+    monkeypatch_module.setitem(presets, "tiny", tiny)
     return "tiny"
 
 
@@ -143,7 +142,8 @@ def test_tampered_checkpoints_fail_with_a_message_naming_the_problem(checkpoint,
 def test_a_checkpoint_with_a_missing_tensor_is_refused(checkpoint, tmp_path):
     from safetensors.torch import load_file, save_file
 
-    from generation.checkpoint import FORMAT_KEY, tensor_digest
+    from generation.checkpoint import FORMAT_KEY
+    from generation.store import tensor_digest
 
     tensors = load_file(str(checkpoint))
     tensors.pop(sorted(tensors)[0])
