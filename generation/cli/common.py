@@ -26,5 +26,5 @@ def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--fps", type=float, default=20.0, help="frame rate of the video (default %(default)s)")
 
 
-def camera(args: argparse.Namespace) -> Camera:
+def camera_from(args: argparse.Namespace) -> Camera:
     return Camera(azimuth=args.azimuth, elevation=args.elevation, distance=args.distance)

@@ -21,7 +21,7 @@ from ..motion.npz import save_motion_npz
 from ..motion.root import RootOptions, root_trajectory
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
-from .common import add_camera_arguments, camera
+from .common import add_camera_arguments, camera_from
 
 
 LOCOMOTION = "walk,run,dash,walk-back,walk-left,walk-right"
@@ -113,7 +113,7 @@ def sample_command(args: argparse.Namespace) -> int:
             save_motion_npz(motion, out / f"{stem}.npz", control=control.velocities, floor_path=path.xz)
             write_bvh(motion_to_bvh(motion), out / f"{stem}.bvh")
             if args.render:
-                render_video(motion, out / f"{stem}.mp4", camera=camera(args), size=args.size, root_path=path.xz)
+                render_video(motion, out / f"{stem}.mp4", camera=camera_from(args), size=args.size, root_path=path.xz)
     print(f"{len(controls) * args.n} clips in {out}")
     return 0
 
@@ -135,7 +135,7 @@ def _sample_attributes(args: argparse.Namespace, generator) -> int:
             save_motion_npz(motion, out / f"{stem}.npz", floor_path=floor)
             write_bvh(motion_to_bvh(motion), out / f"{stem}.bvh")
             if args.render:
-                render_video(motion, out / f"{stem}.mp4", camera=camera(args), size=args.size, root_path=floor)
+                render_video(motion, out / f"{stem}.mp4", camera=camera_from(args), size=args.size, root_path=floor)
     print(f"{len(pairs) * args.n} clips in {out}")
     return 0
 
@@ -151,7 +151,7 @@ def natural_command(args: argparse.Namespace) -> int:
         save_motion_npz(motion, out / f"{clip.name}.npz")
         if args.render:
             floor = root_trajectory(motion, options.root).xz
-            render_video(motion, out / f"{clip.name}.mp4", camera=camera(args), size=args.size, root_path=floor)
+            render_video(motion, out / f"{clip.name}.mp4", camera=camera_from(args), size=args.size, root_path=floor)
     print(f"{len(clips)} natural {args.split} clips in {out}")
     return 0
 

@@ -11,7 +11,7 @@ from ..gallery import GalleryOptions, build_gallery
 from ..motion.dataset import load_body_motion
 from ..motion.root import RootOptions, root_trajectory
 from ..render import contact_sheet, render_video
-from .common import add_camera_arguments, camera
+from .common import add_camera_arguments, camera_from
 
 
 def render(args: argparse.Namespace) -> int:
@@ -19,7 +19,7 @@ def render(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if len(args.bvh) > 1 and out.suffix:
         raise ValueError("with several input files, --out must be a folder")
-    camera = camera(args)
+    camera = camera_from(args)
     for source in tqdm(args.bvh, desc="rendering", unit="clip", disable=len(args.bvh) < 2):
         source = Path(source)
         motion = load_body_motion(source, args.fps)
@@ -35,7 +35,7 @@ def render(args: argparse.Namespace) -> int:
 def gallery(args: argparse.Namespace) -> int:
     options = GalleryOptions(
         fps=args.fps, seconds=args.seconds, size=args.size, per_content=args.per_content,
-        contents=tuple(args.contents.split(",")) if args.contents else None, camera=camera(args),
+        contents=tuple(args.contents.split(",")) if args.contents else None, camera=camera_from(args),
     )
     entries = build_gallery(args.folder, args.out, options)
     print(f"{len(entries)} clips in {args.out} (index.json lists them)")
