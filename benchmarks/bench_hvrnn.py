@@ -30,29 +30,29 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.machine import describe_machine  # noqa: E402
 from generation.hvrnn.classifiers import AttributeClassifiers, ClassifierConfig  # noqa: E402
 from generation.hvrnn.data import MAX_FRAMES, load_attribute_data  # noqa: E402
-from generation.models import model_class, preset  # noqa: E402
+from generation.registry import model_class, preset, training_knobs  # noqa: E402
+from generation.train import load_loss_classifiers  # noqa: E402
 
 KINDS = ("hvrnn", "erd", "quaternet")
 
 
 def build(kind: str, name: str, data, classifiers_path: str):
     config = dataclasses.replace(preset(kind, name), actions=data.actions.names, styles=data.styles.names)
-    if kind == "hvrnn":
-        config = dataclasses.replace(config, classifiers=classifiers_path)
     torch.manual_seed(0)
     model = model_class(kind)(config, data.feature_dim, len(data.actions) + len(data.styles))
     model.prepare(data)
     if kind == "hvrnn":  # measure the last phase of training, with every loss term on
+        load_loss_classifiers(model, classifiers_path)
         model.step.fill_(config.classifier_start + config.classifier_ramp + config.kl_warmup + config.kl_anneal)
     return model
 
 
-def training_steps_per_s(model, batches: dict[str, torch.Tensor], steps: int = 4) -> float:
+def training_steps_per_s(model, batches: dict[str, torch.Tensor], batch: int, steps: int = 4) -> float:
     optimizer = torch.optim.Adam(model.parameters(), lr=1e-4)
     model.train()
     times = []
     for _ in range(steps + 1):
-        index = torch.randint(len(batches["pose"]), (model.config.batch_size,))
+        index = torch.randint(len(batches["pose"]), (batch,))
         start = time.perf_counter()
         loss, _ = model.loss(**{k: v[index] for k, v in batches.items()})
         optimizer.zero_grad()
@@ -69,7 +69,7 @@ def sequences_per_s(model, batch: int, repeats: int = 2) -> float:
     best = float("inf")
     for r in range(repeats + 1):  # the first run warms up
         start = time.perf_counter()
-        model.generate_from_labels(labels, labels, MAX_FRAMES, 1.0, torch.Generator().manual_seed(r))
+        model.generate(labels, labels, MAX_FRAMES, 1.0, torch.Generator().manual_seed(r))
         if r:
             best = min(best, time.perf_counter() - start)
     return batch / best
@@ -86,10 +86,10 @@ def run(data_folder: str, kinds: tuple[str, ...]) -> dict:
         classifiers_path = str(classifiers.save(Path(tmp) / "classifiers.safetensors", data.dataset.fingerprint, {}))
         for kind in kinds:
             for name in ("paper", "cpu"):
-                model = build(kind, name, data, classifiers_path)
+                model, train_batch = build(kind, name, data, classifiers_path), training_knobs(kind, name)["batch_size"]
                 row = {"model": kind, "preset": name, "parameters": sum(p.numel() for p in model.parameters()),
-                       "train_batch": model.config.batch_size,
-                       "train_steps_per_s": round(training_steps_per_s(model, batches), 3)}
+                       "train_batch": train_batch,
+                       "train_steps_per_s": round(training_steps_per_s(model, batches, train_batch), 3)}
                 for batch in (1, 64):
                     row[f"sequences_per_s_batch{batch}"] = round(sequences_per_s(model, batch), 3)
                     row[f"real_time_factor_batch{batch}"] = round(row[f"sequences_per_s_batch{batch}"] * seconds_per_sequence, 1)

@@ -33,7 +33,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.machine import describe_machine  # noqa: E402
-from generation.models import model_class, preset  # noqa: E402
+from generation.registry import model_class, preset, training_knobs  # noqa: E402
 from generation.models.flows import AffineCoupling  # noqa: E402
 from generation.models.moglow import cpu_has_bfloat16_units  # noqa: E402
 from generation.motion.dataset import DatasetOptions, build_dataset  # noqa: E402
@@ -91,10 +91,9 @@ def matrix_product_ceiling(model, batch: int, frames: int = 10, repeats: int = 3
     return batch / best, flops / best / 1e9
 
 
-def training_steps_per_s(model, pose, control, steps: int = 5) -> float:
+def training_steps_per_s(model, pose, control, batch: int, steps: int = 5) -> float:
     optimizer = torch.optim.Adam(model.parameters(), lr=1e-4)
     model.train()
-    batch = model.config.batch_size
     times = []
     for step in range(steps + 1):
         index = torch.randint(len(pose), (batch,))
@@ -112,15 +111,15 @@ def run(data: str, kinds: tuple[str, ...] = ("moglow", "rnn", "vae")) -> dict:
     rows = []
     for kind in kinds:
         for name in ("paper", "cpu"):
-            config = preset(kind, name)
+            config, batch = preset(kind, name), training_knobs(kind, name)["batch_size"]
             torch.manual_seed(0)
             model = model_class(kind)(config, pose.shape[-1], control.shape[-1])
             model.train()
             with torch.no_grad():
                 model.loss(pose[:64], control[:64])  # data-dependent initialisation (ActNorm)
             row = {"model": kind, "preset": name, "parameters": sum(p.numel() for p in model.parameters()),
-                   "train_steps_per_s": round(training_steps_per_s(model, pose, control), 2),
-                   "train_batch": config.batch_size}
+                   "train_steps_per_s": round(training_steps_per_s(model, pose, control, batch), 2),
+                   "train_batch": batch}
             model.eval()
             for precision in (p for p in model.precisions if p in PRECISIONS):
                 for batch in (1, 64):

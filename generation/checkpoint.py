@@ -12,27 +12,27 @@ wrong. The optimiser state for resuming lives beside it, in ``NAME.optim.safeten
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import os
 import subprocess
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import torch
-from safetensors import SafetensorError, safe_open
-from safetensors.torch import load_file, save_file
+from .registry import model_class
+from .store import CheckpointError, read_header, read_tensors, write_tensors
 
-from .files import atomic_output
-from .models import model_class
+if TYPE_CHECKING:
+    import torch
+
+    from .models.base import MotionModel
 
 FORMAT_KEY = "motion_study"
 FORMAT_VERSION = 1
-
-
-class CheckpointError(ValueError):
-    """A checkpoint that cannot be used; the message names the file and the problem."""
+# Training knobs that checkpoints kept among the model's hyperparameters before they
+# moved to ``training``; reading such a header moves them there.
+LEGACY_TRAINING_FIELDS = ("learning_rate", "warmup_steps", "grad_clip", "batch_size", "classifiers")
 
 
 @dataclass
@@ -40,7 +40,7 @@ class CheckpointMeta:
     """The JSON half of a checkpoint."""
 
     kind: str
-    hyperparameters: dict
+    hyperparameters: dict  # the model's configuration: its architecture and loss
     pose_dim: int
     control_dim: int
     features: dict  # {"type": "positions", "fps": 20.0, "root": {...}, ...}
@@ -50,6 +50,7 @@ class CheckpointMeta:
     step: int = 0
     code_version: str = ""
     metrics: dict = field(default_factory=dict)
+    training: dict = field(default_factory=dict)  # the knobs of generation.train.TrainingConfig
 
     def to_json(self) -> str:
         return json.dumps({"format_version": FORMAT_VERSION, **dataclasses.asdict(self)})
@@ -72,7 +73,7 @@ class CheckpointMeta:
             problems += [f"unknown {', '.join(sorted(unknown))}"] if unknown else []
             raise CheckpointError(f"{path}: checkpoint JSON fields: {'; '.join(problems)}")
         expected_types = {"kind": str, "hyperparameters": dict, "pose_dim": int, "control_dim": int, "features": dict,
-                          "stats": dict, "skeleton": dict, "data_fingerprint": str, "step": int, "metrics": dict}
+                          "stats": dict, "skeleton": dict, "data_fingerprint": str, "step": int, "metrics": dict, "training": dict}
         for name, kind in expected_types.items():
             value = data.get(name, kind())
             if not isinstance(value, kind) or isinstance(value, bool):
@@ -81,7 +82,9 @@ class CheckpointMeta:
         for name in ("pose_dim", "control_dim"):
             if data[name] < 1:
                 raise CheckpointError(f"{path}: checkpoint JSON field {name} must be positive, not {data[name]}")
-        return cls(**data)
+        legacy = {name: data["hyperparameters"].pop(name) for name in LEGACY_TRAINING_FIELDS
+                  if name in data["hyperparameters"]}
+        return cls(**{**data, "training": {**legacy, **data.get("training", {})}})
 
 
 JSON_TYPE_NAMES = {str: "a string", int: "an integer", dict: "an object"}
@@ -103,49 +106,19 @@ def code_version() -> str:
     return f"{version}+{commit}" if commit else version
 
 
-def tensor_digest(tensors: dict[str, torch.Tensor]) -> str:
-    digest = hashlib.sha256()
-    for name in sorted(tensors):
-        digest.update(name.encode())
-        digest.update(tensors[name].detach().cpu().contiguous().numpy().tobytes())
-    return digest.hexdigest()
-
-
-def _save_atomic(tensors: dict[str, torch.Tensor], header: dict[str, str], path: Path) -> None:
-    with atomic_output(path) as tmp:
-        save_file(tensors, str(tmp), metadata=header)
-
-
-def save_checkpoint(path: str | os.PathLike, model: torch.nn.Module, meta: CheckpointMeta,
+def save_checkpoint(path: str | os.PathLike, model: MotionModel, meta: CheckpointMeta,
                     optimizer: torch.optim.Optimizer | None = None) -> Path:
     """Write the model (and, if given, the optimiser state beside it) atomically."""
-    path = Path(path)
-    tensors = {k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
-    header = {FORMAT_KEY: meta.to_json(), "digest": tensor_digest(tensors)}
-    _save_atomic(tensors, header, path)
+    path = write_tensors(path, model.state_dict(), {FORMAT_KEY: meta.to_json()})
     if optimizer is not None:
         state = optimizer.state_dict()
-        flat = {f"{index}.{key}": torch.as_tensor(value).detach().cpu().contiguous()
-                for index, entries in state["state"].items() for key, value in entries.items()}
-        _save_atomic(flat, {"param_groups": json.dumps(state["param_groups"])}, optimizer_path(path))
+        flat = {f"{index}.{key}": value for index, entries in state["state"].items() for key, value in entries.items()}
+        write_tensors(optimizer_path(path), flat, {"param_groups": json.dumps(state["param_groups"])}, digest=False)
     return path
 
 
 def optimizer_path(path: Path) -> Path:
     return path.with_name(path.name.removesuffix(".safetensors") + ".optim.safetensors")
-
-
-def _read(path: Path, tensors: bool = True) -> tuple[dict[str, torch.Tensor], dict[str, str]]:
-    """The tensors (unless ``tensors`` is False: the header alone is cheap) and header metadata."""
-    if not path.is_file():
-        raise CheckpointError(f"{path}: no such checkpoint file")
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            header = f.metadata() or {}
-        loaded = load_file(str(path)) if tensors else {}
-    except (SafetensorError, OSError, ValueError) as error:
-        raise CheckpointError(f"{path}: not a readable safetensors file ({error})") from None
-    return loaded, header
 
 
 def _meta(path: Path, header: dict[str, str]) -> CheckpointMeta:
@@ -155,18 +128,16 @@ def _meta(path: Path, header: dict[str, str]) -> CheckpointMeta:
 
 
 def read_meta(path: str | os.PathLike) -> CheckpointMeta:
-    """The JSON description of a checkpoint, checked for form (the tensors are not read)."""
+    """The JSON description of a checkpoint, checked for form (the tensors are not read, torch is not loaded)."""
     path = Path(path)
-    return _meta(path, _read(path, tensors=False)[1])
+    return _meta(path, read_header(path))
 
 
-def load_checkpoint(path: str | os.PathLike, device: str | torch.device = "cpu") -> tuple[torch.nn.Module, CheckpointMeta]:
+def load_checkpoint(path: str | os.PathLike, device: str | torch.device = "cpu") -> tuple[MotionModel, CheckpointMeta]:
     """The model (in eval mode, on ``device``) and its description, fully validated."""
     path = Path(path)
-    tensors, header = _read(path)
+    tensors, header = read_tensors(path)
     meta = _meta(path, header)
-    if header.get("digest") != tensor_digest(tensors):
-        raise CheckpointError(f"{path}: the tensors do not match the checkpoint's digest (the file was changed or damaged)")
     try:
         cls = model_class(meta.kind)
         config = cls.Config(**meta.hyperparameters)
@@ -190,7 +161,7 @@ def load_checkpoint(path: str | os.PathLike, device: str | torch.device = "cpu")
 
 def load_optimizer_state(path: str | os.PathLike, optimizer: torch.optim.Optimizer) -> None:
     """Restore the optimiser state saved beside a checkpoint by ``save_checkpoint``."""
-    tensors, header = _read(optimizer_path(Path(path)))
+    tensors, header = read_tensors(optimizer_path(Path(path)), check_digest=False)
     state: dict[int, dict[str, torch.Tensor]] = {}
     for name, tensor in tensors.items():
         index, key = name.split(".", 1)

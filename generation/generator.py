@@ -26,6 +26,7 @@ from .motion.features import AngleFeatureSpec, decode_angles, decode_positions
 from .motion.types import Motion, Skeleton
 from .models.attribute import AttributeModel
 from .models.base import MotionModel
+from .models.path import PathModel
 
 
 class Generator:
@@ -68,15 +69,18 @@ class Generator:
         "bfloat16" is several times faster at large ``n`` on CPUs with AMX.
         """
         self.model.check_precision(precision)
-        if self.attributes:
-            return self._sample_attributes(control, n, seed, temperature)
+        if isinstance(self.model, AttributeModel):
+            return self._sample_attributes(self.model, control, n, seed, temperature)
+        if not isinstance(self.model, PathModel):
+            raise TypeError(f"a {self.meta.kind} model follows neither a path nor labels")
+        model = self.model
         if not isinstance(control, PathControl):
             raise ValueError(f"a {self.meta.kind} model follows a path; got {type(control).__name__}")
         if abs(control.fps - self.fps) > 1e-6:
             raise ValueError(f"control is at {control.fps:g} fps but the model was trained at {self.fps:g} fps")
         if n < 1:
             raise ValueError(f"n must be at least 1, got {n}")
-        context_frames = self.model.context_frames
+        context_frames = model.context_frames
         if warmup_seconds is None:
             warmup_seconds = 1.0 if context_frames else 0.0
         warmup = max(int(round(warmup_seconds * self.fps)), context_frames)
@@ -88,21 +92,22 @@ class Generator:
         if context_frames:
             if context is None:
                 context = np.repeat(self.pose_stats.mean[None], context_frames, axis=0)
-            if np.shape(context) != (context_frames, self.model.pose_dim):
-                raise ValueError(f"context must have shape ({context_frames}, {self.model.pose_dim}), got {np.shape(context)}")
+            if np.shape(context) != (context_frames, model.pose_dim):
+                raise ValueError(f"context must have shape ({context_frames}, {model.pose_dim}), got {np.shape(context)}")
             seed_poses = torch.as_tensor(self.pose_stats.apply(context), dtype=torch.float32, device=self.device)
             seed_poses = seed_poses.expand(n, -1, -1).contiguous()
 
         generator = torch.Generator(device=self.device).manual_seed(seed)
         with torch.inference_mode():
-            poses = self.model.generate(c, seed_poses, temperature, generator, precision)
+            poses = model.generate(c, seed_poses, temperature, generator, precision)
         poses = self.pose_stats.invert(poses[:, warmup:].double().cpu().numpy())
         return [
             Motion(decode_positions(p, control.velocities, self.fps), self.fps, self.skeleton)
             for p in poses
         ]
 
-    def _sample_attributes(self, control: Control, n: int, seed: int, temperature: float) -> list[Motion]:
+    def _sample_attributes(self, model: AttributeModel, control: Control, n: int, seed: int,
+                           temperature: float) -> list[Motion]:
         if not isinstance(control, AttributeControl):
             raise ValueError(f"a {self.meta.kind} model is controlled by action and style labels "
                              f"(AttributeControl); got {type(control).__name__}")
@@ -110,10 +115,10 @@ class Generator:
             raise ValueError(f"control is at {control.fps:g} fps but the model was trained at {self.fps:g} fps")
         if n < 1 or control.frames < 1:
             raise ValueError(f"n and frames must be at least 1, got n={n}, frames={control.frames}")
-        action, style = self.model.label_indices(control.action, control.style)
+        action, style = model.label_indices(control.action, control.style)
         labels = [torch.full((n,), index, dtype=torch.long, device=self.device) for index in (action, style)]
         generator = torch.Generator(device=self.device).manual_seed(seed)
         with torch.inference_mode():
-            features = self.model.generate_from_labels(*labels, control.frames, temperature, generator)
+            features = model.generate(*labels, control.frames, temperature, generator)
         features = self.pose_stats.invert(features.double().cpu().numpy())
         return [decode_angles(f, self.skeleton, self.angle_spec, self.fps) for f in features]

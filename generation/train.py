@@ -1,7 +1,8 @@
 """Training any model on a motion dataset, with validation, checkpoints and resuming.
 
 One loop serves every model: Adam, an optional Noam warm-up (MoGlow), gradient-norm
-clipping, random minibatches of training windows, and at each evaluation the validation
+clipping, random minibatches of training windows (these knobs are a ``TrainingConfig``,
+recorded in the checkpoint beside the model's configuration), and at each evaluation the validation
 loss (MoGlow's NLL on the validation takes) and a checkpoint written atomically. The
 validation takes are held out of training for choosing checkpoints; the test takes are
 left alone for ``generation evaluate`` and the papers' tables.
@@ -9,7 +10,8 @@ left alone for ``generation evaluate`` and the papers' tables.
 Path-controlled models learn from a ``MotionDataset``'s windows of poses and control;
 attribute-controlled models (``AttributeModel``: HVRNN, ERD, QuaterNet) from an
 ``AttributeData``'s padded angle sequences with masks and labels. Either way a batch is
-a dict of tensors passed to ``model.loss`` by name.
+a dict of tensors passed to ``model.loss`` by name. HVRNN's classifier loss reads frozen
+attribute classifiers, which the trainer loads from their file and hands to the model.
 """
 
 from __future__ import annotations
@@ -25,11 +27,14 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from .checkpoint import CheckpointError, CheckpointMeta, code_version, load_checkpoint, load_optimizer_state, read_meta, save_checkpoint
-from .models import model_class, preset
+from .checkpoint import CheckpointMeta, code_version, load_checkpoint, load_optimizer_state, read_meta, save_checkpoint
+from .hvrnn.classifiers import AttributeClassifiers
 from .models.attribute import AttributeModel
 from .models.base import MotionModel
+from .models.hvrnn import HVRNN
 from .motion.dataset import MotionDataset
+from .registry import model_class, resolve_preset, training_knobs
+from .store import CheckpointError
 
 KEYS = ("pose", "control")
 # The training part of an attribute dataset: every training take (the classifiers of
@@ -38,7 +43,21 @@ ATTRIBUTE_TRAINING_PART = "train"
 
 
 @dataclass(frozen=True)
+class TrainingConfig:
+    """The knobs of the loop that shape what is learnt; ``generation.registry`` holds each
+    kind's values and its presets' changes."""
+
+    learning_rate: float  # of Adam
+    grad_clip: float  # gradient-norm clipping
+    batch_size: int
+    warmup_steps: int = 0  # of the Noam schedule; 0 keeps the learning rate constant
+    classifiers: str = ""  # HVRNN's classifier loss: the attribute classifiers' file
+
+
+@dataclass(frozen=True)
 class TrainOptions:
+    """How a run goes, without changing what a step learns."""
+
     steps: int = 2000
     eval_every: int = 250
     seed: int = 0
@@ -126,10 +145,12 @@ def evaluate_loss(model: MotionModel, data: dict[str, torch.Tensor], batch_size:
     return total / count
 
 
-def checkpoint_meta(model: MotionModel, data: TrainingData, step: int, metrics: dict) -> CheckpointMeta:
+def checkpoint_meta(model: MotionModel, training: TrainingConfig, data: TrainingData, step: int,
+                    metrics: dict) -> CheckpointMeta:
     return CheckpointMeta(
         kind=model.kind,
         hyperparameters=dataclasses.asdict(model.config),
+        training=dataclasses.asdict(training),
         pose_dim=model.pose_dim,
         control_dim=model.control_dim,
         features=data.features,
@@ -140,6 +161,29 @@ def checkpoint_meta(model: MotionModel, data: TrainingData, step: int, metrics: 
         code_version=code_version(),
         metrics=metrics,
     )
+
+
+def load_loss_classifiers(model: HVRNN, path: str) -> None:
+    """Hand HVRNN the frozen attribute classifiers of its classifier loss, from ``path``,
+    checked against the model's labels and features before training starts."""
+    if not path:
+        raise ValueError("the classifier loss (classifier_weight > 0) needs the attribute classifiers' file "
+                         "(--classifiers on the command line); the NC ablation needs none")
+    classifiers = AttributeClassifiers.load(path)
+    if list(classifiers.vocabularies["action"].names) != list(model.actions) or \
+            list(classifiers.vocabularies["style"].names) != list(model.styles):
+        raise ValueError(f"{path}: the classifiers' labels differ from the training data's")
+    if classifiers.feature_dim != model.pose_dim:
+        raise ValueError(f"{path}: the classifiers read {classifiers.feature_dim} features per frame, "
+                         f"the model makes {model.pose_dim}")
+    model.use_classifiers((classifiers["action"], classifiers["style"]))
+
+
+def _training_config(path: Path, knobs: dict) -> TrainingConfig:
+    try:
+        return TrainingConfig(**knobs)
+    except TypeError as error:
+        raise CheckpointError(f"{path}: the training knobs do not build a training configuration ({error})") from None
 
 
 def best_path(out: Path) -> Path:
@@ -160,7 +204,8 @@ def train(
     """Train (or with ``resume`` continue) a model; returns the last checkpoint's description.
 
     ``dataset`` is a ``MotionDataset`` (path models) or an ``AttributeData`` (attribute
-    models). ``overrides`` replaces fields of the preset's configuration.
+    models). ``overrides`` replaces fields of the preset's model configuration or training
+    knobs (``TrainingConfig``); resuming takes both from the checkpoint.
     ``out`` always holds the latest state (and its optimiser, for resuming);
     ``NAME.best.safetensors`` beside it the state with the lowest validation loss.
     """
@@ -178,17 +223,21 @@ def train(
                                   f"this dataset {data.fingerprint[:12]}); cannot resume")
         model.train()
         start, history = meta.step, meta.metrics.get("history", [])
+        training = _training_config(out, meta.training)
     else:
-        config = dataclasses.replace(preset(kind, preset_name), **data.labels, **(overrides or {}))
+        knobs = {f.name for f in dataclasses.fields(TrainingConfig)}
+        changes = overrides or {}
+        config = cls.Config(**{**resolve_preset(kind, preset_name).model, **data.labels,
+                               **{k: v for k, v in changes.items() if k not in knobs}})
         model = cls(config, data.pose_dim, data.control_dim).to(options.device)
+        training = TrainingConfig(**{**training_knobs(kind, preset_name), **{k: v for k, v in changes.items() if k in knobs}})
         start = 0
-    if isinstance(model, AttributeModel):
-        model.prepare(dataset)
-    config = model.config
-    optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
+    model.prepare(dataset)
+    if isinstance(model, HVRNN) and model.config.classifier_weight > 0:
+        load_loss_classifiers(model, training.classifiers)
+    optimizer = torch.optim.Adam(model.parameters(), lr=training.learning_rate)
     if start:
         load_optimizer_state(out, optimizer)
-    warmup = getattr(config, "warmup_steps", 0)
     batches = torch.Generator(device="cpu").manual_seed(options.seed + start)
 
     elapsed = history[-1]["seconds"] if history else 0.0
@@ -198,12 +247,12 @@ def train(
     recent: list[float] = []
     for step in bar:
         for group in optimizer.param_groups:
-            group["lr"] = config.learning_rate * noam_factor(step + 1, warmup)
-        index = torch.randint(batch_count(train_data), (config.batch_size,), generator=batches).to(options.device)
+            group["lr"] = training.learning_rate * noam_factor(step + 1, training.warmup_steps)
+        index = torch.randint(batch_count(train_data), (training.batch_size,), generator=batches).to(options.device)
         loss, metrics = model.loss(**{k: v[index] for k, v in train_data.items()})
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
-        torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
+        torch.nn.utils.clip_grad_norm_(model.parameters(), training.grad_clip)
         optimizer.step()
         recent.append(loss.detach().item())
         if not np.isfinite(recent[-1]):
@@ -216,7 +265,7 @@ def train(
             history.append({"step": done, "train_loss": float(np.mean(recent)), "val_loss": val, "seconds": round(seconds, 1)})
             recent = []
             bar.set_postfix(train=f"{history[-1]['train_loss']:.3f}", val=f"{val:.3f}")
-            meta = checkpoint_meta(model, data, done, {"val_loss": val, "history": history})
+            meta = checkpoint_meta(model, training, data, done, {"val_loss": val, "history": history})
             save_checkpoint(out, model, meta, optimizer)
             # Small baselines overfit the few training takes early: keep the best as well.
             if val <= min(h["val_loss"] for h in history):

@@ -92,7 +92,7 @@ def safetensors_header_problem(path: Path) -> str | None:
 def preset_name(meta: CheckpointMeta) -> str:
     """The named presets whose configuration the checkpoint has ("paper/cpu" where they
     are the same), or "custom"."""
-    from generation.models import preset
+    from generation.registry import preset
 
     matches = []
     for name in KNOWN_PRESETS:

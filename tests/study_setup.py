@@ -5,7 +5,6 @@ The checkpoints are trained for real on real clips, just small enough to take se
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 from pathlib import Path
 from types import SimpleNamespace
@@ -13,7 +12,7 @@ from types import SimpleNamespace
 import pytest
 import torch
 
-from generation import models
+from generation import registry
 from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
 from generation.render import render_video
 from generation.train import TrainOptions, train
@@ -40,15 +39,16 @@ def link_clips(motion_data: Path, folder: Path, names: list[str] = CLIPS) -> Pat
 
 def train_tiny_moglow(clips: Path, out: Path, steps: int, cache: Path) -> Path:
     """A MoGlow a few thousand parameters big, trained ``steps`` steps on the clips."""
-    kind_class, make = models.MODELS["moglow"]
-    tiny = dataclasses.replace(make("cpu"), steps=2, tau=3, lstm_hidden=16, batch_size=8, warmup_steps=0)
+    cpu = registry.MODELS["moglow"].presets["cpu"]
+    tiny = registry.Preset({**cpu.model, "steps": 2, "tau": 3, "lstm_hidden": 16},
+                           {**cpu.training, "batch_size": 8, "warmup_steps": 0})
     dataset = build_dataset(clips, DatasetOptions(), cache_dir=cache, progress=False)
     # A model this small gains nothing from a second thread and loses much when the cores are busy.
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
         with pytest.MonkeyPatch.context() as patch:
-            patch.setitem(models.MODELS, "moglow", (kind_class, lambda name: tiny if name == "tiny" else make(name)))
+            patch.setitem(registry.MODELS["moglow"].presets, "tiny", tiny)
             train("moglow", "tiny", dataset, out, TrainOptions(steps=steps, eval_every=steps), progress=False)
     finally:
         torch.set_num_threads(threads)

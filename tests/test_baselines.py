@@ -7,8 +7,9 @@ import torch
 from torch.distributions import Normal, kl_divergence
 
 from generation.motion.dataset import DatasetOptions, build_dataset
-from generation.models.rnn import RNNBaseline, RNNConfig, rnn_preset
-from generation.models.vae import VAEBaseline, VAEConfig, kl_to_standard_normal, vae_preset
+from generation.registry import preset
+from generation.models.rnn import RNNBaseline, RNNConfig
+from generation.models.vae import VAEBaseline, VAEConfig, kl_to_standard_normal
 
 POSE_DIM, CONTROL_DIM, FRAMES = 63, 3, 80
 LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right")
@@ -57,11 +58,11 @@ def locomotion_windows(motion_data, tmp_path_factory) -> dict[str, torch.Tensor]
 
 
 def test_paper_presets_have_the_published_architecture_parameter_counts():
-    rnn = RNNBaseline(rnn_preset("paper"), POSE_DIM, CONTROL_DIM)
+    rnn = RNNBaseline(preset("rnn", "paper"), POSE_DIM, CONTROL_DIM)
     expected_rnn = lstm_parameters(CONTROL_DIM, 512) + linear_parameters(512, POSE_DIM)
     assert sum(p.numel() for p in rnn.parameters()) == expected_rnn
 
-    vae = VAEBaseline(vae_preset("paper"), POSE_DIM, CONTROL_DIM)
+    vae = VAEBaseline(preset("vae", "paper"), POSE_DIM, CONTROL_DIM)
     latent = 2
     expected_vae = (
         lstm_parameters(POSE_DIM + CONTROL_DIM, 256, layers=2, directions=2)  # encoder
@@ -74,9 +75,9 @@ def test_paper_presets_have_the_published_architecture_parameter_counts():
 
 def test_unknown_preset_names_are_refused():
     with pytest.raises(ValueError, match="unknown RNN preset"):
-        rnn_preset("huge")
+        preset("rnn", "huge")
     with pytest.raises(ValueError, match="unknown VAE preset"):
-        vae_preset("huge")
+        preset("vae", "huge")
 
 
 @pytest.mark.parametrize("model", small_models(), ids=lambda m: m.kind)

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 
+from generation import registry
 from generation.checkpoint import CheckpointError, load_checkpoint, read_meta, save_checkpoint
 from generation.control import preset_path
 from generation.generator import Generator
@@ -37,13 +38,11 @@ def dataset(clips_folder, tmp_path_factory):
 @pytest.fixture(scope="module")
 def tiny_preset(monkeypatch_module):
     """A MoGlow small enough to train in seconds, registered as the preset 'tiny'."""
-    import dataclasses
-
-    from generation import models
-
-    kind_class, make = models.MODELS["moglow"]
-    tiny = dataclasses.replace(make("cpu"), steps=2, tau=3, lstm_hidden=16, batch_size=8, warmup_steps=0)
-    monkeypatch_module.setitem(models.MODELS, "moglow", (kind_class, lambda name: tiny if name == "tiny" else make(name)))
+    presets = registry.MODELS["moglow"].presets
+    cpu = presets["cpu"]
+    tiny = registry.Preset({**cpu.model, "steps": 2, "tau": 3, "lstm_hidden": 16},
+                           {**cpu.training, "batch_size": 8, "warmup_steps": 0})
+    monkeypatch_module.setitem(presets, "tiny", tiny)
     return "tiny"
 
 
@@ -81,6 +80,45 @@ def test_resuming_continues_from_the_saved_step(checkpoint, dataset, tiny_preset
         Path(str(checkpoint).replace(".safetensors", ".optim.safetensors")).read_bytes())
     meta = train("moglow", tiny_preset, dataset, copy, TrainOptions(steps=30, eval_every=10), resume=True, progress=False)
     assert meta.step == 30 and [h["step"] for h in meta.metrics["history"]] == [10, 20, 30]
+
+
+def test_the_model_configuration_and_the_training_knobs_are_recorded_apart(checkpoint):
+    meta = read_meta(checkpoint)
+    assert meta.training == {"learning_rate": 3e-3, "grad_clip": 100.0, "batch_size": 8, "warmup_steps": 0, "classifiers": ""}
+    assert meta.hyperparameters == {"steps": 2, "tau": 3, "lstm_hidden": 16, "lstm_layers": 2, "dropout": 0.3}
+
+
+def _move_training_into_hyperparameters(header):
+    """The header as checkpoints wrote it when the training knobs were model hyperparameters."""
+    meta = json.loads(header["__metadata__"]["motion_study"])
+    training = meta.pop("training")
+    training.pop("classifiers")  # MoGlow's configuration never had it
+    meta["hyperparameters"].update(training)
+    header["__metadata__"]["motion_study"] = json.dumps(meta)
+
+
+def test_a_header_with_training_knobs_among_the_hyperparameters_is_read_and_resumed(checkpoint, dataset, tiny_preset, tmp_path):
+    old = _rewrite_header(checkpoint, tmp_path / "old.safetensors", _move_training_into_hyperparameters)
+    data = old.read_bytes()
+    (length,) = struct.unpack("<Q", data[:8])
+    assert "learning_rate" in json.loads(json.loads(data[8 : 8 + length])["__metadata__"]["motion_study"])["hyperparameters"]
+    (tmp_path / "old.optim.safetensors").write_bytes(
+        Path(str(checkpoint).replace(".safetensors", ".optim.safetensors")).read_bytes())
+    meta = read_meta(old)
+    assert meta.training == {"learning_rate": 3e-3, "grad_clip": 100.0, "batch_size": 8, "warmup_steps": 0}
+    assert meta.hyperparameters == read_meta(checkpoint).hyperparameters
+    resumed = train("moglow", tiny_preset, dataset, old, TrainOptions(steps=30, eval_every=10), resume=True, progress=False)
+    assert resumed.step == 30 and resumed.training == read_meta(checkpoint).training
+
+
+def test_the_committed_checkpoint_still_reads_loads_and_samples():
+    path = Path(__file__).resolve().parent.parent / "models" / "moglow-cpu.safetensors"
+    meta = read_meta(path)
+    assert meta.training == {"learning_rate": 3e-3, "warmup_steps": 100, "grad_clip": 100.0, "batch_size": 32}
+    assert "learning_rate" not in meta.hyperparameters and meta.hyperparameters["lstm_hidden"] == 128
+    control = preset_path("walk-straight")
+    motion = Generator.load(path).sample(control, seed=0)[0]
+    assert motion.positions.shape == (control.n_frames, 21, 3) and np.isfinite(motion.positions).all()
 
 
 def test_samples_are_reproducible_and_survive_save_and_load(checkpoint, tmp_path):
@@ -143,7 +181,8 @@ def test_tampered_checkpoints_fail_with_a_message_naming_the_problem(checkpoint,
 def test_a_checkpoint_with_a_missing_tensor_is_refused(checkpoint, tmp_path):
     from safetensors.torch import load_file, save_file
 
-    from generation.checkpoint import FORMAT_KEY, tensor_digest
+    from generation.checkpoint import FORMAT_KEY
+    from generation.store import tensor_digest
 
     tensors = load_file(str(checkpoint))
     tensors.pop(sorted(tensors)[0])

@@ -9,10 +9,10 @@ import torch
 from generation.checkpoint import load_checkpoint
 from generation.control import AttributeControl
 from generation.generator import Generator
-from generation.hvrnn.kinematics import forward_kinematics
-from generation.models import model_class
+from generation.models.kinematics import forward_kinematics
 from generation.motion.kinematics import forward_kinematics as numpy_forward_kinematics
 from generation.motion.rotations import quat_to_matrix
+from generation.registry import model_class
 from generation.train import TrainOptions, train
 from tests.hvrnn_setup import data  # noqa: F401  (a fixture)
 

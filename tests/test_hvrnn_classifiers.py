@@ -11,7 +11,7 @@ import torch
 from generation.checkpoint import CheckpointError
 from generation.hvrnn.classifiers import AttributeClassifiers, accuracy, random_crops, train_classifiers
 from generation.hvrnn.data import ROOT_DIMS
-from generation.hvrnn.store import save_network
+from generation.hvrnn.networks import save_network
 from tests.hvrnn_setup import TINY_CLASSIFIERS as TINY, data  # noqa: F401  (data: a fixture)
 
 

@@ -8,10 +8,11 @@ import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
-from generation.hvrnn.rotation_losses import (
-    axis_angle_to_quaternion, gram_schmidt, hierarchical_distance, joint_weights, kl_diagonal_gaussians, matrix_to_quaternion, matrix_validity,
-    normalize_quaternion, quaternion_distance, quaternion_to_matrix, quaternion_validity, rotation_matrix_distance,
+from generation.models.losses import (
+    hierarchical_distance, joint_weights, kl_diagonal_gaussians, matrix_validity, quaternion_distance, quaternion_validity,
+    rotation_matrix_distance,
 )
+from generation.models.rotations import expmap_to_quat, gram_schmidt, matrix_to_quat, normalize_quaternion, quat_to_matrix
 
 
 def random_rotations(n: int, seed: int) -> Rotation:
@@ -57,12 +58,12 @@ def test_d3_gradient_is_finite_at_zero_distance():
 def test_quaternion_matrix_conversions_match_scipy_both_ways():
     r = random_rotations(500, 6)
     q = wxyz(r)
-    np.testing.assert_allclose(quaternion_to_matrix(q).numpy(), r.as_matrix(), atol=1e-12)
-    back = matrix_to_quaternion(torch.as_tensor(r.as_matrix()))
+    np.testing.assert_allclose(quat_to_matrix(q).numpy(), r.as_matrix(), atol=1e-12)
+    back = matrix_to_quat(torch.as_tensor(r.as_matrix()))
     assert quaternion_distance(back, q, "d2").max() < 1e-12  # equal up to sign
     # Near-180° rotations, where the w-based formula alone breaks down.
     flips = Rotation.from_rotvec(np.pi * np.eye(3) * 0.999999)
-    assert quaternion_distance(matrix_to_quaternion(torch.as_tensor(flips.as_matrix())), wxyz(flips), "d2").max() < 1e-12
+    assert quaternion_distance(matrix_to_quat(torch.as_tensor(flips.as_matrix())), wxyz(flips), "d2").max() < 1e-12
 
 
 def test_axis_angle_to_quaternion_matches_scipy_and_has_a_finite_gradient_at_zero():
@@ -70,12 +71,12 @@ def test_axis_angle_to_quaternion_matches_scipy_and_has_a_finite_gradient_at_zer
     vectors = torch.as_tensor(rotations.as_rotvec())
     vectors[:3] *= torch.tensor([0.0, 1e-5, 1e-3])[:, None]  # zero and tiny rotations too
     expected = wxyz(Rotation.from_rotvec(vectors.numpy()))
-    got = axis_angle_to_quaternion(vectors)
+    got = expmap_to_quat(vectors)
     # Same rotation, either sign.
     np.testing.assert_allclose(quaternion_distance(got, expected, "d2").numpy(), 0, atol=1e-12)
     np.testing.assert_allclose(got.norm(dim=-1).numpy(), 1, atol=1e-12)
     zero = torch.zeros(1, 3, dtype=torch.float64, requires_grad=True)
-    axis_angle_to_quaternion(zero).sum().backward()
+    expmap_to_quat(zero).sum().backward()
     assert torch.isfinite(zero.grad).all()
 
 
@@ -118,7 +119,7 @@ def test_hierarchical_distance_weighs_each_joint_by_alpha():
     alpha = torch.tensor([3.0, 2.0, 1.0], dtype=torch.float64)
     expected = (quaternion_distance(q, p, "d1") * alpha).sum(-1)
     assert torch.allclose(hierarchical_distance(q, p, alpha, "d1"), expected)
-    m, n = quaternion_to_matrix(q), quaternion_to_matrix(p)
+    m, n = quat_to_matrix(q), quat_to_matrix(p)
     # d3 is half the rotation angle, so the SO(3) distance is twice it.
     assert torch.allclose(hierarchical_distance(m, n, alpha, "so3"), 2 * hierarchical_distance(q, p, alpha, "d3"), atol=1e-6)
 

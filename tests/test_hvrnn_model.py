@@ -10,14 +10,16 @@ import numpy as np
 import pytest
 import torch
 
-from generation import models
+from generation import registry
 from generation.checkpoint import load_checkpoint
 from generation.control import AttributeControl, preset_path
 from generation.generator import Generator
 from generation.hvrnn.classifiers import AttributeClassifier, ClassifierConfig
 from generation.hvrnn.data import load_attribute_data
-from generation.hvrnn.model import HVRNN, hvrnn_preset, random_crop
-from generation.train import TrainOptions, train
+from generation.models.hvrnn import HVRNN
+from generation.models.layers import random_crop
+from generation.registry import preset
+from generation.train import TrainOptions, load_loss_classifiers, train
 
 
 @pytest.fixture(scope="module")
@@ -28,8 +30,8 @@ def data(motion_data, pytestconfig):
 def tiny(data, **changes):
     """A configuration that trains in seconds; no classifier loss unless asked."""
     config = dataclasses.replace(
-        hvrnn_preset("cpu"), word_dim=16, word_hidden=32, latent_dim=8, feature_dim=16, mlp_hidden=32, state_dim=32,
-        batch_size=8, kl_warmup=0, kl_anneal=1, classifier_weight=0.0, actions=data.actions.names,
+        preset("hvrnn", "cpu"), word_dim=16, word_hidden=32, latent_dim=8, feature_dim=16, mlp_hidden=32, state_dim=32,
+        kl_warmup=0, kl_anneal=1, classifier_weight=0.0, actions=data.actions.names,
         styles=data.styles.names)
     return dataclasses.replace(config, **changes)
 
@@ -88,15 +90,15 @@ def test_alpha_follows_the_skeleton_and_is_one_everywhere_for_NL(data):
 
 
 def test_ablation_presets_change_only_their_part():
-    base = hvrnn_preset("cpu")
-    assert dataclasses.replace(base, word_codec=False) == hvrnn_preset("cpu-SL")
-    assert dataclasses.replace(base, hierarchical=False) == hvrnn_preset("cpu-NL")
-    assert dataclasses.replace(base, classifier_weight=0.0) == hvrnn_preset("cpu-NC")
-    assert hvrnn_preset("paper").state_dim == 512 and hvrnn_preset("paper").word_dim == 96
+    base = preset("hvrnn", "cpu")
+    assert dataclasses.replace(base, word_codec=False) == preset("hvrnn", "cpu-SL")
+    assert dataclasses.replace(base, hierarchical=False) == preset("hvrnn", "cpu-NL")
+    assert dataclasses.replace(base, classifier_weight=0.0) == preset("hvrnn", "cpu-NC")
+    assert preset("hvrnn", "paper").state_dim == 512 and preset("hvrnn", "paper").word_dim == 96
     with pytest.raises(ValueError, match="unknown HVRNN ablation 'XX'"):
-        hvrnn_preset("cpu-XX")
+        preset("hvrnn", "cpu-XX")
     with pytest.raises(ValueError, match="unknown HVRNN preset 'big'"):
-        hvrnn_preset("big")
+        preset("hvrnn", "big")
 
 
 def test_without_the_word_codec_words_are_the_poses(data):
@@ -119,7 +121,7 @@ def test_schedules_warm_up_anneal_and_cool_down(data):
 
 def test_the_classifier_loss_enters_with_its_weight_and_reaches_the_model(data):
     model = build(data, classifier_start=0, classifier_ramp=1)
-    model.config.classifier_weight = 1.0  # after prepare(), which would look for a classifiers' file
+    model.config.classifier_weight = 1.0  # the classifiers come from use_classifiers, not from a file
     config = ClassifierConfig(channels=(8, 8, 8))
     torch.manual_seed(1)
     model.use_classifiers((AttributeClassifier(config, data.feature_dim, len(data.actions)),
@@ -161,14 +163,14 @@ def test_fed_back_words_are_re_encoded_with_the_signs_of_real_words(data):
 
 def test_classifier_loss_needs_the_classifiers_file(data):
     with pytest.raises(ValueError, match="needs the attribute classifiers' file"):
-        build(data, classifier_weight=0.1)
+        load_loss_classifiers(build(data, classifier_weight=0.1), "")
 
 
 @pytest.mark.parametrize("output", ["quaternion", "matrix", "axis_angle"])
 def test_generated_rotations_are_unit_quaternions(data, output):
     model = build(data, rotation_output=output).eval()
     action, style = torch.tensor([0, 3]), torch.tensor([1, 2])
-    features = model.generate_from_labels(action, style, 50, generator=torch.Generator().manual_seed(0))
+    features = model.generate(action, style, 50, generator=torch.Generator().manual_seed(0))
     assert features.shape == (2, 50, data.feature_dim)
     norms = features[..., 6:].unflatten(-1, (-1, 4)).norm(dim=-1)
     assert torch.allclose(norms, torch.ones_like(norms), atol=1e-5)
@@ -177,9 +179,8 @@ def test_generated_rotations_are_unit_quaternions(data, output):
 @pytest.fixture(scope="module")
 def checkpoint(data, tmp_path_factory):
     patch = pytest.MonkeyPatch()
-    kind_class, make = models.MODELS["hvrnn"]
-    small = dataclasses.replace(tiny(data), actions=(), styles=())
-    patch.setitem(models.MODELS, "hvrnn", (kind_class, lambda name: small if name == "tiny" else make(name)))
+    small = {k: v for k, v in dataclasses.asdict(tiny(data)).items() if k not in ("actions", "styles")}
+    patch.setitem(registry.MODELS["hvrnn"].presets, "tiny", registry.Preset(small, {"batch_size": 8}))
     path = tmp_path_factory.mktemp("hvrnn") / "hvrnn.safetensors"
     train("hvrnn", "tiny", data, path, TrainOptions(steps=4, eval_every=2), progress=False)
     yield path

@@ -11,7 +11,8 @@ import pytest
 import torch
 
 from generation.models.flows import ActNorm, AffineCoupling, Flow, InvertibleLinearLU, glow_step
-from generation.models.moglow import MoGlow, MoGlowConfig, moglow_preset
+from generation.models.moglow import MoGlow, MoGlowConfig
+from generation.registry import preset
 from generation.motion.dataset import DatasetOptions, build_dataset
 
 LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right")
@@ -197,14 +198,14 @@ def test_full_dropout_makes_the_likelihood_ignore_past_poses():
 
 
 def test_presets_and_ablations_resolve():
-    assert moglow_preset("paper") == MoGlowConfig()
-    assert moglow_preset("cpu-MG-D").dropout == 0.0
-    assert moglow_preset("paper-MG-A").dropout == 1.0
-    assert moglow_preset("cpu-MG-H").tau == 1 and moglow_preset("cpu-MG-H").steps == moglow_preset("cpu").steps
+    assert preset("moglow", "paper") == MoGlowConfig()
+    assert preset("moglow", "cpu-MG-D").dropout == 0.0
+    assert preset("moglow", "paper-MG-A").dropout == 1.0
+    assert preset("moglow", "cpu-MG-H").tau == 1 and preset("moglow", "cpu-MG-H").steps == preset("moglow", "cpu").steps
     with pytest.raises(ValueError):
-        moglow_preset("paper-MG-X")
+        preset("moglow", "paper-MG-X")
     with pytest.raises(ValueError):
-        moglow_preset("huge")
+        preset("moglow", "huge")
 
 
 def test_noam_schedule_warms_up_then_decays():
@@ -217,7 +218,7 @@ def test_noam_schedule_warms_up_then_decays():
 
 
 def test_paper_preset_has_the_papers_parameter_count():
-    model = MoGlow(moglow_preset("paper"), pose_dim=63, control_dim=3)
+    model = MoGlow(preset("moglow", "paper"), pose_dim=63, control_dim=3)
     count = sum(p.numel() for p in model.parameters())
     assert abs(count - 73.9e6) <= 0.1 * 73.9e6
     assert model.context_frames == 10

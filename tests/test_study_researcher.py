@@ -26,7 +26,8 @@ from django.test import Client
 from django.utils import timezone
 from safetensors.torch import load_file, save_file
 
-from generation.checkpoint import FORMAT_KEY, load_checkpoint, read_meta, tensor_digest
+from generation.checkpoint import FORMAT_KEY, load_checkpoint, read_meta
+from generation.store import tensor_digest
 from studyapp.celery import app as celery_app
 from studyapp.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
 from studyapp.models import ControlSignal, Participant, Stimulus, Study, System

@@ -21,11 +21,11 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..checkpoint import CheckpointError
+from ..store import CheckpointError
 from .data import AttributeData, SequenceSet, Vocabulary
 from .fitting import fit
 from .inputs import InputNormalizer
-from .store import load_network, load_state, save_network
+from .networks import load_network, load_state, save_network
 
 KINDS = ("action", "style")
 NETWORK_KIND = "attribute-classifiers"

@@ -31,11 +31,11 @@ import numpy as np
 import torch
 
 from ..motion.dataset import Clip, DatasetOptions, MotionDataset, Standardizer, build_dataset
+from ..motion.features import ROOT_DIMS
 
 FPS = 30.0
 MAX_FRAMES = 200
 HOLDOUT_FRACTION = 0.2
-ROOT_DIMS = 6  # forward and sideways velocity, hips height, yaw rate, pitch, roll
 PARTS = ("train", "classifier", "model", "validation", "test")
 
 

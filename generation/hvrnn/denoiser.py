@@ -22,11 +22,11 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..checkpoint import CheckpointError, tensor_digest
+from ..store import CheckpointError, tensor_digest
 from .data import ROOT_DIMS, AttributeData, SequenceSet
 from .fitting import fit
 from .inputs import InputNormalizer
-from .store import load_network, load_state, save_network
+from .networks import load_network, load_state, save_network
 
 NETWORK_KIND = "denoiser"
 

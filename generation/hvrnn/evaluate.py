@@ -60,7 +60,7 @@ def generate_like(generator: Generator, like: SequenceSet, seed: int = 0, temper
     parts = []
     for i in range(0, len(like), batch_size):
         action, style = (torch.as_tensor(a[i : i + batch_size], device=generator.device) for a in (like.action, like.style))
-        standardised = model.generate_from_labels(action, style, frames, temperature, torch_generator)
+        standardised = model.generate(action, style, frames, temperature, torch_generator)
         parts.append(generator.pose_stats.invert(standardised.double().cpu().numpy()))
     features = (np.concatenate(parts) * like.mask[..., None]).astype(np.float32)
     return dataclasses.replace(like, features=features)

@@ -13,8 +13,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from ..models.rotations import align_quaternions
 from .data import ROOT_DIMS, SequenceSet
-from .rotation_losses import align_quaternions
 
 # Some quaternion components barely move in the data; dividing by their tiny spread
 # would turn a few degrees of another take's posture into hundreds of standard

@@ -8,7 +8,8 @@ knows which labels it accepts; ``control_dim`` is the length of the two one-hot 
 
 The training loop calls ``loss(pose, mask, action, style)`` on batches of standardised
 features (``standardization`` says which dimensions are standardised), and
-``prepare(data)`` once before training, for constants taken from the training data.
+``prepare(data)`` once before training, for constants taken from the training data;
+``generate(action, style, frames)`` makes standardised features for label indices.
 """
 
 from __future__ import annotations
@@ -53,18 +54,15 @@ class AttributeModel(MotionModel):
         """The index of each (action, style) pair, for per-combination parameters."""
         return action * len(self.styles) + style
 
-    def prepare(self, data: Any) -> None:
-        """Take constants from the training data (``AttributeData``) before training; default none."""
-
-    def loss(self, pose: torch.Tensor, mask: torch.Tensor, action: torch.Tensor,  # type: ignore[override]
+    def loss(self, pose: torch.Tensor, mask: torch.Tensor, action: torch.Tensor,
              style: torch.Tensor) -> tuple[torch.Tensor, dict[str, float]]:
         """The training objective on padded sequences (batch, frames, pose_dim) with their
         mask (batch, frames) and label indices (batch,)."""
         raise NotImplementedError
 
     @torch.no_grad()
-    def generate_from_labels(self, action: torch.Tensor, style: torch.Tensor, frames: int,
-                             temperature: float = 1.0, generator: torch.Generator | None = None) -> torch.Tensor:
+    def generate(self, action: torch.Tensor, style: torch.Tensor, frames: int,
+                 temperature: float = 1.0, generator: torch.Generator | None = None) -> torch.Tensor:
         """Standardised features (batch, frames, pose_dim) for label indices (batch,);
         randomness only from ``generator``, so a seed reproduces a sample."""
         raise NotImplementedError

@@ -110,6 +110,11 @@ class InvertibleLinearLU(nn.Module):
         return lambda y, context: y @ inverse_t
 
 
+def coupling_scale(h: torch.Tensor) -> torch.Tensor:
+    """The reference implementation's coupling scale, sigmoid(h) + 0.05 (see ``AffineCoupling``)."""
+    return torch.sigmoid(h) + 0.05
+
+
 class AffineCoupling(nn.Module):
     """x = (x_a, x_b) ↦ (y_a, x_b) with y_a = (x_a + t) ⊙ scale, scale = sigmoid(h) + 0.05.
 
@@ -133,7 +138,7 @@ class AffineCoupling(nn.Module):
     def _scale_and_shift(self, x_b: torch.Tensor, context: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         hidden, _ = self.lstm(torch.cat([x_b, context], dim=-1))
         h, shift = self.out(hidden).chunk(2, dim=-1)
-        return torch.sigmoid(h) + 0.05, shift
+        return coupling_scale(h), shift
 
     def forward(self, x: torch.Tensor, context: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         x_b, x_a = x[..., : self.split], x[..., self.split :]
@@ -199,7 +204,7 @@ class _CouplingFrameInverse:
             self.state[k] = (hidden, cell)
             inputs = [hidden]
         h, shift = torch.addmm(self.out[1], inputs[0], self.out[0]).to(y.dtype).chunk(2, dim=1)
-        return torch.cat([x_b, y_a / (torch.sigmoid(h) + 0.05) - shift], dim=1)
+        return torch.cat([x_b, y_a / coupling_scale(h) - shift], dim=1)
 
 
 class Flow(nn.Module):

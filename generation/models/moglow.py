@@ -20,13 +20,12 @@ forces the model to listen to the control.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
 import torch
 
-from .base import MotionModel
+from .path import PathModel
 from .flows import Flow, glow_step
 
 
@@ -39,10 +38,6 @@ class MoGlowConfig:
     lstm_hidden: int = 512
     lstm_layers: int = 2
     dropout: float = 0.95  # probability of zeroing each past pose in the conditioning (training only)
-    learning_rate: float = 1e-3  # Adam, with the Noam schedule of generation.train
-    warmup_steps: int = 1000  # of the Noam schedule; 0 keeps the learning rate constant
-    grad_clip: float = 100.0  # gradient-norm clipping: a guard against rare exploding steps, not a regulariser
-    batch_size: int = 100
 
 
 # What each precision of ``generate`` means for the coupling networks' matrix products
@@ -59,7 +54,7 @@ def cpu_has_bfloat16_units() -> bool:
     return torch.ops.mkldnn._is_mkldnn_bf16_supported()
 
 
-class MoGlow(MotionModel):
+class MoGlow(PathModel):
     kind = "moglow"
     Config = MoGlowConfig
     precisions = tuple(NETWORK_DTYPES)
@@ -139,42 +134,3 @@ class MoGlow(MotionModel):
             conditioning = torch.cat([pose[:, t - tau : t].flatten(1), controls[:, t - tau]], dim=-1)
             pose[:, t] = invert(noise[:, t - tau], conditioning)
         return pose
-
-
-ABLATIONS = ("MG-D", "MG-A", "MG-H")
-
-
-def ablation(config: MoGlowConfig, name: str) -> MoGlowConfig:
-    """The paper's ablations: no data dropout, control only, or one past pose."""
-    if name == "MG-D":
-        return dataclasses.replace(config, dropout=0.0)
-    if name == "MG-A":
-        return dataclasses.replace(config, dropout=1.0)
-    if name == "MG-H":
-        return dataclasses.replace(config, tau=1)
-    raise ValueError(f"unknown ablation {name!r}; use one of {ABLATIONS}")
-
-
-PRESETS = {
-    # Table 1 of the paper (locomotion): about 74 M parameters for 63-D poses.
-    "paper": MoGlowConfig(),
-    # For an hour on 2 CPU cores (README, "Trained on the real data"). τ stays at the
-    # paper's 10 so its ablations mean the same. On the few Bandai-Namco takes and a
-    # few thousand steps, data dropout sets the trade-off: 0 ignores the control (the
-    # character glides without stepping, the paper's MG-D), 0.5 and above are still
-    # far too jittery after an hour; 0.3 steps in time with the control and grows
-    # smoother as it trains. A higher learning rate than the paper's reaches the same
-    # training likelihood in a fraction of the steps.
-    "cpu": MoGlowConfig(steps=8, tau=10, lstm_hidden=128, lstm_layers=2, dropout=0.3,
-                        learning_rate=3e-3, warmup_steps=100, batch_size=32),
-}
-
-
-def moglow_preset(name: str) -> MoGlowConfig:
-    """A preset by name: ``paper``, ``cpu``, or either followed by an ablation (``cpu-MG-D``)."""
-    base, _, variant = name.partition("-")
-    if base not in PRESETS:
-        choices = f"{sorted(PRESETS)}, optionally followed by -{'/-'.join(ABLATIONS)}"
-        raise ValueError(f"unknown MoGlow preset {name!r}; use one of {choices}")
-    config = dataclasses.replace(PRESETS[base])
-    return ablation(config, variant) if variant else config

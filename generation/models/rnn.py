@@ -10,42 +10,21 @@ stream, like MoGlow.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import torch
 from torch import nn
 from torch.nn import functional as F
 
-from .base import MotionModel
+from .path import PathModel
 
 
 @dataclass
 class RNNConfig:
     hidden_size: int = 512  # LSTM units
-    # Read by the shared training loop, not by the model.
-    learning_rate: float = 1e-3
-    batch_size: int = 64
-    grad_clip: float = 1.0
 
 
-_PRESETS = {
-    # The paper's network: one layer of 512 units.
-    "paper": RNNConfig(),
-    # Unchanged: on two CPU cores the paper's network runs 2.5 to 3 steps/s at batch 64 and
-    # fits the locomotion training windows within 5 minutes (it overfits after that).
-    "cpu": RNNConfig(),
-}
-
-
-def rnn_preset(name: str) -> RNNConfig:
-    """A named configuration: "paper" (as published) or "cpu" (for training on a laptop)."""
-    if name not in _PRESETS:
-        raise ValueError(f"unknown RNN preset {name!r}; use one of {sorted(_PRESETS)}")
-    return dataclasses.replace(_PRESETS[name])  # a copy the caller may change
-
-
-class RNNBaseline(MotionModel):
+class RNNBaseline(PathModel):
     """Control sequence → pose sequence through one causal LSTM layer and a linear output.
 
     The pose of frame t depends only on the control of frames ≤ t. The model is

@@ -21,14 +21,13 @@ paper), so it cannot drive a character from live input.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import torch
 from torch import nn
 from torch.nn import functional as F
 
-from .base import MotionModel
+from .path import PathModel
 
 
 @dataclass
@@ -40,26 +39,6 @@ class VAEConfig:
     # The KL weight rises linearly from 0 over this many training steps (0: no annealing),
     # so the decoder learns to use z before the prior pulls the posterior onto it.
     kl_anneal_steps: int = 0
-    # Read by the shared training loop, not by the model.
-    learning_rate: float = 1e-3
-    batch_size: int = 64
-    grad_clip: float = 1.0
-
-
-_PRESETS = {
-    # The paper's network: two BLSTM layers of 256 units per direction on each side, 2-D z.
-    "paper": VAEConfig(),
-    # Half as wide: 3 to 5 steps/s on two CPU cores against 0.8 for the paper's width, so
-    # 15 minutes give some 3,000 steps. Annealing lets the decoder learn to use z first.
-    "cpu": VAEConfig(hidden_size=128, batch_size=32, kl_anneal_steps=500),
-}
-
-
-def vae_preset(name: str) -> VAEConfig:
-    """A named configuration: "paper" (as published) or "cpu" (for training on a laptop)."""
-    if name not in _PRESETS:
-        raise ValueError(f"unknown VAE preset {name!r}; use one of {sorted(_PRESETS)}")
-    return dataclasses.replace(_PRESETS[name])  # a copy the caller may change
 
 
 def kl_to_standard_normal(mean: torch.Tensor, log_var: torch.Tensor) -> torch.Tensor:
@@ -67,7 +46,7 @@ def kl_to_standard_normal(mean: torch.Tensor, log_var: torch.Tensor) -> torch.Te
     return 0.5 * (mean.square() + log_var.exp() - 1.0 - log_var).sum(dim=-1)
 
 
-class VAEBaseline(MotionModel):
+class VAEBaseline(PathModel):
     """Conditional VAE over whole pose sequences; see the module docstring.
 
     ``generate`` is deterministic: z is fixed at zero, so ``temperature`` and ``generator``

@@ -78,6 +78,11 @@ def decode_positions(
     return world
 
 
+# Angle features start with six root values: forward and sideways velocity, hips height,
+# yaw rate, pitch, roll; each joint's rotation follows.
+ROOT_DIMS = 6
+
+
 @dataclass(frozen=True)
 class AngleFeatureSpec:
     """Everything needed to turn angle features back into a motion on a skeleton."""

@@ -12,7 +12,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from .rotation_losses import kl_diagonal_gaussians
+from .losses import kl_diagonal_gaussians
 
 
 class LabelledInitialState(nn.Module):

@@ -1,135 +1,27 @@
-"""Command line of the generation package: ``python -m generation COMMAND --help``.
+"""Commands on models and the systems of a study: ``train``, ``sample``, ``natural``
+(held-out natural clips exported like samples) and ``evaluate``.
 
-  info PATH             describe a BVH file or a dataset (.npz)
-  build-dataset FOLDER  encode a folder of BVH files into a cached training set
-  render BVH...         draw clips as MP4 stick figures (and contact sheets)
-  gallery FOLDER        render a few natural clips per content, with an index.json
-  train FOLDER          train a model (moglow, rnn, vae, hvrnn, erd, quaternet) on a BVH folder
-  sample CHECKPOINT     generate motion for control signals or labels (npz, BVH, optional MP4)
-  natural FOLDER        export held-out natural clips the same way (the NAT system)
-  evaluate CHECKPOINT   held-out loss (MoGlow: negative log-likelihood per frame)
-  hvrnn-classifiers, hvrnn-denoiser, hvrnn-eval FOLDER
-                        HVRNN's classifiers, denoiser and evaluation (generation/hvrnn_commands.py)
+Modules that import torch (train, generator, checkpoint) are imported by the commands
+that need them, so that ``--help`` starts quickly.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 from pathlib import Path
 
 from tqdm import tqdm
 
-from .control import PRESETS, held_out_paths, load_control_file, preset_path
-from .gallery import GalleryOptions, build_gallery
-from .hvrnn_commands import add_commands as add_hvrnn_commands
-from .motion.bvh import BVHError, motion_to_bvh, read_bvh, write_bvh
-from .motion.dataset import (SPLITS, DatasetOptions, MotionDataset, build_dataset, default_cache_dir, find_bvh_files,
-                             load_body_motion)
-from .motion.npz import save_motion_npz
-from .motion.root import RootOptions, root_trajectory
-from .render import Camera, contact_sheet, render_video
-
-# Modules that import torch (train, generator, checkpoint) are imported by the commands
-# that need them, so that --help, info, render and gallery start quickly.
-
-
-def _size(text: str) -> tuple[int, int]:
-    try:
-        width, height = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"size must look like 640x480, got {text!r}") from None
-    return width, height
-
-
-def _add_camera_arguments(parser: argparse.ArgumentParser) -> None:
-    default = Camera()
-    group = parser.add_argument_group("camera (keep it the same for every system of a study)")
-    group.add_argument("--azimuth", type=float, default=default.azimuth, help="degrees about the vertical (default %(default)s)")
-    group.add_argument("--elevation", type=float, default=default.elevation, help="degrees above the horizon (default %(default)s)")
-    group.add_argument("--distance", type=float, default=default.distance, help="cm from the character (default %(default)s)")
-    group.add_argument("--size", type=_size, default=(640, 480), help="frame size WIDTHxHEIGHT (default 640x480)")
-    group.add_argument("--fps", type=float, default=20.0, help="frame rate of the video (default %(default)s)")
-
-
-def _camera(args: argparse.Namespace):
-    return Camera(azimuth=args.azimuth, elevation=args.elevation, distance=args.distance)
-
-
-def info(args: argparse.Namespace) -> int:
-    path = Path(args.path)
-    if path.suffix.lower() == ".npz":
-        dataset = MotionDataset.load(path)
-        for split in SPLITS:
-            clips = dataset.select(split)
-            windows = dataset.windows(split, standardize=False)["pose"]
-            print(f"{split}: {len(clips)} clips ({len(dataset.select(split, augmented=False))} takes), {len(windows)} windows")
-        print(f"skeleton: {dataset.skeleton.n_joints} joints; pose {dataset.arrays['pose'].shape[1]}-D, angles {dataset.angle_spec.size}-D")
-        print("options:", json.dumps(dataset.options.to_dict()))
-        return 0
-    bvh = read_bvh(path)
-    motion = bvh.to_motion()
-    print(f"{path}: {len(bvh.values)} frames at {bvh.fps:g} fps ({motion.duration:.2f} s), {bvh.skeleton.n_joints} joints, {bvh.values.shape[1]} channels")
-    for j, name in enumerate(bvh.skeleton.names):
-        parent = bvh.skeleton.names[bvh.skeleton.parents[j]] if bvh.skeleton.parents[j] >= 0 else "-"
-        print(f"  {name:<24} parent {parent:<24} channels {' '.join(bvh.channels[j]) or '-'}")
-    return 0
-
-
-def build(args: argparse.Namespace) -> int:
-    options = DatasetOptions(
-        fps=args.fps,
-        window_seconds=args.window,
-        overlap=args.overlap,
-        mirror=not args.no_mirror,
-        reverse=args.reverse,
-        contents=tuple(args.contents.split(",")) if args.contents else None,
-        holdout_fraction=args.holdout,
-        validation_fraction=args.validation,
-        seed=args.seed,
-        angle_representation=args.representation,
-        scale=args.scale,
-    )
-    dataset = build_dataset(args.folder, options, cache_dir=args.cache_dir)
-    if args.out:
-        dataset.save(args.out)
-    windows = {split: len(dataset.windows(split, standardize=False)["pose"]) for split in SPLITS}
-    print(f"dataset {dataset.fingerprint[:12]}: {len(dataset.select('train', augmented=False))} training takes "
-          f"({windows['train']} windows of {options.window_frames} frames with augmentation), "
-          f"{len(dataset.select('validation'))} validation takes ({windows['validation']} windows), "
-          f"{len(dataset.select('test'))} held-out test takes ({windows['test']} windows)")
-    print(f"cached in {args.cache_dir or default_cache_dir()}" + (f"; saved to {args.out}" if args.out else ""))
-    return 0
-
-
-def render(args: argparse.Namespace) -> int:
-
-    out = Path(args.out)
-    if len(args.bvh) > 1 and out.suffix:
-        raise ValueError("with several input files, --out must be a folder")
-    camera = _camera(args)
-    for source in tqdm(args.bvh, desc="rendering", unit="clip", disable=len(args.bvh) < 2):
-        source = Path(source)
-        motion = load_body_motion(source, args.fps)
-        target = out if out.suffix else out / f"{source.stem}.mp4"
-        floor = root_trajectory(motion, RootOptions()).xz
-        render_video(motion, target, camera=camera, size=args.size, root_path=floor)
-        if args.sheet:
-            contact_sheet(motion, target.with_suffix(".png"), camera=camera, root_path=floor)
-        print(target)
-    return 0
-
-
-def gallery(args: argparse.Namespace) -> int:
-    options = GalleryOptions(
-        fps=args.fps, seconds=args.seconds, size=args.size, per_content=args.per_content,
-        contents=tuple(args.contents.split(",")) if args.contents else None, camera=_camera(args),
-    )
-    entries = build_gallery(args.folder, args.out, options)
-    print(f"{len(entries)} clips in {args.out} (index.json lists them)")
-    return 0
+from ..control import PRESETS, held_out_paths, load_control_file, preset_path
+from ..motion.bvh import motion_to_bvh, write_bvh
+from ..motion.dataset import DatasetOptions, build_dataset, find_bvh_files, load_body_motion
+from ..motion.npz import save_motion_npz
+from ..motion.root import RootOptions, root_trajectory
+from ..registry import LABELS, MODELS, model_kind
+from ..render import render_video
+from .common import add_camera_arguments, camera_from
 
 
 LOCOMOTION = "walk,run,dash,walk-back,walk-left,walk-right"
@@ -139,7 +31,7 @@ def _dataset_for_training(args: argparse.Namespace, attributes: bool):
     """Path models: the locomotion windows by default; attribute models: every content's
     labelled angle sequences (``generation.hvrnn.data``)."""
     if attributes:
-        from .hvrnn.data import load_attribute_data
+        from ..hvrnn.data import load_attribute_data
 
         contents = tuple(args.contents.split(",")) if args.contents else None
         return load_attribute_data(args.folder, contents, cache_dir=args.cache_dir)
@@ -151,15 +43,13 @@ def _dataset_for_training(args: argparse.Namespace, attributes: bool):
 def train_command(args: argparse.Namespace) -> int:
     import torch
 
-    from .models import model_class
-    from .models.attribute import AttributeModel
-    from .train import TrainOptions, train
+    from ..train import TrainOptions, train
 
     if args.device.startswith("cuda") and not torch.cuda.is_available():
         raise ValueError("--device cuda asked for, but torch sees no CUDA device (is a CUDA build of torch installed?)")
     if args.threads:
         torch.set_num_threads(args.threads)
-    attributes = issubclass(model_class(args.model), AttributeModel)
+    attributes = model_kind(args.model).control == LABELS
     for option in ("classifiers", "denoiser"):
         if getattr(args, option) and not attributes:
             raise ValueError(f"--{option} is for attribute-controlled models, not {args.model}")
@@ -167,7 +57,7 @@ def train_command(args: argparse.Namespace) -> int:
         raise ValueError(f"--rotation-output is for HVRNN, not {args.model}")
     dataset = _dataset_for_training(args, attributes)
     if args.denoiser:  # HVRNN Sec. 3.1: the training data is cleaned before the model learns from it
-        from .hvrnn.denoiser import Denoiser, denoise_training_data
+        from ..hvrnn.denoiser import Denoiser, denoise_training_data
 
         denoiser = Denoiser.load(args.denoiser)
         if denoiser.feature_dim != dataset.feature_dim:
@@ -201,8 +91,8 @@ def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
 
 
 def sample_command(args: argparse.Namespace) -> int:
-    from .generator import Generator
-    from .models.moglow import cpu_has_bfloat16_units
+    from ..generator import Generator
+    from ..models.moglow import cpu_has_bfloat16_units
 
     generator = Generator.load(args.checkpoint, args.device)
     if generator.attributes:
@@ -223,14 +113,14 @@ def sample_command(args: argparse.Namespace) -> int:
             save_motion_npz(motion, out / f"{stem}.npz", control=control.velocities, floor_path=path.xz)
             write_bvh(motion_to_bvh(motion), out / f"{stem}.bvh")
             if args.render:
-                render_video(motion, out / f"{stem}.mp4", camera=_camera(args), size=args.size, root_path=path.xz)
+                render_video(motion, out / f"{stem}.mp4", camera=camera_from(args), size=args.size, root_path=path.xz)
     print(f"{len(controls) * args.n} clips in {out}")
     return 0
 
 
 def _sample_attributes(args: argparse.Namespace, generator) -> int:
     """N clips of --seconds for every --action and --style pair (default: all the model knows)."""
-    from .control import AttributeControl
+    from ..control import AttributeControl
 
     model = generator.model
     actions, styles = args.action or list(model.actions), args.style or list(model.styles)
@@ -245,7 +135,7 @@ def _sample_attributes(args: argparse.Namespace, generator) -> int:
             save_motion_npz(motion, out / f"{stem}.npz", floor_path=floor)
             write_bvh(motion_to_bvh(motion), out / f"{stem}.bvh")
             if args.render:
-                render_video(motion, out / f"{stem}.mp4", camera=_camera(args), size=args.size, root_path=floor)
+                render_video(motion, out / f"{stem}.mp4", camera=camera_from(args), size=args.size, root_path=floor)
     print(f"{len(pairs) * args.n} clips in {out}")
     return 0
 
@@ -261,15 +151,15 @@ def natural_command(args: argparse.Namespace) -> int:
         save_motion_npz(motion, out / f"{clip.name}.npz")
         if args.render:
             floor = root_trajectory(motion, options.root).xz
-            render_video(motion, out / f"{clip.name}.mp4", camera=_camera(args), size=args.size, root_path=floor)
+            render_video(motion, out / f"{clip.name}.mp4", camera=camera_from(args), size=args.size, root_path=floor)
     print(f"{len(clips)} natural {args.split} clips in {out}")
     return 0
 
 
 def evaluate_command(args: argparse.Namespace) -> int:
-    from .checkpoint import load_checkpoint
-    from .models.attribute import AttributeModel
-    from .train import attribute_tensors, evaluate_loss, tensors
+    from ..checkpoint import load_checkpoint
+    from ..models.attribute import AttributeModel
+    from ..train import attribute_tensors, evaluate_loss, tensors
 
     model, meta = load_checkpoint(args.checkpoint, args.device)
     folder = args.data or os.environ.get("MOTION_DATA")
@@ -280,7 +170,7 @@ def evaluate_command(args: argparse.Namespace) -> int:
     if dataset.fingerprint != meta.data_fingerprint:
         print("warning: this data differs from the data the model was trained on", file=sys.stderr)
     if isinstance(model, AttributeModel):
-        from .hvrnn.data import AttributeData
+        from ..hvrnn.data import AttributeData
 
         data = attribute_tensors(AttributeData.from_dataset(dataset, options.seed), "test", model.standardization, args.device)
     else:
@@ -291,59 +181,14 @@ def evaluate_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def parser() -> argparse.ArgumentParser:
-    root = argparse.ArgumentParser(prog="python -m generation", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    commands = root.add_subparsers(dest="command", required=True, metavar="COMMAND")
-
-    p = commands.add_parser("info", help="describe a BVH file or a dataset .npz")
-    p.add_argument("path", help="a .bvh file or a dataset .npz")
-    p.set_defaults(run=info)
-
-    p = commands.add_parser("build-dataset", help="encode a BVH folder into a cached training set",
-                            description="Read every BVH file (and its JSON labels) in FOLDER, resample, augment the "
-                                        "training takes, encode MoGlow and joint-angle features, split by take, and "
-                                        "cache the result under a fingerprint of the inputs and options.")
-    p.add_argument("folder", nargs="+", help="folder of .bvh files (or with a data/ subfolder of them); several are pooled")
-    p.add_argument("--out", help="also save the dataset to this .npz")
-    p.add_argument("--cache-dir", help="where cached datasets live (default $MOTION_CACHE_DIR or var/cache)")
-    p.add_argument("--fps", type=float, default=20.0, help="frame rate to resample to (default %(default)s)")
-    p.add_argument("--window", type=float, default=4.0, help="window length in seconds (default %(default)s)")
-    p.add_argument("--overlap", type=float, default=0.5, help="overlap of consecutive windows (default %(default)s)")
-    p.add_argument("--no-mirror", action="store_true", help="do not add left-right mirrored copies")
-    p.add_argument("--reverse", action="store_true", help="add time-reversed copies")
-    p.add_argument("--contents", help="comma-separated content labels to keep, e.g. walk,run")
-    p.add_argument("--holdout", type=float, default=0.1,
-                   help="fraction of each content's takes held out for testing (default %(default)s)")
-    p.add_argument("--validation", type=float, default=0.1,
-                   help="fraction of each content's other takes held out of training to choose checkpoints "
-                        "(default %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the held-out choice (default %(default)s)")
-    p.add_argument("--representation", choices=("quaternion", "expmap"), default="quaternion", help="joint rotations as (default %(default)s)")
-    p.add_argument("--scale", type=float, default=1.0, help="multiply lengths by this to get centimetres (default %(default)s)")
-    p.set_defaults(run=build)
-
-    p = commands.add_parser("render", help="render BVH clips to MP4 stick figures")
-    p.add_argument("bvh", nargs="+", help="BVH files")
-    p.add_argument("--out", "-o", required=True, help="an .mp4 path (one input) or a folder")
-    p.add_argument("--sheet", action="store_true", help="also write a contact-sheet PNG beside each video")
-    _add_camera_arguments(p)
-    p.set_defaults(run=render)
-
-    p = commands.add_parser("gallery", help="render a few natural clips per content label, with index.json")
-    p.add_argument("folder", help="folder of .bvh files")
-    p.add_argument("--out", "-o", required=True, help="folder for the videos, sheets and index.json")
-    p.add_argument("--per-content", type=int, default=1, help="clips per content label (default %(default)s)")
-    p.add_argument("--contents", help="comma-separated content labels to include")
-    p.add_argument("--seconds", type=float, default=4.0, help="length of each clip (default %(default)s)")
-    _add_camera_arguments(p)
-    p.set_defaults(run=gallery)
-
+def add_commands(commands: argparse._SubParsersAction) -> None:
+    """Add the group's commands to the ``generation`` command line's subparsers."""
     p = commands.add_parser("train", help="train a model on a BVH folder",
                             description="Train a model on the locomotion clips of FOLDER (held-out takes for "
                                         "validation). Writes CHECKPOINT (safetensors + JSON header) at every evaluation; "
                                         "--resume continues from it.")
     p.add_argument("folder", nargs="+", help="folder of .bvh files; several are pooled (clip names must differ)")
-    p.add_argument("--model", "--kind", choices=("moglow", "rnn", "vae", "hvrnn", "erd", "quaternet"), default="moglow", help="model kind (default %(default)s)")
+    p.add_argument("--model", "--kind", choices=tuple(MODELS), default="moglow", help="model kind (default %(default)s)")
     p.add_argument("--preset", default="cpu", help="configuration preset: cpu, paper, or with an ablation such as cpu-MG-D or cpu-SL (default %(default)s)")
     p.add_argument("--classifiers", help="attribute classifiers' file for HVRNN's classifier loss")
     p.add_argument("--rotation-output", help="HVRNN: what its decoder outputs per joint: quaternion (default), matrix "
@@ -388,7 +233,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu")
     p.add_argument("--render", action="store_true", help="also render each clip to MP4")
-    _add_camera_arguments(p)
+    add_camera_arguments(p)
     p.set_defaults(run=sample_command)
 
     p = commands.add_parser("natural", help="export natural clips (held-out takes by default) like samples",
@@ -402,7 +247,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--seconds", type=float, default=4.0, help="length of each clip (default %(default)s)")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--render", action="store_true", help="also render each clip to MP4")
-    _add_camera_arguments(p)
+    add_camera_arguments(p)
     p.set_defaults(run=natural_command)
 
     p = commands.add_parser("evaluate", help="held-out loss of a checkpoint")
@@ -411,15 +256,3 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu")
     p.set_defaults(run=evaluate_command)
-
-    add_hvrnn_commands(commands)
-    return root
-
-
-def main(argv: list[str] | None = None) -> int:
-    args = parser().parse_args(argv)
-    try:
-        return args.run(args)
-    except (BVHError, ValueError, FileNotFoundError) as error:  # CheckpointError is a ValueError
-        print(f"error: {error}", file=sys.stderr)
-        return 2

@@ -35,7 +35,6 @@ In eval mode the loss is schedule-free: β = 1, no classifier term, no word drop
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -44,14 +43,15 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from ..models.attribute import AttributeModel
-from .data import ROOT_DIMS
+from ..motion.features import ROOT_DIMS
+from .attribute import AttributeModel
 from .initial_state import LabelledInitialState
-from .rotation_losses import (
-    QUATERNION_DISTANCES, align_quaternions, axis_angle_to_quaternion, gram_schmidt, hierarchical_distance, joint_weights,
-    kl_diagonal_gaussians, masked_mean, matrix_to_quaternion, matrix_validity, normalize_quaternion, quaternion_distance,
-    quaternion_to_matrix, quaternion_validity,
+from .layers import mlp, random_crop
+from .losses import (
+    QUATERNION_DISTANCES, hierarchical_distance, joint_weights, kl_diagonal_gaussians, masked_mean, matrix_validity,
+    quaternion_distance, quaternion_validity,
 )
+from .rotations import align_quaternions, expmap_to_quat, gram_schmidt, matrix_to_quat, normalize_quaternion, quat_to_matrix
 
 # Numbers a decoded frame carries per joint for each rotation output.
 ROTATION_OUTPUT_SIZES = {"quaternion": 4, "matrix": 6, "axis_angle": 3}
@@ -83,7 +83,6 @@ class HVRNNConfig:
     validity_weight: float = 1.0  # on the rotation-validity penalty of the raw outputs
     initial_kl_weight: float = 1e-3  # on the initial state's KL from N(0, I), per sequence
     classifier_weight: float = 0.1  # λ_CL (0: ablation NC)
-    classifiers: str = ""  # the attribute classifiers' file (generation.hvrnn.classifiers), needed when λ_CL > 0
     classifier_start: int = 2000  # steps before the classifier loss starts ...
     classifier_ramp: int = 2000  # ... and over which it rises to λ_CL
     kl_warmup: int = 1000  # steps with β = 0
@@ -93,21 +92,9 @@ class HVRNNConfig:
     # Training on a random stretch of this many frames of each sequence (0: whole
     # sequences, as in the paper) makes a step cheaper; generation length is unaffected.
     crop_frames: int = 0
-    # Read by the shared training loop: Adam, gradient-norm clipping (Sec. 4.2).
-    learning_rate: float = 1e-3
-    grad_clip: float = 0.1
-    batch_size: int = 32
     # The label vocabularies, filled in from the training data.
     actions: tuple[str, ...] = ()
     styles: tuple[str, ...] = ()
-
-
-def mlp(sizes: list[int]) -> nn.Sequential:
-    """Linear layers with ReLU between them (none after the last)."""
-    layers: list[nn.Module] = []
-    for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:])):
-        layers += [nn.Linear(a, b)] + ([nn.ReLU()] if i < len(sizes) - 2 else [])
-    return nn.Sequential(*layers)
 
 
 class GaussianHead(nn.Module):
@@ -175,7 +162,8 @@ class HVRNN(AttributeModel):
     def prepare(self, data: Any) -> None:
         """Constants from the training data (``AttributeData``): α_k from its skeleton
         (normalised to mean 1; all 1 for NL), the root standardisation, the quaternion
-        sign reference, and the classifiers of the classifier loss."""
+        sign reference. The classifiers of the classifier loss come from the trainer
+        (``use_classifiers``)."""
         spec = data.dataset.angle_spec
         alpha = torch.as_tensor(joint_weights(data.dataset.skeleton.parents)[list(spec.joints)], dtype=torch.float32)
         if len(alpha) != self.joints:
@@ -185,20 +173,6 @@ class HVRNN(AttributeModel):
         self.root_mean.copy_(torch.as_tensor(root.mean[:ROOT_DIMS]))
         self.root_std.copy_(torch.as_tensor(root.std[:ROOT_DIMS]))
         self.reference.copy_(torch.as_tensor(data.quaternion_reference()))
-        if self.config.classifier_weight > 0:
-            if not self.config.classifiers:
-                raise ValueError("the classifier loss (classifier_weight > 0) needs the attribute classifiers' file "
-                                 "(config.classifiers, --classifiers on the command line); the NC ablation needs none")
-            from .classifiers import AttributeClassifiers
-
-            classifiers = AttributeClassifiers.load(self.config.classifiers)
-            if list(classifiers.vocabularies["action"].names) != list(self.actions) or \
-                    list(classifiers.vocabularies["style"].names) != list(self.styles):
-                raise ValueError(f"{self.config.classifiers}: the classifiers' labels differ from the training data's")
-            if classifiers.feature_dim != self.pose_dim:  # found now, not when the classifier loss starts
-                raise ValueError(f"{self.config.classifiers}: the classifiers read {classifiers.feature_dim} features "
-                                 f"per frame, the model makes {self.pose_dim}")
-            self.use_classifiers((classifiers["action"], classifiers["style"]))
 
     def use_classifiers(self, classifiers: tuple[Any, ...]) -> None:
         """The frozen classifiers of the classifier loss: each maps raw angle features and a
@@ -254,11 +228,11 @@ class HVRNN(AttributeModel):
             rotations = normalize_quaternion(joints.unflatten(-1, (self.joints, 4)))
             quats = rotations
         elif self.config.rotation_output == "axis_angle":
-            rotations = axis_angle_to_quaternion(joints.unflatten(-1, (self.joints, 3)))
+            rotations = expmap_to_quat(joints.unflatten(-1, (self.joints, 3)))
             quats = rotations
         else:
             rotations = gram_schmidt(joints.unflatten(-1, (self.joints, 6)))
-            quats = matrix_to_quaternion(rotations)
+            quats = matrix_to_quat(rotations)
         return self.align(torch.cat([root, quats.flatten(-2)], -1)), rotations
 
     def validity(self, raw: torch.Tensor) -> torch.Tensor:
@@ -310,7 +284,7 @@ class HVRNN(AttributeModel):
 
     # --- training objective -------------------------------------------------------------------
 
-    def loss(self, pose: torch.Tensor, mask: torch.Tensor, action: torch.Tensor,  # type: ignore[override]
+    def loss(self, pose: torch.Tensor, mask: torch.Tensor, action: torch.Tensor,
              style: torch.Tensor) -> tuple[torch.Tensor, dict[str, float]]:
         c, l = self.config, self.config.word_length
         frames = pose.shape[1]
@@ -386,7 +360,7 @@ class HVRNN(AttributeModel):
         if c.rotation_output != "matrix":  # quaternion and axis-angle outputs are compared as quaternions
             angular = hierarchical_distance(rotations, normalize_quaternion(target_quats), self.alpha, c.distance)
         else:
-            angular = hierarchical_distance(rotations, quaternion_to_matrix(normalize_quaternion(target_quats)), self.alpha, "so3")
+            angular = hierarchical_distance(rotations, quat_to_matrix(normalize_quaternion(target_quats)), self.alpha, "so3")
         root = ((raw[..., :ROOT_DIMS] - target[..., :ROOT_DIMS]) ** 2).sum(-1)
         return c.reconstruction_weight * angular + c.root_weight * root
 
@@ -406,8 +380,8 @@ class HVRNN(AttributeModel):
     # --- generation -----------------------------------------------------------------------------
 
     @torch.no_grad()
-    def generate_from_labels(self, action: torch.Tensor, style: torch.Tensor, frames: int,
-                             temperature: float = 1.0, generator: torch.Generator | None = None) -> torch.Tensor:
+    def generate(self, action: torch.Tensor, style: torch.Tensor, frames: int,
+                 temperature: float = 1.0, generator: torch.Generator | None = None) -> torch.Tensor:
         """Sample word by word from the prior; z and h_0 are scaled by ``temperature``."""
         if frames < 1:
             raise ValueError(f"frames must be at least 1, got {frames}")
@@ -425,47 +399,3 @@ class HVRNN(AttributeModel):
             out.append(self.normalise(self.decode_word(word_hat))[0])
             state = self.transition(self.word_features(self.fed_back(word_hat)), phi_z, a, state)
         return torch.cat(out, 1)[:, :frames]
-
-
-def random_crop(pose: torch.Tensor, mask: torch.Tensor, frames: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """A random stretch of ``frames`` frames of each sequence, within its real frames
-    where it is long enough (else its start), with the mask cut alike."""
-    lengths = mask.sum(1)
-    start = (torch.rand(len(pose), device=pose.device) * (lengths - frames + 1).clamp_min(1)).long()
-    index = start[:, None] + torch.arange(frames, device=pose.device)
-    pose = pose.gather(1, index[..., None].expand(-1, -1, pose.shape[-1]))
-    return pose, mask.gather(1, index)
-
-
-ABLATIONS = ("SL", "NL", "NC")
-
-
-def ablation(config: HVRNNConfig, name: str) -> HVRNNConfig:
-    """The paper's ablations: no motion-word codec, no joint hierarchy, no classifier loss."""
-    if name == "SL":
-        return dataclasses.replace(config, word_codec=False)
-    if name == "NL":
-        return dataclasses.replace(config, hierarchical=False)
-    if name == "NC":
-        return dataclasses.replace(config, classifier_weight=0.0)
-    raise ValueError(f"unknown HVRNN ablation {name!r}; use one of {ABLATIONS}")
-
-
-PRESETS = {
-    "paper": HVRNNConfig(),
-    # For one shared CPU core: about a tenth of the paper's parameters, 60-frame crops
-    # (20 words) and schedules compressed to 1,000 steps.
-    "cpu": HVRNNConfig(word_dim=48, word_hidden=128, latent_dim=32, feature_dim=96, mlp_hidden=128, state_dim=192,
-                       kl_warmup=100, kl_anneal=400, classifier_start=300, classifier_ramp=300,
-                       word_drop_steps=800, crop_frames=60, batch_size=16),
-}
-
-
-def hvrnn_preset(name: str) -> HVRNNConfig:
-    """A preset by name: ``paper``, ``cpu``, or either followed by an ablation (``cpu-SL``)."""
-    base, _, variant = name.partition("-")
-    if base not in PRESETS:
-        raise ValueError(f"unknown HVRNN preset {name!r}; use one of {sorted(PRESETS)}, "
-                         f"optionally followed by -{'/-'.join(ABLATIONS)}")
-    config = dataclasses.replace(PRESETS[base])
-    return ablation(config, variant) if variant else config

@@ -6,9 +6,7 @@
                             (then ``python -m analysis hvrnn-scores`` for Table 2 and Fig. 4)
   hvrnn-label FOLDER        the action and style the classifiers see in each clip (a CSV)
 
-They live outside ``generation.hvrnn``, whose package imports the model registry (and
-so torch); torch-backed modules are imported inside the commands, so ``--help`` starts
-quickly.
+Torch-backed modules are imported inside the commands, so ``--help`` starts quickly.
 """
 
 from __future__ import annotations
@@ -18,8 +16,8 @@ import dataclasses
 import time
 
 
-def add_commands(commands) -> None:
-    """Add the commands to the ``generation`` command line's subparsers."""
+def add_commands(commands: argparse._SubParsersAction) -> None:
+    """Add the group's commands to the ``generation`` command line's subparsers."""
     p = _training_parser(commands, "hvrnn-classifiers", classifiers_command,
                          "train HVRNN's action and style classifiers",
                          "Train the attribute classifiers (Conv1D x3, pooling, linear) on the classifier half of "
@@ -75,7 +73,7 @@ def _data_arguments(p: argparse.ArgumentParser) -> None:
 def _load(args: argparse.Namespace):
     import torch
 
-    from .hvrnn.data import load_attribute_data
+    from ..hvrnn.data import load_attribute_data
 
     if args.threads:
         torch.set_num_threads(args.threads)
@@ -83,7 +81,7 @@ def _load(args: argparse.Namespace):
 
 
 def classifiers_command(args: argparse.Namespace) -> int:
-    from .hvrnn.classifiers import ClassifierConfig, accuracy, train_classifiers
+    from ..hvrnn.classifiers import ClassifierConfig, accuracy, train_classifiers
 
     data = _load(args)
     changes = {"steps": args.steps, "channels": tuple(args.channels) if args.channels else None}
@@ -103,7 +101,7 @@ def classifiers_command(args: argparse.Namespace) -> int:
 
 
 def denoiser_command(args: argparse.Namespace) -> int:
-    from .hvrnn.denoiser import DenoiserConfig, denoising_errors, train_denoiser
+    from ..hvrnn.denoiser import DenoiserConfig, denoising_errors, train_denoiser
 
     data = _load(args)
     config = DenoiserConfig() if args.steps is None else dataclasses.replace(DenoiserConfig(), steps=args.steps)
@@ -120,8 +118,8 @@ def denoiser_command(args: argparse.Namespace) -> int:
 
 
 def eval_command(args: argparse.Namespace) -> int:
-    from .hvrnn.classifiers import AttributeClassifiers
-    from .hvrnn.evaluate import evaluation_outputs, save_outputs
+    from ..hvrnn.classifiers import AttributeClassifiers
+    from ..hvrnn.evaluate import evaluation_outputs, save_outputs
 
     checkpoints = {}
     for item in args.checkpoint:
@@ -146,11 +144,11 @@ def label_command(args: argparse.Namespace) -> int:
 
     import torch
 
-    from .files import write_atomic
-    from .hvrnn.classifiers import AttributeClassifiers
-    from .hvrnn.data import dataset_options
-    from .hvrnn.labelling import label_clips
-    from .motion.dataset import build_dataset
+    from ..files import write_atomic
+    from ..hvrnn.classifiers import AttributeClassifiers
+    from ..hvrnn.data import dataset_options
+    from ..hvrnn.labelling import label_clips
+    from ..motion.dataset import build_dataset
 
     if args.threads:
         torch.set_num_threads(args.threads)

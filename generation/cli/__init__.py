@@ -1,0 +1,41 @@
+"""Command line of the generation package: ``python -m generation COMMAND --help``.
+
+  info PATH             describe a BVH file or a dataset (.npz)
+  build-dataset FOLDER  encode a folder of BVH files into a cached training set
+  render BVH...         draw clips as MP4 stick figures (and contact sheets)
+  gallery FOLDER        render a few natural clips per content, with an index.json
+  train FOLDER          train a model (moglow, rnn, vae, hvrnn, erd, quaternet) on a BVH folder
+  sample CHECKPOINT     generate motion for control signals or labels (npz, BVH, optional MP4)
+  natural FOLDER        export held-out natural clips the same way (the NAT system)
+  evaluate CHECKPOINT   held-out loss (MoGlow: negative log-likelihood per frame)
+  hvrnn-classifiers, hvrnn-denoiser, hvrnn-eval FOLDER
+                        HVRNN's classifiers, denoiser and evaluation (generation/cli/hvrnn.py)
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..motion.bvh import BVHError
+from . import data, hvrnn, models, render
+
+# The command groups, in the order --help lists their commands.
+GROUPS = (data, render, models, hvrnn)
+
+
+def parser() -> argparse.ArgumentParser:
+    root = argparse.ArgumentParser(prog="python -m generation", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    commands = root.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for group in GROUPS:
+        group.add_commands(commands)
+    return root
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    try:
+        return args.run(args)
+    except (BVHError, ValueError, FileNotFoundError) as error:  # CheckpointError is a ValueError
+        print(f"error: {error}", file=sys.stderr)
+        return 2

@@ -1,0 +1,61 @@
+"""Commands that draw natural motion: ``render`` (BVH clips to MP4) and ``gallery``."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from tqdm import tqdm
+
+from ..gallery import GalleryOptions, build_gallery
+from ..motion.dataset import load_body_motion
+from ..motion.root import RootOptions, root_trajectory
+from ..render import contact_sheet, render_video
+from .common import add_camera_arguments, camera_from
+
+
+def render(args: argparse.Namespace) -> int:
+
+    out = Path(args.out)
+    if len(args.bvh) > 1 and out.suffix:
+        raise ValueError("with several input files, --out must be a folder")
+    camera = camera_from(args)
+    for source in tqdm(args.bvh, desc="rendering", unit="clip", disable=len(args.bvh) < 2):
+        source = Path(source)
+        motion = load_body_motion(source, args.fps)
+        target = out if out.suffix else out / f"{source.stem}.mp4"
+        floor = root_trajectory(motion, RootOptions()).xz
+        render_video(motion, target, camera=camera, size=args.size, root_path=floor)
+        if args.sheet:
+            contact_sheet(motion, target.with_suffix(".png"), camera=camera, root_path=floor)
+        print(target)
+    return 0
+
+
+def gallery(args: argparse.Namespace) -> int:
+    options = GalleryOptions(
+        fps=args.fps, seconds=args.seconds, size=args.size, per_content=args.per_content,
+        contents=tuple(args.contents.split(",")) if args.contents else None, camera=camera_from(args),
+    )
+    entries = build_gallery(args.folder, args.out, options)
+    print(f"{len(entries)} clips in {args.out} (index.json lists them)")
+    return 0
+
+
+def add_commands(commands: argparse._SubParsersAction) -> None:
+    """Add the group's commands to the ``generation`` command line's subparsers."""
+    p = commands.add_parser("render", help="render BVH clips to MP4 stick figures")
+    p.add_argument("bvh", nargs="+", help="BVH files")
+    p.add_argument("--out", "-o", required=True, help="an .mp4 path (one input) or a folder")
+    p.add_argument("--sheet", action="store_true", help="also write a contact-sheet PNG beside each video")
+    add_camera_arguments(p)
+    p.set_defaults(run=render)
+
+    p = commands.add_parser("gallery", help="render a few natural clips per content label, with index.json")
+    p.add_argument("folder", help="folder of .bvh files")
+    p.add_argument("--out", "-o", required=True, help="folder for the videos, sheets and index.json")
+    p.add_argument("--per-content", type=int, default=1, help="clips per content label (default %(default)s)")
+    p.add_argument("--contents", help="comma-separated content labels to include")
+    p.add_argument("--seconds", type=float, default=4.0, help="length of each clip (default %(default)s)")
+    add_camera_arguments(p)
+    p.set_defaults(run=gallery)

@@ -1,0 +1,137 @@
+"""The packages' import structure: no import cycles, every module importable on its own
+terms, and the cheap entry points (the registry, checkpoint headers) free of torch."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from generation import registry
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("generation", "analysis", "studyapp", "benchmarks")
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def project_modules() -> dict[str, Path]:
+    return {module_name(path): path for package in PACKAGES for path in sorted((ROOT / package).rglob("*.py"))}
+
+
+def is_type_checking_block(node: ast.AST) -> bool:
+    return isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
+
+
+def imported_modules(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
+    """The project modules that ``name`` imports anywhere in its body (functions
+    included); imports only for type checkers never run, so they do not count."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[str] = set()
+
+    def visit(node: ast.AST) -> None:
+        if is_type_checking_block(node):
+            return
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = package
+            for _ in range(node.level - 1):
+                base = base.rpartition(".")[0]
+            source = ".".join(p for p in (base if node.level else "", node.module or "") if p)
+            for alias in node.names:
+                # "from package import module" imports the module; "from module import name" the module.
+                found.add(f"{source}.{alias.name}" if f"{source}.{alias.name}" in modules else source)
+        for child in ast.iter_child_nodes(node):
+            visit(child)
+
+    visit(ast.parse(path.read_text(), str(path)))
+    return {m for m in found if m in modules and m != name}
+
+
+def find_cycle(graph: dict[str, set[str]], starts: list[str] | None = None) -> list[str] | None:
+    """One import cycle of ``graph`` through a module of ``starts`` (default: any) as a
+    list of modules (first repeated last), or None."""
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+    path: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        path.append(node)
+        for target in sorted(graph[node]):
+            if state.get(target) == 1:
+                return path[path.index(target):] + [target]
+            if target not in state and (cycle := visit(target)):
+                return cycle
+        path.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph) if starts is None else starts:
+        if node not in state and (cycle := visit(node)):
+            return cycle
+    return None
+
+
+def test_the_cycle_finder_sees_a_cycle_through_a_function_level_import(tmp_path):
+    modules = {"pkg": tmp_path / "pkg" / "__init__.py", "pkg.a": tmp_path / "pkg" / "a.py", "pkg.b": tmp_path / "pkg" / "b.py"}
+    for path in modules.values():
+        path.parent.mkdir(exist_ok=True)
+    modules["pkg"].write_text("")
+    modules["pkg.a"].write_text("from .b import thing\n")
+    modules["pkg.b"].write_text("def thing():\n    from . import a\n")
+    graph = {name: imported_modules(name, path, modules) for name, path in modules.items()}
+    assert find_cycle(graph) == ["pkg.a", "pkg.b", "pkg.a"]
+    modules["pkg.b"].write_text("def thing():\n    pass\n")
+    graph = {name: imported_modules(name, path, modules) for name, path in modules.items()}
+    assert find_cycle(graph) is None
+
+
+@pytest.mark.parametrize("package", [
+    *PACKAGES[:2], PACKAGES[3],
+    # stimuli.py (domain logic) and tasks.py (Celery) import each other; the domain is
+    # being made free of Celery, and then this passes (strict: the mark must go then).
+    pytest.param(PACKAGES[2], marks=pytest.mark.xfail(strict=True, reason="studyapp.stimuli <-> studyapp.tasks")),
+])
+def test_no_module_of_a_package_takes_part_in_an_import_cycle(package):
+    modules = project_modules()
+    graph = {name: imported_modules(name, path, modules) for name, path in modules.items()}
+    assert "generation.checkpoint" in graph["generation.train"]  # the parser sees the imports
+    cycle = find_cycle(graph, [name for name in graph if name.split(".")[0] == package])
+    assert cycle is None, f"import cycle: {' -> '.join(cycle or [])}"
+
+
+def test_every_generation_module_imports_in_a_fresh_interpreter():
+    names = [name for name in project_modules() if name.startswith("generation") and name != "generation.__main__"]
+    script = "import importlib\nfor name in %r:\n    importlib.import_module(name)\n" % names
+    result = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr[-2000:]
+
+
+@pytest.mark.parametrize("code", [
+    "import generation.registry",
+    "from generation.checkpoint import read_meta; read_meta('models/moglow-cpu.safetensors')",
+])
+def test_the_registry_and_checkpoint_headers_load_no_torch(code):
+    check = f"{code}\nimport sys\nassert 'torch' not in sys.modules, 'torch was imported'"
+    result = subprocess.run([sys.executable, "-c", check], cwd=ROOT, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr[-2000:]
+
+
+@pytest.mark.parametrize("kind", list(registry.MODELS))
+def test_every_registered_kind_names_its_class_and_builds_every_preset_and_ablation(kind):
+    cls = registry.model_class(kind)
+    assert cls.kind == kind
+    entry = registry.MODELS[kind]
+    for name in [*entry.presets, *(f"{base}-{ablation}" for base in entry.presets for ablation in entry.ablations)]:
+        config = registry.preset(kind, name)
+        assert isinstance(config, cls.Config)
+        assert set(registry.training_knobs(kind, name)) >= {"learning_rate", "grad_clip", "batch_size"}
+    with pytest.raises(KeyError, match="unknown model kind 'gan'"):
+        registry.model_class("gan")
