@@ -93,12 +93,7 @@ def test_the_cycle_finder_sees_a_cycle_through_a_function_level_import(tmp_path)
     assert find_cycle(graph) is None
 
 
-@pytest.mark.parametrize("package", [
-    *PACKAGES[:2], PACKAGES[3],
-    # stimuli.py (domain logic) and tasks.py (Celery) import each other; the domain is
-    # being made free of Celery, and then this passes (strict: the mark must go then).
-    pytest.param(PACKAGES[2], marks=pytest.mark.xfail(strict=True, reason="studyapp.stimuli <-> studyapp.tasks")),
-])
+@pytest.mark.parametrize("package", PACKAGES)
 def test_no_module_of_a_package_takes_part_in_an_import_cycle(package):
     modules = project_modules()
     graph = {name: imported_modules(name, path, modules) for name, path in modules.items()}
