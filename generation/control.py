@@ -22,6 +22,24 @@ from .motion.root import RootTrajectory, integrate
 
 # Seconds of Gaussian smoothing between segments, so speeds change as a person's do.
 TRANSITION_SIGMA = 0.25
+# Bounds on a synthetic description's numbers: a stimulus lasts seconds, not days, and
+# no person walks at 20 m/s or turns ten times a second. Beyond them a description is
+# a mistake (or an attack on memory), refused before anything is allocated.
+MAX_PATH_SECONDS = 600.0
+MAX_SPEED_CM_S = 2000.0
+MAX_TURN_RATE_DEG_S = 3600.0
+
+
+def _number(spec: dict, key: str, default: float, bound: float) -> float:
+    """``spec[key]`` as a finite float within ``[-bound, bound]``; the message names the field."""
+    raw = spec.get(key, default)
+    try:
+        value = float(raw)
+    except (TypeError, ValueError):
+        raise ValueError(f"{key!r} must be a number, got {raw!r}") from None
+    if not math.isfinite(value) or abs(value) > bound:
+        raise ValueError(f"{key!r} must be a finite number within ±{bound:g}, got {raw!r}")
+    return value
 
 
 @dataclass(frozen=True)
@@ -91,13 +109,13 @@ def control_from_dict(data: dict) -> Control:
 
 # Segment types of a synthetic path and what each reads from its description.
 def _segment(kind: str, spec: dict, n: int) -> np.ndarray:
-    speed = float(spec.get("speed", 120.0))
+    speed = _number(spec, "speed", 120.0, MAX_SPEED_CM_S)
     v = np.zeros((n, 3))
     if kind == "straight":
         v[:, 0] = speed
     elif kind == "curve":
         v[:, 0] = speed
-        v[:, 2] = math.radians(float(spec.get("turn_rate", 30.0)))  # deg/s, left positive
+        v[:, 2] = math.radians(_number(spec, "turn_rate", 30.0, MAX_TURN_RATE_DEG_S))  # deg/s, left positive
     elif kind == "sidestep":
         direction = spec.get("direction", "left")
         if direction not in ("left", "right"):
@@ -108,7 +126,7 @@ def _segment(kind: str, spec: dict, n: int) -> np.ndarray:
     elif kind == "stand":
         pass
     elif kind == "ramp":
-        v[:, 0] = np.linspace(float(spec.get("from", 0.0)), float(spec.get("to", 250.0)), n)
+        v[:, 0] = np.linspace(_number(spec, "from", 0.0, MAX_SPEED_CM_S), _number(spec, "to", 250.0, MAX_SPEED_CM_S), n)
     else:
         raise ValueError(f"unknown segment type {kind!r}; use straight, curve, sidestep, backward, stand or ramp")
     return v
@@ -119,15 +137,27 @@ def synthetic_path(description: dict, fps: float = 20.0) -> PathControl:
 
     Speeds are cm/s, ``turn_rate`` deg/s (left positive); segments join smoothly.
     """
+    if not isinstance(description, dict):
+        raise ValueError(f"a synthetic path is an object with 'segments', got {type(description).__name__}")
     segments = description.get("segments")
-    if not segments:
+    if not segments or not isinstance(segments, list):
         raise ValueError("a synthetic path needs a non-empty 'segments' list")
-    parts = []
+    if not (math.isfinite(fps) and fps > 0):
+        raise ValueError(f"a synthetic path needs a positive, finite fps, got {fps}")
+    parts, total_seconds = [], 0.0
     for i, spec in enumerate(segments):
-        seconds = float(spec.get("seconds", 0))
-        if seconds <= 0:
-            raise ValueError(f"segment {i} needs a positive 'seconds', got {spec.get('seconds')!r}")
-        parts.append(_segment(spec.get("type", ""), spec, max(1, int(round(seconds * fps)))))
+        if not isinstance(spec, dict):
+            raise ValueError(f"segment {i} must be an object, got {spec!r}")
+        try:
+            seconds = _number(spec, "seconds", 0.0, MAX_PATH_SECONDS)
+            if seconds <= 0:
+                raise ValueError(f"needs a positive 'seconds', got {spec.get('seconds')!r}")
+            total_seconds += seconds
+            if total_seconds > MAX_PATH_SECONDS:
+                raise ValueError(f"the path's segments last over {MAX_PATH_SECONDS:g} s in all")
+            parts.append(_segment(spec.get("type", ""), spec, max(1, int(round(seconds * fps)))))
+        except ValueError as error:
+            raise ValueError(f"segment {i}: {error}") from None
     velocities = np.concatenate(parts)
     if len(parts) > 1:
         velocities = gaussian_filter1d(velocities, TRANSITION_SIGMA * fps, axis=0, mode="nearest")
@@ -162,7 +192,10 @@ def preset_path(name: str, fps: float = 20.0) -> PathControl:
 def load_control_file(path: str | Path, fps: float = 20.0) -> list[PathControl]:
     """Synthetic paths from a JSON or YAML file: one description, or a list of them."""
     path = Path(path)
-    text = path.read_text()
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{path}: not UTF-8 text (byte {error.start})") from None
     if path.suffix.lower() in (".yaml", ".yml"):
         try:
             data = yaml.safe_load(text)

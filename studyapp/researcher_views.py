@@ -222,7 +222,8 @@ def study_report(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
     try:
         has_natural = study.systems.filter(role=System.Role.NATURAL).exists()
-        digest = create_report(settings.MEDIA_ROOT, ratings_csv(study), NATURAL_NAME if has_natural else None)
+        digest = create_report(settings.MEDIA_ROOT, ratings_csv(study), NATURAL_NAME if has_natural else None,
+                               request.user.pk)
     except AnalysisInputError as error:
         messages.error(request, f"No report yet: {error}")
         return redirect("study-monitor", pk=study.pk)
