@@ -74,7 +74,10 @@ def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, o
         (work / RATINGS_NAME).write_bytes(ratings_csv)
         (work / REFERENCE_NAME).write_text(reference or "")
         (work / OWNER_NAME).write_text(str(owner_id))
-        report = _analyse(work)
+        try:
+            report = _analyse(work)
+        except AnalysisInputError as error:  # say "the upload", not where the server keeps it
+            raise AnalysisInputError(str(error).replace(str(work / RATINGS_NAME), "the uploaded file")) from None
         write_report(report, work)
         work.chmod(0o755)
         work.rename(final)
