@@ -28,7 +28,8 @@ class UnsatisfiableRange(Exception):
 
 
 def _byte_position(digits: str) -> int:
-    return int(digits) if len(digits.lstrip("0")) <= _MAX_DIGITS else 10**_MAX_DIGITS
+    significant = digits.lstrip("0") or "0"
+    return int(significant) if len(significant) <= _MAX_DIGITS else 10**_MAX_DIGITS
 
 
 def parse_byte_range(header: str | None, size: int) -> tuple[int, int] | None:

@@ -210,7 +210,7 @@ def study_open(request: HttpRequest, pk: int) -> HttpResponse:
 def study_export(request: HttpRequest, pk: int) -> HttpResponse:
     """The ratings table as a CSV download."""
     study = _study(request, pk)
-    response = HttpResponse(ratings_csv(study), content_type="text/csv")
+    response = HttpResponse(ratings_csv(study, for_spreadsheets=True), content_type="text/csv")
     response["Content-Disposition"] = f'attachment; filename="ratings-study-{study.pk}.csv"'
     return response
 
