@@ -17,6 +17,8 @@ import hashlib
 import io
 import json
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
@@ -26,7 +28,7 @@ from tqdm import tqdm
 
 from .augment import mirror, reverse, window_count, windows
 from ..files import write_atomic
-from .bvh import load_motion
+from .bvh import BVHError, load_motion
 from .features import AngleFeatureSpec, angle_feature_spec, encode_angles, encode_positions
 from .kinematics import subtree_motion
 from .resample import resample
@@ -260,17 +262,23 @@ def read_labels(bvh_path: Path) -> tuple[str | None, str | None]:
     if not side.is_file():
         return None, None
     try:
-        data = json.loads(side.read_text())
+        data = json.loads(side.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{side}: not UTF-8 text (byte {error.start})") from None
     except json.JSONDecodeError as error:
         raise ValueError(f"{side}:{error.lineno}: invalid JSON ({error.msg})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{side}: expected a JSON object with 'content' and 'style', got a {type(data).__name__}")
     result = []
     for kind in ("content", "style"):
         index = data.get(kind)
         names = _label_names(bvh_path.parent, kind)
         if index is None:
             result.append(None)
-        elif names is not None and 0 <= int(index) < len(names):
-            result.append(names[int(index)])
+        elif isinstance(index, bool) or not isinstance(index, int | str):
+            raise ValueError(f"{side}: {kind!r} must be a label index or name, got {index!r}")
+        elif names is not None and isinstance(index, int) and 0 <= index < len(names):
+            result.append(names[index])
         else:
             result.append(str(index))
     return result[0], result[1]
@@ -342,22 +350,23 @@ def build_dataset(
     clips, parts = [], {"pose": [], "control": [], "angles": []}
     rows = 0
     for path in tqdm(files, desc="encoding clips", unit="clip", disable=not progress):
-        body = load_body_motion(path, options.fps, scale=options.scale, root=options.root)
-        if skeleton is None:
-            skeleton, spec = body.skeleton, angle_feature_spec(body.skeleton, options.angle_representation)
-        elif body.skeleton.names != skeleton.names:
-            raise ValueError(f"{path}: its skeleton differs from the first file's; one dataset needs one skeleton")
-        take = take_of(path.stem)
-        split = "test" if take in held_out else "validation" if take in validation else "train"
-        for augmentation, motion in _augmented(body, options, split == "train"):
-            encoded = encode_positions(motion, options.root)
-            angles = encode_angles(motion, spec).values if motion.rotations is not None else np.full((motion.n_frames, spec.size), np.nan)
-            for name, value in (("pose", encoded.pose), ("control", encoded.control), ("angles", angles)):
-                parts[name].append(value.astype(np.float32))
-            content, style = labels[path]
-            clips.append(Clip(path.stem, take_of(path.stem), content, style, augmentation, split,
-                              rows, rows + motion.n_frames, motion.rotations is not None))
-            rows += motion.n_frames
+        with _naming(path):
+            body = load_body_motion(path, options.fps, scale=options.scale, root=options.root)
+            if skeleton is None:
+                skeleton, spec = body.skeleton, angle_feature_spec(body.skeleton, options.angle_representation)
+            elif body.skeleton.names != skeleton.names:
+                raise ValueError(f"{path}: its skeleton differs from the first file's; one dataset needs one skeleton")
+            take = take_of(path.stem)
+            split = "test" if take in held_out else "validation" if take in validation else "train"
+            for augmentation, motion in _augmented(body, options, split == "train"):
+                encoded = encode_positions(motion, options.root)
+                angles = encode_angles(motion, spec).values if motion.rotations is not None else np.full((motion.n_frames, spec.size), np.nan)
+                for name, value in (("pose", encoded.pose), ("control", encoded.control), ("angles", angles)):
+                    parts[name].append(value.astype(np.float32))
+                content, style = labels[path]
+                clips.append(Clip(path.stem, take_of(path.stem), content, style, augmentation, split,
+                                  rows, rows + motion.n_frames, motion.rotations is not None))
+                rows += motion.n_frames
     arrays = {k: np.concatenate(v) for k, v in parts.items()}
     train = [c for c in clips if c.split == "train"]
     stats = {
@@ -367,6 +376,18 @@ def build_dataset(
     dataset = MotionDataset(options, skeleton, spec, clips, arrays, stats, key)
     dataset.save(cached)
     return dataset
+
+
+@contextmanager
+def _naming(path: Path) -> Iterator[None]:
+    """A clip that cannot be used names itself: the checks deep in the motion code (a rig
+    without left/right pairs, values that overflow) know nothing of files."""
+    try:
+        yield
+    except ValueError as error:
+        if isinstance(error, BVHError) or str(error).startswith(str(path)):
+            raise  # names its file (and line) already
+        raise ValueError(f"{path}: {error}") from error
 
 
 def load_body_motion(path: str | os.PathLike, fps: float, seconds: float | None = None,
