@@ -12,6 +12,7 @@ import io
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 from django.contrib.auth.models import User
@@ -139,3 +140,36 @@ def test_hostile_ratings_uploaded_are_a_400_naming_the_problem(data, message, cl
     assert str(tmp_path) not in page  # the server's folders are not the researcher's business
     reports = Path(tmp_path) / "reports"
     assert not reports.exists() or list(reports.iterdir()) == []
+
+
+def test_a_nan_exclusion_threshold_is_refused_rather_than_excluding_nobody(tmp_path, capsys):
+    (tmp_path / "ratings.csv").write_text(GOOD)
+    assert main(["report", str(tmp_path / "ratings.csv"), "--out", str(tmp_path / "out"), "--bad-threshold", "nan"]) == 2
+    assert "bad_at_or_above must be a finite number" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def _npz(**overrides) -> dict:
+    arrays = {"positions": np.zeros((10, 3, 3)), "fps": 20.0, "names": np.array(["hips", "knee", "foot"]),
+              "parents": np.array([-1, 0, 1])}
+    return {**arrays, **overrides}
+
+
+HOSTILE_MOTION = {
+    "fps 0": (_npz(fps=0.0), "fps must be a positive number, got 0.0"),
+    "fps nan": (_npz(fps=np.nan), "fps must be a positive number"),
+    "text positions": (_npz(positions=np.array(["a"] * 90).reshape(10, 3, 3)), "of the wrong type"),
+    "a parent after its child": (_npz(parents=np.array([-1, 2, 0])), "parents must give each"),
+    "a parent out of range": (_npz(parents=np.array([-1, 0, 7])), "parents must give each"),
+    "infinite positions": (_npz(positions=np.full((10, 3, 3), np.inf)), "NaN or infinity"),
+}
+
+
+@pytest.mark.parametrize("arrays, message", HOSTILE_MOTION.values(), ids=HOSTILE_MOTION.keys())
+def test_hostile_motion_for_the_objective_metrics_exits_2_naming_the_file(arrays, message, tmp_path, capsys):
+    clip = tmp_path / "GAN.npz"
+    np.savez(clip, **arrays)
+    assert main(["objective", str(clip), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert f"{clip}: " in err and message in err
+    assert not (tmp_path / "out").exists()

@@ -126,7 +126,8 @@ def test_a_whole_worker_killed_loses_no_stimulus(motion_data, tmp_path, tmp_path
             first.wait(timeout=10)
             with sqlite3.connect(var / "db.sqlite3") as db:
                 stuck = db.execute("SELECT COUNT(*) FROM studyapp_stimulus WHERE status IN ('queued', 'running')").fetchone()
-            assert stuck[0] == 3 and not list((var / "broker" / "queue").glob("*.msg"))  # nothing left to redeliver
+            waiting = len(list((var / "broker" / "queue").glob("*.msg")))
+            assert stuck[0] == 3 and waiting < 3  # the dead worker took at least the clip it was rendering
             killed_at = time.monotonic()
             second = start_worker("second")
             out, err = researcher.communicate(timeout=240)
