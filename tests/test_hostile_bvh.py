@@ -9,7 +9,7 @@ import pytest
 
 from generation.motion import BVHError, read_bvh, write_bvh
 from generation.motion.bvh import bvh_duration
-from generation.motion.dataset import build_dataset, read_labels
+from generation.motion.dataset import DatasetOptions, build_dataset, read_labels
 from generation.motion.types import Motion
 from generation.render.draw import FrameDrawer
 from tests.test_motion_bvh import SMALL_BVH
@@ -124,3 +124,33 @@ def test_a_clip_failing_deep_in_the_motion_code_names_its_file(tmp_path):
         build_dataset(folder, cache_dir=tmp_path / "cache", progress=False)
     assert str(caught.value).startswith(str(folder / "odd.bvh"))
     assert not (tmp_path / "cache").exists() or not list((tmp_path / "cache").iterdir())
+
+
+HOSTILE_DATASET_OPTIONS = {
+    "fps inf": ({"fps": float("inf")}, "dataset option fps must be a number of frames per second above 0"),
+    "fps 0": ({"fps": 0.0}, "dataset option fps must be"),
+    "fps nan": ({"fps": float("nan")}, "dataset option fps must be"),
+    "window 0": ({"window_seconds": 0.0}, "dataset option window_seconds must be long enough for two frames"),
+    "window of one frame": ({"window_seconds": 0.05}, "window_seconds must be long enough for two frames at 20 fps"),
+    "holdout -1": ({"holdout_fraction": -1.0}, "dataset option holdout_fraction must be at least 0 and below 1"),
+    "holdout 1": ({"holdout_fraction": 1.0}, "holdout_fraction must be at least 0 and below 1"),
+    "validation 2": ({"validation_fraction": 2.0}, "validation_fraction must be at least 0 and below 1"),
+    "overlap 1": ({"overlap": 1.0}, "dataset option overlap must be at least 0 and below 1"),
+    "scale nan": ({"scale": float("nan")}, "dataset option scale must be a positive number"),
+    "scale 0": ({"scale": 0.0}, "dataset option scale must be a positive number"),
+}
+
+
+@pytest.mark.parametrize("options, message", HOSTILE_DATASET_OPTIONS.values(), ids=HOSTILE_DATASET_OPTIONS.keys())
+def test_hostile_dataset_options_are_refused_before_anything_is_read(options, message):
+    with pytest.raises(ValueError, match=message.replace("(", r"\(")):
+        DatasetOptions(**options)
+
+
+def test_a_cache_folder_that_is_a_file_is_refused_by_name(tmp_path):
+    (tmp_path / "clips").mkdir()
+    (tmp_path / "clips" / "clip.bvh").write_text(SMALL_BVH)
+    (tmp_path / "cache").write_text("not a folder")
+    with pytest.raises(ValueError, match=f"the cache folder {tmp_path / 'cache'} is a file"):
+        build_dataset(tmp_path / "clips", cache_dir=tmp_path / "cache", progress=False)
+    assert (tmp_path / "cache").read_text() == "not a folder"

@@ -16,6 +16,7 @@ import dataclasses
 import hashlib
 import io
 import json
+import math
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -37,6 +38,7 @@ from .types import Motion, Skeleton
 
 FORMAT_VERSION = 1  # bump when the cached arrays change meaning
 SPLITS = ("train", "validation", "test")
+MAX_FPS = 1000.0  # motion capture runs at hundreds of frames per second at most
 
 
 @dataclass(frozen=True)
@@ -58,6 +60,25 @@ class DatasetOptions:
     mirror_pairs: dict[str, str] | None = None
     scale: float = 1.0  # file units to centimetres
     root: RootOptions = field(default_factory=RootOptions)
+
+    def __post_init__(self) -> None:
+        # Checked here, before any file is read or cache written: each value below would
+        # otherwise give a dataset that is silently wrong (no test takes, no windows) or
+        # an error far from its cause.
+        def refuse(name: str, rule: str) -> None:
+            raise ValueError(f"dataset option {name} must be {rule}, got {getattr(self, name)!r}")
+
+        if not (math.isfinite(self.fps) and 0 < self.fps <= MAX_FPS):
+            refuse("fps", f"a number of frames per second above 0 and at most {MAX_FPS:g}")
+        if not (math.isfinite(self.window_seconds) and self.window_seconds > 0) or self.window_frames < 2:
+            refuse("window_seconds", f"long enough for two frames at {self.fps:g} fps")
+        if not 0 <= self.overlap < 1:
+            refuse("overlap", "at least 0 and below 1")
+        for name in ("holdout_fraction", "validation_fraction"):
+            if not 0 <= getattr(self, name) < 1:
+                refuse(name, "at least 0 and below 1")
+        if not (math.isfinite(self.scale) and self.scale > 0):
+            refuse("scale", "a positive number (file units to centimetres)")
 
     @property
     def window_frames(self) -> int:
@@ -339,6 +360,8 @@ def build_dataset(
             raise ValueError(f"no clips in {folders} have content in {list(options.contents)}")
     key = fingerprint(files, options)
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    if cache.exists() and not cache.is_dir():
+        raise ValueError(f"the cache folder {cache} is a file; name a folder (or none, for {default_cache_dir()})")
     cached = cache / f"dataset-{key[:20]}.npz"
     if cached.is_file():
         return MotionDataset.load(cached)
