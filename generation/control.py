@@ -56,6 +56,7 @@ class PathControl:
             raise ValueError(f"path control needs shape (frames >= 2, 3), got {v.shape}")
         if not np.isfinite(v).all():
             raise ValueError("path control contains NaN or infinity")
+        _check_length(len(v), self.fps)
         object.__setattr__(self, "velocities", v)
 
     @property
@@ -83,8 +84,9 @@ class AttributeControl:
     def __post_init__(self) -> None:
         if not self.action or not self.style:
             raise ValueError("attribute control needs an action and a style label")
-        if self.frames < 1 or not self.fps > 0:
-            raise ValueError(f"attribute control needs frames >= 1 and fps > 0, got {self.frames} and {self.fps}")
+        if self.frames < 1:
+            raise ValueError(f"attribute control needs frames >= 1, got {self.frames}")
+        _check_length(self.frames, self.fps)
 
     @property
     def n_frames(self) -> int:
@@ -96,6 +98,25 @@ class AttributeControl:
 
 
 Control = PathControl | AttributeControl
+
+
+def _check_length(frames: int, fps: float) -> None:
+    """A control lasts at most MAX_PATH_SECONDS at a positive, finite frame rate: a model
+    asked for more would allocate its whole output first."""
+    if not (math.isfinite(fps) and fps > 0):
+        raise ValueError(f"a control needs a positive, finite fps, got {fps}")
+    if frames / fps > MAX_PATH_SECONDS:
+        raise ValueError(f"a control of {frames} frames at {fps:g} fps lasts {frames / fps:g} s; "
+                         f"at most {MAX_PATH_SECONDS:g} s")
+
+
+def _frames_of(seconds: float | None, fps: float) -> int | None:
+    """``seconds`` as a number of frames (None stays None), refusing what no control can last."""
+    if seconds is None:
+        return None
+    if not (math.isfinite(seconds) and 0 < seconds <= MAX_PATH_SECONDS):
+        raise ValueError(f"seconds must be above 0 and at most {MAX_PATH_SECONDS:g}, got {seconds}")
+    return int(round(seconds * fps))
 
 
 def control_from_dict(data: dict) -> Control:
@@ -219,11 +240,12 @@ def load_control_file(path: str | Path, fps: float = 20.0) -> list[PathControl]:
 def held_out_paths(dataset, seconds: float | None = None) -> list[PathControl]:
     """The control of each held-out natural clip of a dataset (cut to ``seconds``)."""
     fps = dataset.options.fps
+    frames = _frames_of(seconds, fps)
     result = []
     for clip in dataset.select("test"):
         control = dataset.clip_arrays(clip)["control"].astype(np.float64)
         if seconds is not None:
-            control = control[: int(round(seconds * fps))]
+            control = control[:frames]
         if len(control) >= 2:
             result.append(PathControl(control, fps, clip.name))
     return result
@@ -234,12 +256,11 @@ def held_out_attributes(dataset, seconds: float | None = None) -> list[Attribute
     the clip lasts (or ``seconds``, if shorter): what a label-controlled model is asked
     to do where the clip shows what a person did."""
     fps = dataset.options.fps
+    longest = _frames_of(seconds, fps)
     result = []
     for clip in dataset.select("test", augmented=False):
         if clip.content is None or clip.style is None:
             continue
-        frames = clip.stop - clip.start
-        if seconds is not None:
-            frames = min(frames, int(round(seconds * fps)))
+        frames = clip.stop - clip.start if longest is None else min(clip.stop - clip.start, longest)
         result.append(AttributeControl(clip.content, clip.style, frames, fps, clip.name))
     return result

@@ -113,6 +113,8 @@ class BVH:
 def read_bvh(path: str | os.PathLike) -> BVH:
     """Parse a BVH file. Raises BVHError naming the file and line on malformed input."""
     path = Path(path)
+    if path.is_dir():
+        raise BVHError(path, "is a folder, not a BVH file")
     try:
         text = path.read_text()
     except UnicodeDecodeError as error:
