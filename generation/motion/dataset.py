@@ -192,6 +192,19 @@ class MotionDataset:
             result += [getattr(clip, kind)] * n
         return result
 
+    def require_training_windows(self) -> int:
+        """How many training windows there are; ValueError when there are none (every
+        training take shorter than one window), rather than a model trained on nothing."""
+        train = self.select("train")
+        count = sum(window_count(c.stop - c.start, self.options.window_frames, self.options.hop_frames) for c in train)
+        if count == 0:
+            longest = max((c.stop - c.start for c in train), default=0)
+            raise ValueError(
+                f"no training windows: {len(train)} training clip(s), the longest {longest} frame(s) at "
+                f"{self.options.fps:g} fps, and a window needs {self.options.window_frames} "
+                f"({self.options.window_seconds:g} s); use longer takes or a shorter window")
+        return count
+
     def save(self, path: str | os.PathLike) -> Path:
         """Write the dataset as one ``.npz`` (no pickles), atomically."""
         meta = {
