@@ -4,9 +4,12 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+from generation.cli import main as cli_main
 from generation.motion import BVHError, read_bvh, write_bvh
 from generation.motion.bvh import bvh_duration
 from generation.motion.dataset import DatasetOptions, build_dataset, read_labels
@@ -154,3 +157,45 @@ def test_a_cache_folder_that_is_a_file_is_refused_by_name(tmp_path):
     with pytest.raises(ValueError, match=f"the cache folder {tmp_path / 'cache'} is a file"):
         build_dataset(tmp_path / "clips", cache_dir=tmp_path / "cache", progress=False)
     assert (tmp_path / "cache").read_text() == "not a folder"
+
+
+@pytest.fixture
+def clips(tmp_path) -> Path:
+    folder = tmp_path / "clips"
+    folder.mkdir()
+    (folder / "clip.bvh").write_text(SMALL_BVH)
+    return folder
+
+
+HOSTILE_COMMANDS = {
+    "info on a folder": (["info", "{clips}"], "{clips}: is a folder, not a BVH file"),
+    "build-dataset --fps inf": (["build-dataset", "{clips}", "--fps", "inf"], "dataset option fps must be"),
+    "build-dataset --window 0": (["build-dataset", "{clips}", "--window", "0"], "dataset option window_seconds"),
+    "build-dataset --holdout -1": (["build-dataset", "{clips}", "--holdout", "-1"], "holdout_fraction must be at least 0"),
+    "build-dataset --scale nan": (["build-dataset", "{clips}", "--scale", "nan"], "dataset option scale must be"),
+    "build-dataset --cache-dir a file": (["build-dataset", "{clips}", "--cache-dir", "{clips}/clip.bvh"],
+                                         "the cache folder {clips}/clip.bvh is a file"),
+    "render a folder": (["render", "{clips}", "--out", "{clips}/out.mp4"], "{clips}: is a folder, not a BVH file"),
+}
+
+
+@pytest.mark.parametrize("command, message", HOSTILE_COMMANDS.values(), ids=HOSTILE_COMMANDS.keys())
+def test_hostile_motion_commands_exit_2_naming_the_problem_and_leave_nothing(command, message, clips, tmp_path,
+                                                                              capsys, monkeypatch):
+    monkeypatch.setenv("MOTION_CACHE_DIR", str(tmp_path / "cache"))
+    assert cli_main([word.format(clips=clips) for word in command]) == 2
+    err = capsys.readouterr().err
+    assert message.format(clips=clips) in err and "Traceback" not in err
+    assert sorted(p.name for p in clips.iterdir()) == ["clip.bvh"]
+    assert not (tmp_path / "cache").exists() or not list((tmp_path / "cache").iterdir())
+
+
+def test_a_folder_of_one_frame_clips_is_refused_for_having_no_training_windows(motion_data, tmp_path, capsys):
+    folder = tmp_path / "one-frame"
+    folder.mkdir()
+    for source in sorted((motion_data / "data").glob("*_walk_*.bvh"))[:4]:
+        lines = source.read_text().splitlines()
+        motion = lines.index("MOTION")
+        (folder / source.name).write_text("\n".join([*lines[: motion + 1], "Frames: 1", *lines[motion + 2 : motion + 4]]) + "\n")
+    assert cli_main(["build-dataset", str(folder), "--cache-dir", str(tmp_path / "cache")]) == 2
+    assert "no training windows" in capsys.readouterr().err
