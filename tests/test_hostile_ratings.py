@@ -18,7 +18,7 @@ import pytest
 from django.contrib.auth.models import User
 
 from analysis.cli import main
-from analysis.simulate import simulate_ratings
+from analysis.simulate import simulate_pairwise, simulate_ratings, simulate_side_by_side
 from analysis.tables import spreadsheet_safe, to_latex, to_markdown, write_table
 
 GOOD = simulate_ratings({"NAT": 4.2, "MoGlow": 3.8, "RNN": 2.9}, 600, seed=3).to_csv(index=False)
@@ -173,3 +173,14 @@ def test_hostile_motion_for_the_objective_metrics_exits_2_naming_the_file(arrays
     err = capsys.readouterr().err
     assert f"{clip}: " in err and message in err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("simulate", [
+    lambda names: simulate_side_by_side({"NAT": 70.0, **{n: 40.0 + 5 * i for i, n in enumerate(names)}}, 30, seed=2),
+    lambda names: simulate_pairwise({"NAT": 1.0, **{n: 0.2 * i for i, n in enumerate(names)}}, 30, seed=2),
+], ids=["side-by-side", "pairwise"])
+def test_reports_of_other_designs_draw_hostile_names_as_written(simulate, tmp_path, capsys):
+    ratings = tmp_path / "ratings.csv"
+    simulate(["$\\undefinedmacro{$", "GAN*", "=1+2"]).to_csv(ratings, index=False)
+    assert main(["report", str(ratings), "--out", str(tmp_path / "out")]) == 0, capsys.readouterr().err
+    assert list((tmp_path / "out" / "figures").glob("*.svg"))
