@@ -12,7 +12,7 @@ the tasks it holds, prefetched or running. A queued or running row untouched for
 the same beat finds such rows and sends them again. Sending gives a row a new task id,
 so the old message, should it ever come back, is ignored (``stimuli.claim``). Where the
 broker's queue cannot be listed, nothing is judged lost and the half-hour rule of
-``stimuli.queue_stimuli`` remains.
+``dispatch.queue_stimuli`` remains.
 """
 
 from __future__ import annotations
@@ -90,7 +90,7 @@ def release(stimuli: list[Stimulus]) -> list[Stimulus]:
 
 def resend_lost(app) -> int:
     """Find the rows whose task was lost and send them again; how many were sent."""
-    from studyapp.stimuli import queue_stimuli
+    from studyapp.dispatch import queue_stimuli  # dispatch imports the tasks, which import this module
 
     with app.connection_for_write() as connection:
         waiting = waiting_task_ids(connection, app.conf.task_default_queue)

@@ -26,7 +26,7 @@ from studyapp.celery import app as celery_app
 from studyapp.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
 from studyapp.lost_tasks import LOST_AFTER_S, beat, lost_stimuli, resend_lost, waiting_task_ids
 from studyapp.models import Stimulus
-from studyapp.stimuli import queue_stimuli
+from studyapp.dispatch import queue_stimuli
 from tests.study_fixtures import make_study
 from tests.study_setup import study_files
 from tests.test_celery_roundtrip import clean_env
