@@ -23,6 +23,7 @@ from .rotations import euler_to_matrix, matrix_to_euler, matrix_to_quat, quat_to
 from .types import Motion, Skeleton
 
 POSITION_AXIS = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
+ROTATION_AXIS = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
 # Frame times outside these are no motion capture (10,000 to 0.1 frames per second); a
 # 1e-320 s frame has no frame rate a float can hold, and a 1e6 s one would have the
 # renderer draw days of video from two frames.
@@ -31,7 +32,6 @@ MAX_INDENT = 32  # tabs
 # No length in any unit nor any angle in degrees comes near this; 1e308 would overflow
 # to infinity in the first sum of forward kinematics.
 MAX_ABS_VALUE = 1e9
-ROTATION_AXIS = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
 
 
 class BVHError(ValueError):
@@ -290,8 +290,8 @@ def _parse_motion(path: Path, lines: list[str], motion_line: int, n_channels: in
     if not (math.isfinite(frame_time) and frame_time > 0):
         raise BVHError(path, f"Frame Time must be positive, found {frame_time}", header_line["Frame Time"])
     if not MIN_FRAME_TIME <= frame_time <= MAX_FRAME_TIME:
-        raise BVHError(path, f"Frame Time {header['Frame Time']} s is outside {MIN_FRAME_TIME:g} to {MAX_FRAME_TIME:g} s "
-                             f"({1 / MIN_FRAME_TIME:g} to {1 / MAX_FRAME_TIME:g} frames per second)",
+        raise BVHError(path, f"Frame Time {header['Frame Time']} s is outside {MIN_FRAME_TIME:g} to "
+                             f"{MAX_FRAME_TIME:g} s ({1 / MIN_FRAME_TIME:g} to {1 / MAX_FRAME_TIME:g} frames per second)",
                        header_line["Frame Time"])
 
     row_lines = [i for i in range(row_start, len(lines)) if lines[i].strip()]
