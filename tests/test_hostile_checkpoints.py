@@ -153,3 +153,15 @@ def test_a_hostile_checkpoint_upload_is_a_400_naming_the_problem_and_stores_noth
     assert str(tmp_path) not in page
     assert not System.objects.exists()
     assert not (tmp_path / "checkpoints").exists() or not list((tmp_path / "checkpoints").iterdir())
+
+
+def test_evaluate_refuses_a_held_out_loss_that_is_not_finite(tiny, motion_data, tmp_path, capsys):
+    def blow_up(weights):  # finite weights whose outputs overflow
+        for name in weights:
+            if weights[name].is_floating_point():
+                weights[name] = weights[name] * 1e30
+
+    bad = rewritten(tiny, tmp_path / "overflowing.safetensors", tensors=blow_up)
+    assert main(["evaluate", str(bad), "--data", str(motion_data), "--cache-dir", str(tmp_path / "cache")]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}: the held-out negative log-likelihood (nats per frame) is " in err and "overflow" in err
