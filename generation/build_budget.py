@@ -4,8 +4,7 @@ A checkpoint's hyperparameters may describe any model; the file's header says ho
 tensors of how many values it holds. ``build_within`` builds the model under that
 budget, checking every allocation before it is made, so a 7 KB file claiming billions of
 parameters is refused in milliseconds having allocated nothing; the model built must
-then have exactly the file's tensor names, shapes and dtypes. ``check_values`` refuses
-NaN and infinite weights, which cannot sample.
+then have exactly the file's tensor names, shapes and dtypes.
 """
 
 from __future__ import annotations
@@ -17,7 +16,7 @@ from pathlib import Path
 import torch
 from torch.overrides import TorchFunctionMode
 
-from .checkpoint_checks import CheckpointError
+from .store import CheckpointError
 
 # safetensors' dtype names, for comparing a file's header with a model before loading it.
 SAFETENSORS_DTYPES = {"F64": torch.float64, "F32": torch.float32, "F16": torch.float16, "BF16": torch.bfloat16,
@@ -101,11 +100,3 @@ def build_within(path: Path, build: Callable[[], torch.nn.Module],
             raise CheckpointError(f"{path}: tensor {name} is {str(dtype).removeprefix('torch.')}, the model needs "
                                   f"{str(expected[name].dtype).removeprefix('torch.')} (a cast would change its values)")
     return model
-
-
-def check_values(path: Path, tensors: Mapping[str, torch.Tensor]) -> None:
-    """Every floating-point tensor finite."""
-    for name, tensor in tensors.items():
-        if tensor.is_floating_point() and not torch.isfinite(tensor).all():
-            bad = int((~torch.isfinite(tensor)).sum())
-            raise CheckpointError(f"{path}: tensor {name} holds {bad} NaN or infinite value(s)")

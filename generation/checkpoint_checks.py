@@ -3,8 +3,9 @@
 Researchers upload checkpoints to the study app, so a checkpoint is input like any other
 and may describe anything. ``check_description`` reads the JSON half only (no torch): a
 positive, finite frame rate, standardisation statistics that are finite, positive where
-they divide and as long as the model's features, a skeleton with joints. The tensors are
-checked by ``generation.build_budget`` as the model is built.
+they divide and as long as the model's features, a skeleton with joints. The model is
+checked against the file's tensors as it is built (``generation.build_budget``), and the
+tensors' values as they are read (``generation.store``).
 """
 
 from __future__ import annotations
@@ -16,10 +17,7 @@ import numpy as np
 
 from .motion.dataset import DatasetOptions
 from .motion.types import Skeleton
-
-
-class CheckpointError(ValueError):
-    """A checkpoint that cannot be used; the message names the file and the problem."""
+from .store import CheckpointError
 
 
 def _numbers(values: object) -> list[float] | None:
