@@ -115,10 +115,11 @@ def tsne_figure(outputs: ClassifierOutputs, kind: str = "action", perplexity: fl
         ax.scatter(points[:, 0], points[:, 1], s=6, c="0.85", linewidths=0)
         own = points[bounds[i] : bounds[i + 1]]
         ax.scatter(own[:, 0], own[:, 1], s=12, c=colours[outputs.sets[name][kind]], linewidths=0)
-        ax.set_title(name + (" (reference)" if name == outputs.reference else ""), fontsize=9)
+        ax.set_title(plots.plain_text(name) + (" (reference)" if name == outputs.reference else ""), fontsize=9)
         ax.set_xticks([])
         ax.set_yticks([])
-    handles = [plt.Line2D([], [], marker="o", linestyle="", color=colours[j], label=label) for j, label in enumerate(labels)]
+    handles = [plt.Line2D([], [], marker="o", linestyle="", color=colours[j], label=plots.plain_text(label))
+               for j, label in enumerate(labels)]
     fig.legend(handles=handles, loc="center right", fontsize=7, frameon=False, title=kind)
     fig.subplots_adjust(left=0.02, right=1 - 1.7 / (3.2 * columns + 1.8), bottom=0.03, top=0.92, wspace=0.05, hspace=0.15)
     return fig

@@ -8,8 +8,12 @@
 from __future__ import annotations
 
 import argparse
+import os
+import shutil
 import sys
-from collections.abc import Sequence
+import tempfile
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 from analysis import plots
@@ -86,10 +90,31 @@ def _add_objective_parser(commands) -> None:
     objective.add_argument("--foot-kind", choices=("heel", "toe"), default="heel")
 
 
-def objective_command(args: argparse.Namespace) -> list[str]:
-    """Write the objective tables and figure; returns the notes."""
+@contextmanager
+def staged_output(out: Path) -> Iterator[Path]:
+    """A temporary folder beside ``out`` whose files move into ``out`` when the block ends
+    without an error; a failure (bad input, an unwritable figure) leaves ``out`` as it was."""
+    if out.exists() and not out.is_dir():
+        raise AnalysisInputError(f"--out {out} is a file; name a folder to write into")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        work = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.building-"))
+    except OSError as exc:
+        raise AnalysisInputError(f"cannot write into {out}: {exc.strerror}") from None
+    try:
+        yield work
+        for file in sorted(work.rglob("*")):
+            if file.is_file():
+                target = out / file.relative_to(work)
+                target.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(file, target)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def objective_command(args: argparse.Namespace, out: Path) -> list[str]:
+    """Write the objective tables and figure into ``out``; returns the notes."""
     table, curves, notes = objective_metrics(load_motion_sets(args.motion), _split(args.foot_joints), args.foot_kind)
-    out = Path(args.out)
     write_table(table, out / "tables", "objective_metrics")
     write_table(objective_table(table, args.natural), out / "tables", "table3_objective",
                 caption=f"Objective metrics (MoGlow Table 3 layout); marked: closest to {args.natural}.")
@@ -105,38 +130,38 @@ def _split(text: str | None) -> list[str] | None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    try:
+        return _run(args)
+    except AnalysisInputError as exc:
+        print(f"motion-analysis: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _run(args: argparse.Namespace) -> int:
+    out = Path(args.out)
     if args.command == "hvrnn-scores":
-        try:
-            table = write_scores(args.outputs, args.out)
-        except AnalysisInputError as exc:
-            print(f"motion-analysis: error: {exc}", file=sys.stderr)
-            return 2
+        with staged_output(out) as work:
+            table = write_scores(args.outputs, work)
         print(to_markdown(table.round(3)))
         return 0
     if args.command == "objective":
-        try:
-            notes = objective_command(args)
-        except AnalysisInputError as exc:
-            print(f"motion-analysis: error: {exc}", file=sys.stderr)
-            return 2
+        with staged_output(out) as work:
+            notes = objective_command(args, work)
         for note in notes:
             print(f"note: {note}")
         return 0
     rules = ExclusionRules(natural_system=args.natural, attention_system=args.attention,
                            bad_at_or_above=args.bad_threshold, natural_below=args.nat_threshold,
                            discard_early=not args.keep_early)
-    try:
+    with staged_output(out) as work:
         ratings = read_ratings(args.ratings)
         motion = load_motion_sets(args.motion) if args.motion else None
         report = build_report(ratings, motion, reference=args.reference, rules=rules,
                               systems=_split(args.systems),
                               compare_attention_checks=args.compare_attention_checks,
                               foot_joints=_split(args.foot_joints), foot_kind=args.foot_kind)
-        written = write_report(report, args.out)
-    except AnalysisInputError as exc:
-        print(f"motion-analysis: error: {exc}", file=sys.stderr)
-        return 2
-    print(f"wrote {len(written)} files to {args.out} (summary: {written[0]})")
+        written = [out / path.relative_to(work) for path in write_report(report, work)]
+    print(f"wrote {len(written)} files to {out} (summary: {written[0]})")
     for note in report.notes:
         print(f"note: {note}")
     return 0

@@ -20,7 +20,7 @@ from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from analysis.plots import _cell_axes, plt
+from analysis.plots import _cell_axes, plain_text, plt
 from analysis.side_by_side import significance_matrix
 
 _MATRIX_COLOURS = ListedColormap(["#d7301f", "#bdbdbd", "#2ca25f"])  # lower, n.s., higher
@@ -46,9 +46,9 @@ def significance_matrix_plot(pairs: pd.DataFrame, order_by: pd.DataFrame) -> Fig
         order = list(ranked["system"])
         matrix = significance_matrix(_in_cell(pairs, cell), order).to_numpy()
         ax.imshow(np.ma.masked_invalid(matrix), cmap=_MATRIX_COLOURS, vmin=-1, vmax=1)
-        ax.set_xticks(range(len(order)), order, rotation=90)
-        ax.set_yticks(range(len(order)), order)
-        ax.set_title(f"{cell[0]} · {cell[1]}", fontsize="medium")
+        ax.set_xticks(range(len(order)), [plain_text(s) for s in order], rotation=90)
+        ax.set_yticks(range(len(order)), [plain_text(s) for s in order])
+        ax.set_title(plain_text(f"{cell[0]} · {cell[1]}"), fontsize="medium")
         ax.set_xlabel("compared with")
     axes[0][0].set_ylabel("row system")
     axes[0][-1].legend(handles=[Patch(color=_MATRIX_COLOURS(2), label="row rated higher"),
@@ -75,9 +75,9 @@ def scale_plot(table: pd.DataFrame, estimates: Sequence[tuple[str, str, str, str
             error = np.vstack([centre - frame[low].to_numpy(dtype=float),
                                frame[high].to_numpy(dtype=float) - centre])
             ax.errorbar(centre, y + offset, xerr=np.nan_to_num(error), fmt="o", capsize=3, label=label)
-        ax.set_title(f"{cell[0]} · {cell[1]}", fontsize="medium")
+        ax.set_title(plain_text(f"{cell[0]} · {cell[1]}"), fontsize="medium")
         ax.set_xlabel(xlabel)
-    axes[0].set_yticks(list(position.values()), list(position))
+    axes[0].set_yticks(list(position.values()), [plain_text(label) for label in position])
     axes[0].set_ylim(-0.5, len(order) - 0.5)
     if len(estimates) > 1:
         axes[-1].legend(bbox_to_anchor=(1.02, 1), loc="upper left", fontsize="small")
@@ -106,9 +106,9 @@ def preference_plot(pairs: pd.DataFrame) -> Figure:
                     ecolor="black", capsize=3)
         ax.axvline(0.5, color="black", linewidth=0.6, linestyle=":")
         ax.set_xlim(0, 1)
-        ax.set_title(f"{cell[0]} · {cell[1]}", fontsize="medium")
+        ax.set_title(plain_text(f"{cell[0]} · {cell[1]}"), fontsize="medium")
         ax.set_xlabel("share of pages")
-    axes[0].set_yticks(list(position.values()), list(position))
+    axes[0].set_yticks(list(position.values()), [plain_text(label) for label in position])
     axes[0].set_ylim(-0.5, len(labels) - 0.5)
     axes[-1].legend(bbox_to_anchor=(1.02, 1), loc="upper left", fontsize="small")
     return fig

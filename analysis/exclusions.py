@@ -24,11 +24,13 @@ participant exclusion, so ratings collected = discarded by each reason + kept.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import pandas as pd
 
 from analysis.designs import PAGE, PAIRWISE, table_design
+from analysis.errors import AnalysisInputError
 
 REFERENCE_SCALE = (1, 5)
 
@@ -42,6 +44,13 @@ class ExclusionRules:
     bad_at_or_above: float = 4.0
     natural_below: float = 2.0
     discard_early: bool = True
+
+    def __post_init__(self) -> None:
+        # NaN compares false with every rating, which would silently exclude nobody.
+        for name in ("bad_at_or_above", "natural_below"):
+            if not math.isfinite(getattr(self, name)):
+                raise AnalysisInputError(f"the exclusion threshold {name} must be a finite number, "
+                                         f"got {getattr(self, name)}")
 
 
 def scaled_threshold(threshold: float, scale_min: int | pd.Series, scale_max: int | pd.Series):

@@ -85,9 +85,18 @@ def _add_file(systems: dict[str, SystemClips], file: Path, default_name: str) ->
     missing = [k for k in ("positions", "fps", "names", "parents") if k not in data.files]
     if missing:
         raise AnalysisInputError(f"{file}: lacks {', '.join(missing)} (see analysis/motion_io.py)")
-    positions = np.asarray(data["positions"], dtype=np.float64)
-    names = tuple(str(n) for n in data["names"])
-    parents = np.asarray(data["parents"], dtype=np.int64)
+    try:
+        positions = np.asarray(data["positions"], dtype=np.float64)
+        names = tuple(str(n) for n in np.atleast_1d(data["names"]))
+        parents = np.asarray(data["parents"], dtype=np.int64)
+        fps = float(data["fps"])
+    except (TypeError, ValueError) as exc:
+        raise AnalysisInputError(f"{file}: positions, fps, names or parents of the wrong type ({exc})") from None
+    if not (np.isfinite(fps) and fps > 0):
+        raise AnalysisInputError(f"{file}: fps must be a positive number, got {fps}")
+    if parents.shape != (len(names),) or any(not -1 <= p < j for j, p in enumerate(parents)):
+        raise AnalysisInputError(f"{file}: parents must give each of the {len(names)} joints an earlier joint "
+                                 "or -1 for the root")
     if positions.ndim == 3:
         positions = positions[None]
     if positions.ndim != 4 or positions.shape[2:] != (len(names), 3):
@@ -99,7 +108,6 @@ def _add_file(systems: dict[str, SystemClips], file: Path, default_name: str) ->
         raise AnalysisInputError(f"{file}: positions contain NaN or infinity")
     system = str(data["system"]) if "system" in data.files else default_name
     offsets = np.asarray(data["offsets"], dtype=np.float64) if "offsets" in data.files else None
-    fps = float(data["fps"])
     entry = systems.setdefault(system, SystemClips(system, fps, names, parents, offsets))
     if entry.fps != fps or entry.names != names or not np.array_equal(entry.parents, parents):
         raise AnalysisInputError(

@@ -27,6 +27,12 @@ from analysis.tables import system_order  # noqa: E402
 _CHAR_WIDTH_IN = 0.075  # tick label character width at the default 10 pt font
 
 
+def plain_text(label) -> str:
+    """A label from the data drawn as written: matplotlib reads text between two "$" as
+    TeX math, and a system named "$\\undefined{$" would stop the figure."""
+    return str(label).replace("$", r"\$")
+
+
 def _cell_axes(cells: list[tuple], labels, width: float = 3.6, height: float = 3.2,
                legend_in: float = 0.0):
     """One panel per cell in a row, sharing the system axis, margins fixed up front."""
@@ -48,9 +54,9 @@ def means_plot(means: pd.DataFrame, reference: str | None = None) -> Figure:
         frame = means[(means["task"] == cell[0]) & (means["control_class"] == cell[1])]
         ax.errorbar(frame["mean"], frame["system"].map(position), xerr=frame["ci_half"],
                     fmt="o", capsize=3)
-        ax.set_title(f"{cell[0]} · {cell[1]}", fontsize="medium")
+        ax.set_title(plain_text(f"{cell[0]} · {cell[1]}"), fontsize="medium")
         ax.set_xlabel("mean rating (95 % CI)")
-    axes[0].set_yticks(list(position.values()), list(position))
+    axes[0].set_yticks(list(position.values()), [plain_text(s) for s in position])
     axes[0].set_ylim(-0.5, len(order) - 0.5)
     return fig
 
@@ -73,9 +79,9 @@ def distribution_plot(ratings: pd.DataFrame, reference: str | None = None) -> Fi
             ax.barh(np.arange(len(order)), shares[value], left=left, color=colour, label=str(value))
             left += shares[value].to_numpy()
         ax.set_xlim(0, 1)
-        ax.set_title(f"{cell[0]} · {cell[1]}", fontsize="medium")
+        ax.set_title(plain_text(f"{cell[0]} · {cell[1]}"), fontsize="medium")
         ax.set_xlabel("share of ratings")
-    axes[0].set_yticks(np.arange(len(order)), order)
+    axes[0].set_yticks(np.arange(len(order)), [plain_text(s) for s in order])
     axes[-1].legend(title="rating", bbox_to_anchor=(1.02, 1), loc="upper left", fontsize="small")
     return fig
 
@@ -85,7 +91,7 @@ def footstep_plot(curves: pd.DataFrame, natural: str = "NAT") -> Figure:
     fig, ax = plt.subplots(figsize=(5.5, 3.5))
     for system in system_order(curves["system"], natural):
         frame = curves[curves["system"] == system]
-        ax.plot(frame["v_tol"], frame["f_est"], label=system,
+        ax.plot(frame["v_tol"], frame["f_est"], label=plain_text(system),
                 linewidth=2.0 if system == natural else 1.2)
     ax.set_xlabel("speed tolerance $v_{tol}$ (cm/s)")
     ax.set_ylabel("$f_{est}$ (footsteps/s)")

@@ -56,16 +56,30 @@ LABEL_COLUMNS = ("participant", "system", "stimulus", "task", "control_class")
 APP_FLAG_COLUMNS = {"excluded_participant": "app_excluded_participant",
                     "discarded_early": "app_discarded_early"}
 DEFAULT_LABEL = "all"
+# Integer columns (ratings and scale ends) beyond this are a mistake in the file, not a
+# rating scale; refusing them names the cell instead of overflowing int64 silently.
+MAX_SCALE_MAGNITUDE = 1_000_000
 
 _TRUE = {"true", "1", "yes", "y", "t"}
 _FALSE = {"false", "0", "no", "n", "f", ""}
 
 
 def read_ratings(source: str | os.PathLike | IO[str]) -> pd.DataFrame:
-    """Read a ratings CSV and return it validated and normalised (see `validate_ratings`)."""
+    """Read a ratings CSV (UTF-8) and return it validated and normalised (see `validate_ratings`)."""
+    if isinstance(source, (str, os.PathLike)) and os.path.isdir(source):
+        raise AnalysisInputError(f"{source!s} is a folder; give the ratings CSV file itself")
     try:
-        raw = pd.read_csv(source, dtype=str, keep_default_na=False)
-    except (FileNotFoundError, pd.errors.EmptyDataError) as exc:
+        # utf-8-sig: a byte-order mark (as spreadsheets write) is not part of the first column's name
+        raw = pd.read_csv(source, dtype=str, keep_default_na=False, encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise AnalysisInputError(
+            f"ratings table {source!s} is not UTF-8 text (byte {exc.start} is {exc.object[exc.start:exc.start + 1]!r}); "
+            "save it as UTF-8 CSV") from None
+    except pd.errors.ParserError as exc:
+        raise AnalysisInputError(f"ratings table {source!s} is not a regular CSV table: {exc}".strip()) from None
+    except pd.errors.EmptyDataError:
+        raise AnalysisInputError(f"ratings table {source!s} is empty: not even a header row") from None
+    except OSError as exc:
         raise AnalysisInputError(f"cannot read ratings table {source!s}: {exc}") from exc
     return validate_ratings(raw)
 
@@ -103,6 +117,7 @@ def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
     if needs_scale(design):
         _check_scale(df)
     df = validate_design_columns(df, design)
+    _refuse_duplicates(df)
     early = _answered_before_end(df)
     if early is not None:
         df["answered_before_end"] = early
@@ -151,29 +166,43 @@ def _answered_before_end(df: pd.DataFrame) -> pd.Series | None:
     return None
 
 
+def _refuse_duplicates(df: pd.DataFrame) -> None:
+    """A row repeated whole (every column, timings included) is a copy, not a second
+    rating, and would count twice; a repeated rating differs at least in its timings."""
+    repeated = df.duplicated(keep="first")
+    if repeated.any():
+        copy = int(np.flatnonzero(repeated.to_numpy())[0])
+        original = int(np.flatnonzero((df == df.iloc[copy]).all(axis=1).to_numpy())[0])
+        raise AnalysisInputError(
+            f"row {copy + 1} repeats row {original + 1} exactly (participant {df.iloc[copy]['participant']!r}, "
+            f"stimulus {df.iloc[copy]['stimulus']!r}); {int(repeated.sum())} row(s) are such copies. "
+            "Remove them: each rating must appear once")
+
+
 def _row_number(df: pd.DataFrame, mask: pd.Series) -> int:
     # 1-based data row as a spreadsheet user counts it (header excluded)
     return int(np.flatnonzero(mask.to_numpy())[0]) + 1
 
 
 def _integers(column: pd.Series, name: str) -> pd.Series:
-    numbers = pd.to_numeric(column, errors="coerce")
-    bad = numbers.isna() | (numbers != np.round(numbers))
+    numbers = pd.to_numeric(column, errors="coerce").astype(np.float64)
+    bad = ~np.isfinite(numbers) | (numbers != np.round(numbers)) | (numbers.abs() > MAX_SCALE_MAGNITUDE)
     if bad.any():
         first = column[bad].iloc[0]
         raise AnalysisInputError(
-            f"column {name!r} must hold integers; {int(bad.sum())} row(s) do not, first at "
-            f"row {_row_number(column.to_frame(), bad)}: {first!r}"
+            f"column {name!r} must hold integers between {-MAX_SCALE_MAGNITUDE:,} and {MAX_SCALE_MAGNITUDE:,}; "
+            f"{int(bad.sum())} row(s) do not, first at row {_row_number(column.to_frame(), bad)}: {first!r}"
         )
     return numbers.astype(np.int64)
 
 
 def _floats(column: pd.Series, name: str) -> pd.Series:
-    numbers = pd.to_numeric(column, errors="coerce")
-    if numbers.isna().any():
+    numbers = pd.to_numeric(column, errors="coerce").astype(np.float64)
+    bad = ~np.isfinite(numbers)
+    if bad.any():
         raise AnalysisInputError(
-            f"column {name!r} must hold numbers (seconds); row "
-            f"{_row_number(column.to_frame(), numbers.isna())} does not"
+            f"column {name!r} must hold finite numbers (seconds); row "
+            f"{_row_number(column.to_frame(), bad)} holds {column[bad].iloc[0]!r}"
         )
     return numbers.astype(np.float64)
 
@@ -182,7 +211,7 @@ def _seconds(column: pd.Series, name: str) -> pd.Series:
     """Seconds since an arbitrary origin from numbers or ISO 8601 timestamps."""
     numbers = pd.to_numeric(column, errors="coerce")
     if not numbers.isna().any():
-        return numbers.astype(np.float64)
+        return _floats(column, name)
     try:
         times = pd.to_datetime(column, utc=True, format="ISO8601")
     except (ValueError, TypeError) as exc:

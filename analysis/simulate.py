@@ -35,7 +35,8 @@ def simulate_ratings(system_means: Mapping[str, float], n_ratings: int,
     """About ``n_ratings`` rows on a 1-5 scale, BAD attention checks included.
 
     Inattentive participants rate uniformly at random, BAD clips included, so most of
-    them trip the attention rule, as in a real crowd study.
+    them trip the attention rule, as in a real crowd study. As in one, a participant
+    rates a stimulus at most once (repeated draws are dropped).
     """
     rng = np.random.default_rng(seed)
     systems = [*system_means, "BAD"]
@@ -56,7 +57,7 @@ def simulate_ratings(system_means: Mapping[str, float], n_ratings: int,
     played = np.where(early, rng.uniform(1.0, duration - 1.0, n_ratings), duration)
     names = np.array(systems)
     clip = np.char.add(np.char.add(names[system], "_"), np.asarray(control_classes)[control])
-    return pd.DataFrame({
+    table = pd.DataFrame({
         "participant": np.char.add("p", participant.astype(str)),
         "system": names[system],
         "stimulus": np.char.add(np.char.add(clip, "_"), stimulus.astype(str)),
@@ -68,6 +69,7 @@ def simulate_ratings(system_means: Mapping[str, float], n_ratings: int,
         "clip_duration_s": duration,
         "played_until_s": played,
     })
+    return table.drop_duplicates(["participant", "task", "stimulus"]).reset_index(drop=True)
 
 
 def _early_playback(rng: np.random.Generator, n: int, early_share: float,

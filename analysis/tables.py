@@ -8,7 +8,9 @@
   closest to the natural system's marked in each column (bold in Markdown and LaTeX).
 
 Display tables hold strings, so what a reader sees in every format is the same text;
-there are no NaN cells, a missing value is always a dash or words.
+there are no NaN cells, a missing value is always a dash or words. Labels come from
+whoever wrote the ratings, so every format escapes them: LaTeX and Markdown specials,
+HTML in Markdown, and spreadsheet formulas in CSV (`spreadsheet_safe`).
 """
 
 from __future__ import annotations
@@ -91,6 +93,25 @@ def pvalue_display(matrix: pd.DataFrame) -> pd.DataFrame:
 
 # ---- writers ---------------------------------------------------------------------------
 
+# A text cell starting with one of these is run as a formula by spreadsheet programs
+# (OWASP, "CSV Injection"); a leading apostrophe makes them show it as text.
+_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def spreadsheet_safe(value):
+    """``value`` with a leading ``'`` when it is text a spreadsheet would run as a formula.
+
+    Numbers (``-1.5`` as text too) and the not-evaluated dash are left alone.
+    """
+    if not isinstance(value, str) or not value.startswith(_FORMULA_START) or value == NOT_EVALUATED:
+        return value
+    try:
+        float(value)
+    except ValueError:
+        return "'" + value
+    return value
+
+
 def _header_text(column) -> str:
     return " · ".join(map(str, column)) if isinstance(column, tuple) else str(column)
 
@@ -108,16 +129,22 @@ def _text(value) -> str:
     return str(value)
 
 
-def _markdown_cell(value) -> str:
-    text = _text(value).replace("|", "\\|").replace("*", "\\*").replace("_", "\\_")
-    if text.endswith(CLOSEST_MARK):
-        text = f"**{text[:-1]}**"
-    return text
+_MARKDOWN_SPECIAL = {"|": "\\|", "*": "\\*", "_": "\\_", "\\": "\\\\", "`": "\\`", "[": "\\[", "]": "\\]",
+                     "<": "&lt;", ">": "&gt;", "&": "&amp;", "\n": " ", "\r": " "}
+
+
+def _markdown_cell(value, marked: bool = True) -> str:
+    """A cell's text with Markdown and HTML escaped and line breaks (which end a table row)
+    made spaces; ``marked`` cells ending in the closest-value mark are bold."""
+    text = _text(value)
+    bold = marked and text.endswith(CLOSEST_MARK)
+    text = "".join(_MARKDOWN_SPECIAL.get(ch, ch) for ch in (text[:-1] if bold else text))
+    return f"**{text}**" if bold else text
 
 
 def to_markdown(table: pd.DataFrame) -> str:
     flat = _flat(table)
-    lines = ["| " + " | ".join(_markdown_cell(c) for c in flat.columns) + " |",
+    lines = ["| " + " | ".join(_markdown_cell(c, marked=False) for c in flat.columns) + " |",
              "|" + "|".join(["---"] + ["---:"] * (len(flat.columns) - 1)) + "|"]
     lines += ["| " + " | ".join(_markdown_cell(v) for v in row) + " |"
               for row in flat.itertuples(index=False)]
@@ -126,20 +153,28 @@ def to_markdown(table: pd.DataFrame) -> str:
 
 _LATEX_SPECIAL = {"&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{": r"\{",
                   "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
-                  "\\": r"\textbackslash{}"}
+                  "\\": r"\textbackslash{}", "<": r"\textless{}", ">": r"\textgreater{}"}
 
 
-def _latex_cell(value) -> str:
-    text = _text(value)
-    bold = text.endswith(CLOSEST_MARK)
-    text = text.rstrip(CLOSEST_MARK)
-    stars = re.search(r"\*+$", text)
+# A significance cell: "mean±ci" then its stars; only these carry stars as marks.
+_SIGNIFICANCE_CELL = re.compile(r"^-?\d+(\.\d+)?±\d+(\.\d+)?(?P<stars>\*+)$")
+
+
+def _latex_cell(value, marked: bool = True) -> str:
+    """A cell in LaTeX; ``marked`` cells turn a closest-value mark into bold and a
+    significance cell's stars into superscripts. Labels are never marked, so a system
+    named ``GAN*`` does not look significant."""
+    text = _text(value).replace("\n", " ").replace("\r", " ")
+    bold = marked and text.endswith(CLOSEST_MARK)
+    if bold:
+        text = text[:-1]
+    stars = _SIGNIFICANCE_CELL.match(text) if marked else None
     if stars:
-        text = text[: stars.start()]
+        text = text[: stars.start("stars")]
     text = "".join(_LATEX_SPECIAL.get(ch, ch) for ch in text)
-    text = text.replace("±", r"$\pm$").replace("<", r"$<$")
+    text = text.replace("±", r"$\pm$")
     if stars:
-        text += f"$^{{{stars.group()}}}$"
+        text += f"$^{{{stars.group('stars')}}}$"
     return rf"\textbf{{{text}}}" if bold else text
 
 
@@ -152,20 +187,26 @@ def to_latex(table: pd.DataFrame, caption: str = "") -> str:
         groups, rules, start = [""], [], 2
         for top, members in pd.Series(table.columns.get_level_values(0)).groupby(
                 table.columns.get_level_values(0), sort=False):
-            groups.append(rf"\multicolumn{{{len(members)}}}{{c}}{{{_latex_cell(top)}}}")
+            groups.append(rf"\multicolumn{{{len(members)}}}{{c}}{{{_latex_cell(top, marked=False)}}}")
             rules.append(rf"\cmidrule(lr){{{start}-{start + len(members) - 1}}}")
             start += len(members)
         lines += [" & ".join(groups) + r" \\", " ".join(rules)]
-        names = [_latex_cell(index_name)] + [_latex_cell(c) for c in table.columns.get_level_values(1)]
+        names = [_latex_cell(n, marked=False) for n in [index_name, *table.columns.get_level_values(1)]]
     else:
-        names = [_latex_cell(index_name)] + [_latex_cell(_header_text(c)) for c in table.columns]
+        names = [_latex_cell(n, marked=False) for n in [index_name, *map(_header_text, table.columns)]]
     lines += [" & ".join(names) + r" \\", r"\midrule"]
     for label, row in table.iterrows():
-        lines.append(" & ".join([_latex_cell(label)] + [_latex_cell(v) for v in row]) + r" \\")
+        lines.append(" & ".join([_latex_cell(label, marked=False)] + [_latex_cell(v) for v in row]) + r" \\")
     lines += [r"\bottomrule", r"\end{tabular}"]
     if caption:
         lines.insert(0, f"% {caption}")
     return "\n".join(lines) + "\n"
+
+
+def _spreadsheet_safe_table(table: pd.DataFrame) -> pd.DataFrame:
+    safe = table.map(spreadsheet_safe)
+    safe.columns = [spreadsheet_safe(c) for c in table.columns]
+    return safe
 
 
 def _json_ready(table: pd.DataFrame) -> list[dict]:
@@ -182,9 +223,9 @@ def write_table(table: pd.DataFrame, folder: str | Path, name: str, caption: str
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     writers = {
-        "csv": lambda: _flat(table).to_csv(index=False),
-        "md": lambda: (f"{caption}\n\n" if caption else "") + to_markdown(table),
-        "tex": lambda: to_latex(table, caption),
+        "csv": lambda: _spreadsheet_safe_table(_flat(table)).to_csv(index=False),
+        "md": lambda: (f"{_markdown_cell(caption, marked=False)}\n\n" if caption else "") + to_markdown(table),
+        "tex": lambda: to_latex(table, " ".join(caption.split())),  # one line: it is a comment
         "json": lambda: json.dumps(_json_ready(table), indent=1, ensure_ascii=False) + "\n",
     }
     paths = []

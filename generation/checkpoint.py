@@ -20,8 +20,9 @@ from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .registry import model_class
-from .store import CheckpointError, read_header, read_tensors, write_tensors
+from .checkpoint_checks import check_description
+from .registry import PATH, model_class, model_kind
+from .store import CheckpointError, read_header, read_tensors, stored_layout, write_tensors
 
 if TYPE_CHECKING:
     import torch
@@ -124,37 +125,36 @@ def optimizer_path(path: Path) -> Path:
 def _meta(path: Path, header: dict[str, str]) -> CheckpointMeta:
     if FORMAT_KEY not in header:
         raise CheckpointError(f"{path}: a safetensors file, but not a checkpoint of this project (no '{FORMAT_KEY}' header)")
-    return CheckpointMeta.from_json(header[FORMAT_KEY], path)
+    meta = CheckpointMeta.from_json(header[FORMAT_KEY], path)
+    try:
+        needs_control = model_kind(meta.kind).control == PATH
+    except KeyError as error:
+        raise CheckpointError(f"{path}: {error.args[0]}") from None
+    check_description(path, needs_control, meta.pose_dim, meta.control_dim, meta.features, meta.stats, meta.skeleton)
+    return meta
 
 
 def read_meta(path: str | os.PathLike) -> CheckpointMeta:
-    """The JSON description of a checkpoint, checked for form (the tensors are not read, torch is not loaded)."""
+    """The JSON description of a checkpoint, checked for form and sense (the tensors are not
+    read, torch is not loaded)."""
     path = Path(path)
     return _meta(path, read_header(path))
 
 
 def load_checkpoint(path: str | os.PathLike, device: str | torch.device = "cpu") -> tuple[MotionModel, CheckpointMeta]:
-    """The model (in eval mode, on ``device``) and its description, fully validated."""
+    """The model (in eval mode, on ``device``) and its description, fully validated.
+
+    The description is checked from the header, and the model built under the budget of
+    the file's tensors (``build_budget``), before any tensor is read.
+    """
+    from .build_budget import build_within
+
     path = Path(path)
-    tensors, header = read_tensors(path)
-    meta = _meta(path, header)
-    try:
-        cls = model_class(meta.kind)
-        config = cls.Config(**meta.hyperparameters)
-        model = cls(config, meta.pose_dim, meta.control_dim)
-    except (KeyError, TypeError, ValueError, RuntimeError) as error:  # a header that builds no model
-        raise CheckpointError(f"{path}: the hyperparameters do not build a {meta.kind} model ({error})") from None
-    expected = model.state_dict()
-    missing = sorted(set(expected) - set(tensors))
-    unexpected = sorted(set(tensors) - set(expected))
-    if missing or unexpected:
-        problems = ([f"missing tensor(s) {', '.join(missing[:5])}"] if missing else []) + (
-            [f"unexpected tensor(s) {', '.join(unexpected[:5])}"] if unexpected else [])
-        raise CheckpointError(f"{path}: does not fit a {meta.kind} model with these hyperparameters: {'; '.join(problems)}")
-    for name, tensor in tensors.items():
-        if tensor.shape != expected[name].shape:
-            raise CheckpointError(
-                f"{path}: tensor {name} has shape {tuple(tensor.shape)}, the model needs {tuple(expected[name].shape)}")
+    meta = read_meta(path)
+    cls = model_class(meta.kind)
+    model = build_within(path, lambda: cls(cls.Config(**meta.hyperparameters), meta.pose_dim, meta.control_dim),
+                         stored_layout(path))
+    tensors, _ = read_tensors(path)
     model.load_state_dict(tensors)
     return model.to(device).eval(), meta
 

@@ -22,6 +22,24 @@ from .motion.root import RootTrajectory, integrate
 
 # Seconds of Gaussian smoothing between segments, so speeds change as a person's do.
 TRANSITION_SIGMA = 0.25
+# Bounds on a synthetic description's numbers: a stimulus lasts seconds, not days, and
+# no person walks at 20 m/s or turns ten times a second. Beyond them a description is
+# a mistake (or an attack on memory), refused before anything is allocated.
+MAX_PATH_SECONDS = 600.0
+MAX_SPEED_CM_S = 2000.0
+MAX_TURN_RATE_DEG_S = 3600.0
+
+
+def _number(spec: dict, key: str, default: float, bound: float) -> float:
+    """``spec[key]`` as a finite float within ``[-bound, bound]``; the message names the field."""
+    raw = spec.get(key, default)
+    try:
+        value = float(raw)
+    except (TypeError, ValueError):
+        raise ValueError(f"{key!r} must be a number, got {raw!r}") from None
+    if not math.isfinite(value) or abs(value) > bound:
+        raise ValueError(f"{key!r} must be a finite number within ±{bound:g}, got {raw!r}")
+    return value
 
 
 @dataclass(frozen=True)
@@ -38,6 +56,7 @@ class PathControl:
             raise ValueError(f"path control needs shape (frames >= 2, 3), got {v.shape}")
         if not np.isfinite(v).all():
             raise ValueError("path control contains NaN or infinity")
+        _check_length(len(v), self.fps)
         object.__setattr__(self, "velocities", v)
 
     @property
@@ -65,8 +84,9 @@ class AttributeControl:
     def __post_init__(self) -> None:
         if not self.action or not self.style:
             raise ValueError("attribute control needs an action and a style label")
-        if self.frames < 1 or not self.fps > 0:
-            raise ValueError(f"attribute control needs frames >= 1 and fps > 0, got {self.frames} and {self.fps}")
+        if self.frames < 1:
+            raise ValueError(f"attribute control needs frames >= 1, got {self.frames}")
+        _check_length(self.frames, self.fps)
 
     @property
     def n_frames(self) -> int:
@@ -80,6 +100,25 @@ class AttributeControl:
 Control = PathControl | AttributeControl
 
 
+def _check_length(frames: int, fps: float) -> None:
+    """A control lasts at most MAX_PATH_SECONDS at a positive, finite frame rate: a model
+    asked for more would allocate its whole output first."""
+    if not (math.isfinite(fps) and fps > 0):
+        raise ValueError(f"a control needs a positive, finite fps, got {fps}")
+    if frames / fps > MAX_PATH_SECONDS:
+        raise ValueError(f"a control of {frames} frames at {fps:g} fps lasts {frames / fps:g} s; "
+                         f"at most {MAX_PATH_SECONDS:g} s")
+
+
+def _frames_of(seconds: float | None, fps: float) -> int | None:
+    """``seconds`` as a number of frames (None stays None), refusing what no control can last."""
+    if seconds is None:
+        return None
+    if not (math.isfinite(seconds) and 0 < seconds <= MAX_PATH_SECONDS):
+        raise ValueError(f"seconds must be above 0 and at most {MAX_PATH_SECONDS:g}, got {seconds}")
+    return int(round(seconds * fps))
+
+
 def control_from_dict(data: dict) -> Control:
     """Inverse of ``to_dict`` for either kind."""
     if data.get("type") == "path":
@@ -91,13 +130,13 @@ def control_from_dict(data: dict) -> Control:
 
 # Segment types of a synthetic path and what each reads from its description.
 def _segment(kind: str, spec: dict, n: int) -> np.ndarray:
-    speed = float(spec.get("speed", 120.0))
+    speed = _number(spec, "speed", 120.0, MAX_SPEED_CM_S)
     v = np.zeros((n, 3))
     if kind == "straight":
         v[:, 0] = speed
     elif kind == "curve":
         v[:, 0] = speed
-        v[:, 2] = math.radians(float(spec.get("turn_rate", 30.0)))  # deg/s, left positive
+        v[:, 2] = math.radians(_number(spec, "turn_rate", 30.0, MAX_TURN_RATE_DEG_S))  # deg/s, left positive
     elif kind == "sidestep":
         direction = spec.get("direction", "left")
         if direction not in ("left", "right"):
@@ -108,7 +147,7 @@ def _segment(kind: str, spec: dict, n: int) -> np.ndarray:
     elif kind == "stand":
         pass
     elif kind == "ramp":
-        v[:, 0] = np.linspace(float(spec.get("from", 0.0)), float(spec.get("to", 250.0)), n)
+        v[:, 0] = np.linspace(_number(spec, "from", 0.0, MAX_SPEED_CM_S), _number(spec, "to", 250.0, MAX_SPEED_CM_S), n)
     else:
         raise ValueError(f"unknown segment type {kind!r}; use straight, curve, sidestep, backward, stand or ramp")
     return v
@@ -119,15 +158,27 @@ def synthetic_path(description: dict, fps: float = 20.0) -> PathControl:
 
     Speeds are cm/s, ``turn_rate`` deg/s (left positive); segments join smoothly.
     """
+    if not isinstance(description, dict):
+        raise ValueError(f"a synthetic path is an object with 'segments', got {type(description).__name__}")
     segments = description.get("segments")
-    if not segments:
+    if not segments or not isinstance(segments, list):
         raise ValueError("a synthetic path needs a non-empty 'segments' list")
-    parts = []
+    if not (math.isfinite(fps) and fps > 0):
+        raise ValueError(f"a synthetic path needs a positive, finite fps, got {fps}")
+    parts, total_seconds = [], 0.0
     for i, spec in enumerate(segments):
-        seconds = float(spec.get("seconds", 0))
-        if seconds <= 0:
-            raise ValueError(f"segment {i} needs a positive 'seconds', got {spec.get('seconds')!r}")
-        parts.append(_segment(spec.get("type", ""), spec, max(1, int(round(seconds * fps)))))
+        if not isinstance(spec, dict):
+            raise ValueError(f"segment {i} must be an object, got {spec!r}")
+        try:
+            seconds = _number(spec, "seconds", 0.0, MAX_PATH_SECONDS)
+            if seconds <= 0:
+                raise ValueError(f"needs a positive 'seconds', got {spec.get('seconds')!r}")
+            total_seconds += seconds
+            if total_seconds > MAX_PATH_SECONDS:
+                raise ValueError(f"the path's segments last over {MAX_PATH_SECONDS:g} s in all")
+            parts.append(_segment(spec.get("type", ""), spec, max(1, int(round(seconds * fps)))))
+        except ValueError as error:
+            raise ValueError(f"segment {i}: {error}") from None
     velocities = np.concatenate(parts)
     if len(parts) > 1:
         velocities = gaussian_filter1d(velocities, TRANSITION_SIGMA * fps, axis=0, mode="nearest")
@@ -162,7 +213,10 @@ def preset_path(name: str, fps: float = 20.0) -> PathControl:
 def load_control_file(path: str | Path, fps: float = 20.0) -> list[PathControl]:
     """Synthetic paths from a JSON or YAML file: one description, or a list of them."""
     path = Path(path)
-    text = path.read_text()
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{path}: not UTF-8 text (byte {error.start})") from None
     if path.suffix.lower() in (".yaml", ".yml"):
         try:
             data = yaml.safe_load(text)
@@ -186,11 +240,12 @@ def load_control_file(path: str | Path, fps: float = 20.0) -> list[PathControl]:
 def held_out_paths(dataset, seconds: float | None = None) -> list[PathControl]:
     """The control of each held-out natural clip of a dataset (cut to ``seconds``)."""
     fps = dataset.options.fps
+    frames = _frames_of(seconds, fps)
     result = []
     for clip in dataset.select("test"):
         control = dataset.clip_arrays(clip)["control"].astype(np.float64)
         if seconds is not None:
-            control = control[: int(round(seconds * fps))]
+            control = control[:frames]
         if len(control) >= 2:
             result.append(PathControl(control, fps, clip.name))
     return result
@@ -201,12 +256,11 @@ def held_out_attributes(dataset, seconds: float | None = None) -> list[Attribute
     the clip lasts (or ``seconds``, if shorter): what a label-controlled model is asked
     to do where the clip shows what a person did."""
     fps = dataset.options.fps
+    longest = _frames_of(seconds, fps)
     result = []
     for clip in dataset.select("test", augmented=False):
         if clip.content is None or clip.style is None:
             continue
-        frames = clip.stop - clip.start
-        if seconds is not None:
-            frames = min(frames, int(round(seconds * fps)))
+        frames = clip.stop - clip.start if longest is None else min(clip.stop - clip.start, longest)
         result.append(AttributeControl(clip.content, clip.style, frames, fps, clip.name))
     return result

@@ -14,6 +14,7 @@ and return joint-angle features, decoded onto the skeleton:
 
 from __future__ import annotations
 
+import math
 import os
 
 import numpy as np
@@ -27,6 +28,22 @@ from .motion.types import Motion, Skeleton
 from .models.attribute import AttributeModel
 from .models.base import MotionModel
 from .models.path import PathModel
+
+
+# Bounds on a request, checked before anything is allocated: a warm-up is a second or
+# two (MoGlow's paper uses one), and a batch of samples fits in memory.
+MAX_WARMUP_SECONDS = 60.0
+MAX_SAMPLES = 10_000
+
+
+def check_request(n: int, temperature: float, warmup_seconds: float | None) -> None:
+    """Refuse a sampling request no model can honour, naming the argument."""
+    if not 1 <= n <= MAX_SAMPLES:
+        raise ValueError(f"n must be at least 1 and at most {MAX_SAMPLES:,}, got {n}")
+    if not (math.isfinite(temperature) and temperature >= 0):
+        raise ValueError(f"temperature must be a finite number of at least 0, got {temperature}")
+    if warmup_seconds is not None and not 0 <= warmup_seconds <= MAX_WARMUP_SECONDS:
+        raise ValueError(f"warmup_seconds must be between 0 and {MAX_WARMUP_SECONDS:g}, got {warmup_seconds}")
 
 
 class Generator:
@@ -69,6 +86,7 @@ class Generator:
         "bfloat16" is several times faster at large ``n`` on CPUs with AMX.
         """
         self.model.check_precision(precision)
+        check_request(n, temperature, warmup_seconds)
         if isinstance(self.model, AttributeModel):
             return self._sample_attributes(self.model, control, n, seed, temperature)
         if not isinstance(self.model, PathModel):

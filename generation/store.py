@@ -3,9 +3,9 @@
 Model checkpoints (``generation.checkpoint``) and HVRNN's auxiliary networks
 (classifiers, denoiser) are both stored this way: the tensors, string metadata in the
 header and, under ``digest``, a SHA-256 of the tensors' names and bytes. Files are
-written atomically and read without pickles; a file that is missing, unreadable or
-whose tensors do not match its digest is refused with a ``CheckpointError`` naming the
-file and the problem.
+written atomically and read without pickles; a file that is missing, unreadable, whose
+tensors do not match its digest or hold NaN or infinity is refused with a
+``CheckpointError`` naming the file and the problem (and the tensor).
 
 Reading a header needs no torch, so the web app can list checkpoints cheaply; torch is
 imported only where tensors are read or written.
@@ -84,4 +84,21 @@ def read_tensors(path: str | os.PathLike, what: str = "checkpoint",
         raise CheckpointError(f"{path}: not a readable safetensors file ({error})") from None
     if check_digest and header.get(DIGEST_KEY) != tensor_digest(tensors):
         raise CheckpointError(f"{path}: the tensors do not match the {what}'s digest (the file was changed or damaged)")
+    for name, tensor in tensors.items():  # NaN weights cannot sample, nor NaN statistics classify
+        if tensor.is_floating_point() and not tensor.isfinite().all():
+            bad = int((~tensor.isfinite()).sum())
+            raise CheckpointError(f"{path}: tensor {name} holds {bad} NaN or infinite value(s)")
     return tensors, header
+
+
+def stored_layout(path: str | os.PathLike, what: str = "checkpoint") -> dict[str, tuple[tuple[int, ...], str]]:
+    """{tensor name: (shape, safetensors dtype name such as "F32")} from the file's header,
+    without reading any tensor or loading torch."""
+    path = Path(path)
+    read_header(path, what)  # a missing or unreadable file, named as such
+    try:
+        with safe_open(str(path), framework="numpy") as f:
+            slices = {name: f.get_slice(name) for name in f.keys()}
+            return {name: (tuple(s.get_shape()), s.get_dtype()) for name, s in slices.items()}
+    except (SafetensorError, OSError, ValueError) as error:
+        raise CheckpointError(f"{path}: not a readable safetensors file ({error})") from None

@@ -1,7 +1,8 @@
 """Django admin for every model of the study app; the study pages are the main interface.
 
-A researcher who is staff sees only the rows of their own studies, as on the study pages;
-a superuser sees everything.
+A researcher who is staff sees and writes only the rows of their own studies, as on the
+study pages: a new study is theirs (the owner comes from the request, so the form never
+lists other researchers' names); a superuser sees everything.
 """
 
 from django.contrib import admin
@@ -42,6 +43,15 @@ class StudyAdmin(OwnStudiesOnly):
     list_filter = ["is_open", "platform"]
     search_fields = ["title"]
     readonly_fields = ["key", "created"]
+
+    def get_exclude(self, request, obj=None):
+        excluded = list(super().get_exclude(request, obj) or [])
+        return excluded if request.user.is_superuser else [*excluded, "owner"]
+
+    def save_model(self, request, obj, form, change):
+        if not change and not request.user.is_superuser:
+            obj.owner = request.user
+        super().save_model(request, obj, form, change)
 
 
 @admin.register(System)

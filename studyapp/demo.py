@@ -1,6 +1,7 @@
 """``make demo``: the main job on embedded defaults, from real motion capture to a live study.
 
-1. migrates the SQLite database under var/ and makes sure a researcher account exists;
+1. migrates the SQLite database under var/, collects the static files and makes sure a
+   researcher account exists;
 2. builds the MoGlow locomotion dataset from $MOTION_DATA (cached after the first run);
 3. uses the project's own ``cpu`` MoGlow (models/moglow-cpu.safetensors, an hour of
    training) and trains the ``cpu`` RNN and VAE and an early MoGlow for the BAD clips
@@ -214,6 +215,8 @@ def main() -> int:
 
     say(f"database: {settings.DATABASES['default']['NAME']}")
     call_command("migrate", verbosity=0)
+    # The app serves the collected files itself: runserver does not, with DEBUG off.
+    call_command("collectstatic", interactive=False, verbosity=0)
     researcher, password = ensure_researcher(Path(settings.VAR_DIR))
     say(f"building the locomotion dataset from {data}")
     dataset = build_dataset(data, DatasetOptions(contents=LOCOMOTION))

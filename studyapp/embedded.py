@@ -2,10 +2,12 @@
 
 With no environment set, the app runs from one folder (`var/` under the repository,
 or `STUDYAPP_VAR_DIR`): a SQLite database, kombu's filesystem transport as the
-Celery broker and Celery's filesystem result backend. Production replaces each of
+Celery broker, Celery's filesystem result backend and a secret key made there once. Production replaces each of
 these through `DATABASE_URL`, `CELERY_BROKER_URL` and `CELERY_RESULT_BACKEND`.
 """
 
+import os
+import secrets
 from pathlib import Path
 
 # kombu ignores the host of a filesystem URL but warns on every clone of a
@@ -46,3 +48,23 @@ def filesystem_result_backend_url(var_dir: Path) -> str:
     results_dir = var_dir / "celery-results"
     results_dir.mkdir(parents=True, exist_ok=True)
     return f"file://{results_dir.resolve()}"
+
+
+def stored_secret_key(var_dir: Path) -> str:
+    """A random secret key kept in `var_dir/secret-key` (owner-only), made on first use.
+
+    The embedded setup runs with DEBUG off like production, so it needs a key that
+    nobody else knows and that survives restarts (sessions and logins depend on it).
+    """
+    path = var_dir / "secret-key"
+    if not path.exists():
+        draft = var_dir / f".secret-key.{os.getpid()}.part"
+        draft.touch(mode=0o600)
+        draft.write_text(secrets.token_urlsafe(50))
+        try:
+            path.hardlink_to(draft)  # atomic and refused if it exists: processes starting at once agree
+        except FileExistsError:
+            pass
+        finally:
+            draft.unlink()
+    return path.read_text().strip()

@@ -8,6 +8,7 @@ and the rating form names an assignment by another random token. Exclusions are 
 
 from __future__ import annotations
 
+import math
 import secrets
 from pathlib import Path
 
@@ -31,6 +32,27 @@ def new_study_key() -> str:
 
 def default_camera() -> dict:
     return Camera().to_dict()
+
+
+def camera_problem(data: object) -> str | None:
+    """What makes ``data`` no camera description (a JSON object of Camera's fields), or None.
+
+    JSON admits NaN and Infinity, which no database's JSON column stores and no
+    renderer can draw, so every number must be finite.
+    """
+    if not isinstance(data, dict):
+        return f"expected a JSON object of camera fields, got {type(data).__name__}"
+    for name, value in data.items():
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            if not (name == "follow" and isinstance(value, bool)):
+                return f"{name!r} must be a number, got {value!r}"
+        elif not math.isfinite(value):
+            return f"{name!r} must be a finite number, got {value}"
+    try:
+        Camera.from_dict(data)
+    except (TypeError, ValueError) as error:
+        return str(error)
+    return None
 
 
 class Study(models.Model):
@@ -90,10 +112,9 @@ class Study(models.Model):
             raise ValidationError({"video_width": "H.264 video needs an even width and height"})
         if self.bad_checks + self.natural_checks >= self.clips_per_participant:
             raise ValidationError({"clips_per_participant": "leave room for rated clips besides the attention checks"})
-        try:
-            Camera.from_dict(self.camera)
-        except (TypeError, ValueError, KeyError) as error:
-            raise ValidationError({"camera": f"not a camera description: {error}"}) from None
+        problem = camera_problem(self.camera)
+        if problem:
+            raise ValidationError({"camera": f"not a camera description: {problem}"})
 
     @property
     def scale(self) -> range:

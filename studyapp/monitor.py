@@ -18,16 +18,24 @@ import pandas as pd
 from analysis.exclusions import ExclusionRules, apply_exclusions
 from analysis.ratings import read_ratings
 from analysis.stats import system_means
+from analysis.tables import spreadsheet_safe
 from studyapp.models import ATTENTION_NAME, NATURAL_NAME, Stimulus, Study
 from studyapp.ratings import EXPORT_COLUMNS, ratings_rows
 
 
-def ratings_csv(study: Study) -> bytes:
-    """The study's ratings table (docs/ratings-schema.md) as CSV."""
+def ratings_csv(study: Study, for_spreadsheets: bool = False) -> bytes:
+    """The study's ratings table (docs/ratings-schema.md) as CSV.
+
+    ``for_spreadsheets``: text a spreadsheet would run as a formula (a system named
+    ``=HYPERLINK(...)``) gets a leading apostrophe, for the file a researcher downloads.
+    """
+    rows = ratings_rows(study)
+    if for_spreadsheets:
+        rows = ({column: spreadsheet_safe(value) for column, value in row.items()} for row in rows)
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=EXPORT_COLUMNS, lineterminator="\n")
     writer.writeheader()
-    writer.writerows(ratings_rows(study))
+    writer.writerows(rows)
     return buffer.getvalue().encode()
 
 

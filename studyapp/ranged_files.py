@@ -18,10 +18,18 @@ from django.utils.http import http_date
 
 CHUNK_BYTES = 64 * 1024
 _SINGLE_RANGE = re.compile(r"^bytes=(\d*)-(\d*)$")
+# No file has more bytes than this; longer numbers are read as "past any end" rather
+# than handed to int(), which refuses more than 4,300 digits.
+_MAX_DIGITS = 19
 
 
 class UnsatisfiableRange(Exception):
     """The range names no byte of the file (answered with 416)."""
+
+
+def _byte_position(digits: str) -> int:
+    significant = digits.lstrip("0") or "0"
+    return int(significant) if len(significant) <= _MAX_DIGITS else 10**_MAX_DIGITS
 
 
 def parse_byte_range(header: str | None, size: int) -> tuple[int, int] | None:
@@ -39,16 +47,16 @@ def parse_byte_range(header: str | None, size: int) -> tuple[int, int] | None:
     if not first_text:
         if not last_text:
             return None
-        suffix = int(last_text)  # "bytes=-N": the last N bytes
+        suffix = _byte_position(last_text)  # "bytes=-N": the last N bytes
         if suffix == 0 or size == 0:
             raise UnsatisfiableRange
         return max(0, size - suffix), size - 1
-    first = int(first_text)
-    if last_text and int(last_text) < first:
+    first = _byte_position(first_text)
+    if last_text and _byte_position(last_text) < first:
         return None
     if first >= size:
         raise UnsatisfiableRange
-    last = int(last_text) if last_text else size - 1
+    last = _byte_position(last_text) if last_text else size - 1
     return first, min(last, size - 1)
 
 
@@ -66,8 +74,9 @@ def _read_span(path: Path, first: int, length: int) -> Iterator[bytes]:
 
 def _resolve_inside(document_root: Path, relative_path: str) -> Path:
     # Hidden names are work in progress (atomic_output's ".NAME.*.part" temporaries)
-    # or private; a half-written video must never be served.
-    if any(part.startswith(".") for part in Path(relative_path).parts):
+    # or private; a half-written video must never be served. No file name holds a NUL,
+    # which the operating system's calls refuse outright.
+    if "\0" in relative_path or any(part.startswith(".") for part in Path(relative_path).parts):
         raise Http404("No such file")
     root = document_root.resolve()
     # resolve() follows "..", absolute parts and symlinks, so the containment

@@ -2,9 +2,11 @@
 
 The app runs exactly the ``analysis`` package's report (the same tables and figures as
 ``python -m analysis report``). A report lives in ``MEDIA_ROOT/reports/<digest>/``, named
-by the SHA-256 of the ratings file, so the same upload twice is the same report. The
-folder is built under a temporary name and renamed into place, so a failed analysis
-leaves nothing behind and a half-written report is never served.
+by the SHA-256 of the researcher and the ratings file, so the same upload twice is the
+same report. A report belongs to the researcher who made it (``owner.txt``): only they
+see its page and files, since it holds their participants' ratings. The folder is built
+under a temporary name and renamed into place, so a failed analysis leaves nothing
+behind and a half-written report is never served.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from analysis.report import Report, build_report, summary_text, write_report
 REPORTS_FOLDER = "reports"
 RATINGS_NAME = "ratings.csv"
 REFERENCE_NAME = "reference.txt"
+OWNER_NAME = "owner.txt"
 
 
 @dataclass(frozen=True)
@@ -48,12 +51,20 @@ def report_folder(media_root: Path, digest: str) -> Path:
     return Path(media_root) / REPORTS_FOLDER / digest
 
 
-def create_report(media_root: Path, ratings_csv: bytes, reference: str | None) -> str:
-    """Analyse an uploaded ratings CSV into its report folder; returns the digest.
+def report_owner(media_root: Path, digest: str) -> int | None:
+    """The id of the user a report belongs to; None when there is no such report."""
+    try:
+        return int((report_folder(media_root, digest) / OWNER_NAME).read_text())
+    except (FileNotFoundError, ValueError):
+        return None
+
+
+def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, owner_id: int) -> str:
+    """Analyse an uploaded ratings CSV into its report folder, owned by ``owner_id``; returns the digest.
 
     Raises AnalysisInputError (naming what is wrong) for a table that cannot be analysed.
     """
-    digest = hashlib.sha256(ratings_csv + f"\0{reference or ''}".encode()).hexdigest()
+    digest = hashlib.sha256(f"{owner_id}\0".encode() + ratings_csv + f"\0{reference or ''}".encode()).hexdigest()
     final = report_folder(media_root, digest)
     if final.is_dir():
         return digest
@@ -62,7 +73,11 @@ def create_report(media_root: Path, ratings_csv: bytes, reference: str | None) -
     try:
         (work / RATINGS_NAME).write_bytes(ratings_csv)
         (work / REFERENCE_NAME).write_text(reference or "")
-        report = _analyse(work)
+        (work / OWNER_NAME).write_text(str(owner_id))
+        try:
+            report = _analyse(work)
+        except AnalysisInputError as error:  # say "the upload", not where the server keeps it
+            raise AnalysisInputError(str(error).replace(str(work / RATINGS_NAME), "the uploaded file")) from None
         write_report(report, work)
         work.chmod(0o755)
         work.rename(final)
@@ -92,10 +107,13 @@ def _html(table: pd.DataFrame) -> SafeString:
     return mark_safe(html)  # pandas escaped every cell
 
 
-def report_page(media_root: Path, digest: str) -> ReportPage:
-    """The tables and figures of an existing report (re-analysed from its saved ratings)."""
+def report_page(media_root: Path, digest: str, owner_id: int) -> ReportPage:
+    """The tables and figures of an existing report of ``owner_id`` (re-analysed from its saved ratings).
+
+    Another researcher's report raises FileNotFoundError, as if it did not exist.
+    """
     folder = report_folder(media_root, digest)
-    if not (folder / RATINGS_NAME).is_file():
+    if report_owner(media_root, digest) != owner_id or not (folder / RATINGS_NAME).is_file():
         raise FileNotFoundError(digest)
     report = _analyse(folder)
     if isinstance(report, DesignReport):  # side-by-side and pairwise: their own tables
@@ -120,4 +138,4 @@ def _single_design_tables(report: Report) -> list[tuple[str, SafeString]]:
     return tables
 
 
-__all__ = ["AnalysisInputError", "ReportPage", "create_report", "report_folder", "report_page"]
+__all__ = ["AnalysisInputError", "ReportPage", "create_report", "report_folder", "report_owner", "report_page"]

@@ -210,7 +210,7 @@ def study_open(request: HttpRequest, pk: int) -> HttpResponse:
 def study_export(request: HttpRequest, pk: int) -> HttpResponse:
     """The ratings table as a CSV download."""
     study = _study(request, pk)
-    response = HttpResponse(ratings_csv(study), content_type="text/csv")
+    response = HttpResponse(ratings_csv(study, for_spreadsheets=True), content_type="text/csv")
     response["Content-Disposition"] = f'attachment; filename="ratings-study-{study.pk}.csv"'
     return response
 
@@ -222,7 +222,8 @@ def study_report(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
     try:
         has_natural = study.systems.filter(role=System.Role.NATURAL).exists()
-        digest = create_report(settings.MEDIA_ROOT, ratings_csv(study), NATURAL_NAME if has_natural else None)
+        digest = create_report(settings.MEDIA_ROOT, ratings_csv(study), NATURAL_NAME if has_natural else None,
+                               request.user.pk)
     except AnalysisInputError as error:
         messages.error(request, f"No report yet: {error}")
         return redirect("study-monitor", pk=study.pk)

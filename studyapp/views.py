@@ -3,16 +3,17 @@
 from django import forms
 from django.conf import settings
 from django.contrib.auth.decorators import login_required
+from django.contrib.auth.views import redirect_to_login
 from django.http import Http404, HttpRequest, HttpResponse, HttpResponseBase, JsonResponse
 from django.shortcuts import redirect, render
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_safe
 
 from studyapp.celery import app as celery_app
-from studyapp.gallery import GalleryIndexError, index_path, load_gallery
+from studyapp.gallery import GALLERY_FOLDER, GalleryIndexError, index_path, load_gallery
 from studyapp.health import HealthReport, collect_health
 from studyapp.ranged_files import serve_with_ranges
-from studyapp.reports import AnalysisInputError, create_report, report_page
+from studyapp.reports import REPORTS_FOLDER, AnalysisInputError, create_report, report_owner, report_page
 
 
 def _health() -> HealthReport:
@@ -56,13 +57,34 @@ def health_page(request: HttpRequest) -> HttpResponse:
 @never_cache
 @require_safe
 def health_json(request: HttpRequest) -> JsonResponse:
+    """ok or not for anyone (load balancers, compose); the checks' details for researchers.
+
+    The details name the broker's address and the workers' host names, which are
+    nobody else's business.
+    """
     report = _health()
-    return JsonResponse(report.as_dict(), status=_http_status(report))
+    answer = report.as_dict() if request.user.is_authenticated else {"status": report.status}
+    return JsonResponse(answer, status=_http_status(report))
 
 
 def media_file(request: HttpRequest, path: str) -> HttpResponseBase:
-    """A file under MEDIA_ROOT (rendered clips), seekable through range requests."""
-    return serve_with_ranges(request, path, settings.MEDIA_ROOT, reveal_mtime=not path.startswith("stimuli/"))
+    """A file under MEDIA_ROOT, seekable through range requests, to whoever may see it.
+
+    Stimuli are for anyone with their random token (participants); the gallery is a
+    researcher's (its natural clips could be recognised among a study's NAT stimuli);
+    an analysis report holds a researcher's ratings and is for its owner alone.
+    Anything else under MEDIA_ROOT is not served.
+    """
+    folder, _, rest = path.partition("/")
+    if folder in (GALLERY_FOLDER, REPORTS_FOLDER) and not request.user.is_authenticated:
+        return redirect_to_login(request.get_full_path())
+    if folder == REPORTS_FOLDER:
+        owner = report_owner(settings.MEDIA_ROOT, rest.partition("/")[0])
+        if owner is None or owner != request.user.pk:
+            raise Http404("No such file")
+    elif folder not in ("stimuli", GALLERY_FOLDER):
+        raise Http404("No such file")
+    return serve_with_ranges(request, path, settings.MEDIA_ROOT, reveal_mtime=folder != "stimuli")
 
 
 def static_file(request: HttpRequest, path: str) -> HttpResponseBase:
@@ -92,7 +114,7 @@ def analysis_upload(request: HttpRequest) -> HttpResponse:
         if form.is_valid():
             try:
                 digest = create_report(settings.MEDIA_ROOT, form.cleaned_data["ratings"].read(),
-                                       form.cleaned_data["reference"].strip() or None)
+                                       form.cleaned_data["reference"].strip() or None, request.user.pk)
                 return redirect("analysis-report", digest=digest)
             except AnalysisInputError as exc:
                 form.add_error("ratings", str(exc))
@@ -104,7 +126,7 @@ def analysis_upload(request: HttpRequest) -> HttpResponse:
 @require_safe
 def analysis_report(request: HttpRequest, digest: str) -> HttpResponse:
     try:
-        page = report_page(settings.MEDIA_ROOT, digest)
+        page = report_page(settings.MEDIA_ROOT, digest, request.user.pk)
     except FileNotFoundError:
         raise Http404("no such report") from None
     return render(request, "studyapp/analysis_report.html", {"page": page})

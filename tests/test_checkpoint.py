@@ -168,7 +168,7 @@ def _set_meta(field, value):
     (lambda p, out: out.write_bytes(p.read_bytes()[:-100]) and out, "not a readable safetensors file"),
     (lambda p, out: out.write_bytes(p.read_bytes()[:-8] + b"\x00" * 8) and out, "do not match the checkpoint's digest"),
     (lambda p, out: _rewrite_header(p, out, _set_meta("kind", "gan")), "unknown model kind 'gan'"),
-    (lambda p, out: _rewrite_header(p, out, _set_meta("pose_dim", 60)), "has shape"),
+    (lambda p, out: _rewrite_header(p, out, _set_meta("pose_dim", 60)), "the model.s pose features have 60"),
     (lambda p, out: _rewrite_header(p, out, lambda h: h["__metadata__"].pop("motion_study")), "not a checkpoint of this project"),
 ])
 def test_tampered_checkpoints_fail_with_a_message_naming_the_problem(checkpoint, tmp_path, tamper, message):

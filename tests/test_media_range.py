@@ -11,8 +11,8 @@ SIZE = len(CONTENT)
 @pytest.fixture
 def media_root(tmp_path: Path, settings) -> Path:
     root = tmp_path / "media"
-    (root / "gallery").mkdir(parents=True)
-    (root / "gallery" / "clip.mp4").write_bytes(CONTENT)
+    (root / "stimuli").mkdir(parents=True)
+    (root / "stimuli" / "clip.mp4").write_bytes(CONTENT)
     (tmp_path / "secret.txt").write_text("outside the media root")
     settings.MEDIA_ROOT = root
     return root
@@ -23,7 +23,7 @@ def body(response) -> bytes:
 
 
 def test_whole_file_without_range(client, media_root) -> None:
-    response = client.get("/media/gallery/clip.mp4")
+    response = client.get("/media/stimuli/clip.mp4")
 
     assert response.status_code == 200
     assert response["Accept-Ranges"] == "bytes"
@@ -33,7 +33,7 @@ def test_whole_file_without_range(client, media_root) -> None:
 
 
 def test_first_and_last_byte_range(client, media_root) -> None:
-    response = client.get("/media/gallery/clip.mp4", HTTP_RANGE="bytes=100-199")
+    response = client.get("/media/stimuli/clip.mp4", HTTP_RANGE="bytes=100-199")
 
     assert response.status_code == 206
     assert response["Content-Range"] == f"bytes 100-199/{SIZE}"
@@ -42,7 +42,7 @@ def test_first_and_last_byte_range(client, media_root) -> None:
 
 
 def test_range_past_the_end_is_clipped(client, media_root) -> None:
-    response = client.get("/media/gallery/clip.mp4", HTTP_RANGE=f"bytes=1000-{SIZE * 10}")
+    response = client.get("/media/stimuli/clip.mp4", HTTP_RANGE=f"bytes=1000-{SIZE * 10}")
 
     assert response.status_code == 206
     assert response["Content-Range"] == f"bytes 1000-{SIZE - 1}/{SIZE}"
@@ -50,7 +50,7 @@ def test_range_past_the_end_is_clipped(client, media_root) -> None:
 
 
 def test_suffix_range_is_the_last_bytes(client, media_root) -> None:
-    response = client.get("/media/gallery/clip.mp4", HTTP_RANGE="bytes=-24")
+    response = client.get("/media/stimuli/clip.mp4", HTTP_RANGE="bytes=-24")
 
     assert response.status_code == 206
     assert response["Content-Range"] == f"bytes {SIZE - 24}-{SIZE - 1}/{SIZE}"
@@ -58,7 +58,7 @@ def test_suffix_range_is_the_last_bytes(client, media_root) -> None:
 
 
 def test_open_ended_range_runs_to_the_end(client, media_root) -> None:
-    response = client.get("/media/gallery/clip.mp4", HTTP_RANGE="bytes=512-")
+    response = client.get("/media/stimuli/clip.mp4", HTTP_RANGE="bytes=512-")
 
     assert response.status_code == 206
     assert response["Content-Range"] == f"bytes 512-{SIZE - 1}/{SIZE}"
@@ -68,7 +68,7 @@ def test_open_ended_range_runs_to_the_end(client, media_root) -> None:
 
 @pytest.mark.parametrize("header", [f"bytes={SIZE}-", f"bytes={SIZE + 5}-{SIZE + 10}", "bytes=-0"])
 def test_unsatisfiable_range_is_416(client, media_root, header: str) -> None:
-    response = client.get("/media/gallery/clip.mp4", HTTP_RANGE=header)
+    response = client.get("/media/stimuli/clip.mp4", HTTP_RANGE=header)
 
     assert response.status_code == 416
     assert response["Content-Range"] == f"bytes */{SIZE}"
@@ -76,14 +76,14 @@ def test_unsatisfiable_range_is_416(client, media_root, header: str) -> None:
 
 @pytest.mark.parametrize("header", ["items=0-10", "bytes=0-1,5-6", "bytes=9-3", "bytes=-"])
 def test_range_it_does_not_understand_gets_the_whole_file(client, media_root, header: str) -> None:
-    response = client.get("/media/gallery/clip.mp4", HTTP_RANGE=header)
+    response = client.get("/media/stimuli/clip.mp4", HTTP_RANGE=header)
 
     assert response.status_code == 200
     assert body(response) == CONTENT
 
 
 def test_head_gives_the_headers_without_a_body(client, media_root) -> None:
-    response = client.head("/media/gallery/clip.mp4")
+    response = client.head("/media/stimuli/clip.mp4")
 
     assert response.status_code == 200
     assert response["Content-Length"] == str(SIZE)
@@ -94,11 +94,11 @@ def test_head_gives_the_headers_without_a_body(client, media_root) -> None:
     "url",
     [
         "/media/../secret.txt",
-        "/media/gallery/../../secret.txt",
+        "/media/stimuli/../../secret.txt",
         "/media/%2e%2e/secret.txt",
         "/media//etc/passwd",
-        "/media/gallery/",
-        "/media/gallery/missing.mp4",
+        "/media/stimuli/",
+        "/media/stimuli/missing.mp4",
     ],
 )
 def test_paths_outside_the_media_root_or_not_files_are_404(client, media_root, url: str) -> None:
@@ -106,10 +106,10 @@ def test_paths_outside_the_media_root_or_not_files_are_404(client, media_root, u
 
 
 def test_symlink_leading_outside_the_media_root_is_404(client, media_root) -> None:
-    (media_root / "gallery" / "escape.txt").symlink_to(media_root.parent / "secret.txt")
+    (media_root / "stimuli" / "escape.txt").symlink_to(media_root.parent / "secret.txt")
 
-    assert client.get("/media/gallery/escape.txt").status_code == 404
+    assert client.get("/media/stimuli/escape.txt").status_code == 404
 
 
 def test_only_get_and_head_are_allowed(client, media_root) -> None:
-    assert client.post("/media/gallery/clip.mp4").status_code == 405
+    assert client.post("/media/stimuli/clip.mp4").status_code == 405

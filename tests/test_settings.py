@@ -43,7 +43,7 @@ def test_defaults_need_no_server_and_live_under_the_var_dir(tmp_path: Path) -> N
     assert shown["results"] == f"file://{tmp_path / 'celery-results'}"
     assert shown["media"] == str(tmp_path / "media")
     assert shown["hosts"] == ["localhost", "127.0.0.1", "[::1]"]
-    assert shown["debug"] is True
+    assert shown["debug"] is False  # a developer turns it on with DEBUG=1
     assert (tmp_path / "broker" / "control").is_dir() and (tmp_path / "celery-results").is_dir()
 
 
@@ -66,11 +66,19 @@ def test_production_values_replace_every_default(tmp_path: Path) -> None:
     assert not (tmp_path / "broker").exists()
 
 
-def test_debug_off_without_a_secret_key_refuses_to_start(tmp_path: Path) -> None:
-    completed = run_settings(STUDYAPP_VAR_DIR=str(tmp_path), DEBUG="off")
+SHOW_SECRET_KEY = "from django.conf import settings; print(settings.SECRET_KEY)"
 
-    assert completed.returncode != 0
-    assert "SECRET_KEY must be set when DEBUG is off" in completed.stderr
+
+def test_without_a_secret_key_one_is_made_once_under_the_var_dir_and_kept(tmp_path: Path) -> None:
+    environment = {k: v for k, v in os.environ.items() if k not in DEPLOYMENT_VARIABLES}
+    environment.update(DJANGO_SETTINGS_MODULE="studyapp.settings", STUDYAPP_VAR_DIR=str(tmp_path))
+    keys = [subprocess.run([sys.executable, "-c", SHOW_SECRET_KEY], cwd=REPO_ROOT, env=environment,
+                           capture_output=True, text=True, timeout=30, check=True).stdout.strip() for _ in range(2)]
+
+    assert keys[0] == keys[1] == (tmp_path / "secret-key").read_text()
+    assert len(keys[0]) >= 50 and "insecure" not in keys[0]
+    assert (tmp_path / "secret-key").stat().st_mode & 0o777 == 0o600
+    assert [p.name for p in tmp_path.iterdir() if "secret" in p.name] == ["secret-key"]  # no draft left
 
 
 def test_an_unreadable_debug_value_is_an_error_not_a_guess(tmp_path: Path) -> None:
@@ -102,3 +110,36 @@ def test_with_debug_off_a_server_error_is_logged_to_stderr(tmp_path: Path) -> No
                                capture_output=True, text=True, timeout=60)
     assert completed.stdout.strip() == "500"
     assert "RuntimeError: a deliberate failure" in completed.stderr  # not only mailed to ADMINS, who are none
+
+
+# A failing view and a missing page on the embedded defaults (no DEBUG, no SECRET_KEY set).
+ERROR_PAGES = """
+import django
+django.setup()
+from django.test import Client
+from django.urls import path
+import studyapp.urls
+def failing(request):
+    raise RuntimeError("a deliberate failure")
+studyapp.urls.urlpatterns.append(path("failing/", failing))
+client = Client(raise_request_exception=False)
+for url in ("/failing/", "/no/such/page/", "/media/stimuli/no-such-clip.mp4"):
+    response = client.get(url)
+    print(response.status_code, response.content.decode().replace("\\n", " "))
+"""
+
+
+def test_the_embedded_defaults_answer_errors_with_the_studys_plain_pages(tmp_path: Path) -> None:
+    environment = {k: v for k, v in os.environ.items() if k not in DEPLOYMENT_VARIABLES}
+    environment.update(DJANGO_SETTINGS_MODULE="studyapp.settings", STUDYAPP_VAR_DIR=str(tmp_path),
+                       ALLOWED_HOSTS="testserver")
+    completed = subprocess.run([sys.executable, "-c", ERROR_PAGES], cwd=REPO_ROOT, env=environment,
+                               capture_output=True, text=True, timeout=60)
+    server_error, missing, missing_clip = completed.stdout.splitlines()
+
+    assert server_error.startswith("500 ") and "Something went wrong" in server_error
+    assert missing.startswith("404 ") and "Not found" in missing
+    assert missing_clip.startswith("404 ") and "Not found" in missing_clip
+    for page in (server_error, missing, missing_clip):  # no debug page: no settings, paths or traceback
+        assert "Traceback" not in page and "settings" not in page.lower() and str(tmp_path) not in page
+        assert "DEBUG" not in page and "urlpatterns" not in page.lower()

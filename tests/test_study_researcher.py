@@ -359,7 +359,7 @@ def test_controls_come_from_held_out_clips_presets_and_files(client, researcher,
 
     broken = SimpleUploadedFile("broken.yaml", b"- segments: [{type: teleport, seconds: 1}]\n")
     response = client.post(f"/studies/{study.pk}/controls/", {"action": "file", "description": broken})
-    assert response.status_code == 400 and "broken.yaml: path 0: unknown segment type" in response.content.decode()
+    assert response.status_code == 400 and "broken.yaml: path 0: segment 0: unknown segment type" in response.content.decode()
     # Adding the same controls again changes nothing.
     client.post(f"/studies/{study.pk}/controls/", {"action": "held_out", "seconds": "2", "count": ""})
     assert study.controls.count() == 6

@@ -36,6 +36,6 @@ def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
         return args.run(args)
-    except (BVHError, ValueError, FileNotFoundError) as error:  # CheckpointError is a ValueError
+    except (BVHError, ValueError, OSError) as error:  # CheckpointError is a ValueError; OSError: a folder for a file
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -45,6 +45,7 @@ def build(args: argparse.Namespace) -> int:
         scale=args.scale,
     )
     dataset = build_dataset(args.folder, options, cache_dir=args.cache_dir)
+    dataset.require_training_windows()
     if args.out:
         dataset.save(args.out)
     windows = {split: len(dataset.windows(split, standardize=False)["pose"]) for split in SPLITS}

@@ -8,6 +8,7 @@ that need them, so that ``--help`` starts quickly.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 from pathlib import Path
@@ -37,7 +38,9 @@ def _dataset_for_training(args: argparse.Namespace, attributes: bool):
         return load_attribute_data(args.folder, contents, cache_dir=args.cache_dir)
     options = DatasetOptions(contents=tuple((args.contents or LOCOMOTION).split(",")), reverse=args.reverse,
                              overlap=args.overlap)
-    return build_dataset(args.folder, options, cache_dir=args.cache_dir)
+    dataset = build_dataset(args.folder, options, cache_dir=args.cache_dir)
+    dataset.require_training_windows()
+    return dataset
 
 
 def train_command(args: argparse.Namespace) -> int:
@@ -177,6 +180,8 @@ def evaluate_command(args: argparse.Namespace) -> int:
         data = tensors(dataset, "test", args.device)
     loss = evaluate_loss(model, data)
     name = "negative log-likelihood (nats per frame)" if meta.kind == "moglow" else "loss"
+    if not math.isfinite(loss):
+        raise ValueError(f"{args.checkpoint}: the held-out {name} is {loss}: the model's outputs overflow on this data")
     print(f"{args.checkpoint}: held-out {name}: {loss:.4f} over {len(dataset.select('test'))} held-out takes")
     return 0
 

@@ -34,6 +34,8 @@ def load_network(path: str | os.PathLike, kind: str) -> tuple[dict[str, torch.Te
         description = json.loads(header[NETWORK_KEY])
     except json.JSONDecodeError as error:
         raise CheckpointError(f"{path}: the network's JSON header is invalid ({error.msg})") from None
+    if not isinstance(description, dict):
+        raise CheckpointError(f"{path}: the network's JSON header is not an object")
     if description.get("kind") != kind:
         raise CheckpointError(f"{path}: holds a {description.get('kind')!r} network, not a {kind!r} one")
     return tensors, description

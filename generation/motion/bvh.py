@@ -24,6 +24,14 @@ from .types import Motion, Skeleton
 
 POSITION_AXIS = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
 ROTATION_AXIS = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
+# Frame times outside these are no motion capture (10,000 to 0.1 frames per second); a
+# 1e-320 s frame has no frame rate a float can hold, and a 1e6 s one would have the
+# renderer draw days of video from two frames.
+MIN_FRAME_TIME, MAX_FRAME_TIME = 1e-4, 10.0
+MAX_INDENT = 32  # tabs
+# No length in any unit nor any angle in degrees comes near this; 1e308 would overflow
+# to infinity in the first sum of forward kinematics.
+MAX_ABS_VALUE = 1e9
 
 
 class BVHError(ValueError):
@@ -105,6 +113,8 @@ class BVH:
 def read_bvh(path: str | os.PathLike) -> BVH:
     """Parse a BVH file. Raises BVHError naming the file and line on malformed input."""
     path = Path(path)
+    if path.is_dir():
+        raise BVHError(path, "is a folder, not a BVH file")
     try:
         text = path.read_text()
     except UnicodeDecodeError as error:
@@ -118,7 +128,7 @@ def read_bvh(path: str | os.PathLike) -> BVH:
 def bvh_duration(path: str | os.PathLike) -> float:
     """Seconds of motion a BVH file declares, read from its header only (0 if unreadable)."""
     frames = frame_time = None
-    with open(path) as f:
+    with open(path, encoding="utf-8", errors="replace") as f:  # only the two numbers matter
         for line in f:
             key, _, value = line.strip().partition(":")
             if key == "Frames":
@@ -127,9 +137,10 @@ def bvh_duration(path: str | os.PathLike) -> float:
                 frame_time = value
                 break
     try:
-        return int(frames) * float(frame_time)
+        seconds = int(frames) * float(frame_time)
     except (TypeError, ValueError):
         return 0.0
+    return seconds if math.isfinite(seconds) and seconds > 0 else 0.0
 
 
 def load_motion(path: str | os.PathLike, scale: float = 1.0) -> Motion:
@@ -146,6 +157,8 @@ def _floats(path: Path, tokens: list[str], count: int, what: str, line: int) -> 
         raise BVHError(path, f"{what} has a non-numeric value: {' '.join(tokens)!r}", line) from None
     if not all(math.isfinite(x) for x in numbers):
         raise BVHError(path, f"{what} has a NaN or infinite value", line)
+    if any(abs(x) > MAX_ABS_VALUE for x in numbers):
+        raise BVHError(path, f"{what} has a value beyond ±{MAX_ABS_VALUE:g}", line)
     return numbers
 
 
@@ -233,6 +246,9 @@ def _parse_hierarchy(path: Path, lines: list[str]):
                 raise BVHError(path, "MOTION before the hierarchy's blocks are closed", line)
             if not names:
                 raise BVHError(path, "the hierarchy has no ROOT", line)
+            if not any(channels):
+                raise BVHError(path, "no joint has channels (every CHANNELS is 0 or missing): "
+                                     "the file can hold no motion", line)
             skeleton = Skeleton(
                 names=tuple(names),
                 parents=np.asarray(parents),
@@ -249,6 +265,7 @@ def _parse_hierarchy(path: Path, lines: list[str]):
 def _parse_motion(path: Path, lines: list[str], motion_line: int, n_channels: int):
     """Parse the MOTION section: frame count, frame time and the value rows."""
     header: dict[str, str] = {}
+    header_line: dict[str, int] = {}
     row_start = len(lines)
     for i in range(motion_line + 1, len(lines)):
         stripped = lines[i].strip()
@@ -256,7 +273,7 @@ def _parse_motion(path: Path, lines: list[str], motion_line: int, n_channels: in
             continue
         key, _, value = stripped.partition(":")
         if key in ("Frames", "Frame Time") and key not in header:
-            header[key] = value.strip()
+            header[key], header_line[key] = value.strip(), i + 1
             if len(header) == 2:
                 row_start = i + 1
                 break
@@ -269,9 +286,13 @@ def _parse_motion(path: Path, lines: list[str], motion_line: int, n_channels: in
     except ValueError:
         raise BVHError(path, "'Frames:' or 'Frame Time:' is not a number", row_start) from None
     if n_frames <= 0:
-        raise BVHError(path, f"the file declares {n_frames} frames; a motion needs at least one", row_start)
+        raise BVHError(path, f"the file declares {n_frames} frames; a motion needs at least one", header_line["Frames"])
     if not (math.isfinite(frame_time) and frame_time > 0):
-        raise BVHError(path, f"Frame Time must be positive, found {frame_time}", row_start)
+        raise BVHError(path, f"Frame Time must be positive, found {frame_time}", header_line["Frame Time"])
+    if not MIN_FRAME_TIME <= frame_time <= MAX_FRAME_TIME:
+        raise BVHError(path, f"Frame Time {header['Frame Time']} s is outside {MIN_FRAME_TIME:g} to "
+                             f"{MAX_FRAME_TIME:g} s ({1 / MIN_FRAME_TIME:g} to {1 / MAX_FRAME_TIME:g} frames per second)",
+                       header_line["Frame Time"])
 
     row_lines = [i for i in range(row_start, len(lines)) if lines[i].strip()]
     rows = [lines[i] for i in row_lines]
@@ -289,7 +310,7 @@ def _parse_motion(path: Path, lines: list[str], motion_line: int, n_channels: in
         values = np.array(tokens, dtype=np.float64) if len(tokens) == n_frames * n_channels else None
     except ValueError:
         values = None
-    if values is None or not np.isfinite(values).all():
+    if values is None or not (np.abs(values) <= MAX_ABS_VALUE).all():  # NaN fails the comparison too
         _raise_for_bad_row(path, rows, row_lines, n_channels)
     return frame_time, values.reshape(n_frames, n_channels)
 
@@ -317,20 +338,29 @@ def bvh_text(bvh: BVH) -> str:
     def vector(v) -> str:
         return " ".join(_format_number(x) for x in v)
 
-    def write_joint(j: int, depth: int) -> None:
-        tab = "\t" * depth
+    # Depth-first with a stack of its own: a chain of thousands of joints is legal BVH and
+    # would exceed Python's recursion limit. An entry is a joint to open or a line to close it.
+    # Indentation is only for reading, and stops deepening where a reader would stop counting.
+    pending: list[tuple[int, int] | str] = [(0, 0)]
+    while pending:
+        item = pending.pop()
+        if isinstance(item, str):
+            out.append(item)
+            continue
+        j, depth = item
+        tab = "\t" * min(depth, MAX_INDENT)
         out.append(f"{tab}{'ROOT' if depth == 0 else 'JOINT'} {skeleton.names[j]}")
         out.append(f"{tab}{{")
         out.append(f"{tab}\tOFFSET {vector(skeleton.offsets[j])}")
         if bvh.channels[j]:
             out.append(f"{tab}\tCHANNELS {len(bvh.channels[j])} {' '.join(bvh.channels[j])}")
-        for child in children[j]:
-            write_joint(child, depth + 1)
+        closing = []
         for site in np.asarray(skeleton.end_sites.get(j, np.empty((0, 3)))).reshape(-1, 3):
-            out.extend([f"{tab}\tEnd Site", f"{tab}\t{{", f"{tab}\t\tOFFSET {vector(site)}", f"{tab}\t}}"])
-        out.append(f"{tab}}}")
+            closing += [f"{tab}\tEnd Site", f"{tab}\t{{", f"{tab}\t\tOFFSET {vector(site)}", f"{tab}\t}}"]
+        closing.append(f"{tab}}}")
+        # Popped in reverse: the children in order, then the End Sites and the closing brace.
+        pending += [*reversed(closing), *[(child, depth + 1) for child in reversed(children[j])]]
 
-    write_joint(0, 0)
     out += ["MOTION", f"Frames: {len(bvh.values)}", f"Frame Time: {bvh.frame_time:.9g}"]
     out += [vector(row) for row in bvh.values]
     return "\n".join(out) + "\n"

@@ -16,7 +16,10 @@ import dataclasses
 import hashlib
 import io
 import json
+import math
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Sequence
@@ -26,7 +29,7 @@ from tqdm import tqdm
 
 from .augment import mirror, reverse, window_count, windows
 from ..files import write_atomic
-from .bvh import load_motion
+from .bvh import BVHError, load_motion
 from .features import AngleFeatureSpec, angle_feature_spec, encode_angles, encode_positions
 from .kinematics import subtree_motion
 from .resample import resample
@@ -35,6 +38,7 @@ from .types import Motion, Skeleton
 
 FORMAT_VERSION = 1  # bump when the cached arrays change meaning
 SPLITS = ("train", "validation", "test")
+MAX_FPS = 1000.0  # motion capture runs at hundreds of frames per second at most
 
 
 @dataclass(frozen=True)
@@ -56,6 +60,25 @@ class DatasetOptions:
     mirror_pairs: dict[str, str] | None = None
     scale: float = 1.0  # file units to centimetres
     root: RootOptions = field(default_factory=RootOptions)
+
+    def __post_init__(self) -> None:
+        # Checked here, before any file is read or cache written: each value below would
+        # otherwise give a dataset that is silently wrong (no test takes, no windows) or
+        # an error far from its cause.
+        def refuse(name: str, rule: str) -> None:
+            raise ValueError(f"dataset option {name} must be {rule}, got {getattr(self, name)!r}")
+
+        if not (math.isfinite(self.fps) and 0 < self.fps <= MAX_FPS):
+            refuse("fps", f"a number of frames per second above 0 and at most {MAX_FPS:g}")
+        if not (math.isfinite(self.window_seconds) and self.window_seconds > 0) or self.window_frames < 2:
+            refuse("window_seconds", f"long enough for two frames at {self.fps:g} fps")
+        if not 0 <= self.overlap < 1:
+            refuse("overlap", "at least 0 and below 1")
+        for name in ("holdout_fraction", "validation_fraction"):
+            if not 0 <= getattr(self, name) < 1:
+                refuse(name, "at least 0 and below 1")
+        if not (math.isfinite(self.scale) and self.scale > 0):
+            refuse("scale", "a positive number (file units to centimetres)")
 
     @property
     def window_frames(self) -> int:
@@ -169,6 +192,19 @@ class MotionDataset:
             result += [getattr(clip, kind)] * n
         return result
 
+    def require_training_windows(self) -> int:
+        """How many training windows there are; ValueError when there are none (every
+        training take shorter than one window), rather than a model trained on nothing."""
+        train = self.select("train")
+        count = sum(window_count(c.stop - c.start, self.options.window_frames, self.options.hop_frames) for c in train)
+        if count == 0:
+            longest = max((c.stop - c.start for c in train), default=0)
+            raise ValueError(
+                f"no training windows: {len(train)} training clip(s), the longest {longest} frame(s) at "
+                f"{self.options.fps:g} fps, and a window needs {self.options.window_frames} "
+                f"({self.options.window_seconds:g} s); use longer takes or a shorter window")
+        return count
+
     def save(self, path: str | os.PathLike) -> Path:
         """Write the dataset as one ``.npz`` (no pickles), atomically."""
         meta = {
@@ -260,17 +296,23 @@ def read_labels(bvh_path: Path) -> tuple[str | None, str | None]:
     if not side.is_file():
         return None, None
     try:
-        data = json.loads(side.read_text())
+        data = json.loads(side.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{side}: not UTF-8 text (byte {error.start})") from None
     except json.JSONDecodeError as error:
         raise ValueError(f"{side}:{error.lineno}: invalid JSON ({error.msg})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{side}: expected a JSON object with 'content' and 'style', got a {type(data).__name__}")
     result = []
     for kind in ("content", "style"):
         index = data.get(kind)
         names = _label_names(bvh_path.parent, kind)
         if index is None:
             result.append(None)
-        elif names is not None and 0 <= int(index) < len(names):
-            result.append(names[int(index)])
+        elif isinstance(index, bool) or not isinstance(index, int | str):
+            raise ValueError(f"{side}: {kind!r} must be a label index or name, got {index!r}")
+        elif names is not None and isinstance(index, int) and 0 <= index < len(names):
+            result.append(names[index])
         else:
             result.append(str(index))
     return result[0], result[1]
@@ -331,6 +373,8 @@ def build_dataset(
             raise ValueError(f"no clips in {folders} have content in {list(options.contents)}")
     key = fingerprint(files, options)
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    if cache.exists() and not cache.is_dir():
+        raise ValueError(f"the cache folder {cache} is a file; name a folder (or none, for {default_cache_dir()})")
     cached = cache / f"dataset-{key[:20]}.npz"
     if cached.is_file():
         return MotionDataset.load(cached)
@@ -342,22 +386,23 @@ def build_dataset(
     clips, parts = [], {"pose": [], "control": [], "angles": []}
     rows = 0
     for path in tqdm(files, desc="encoding clips", unit="clip", disable=not progress):
-        body = load_body_motion(path, options.fps, scale=options.scale, root=options.root)
-        if skeleton is None:
-            skeleton, spec = body.skeleton, angle_feature_spec(body.skeleton, options.angle_representation)
-        elif body.skeleton.names != skeleton.names:
-            raise ValueError(f"{path}: its skeleton differs from the first file's; one dataset needs one skeleton")
-        take = take_of(path.stem)
-        split = "test" if take in held_out else "validation" if take in validation else "train"
-        for augmentation, motion in _augmented(body, options, split == "train"):
-            encoded = encode_positions(motion, options.root)
-            angles = encode_angles(motion, spec).values if motion.rotations is not None else np.full((motion.n_frames, spec.size), np.nan)
-            for name, value in (("pose", encoded.pose), ("control", encoded.control), ("angles", angles)):
-                parts[name].append(value.astype(np.float32))
-            content, style = labels[path]
-            clips.append(Clip(path.stem, take_of(path.stem), content, style, augmentation, split,
-                              rows, rows + motion.n_frames, motion.rotations is not None))
-            rows += motion.n_frames
+        with _naming(path):
+            body = load_body_motion(path, options.fps, scale=options.scale, root=options.root)
+            if skeleton is None:
+                skeleton, spec = body.skeleton, angle_feature_spec(body.skeleton, options.angle_representation)
+            elif body.skeleton.names != skeleton.names:
+                raise ValueError(f"{path}: its skeleton differs from the first file's; one dataset needs one skeleton")
+            take = take_of(path.stem)
+            split = "test" if take in held_out else "validation" if take in validation else "train"
+            for augmentation, motion in _augmented(body, options, split == "train"):
+                encoded = encode_positions(motion, options.root)
+                angles = encode_angles(motion, spec).values if motion.rotations is not None else np.full((motion.n_frames, spec.size), np.nan)
+                for name, value in (("pose", encoded.pose), ("control", encoded.control), ("angles", angles)):
+                    parts[name].append(value.astype(np.float32))
+                content, style = labels[path]
+                clips.append(Clip(path.stem, take_of(path.stem), content, style, augmentation, split,
+                                  rows, rows + motion.n_frames, motion.rotations is not None))
+                rows += motion.n_frames
     arrays = {k: np.concatenate(v) for k, v in parts.items()}
     train = [c for c in clips if c.split == "train"]
     stats = {
@@ -367,6 +412,18 @@ def build_dataset(
     dataset = MotionDataset(options, skeleton, spec, clips, arrays, stats, key)
     dataset.save(cached)
     return dataset
+
+
+@contextmanager
+def _naming(path: Path) -> Iterator[None]:
+    """A clip that cannot be used names itself: the checks deep in the motion code (a rig
+    without left/right pairs, values that overflow) know nothing of files."""
+    try:
+        yield
+    except ValueError as error:
+        if isinstance(error, BVHError) or str(error).startswith(str(path)):
+            raise  # names its file (and line) already
+        raise ValueError(f"{path}: {error}") from error
 
 
 def load_body_motion(path: str | os.PathLike, fps: float, seconds: float | None = None,

@@ -138,8 +138,8 @@ class Motion:
         if not np.isfinite(positions).all():
             frame = int(np.argwhere(~np.isfinite(positions))[0, 0])
             raise ValueError(f"motion positions contain NaN or infinity (first at frame {frame})")
-        if not self.fps > 0:
-            raise ValueError(f"fps must be positive, got {self.fps}")
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"fps must be positive and finite, got {self.fps}")
         if self.rotations is not None and np.shape(self.rotations) != (len(positions), j, 4):
             raise ValueError(f"rotations must have shape ({len(positions)}, {j}, 4)")
         if (self.rotations is None) != (self.translations is None):

@@ -21,6 +21,9 @@ from generation.render.figure import LEFT, RIGHT, body_root_index, figure_bones,
 from generation.render.style import Style
 
 REFERENCE_HEIGHT = 480  # Style widths are pixels at this frame height and scale with it
+# A stimulus lasts seconds and a gallery clip a minute or two; a motion longer than this
+# (a wrong frame time, say) would have the renderer plan gigabytes of frames.
+MAX_VIDEO_SECONDS = 3600.0
 
 
 def frame_indices(n_frames: int, fps: float, out_fps: float) -> np.ndarray:
@@ -67,8 +70,11 @@ class FrameDrawer:
             raise ValueError(f"size must be positive, got {size}")
         self.size, self.camera, self.style = (int(width), int(height)), camera, style
         self.fps = float(fps) if fps is not None else float(motion.fps)
-        if not self.fps > 0:
-            raise ValueError(f"fps must be positive, got {fps}")
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"fps must be positive and finite, got {fps}")
+        if not motion.duration <= MAX_VIDEO_SECONDS:
+            raise ValueError(f"the motion lasts {motion.duration:g} s ({motion.n_frames} frames at {motion.fps:g} fps); "
+                             f"videos are at most {MAX_VIDEO_SECONDS:g} s")
         self.scale = height / REFERENCE_HEIGHT
 
         self.source = frame_indices(motion.n_frames, motion.fps, self.fps)
