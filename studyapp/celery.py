@@ -13,3 +13,5 @@ os.environ.setdefault("DJANGO_SETTINGS_MODULE", "studyapp.settings")
 app = Celery("studyapp")
 app.config_from_object("django.conf:settings", namespace="CELERY")
 app.autodiscover_tasks()
+# Imported by every worker as it starts: the heartbeat that re-sends tasks lost with a worker.
+app.conf.imports = ("studyapp.lost_tasks",)

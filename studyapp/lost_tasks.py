@@ -23,11 +23,13 @@ import threading
 from datetime import timedelta
 from pathlib import Path
 
+from celery.signals import worker_ready, worker_shutdown
 from celery.worker import state as worker_state
 from django.db import close_old_connections
 from django.utils import timezone
 from kombu import Connection
 
+from studyapp.dispatch import queue_stimuli
 from studyapp.models import Stimulus
 
 HEARTBEAT_S = 10.0
@@ -90,8 +92,6 @@ def release(stimuli: list[Stimulus]) -> list[Stimulus]:
 
 def resend_lost(app) -> int:
     """Find the rows whose task was lost and send them again; how many were sent."""
-    from studyapp.dispatch import queue_stimuli  # dispatch imports the tasks, which import this module
-
     with app.connection_for_write() as connection:
         waiting = waiting_task_ids(connection, app.conf.task_default_queue)
     if waiting is None:
@@ -141,3 +141,9 @@ def stop_heartbeat(sender=None, **kwargs) -> None:
     """``worker_shutdown`` receiver."""
     if _heartbeat is not None:
         _heartbeat.stopped.set()
+
+
+# Each worker imports this module (``imports`` in studyapp.celery): it touches the rows of
+# the tasks it holds and sends again those a dead worker took with it.
+worker_ready.connect(start_heartbeat, weak=False)
+worker_shutdown.connect(stop_heartbeat, weak=False)

@@ -7,16 +7,9 @@ import os
 from pathlib import Path
 
 from celery import shared_task
-from celery.signals import worker_ready, worker_shutdown
 
 from generation.gallery import GalleryOptions, render_clip
 from studyapp import stimuli
-from studyapp.lost_tasks import start_heartbeat, stop_heartbeat
-
-# Each worker touches the rows of the tasks it holds and sends again those a dead worker
-# took with it (studyapp.lost_tasks).
-worker_ready.connect(start_heartbeat, weak=False)
-worker_shutdown.connect(stop_heartbeat, weak=False)
 
 
 @shared_task(bind=True)
