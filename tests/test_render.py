@@ -99,7 +99,7 @@ def test_joints_appear_where_the_camera_projects_them(walker, video):
     background = np.array(Style().background)
     for k in (0, 10, 19):
         source = drawer.source[k]
-        pixels, visible = Camera().project(walker.positions[source], drawer.targets[k], SIZE)
+        pixels, visible = drawer.camera.project(walker.positions[source], drawer.targets[k], SIZE)
         assert visible.all()
         for j in (walker.skeleton.index("Head"), walker.skeleton.index("Foot_L")):
             x, y = np.round(pixels[j]).astype(int)

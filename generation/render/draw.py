@@ -15,7 +15,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from generation.motion.types import Motion
-from generation.render.camera import Camera
+from generation.render.camera import Camera, character_size
 from generation.render.floor import FloorGrid
 from generation.render.figure import LEFT, RIGHT, body_root_index, figure_bones, hidden_joints, joint_side
 from generation.render.style import Style
@@ -65,6 +65,7 @@ class FrameDrawer:
         width, height = size
         if width < 1 or height < 1:
             raise ValueError(f"size must be positive, got {size}")
+        camera = camera.framing(character_size(motion))
         self.size, self.camera, self.style = (int(width), int(height)), camera, style
         self.fps = float(fps) if fps is not None else float(motion.fps)
         if not self.fps > 0:
