@@ -303,11 +303,28 @@ def read_labels(bvh_path: Path) -> tuple[str | None, str | None]:
         names = _label_names(bvh_path.parent, kind)
         if index is None:
             result.append(None)
-        elif names is not None and 0 <= int(index) < len(names):
-            result.append(names[int(index)])
-        else:
+        elif names is not None and isinstance(index, int) and 0 <= index < len(names):
+            result.append(names[index])
+        else:  # a label given by name, or a number no names file covers
             result.append(str(index))
     return result[0], result[1]
+
+
+def content_matches(content: str | None, wanted: str) -> bool:
+    """Whether a clip's content label is ``wanted``, also across a dataset prefix:
+    ``dataset-2_walk`` matches ``walk`` and the other way round."""
+    if content is None:
+        return False
+    return content == wanted or content.endswith(f"_{wanted}") or wanted.endswith(f"_{content}")
+
+
+def contents_or_all(folder: str | os.PathLike | Sequence[str | os.PathLike],
+                    contents: tuple[str, ...] | None) -> tuple[str, ...] | None:
+    """``contents`` where the clips have content labels; None (every clip, as one
+    content) for folders without any."""
+    if contents is None or any(read_labels(path)[0] is not None for path in find_bvh_files(folder)):
+        return contents
+    return None
 
 
 def take_of(stem: str) -> str:
@@ -381,7 +398,7 @@ def build_dataset(
     files = find_bvh_files(folder)
     labels = {f: read_labels(f) for f in files}
     if options.contents is not None:
-        files = [f for f in files if labels[f][0] in options.contents]
+        files = [f for f in files if any(content_matches(labels[f][0], c) for c in options.contents)]
         if not files:
             folders = ", ".join(str(f) for f in motion_folders(folder))
             raise ValueError(f"no clips in {folders} have content in {list(options.contents)}")
