@@ -134,6 +134,16 @@ def test_a_folder_mixing_units_is_refused_naming_the_outliers(motion_data, tmp_p
     build_dataset(folder, DatasetOptions(scale=1.0, up="y"), cache_dir=tmp_path / "cache", progress=False)
 
 
+def test_a_folder_mixing_up_axes_is_refused_naming_the_outliers(motion_data, tmp_path, variants):
+    _, paths = variants
+    folder = tmp_path / "mixed"
+    folder.mkdir()
+    shutil.copy(motion_data / "data" / "dataset-1_walk_normal_001.bvh", folder / "a-y-up.bvh")
+    shutil.copy(paths["z-up"], folder / "b-z-up.bvh")
+    with pytest.raises(ValueError, match=r"mix up axes: a-y-up\.bvh stands along y, but not b-z-up\.bvh"):
+        build_dataset(folder, DatasetOptions(), cache_dir=tmp_path / "cache", progress=False)
+
+
 def test_a_rig_without_sides_is_refused_naming_the_file_unless_pairs_are_given(clip_path, tmp_path):
     motion = load_motion(clip_path("walk_normal_001"))
     names = tuple(f"J{j}" for j in range(motion.skeleton.n_joints))

@@ -225,3 +225,23 @@ def test_reference_joints_above_the_pelvis_are_not_drawn():
     sides = [joint_side(name) for name in skeleton.names]
     assert sides == [CENTRE, CENTRE, CENTRE, LEFT, LEFT, RIGHT]
     assert joint_side("Hand.R") == RIGHT and joint_side("HandRight") == RIGHT
+
+
+def test_the_figure_fills_the_same_share_of_the_frame_whatever_its_size(walker):
+    def height(motion, camera=Camera()):
+        drawer = FrameDrawer(motion, camera, SIZE)
+        pixels = drawer.camera.to_pixels(drawer.joints_cam[0], SIZE)
+        return np.ptp(pixels[:, 1])
+
+    giant = Motion(walker.positions * 2.5, walker.fps,
+                   Skeleton(walker.skeleton.names, walker.skeleton.parents, walker.skeleton.offsets * 2.5))
+    assert height(giant) == pytest.approx(height(walker), rel=1e-6)
+    assert 0.3 * SIZE[1] < height(walker) < 0.6 * SIZE[1]
+    framed = Camera().framing(200.0)
+    assert framed.target_height == pytest.approx(0.58 * 200.0)
+    assert framed.distance == pytest.approx(200.0 / (2 * 0.48 * np.tan(np.radians(20.0))))
+    # A camera with its own distance (as studies made before framing stored) keeps it.
+    fixed = Camera(distance=420.0, target_height=85.0)
+    assert height(giant, fixed) > 2 * height(walker, fixed)
+    with pytest.raises(ValueError, match="call framing"):
+        Camera().eye_offset()

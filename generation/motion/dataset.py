@@ -445,8 +445,9 @@ def build_dataset(
                               rows, rows + motion.n_frames, motion.rotations is not None))
             rows += motion.n_frames
     if other_up:
-        raise ValueError(f"the files mix up axes: {files[0].name} stands along {options.up}, but "
-                         f"{len(other_up)} others do not: {', '.join(other_up[:10])}; give the up axis (--up)")
+        more = f" and {len(other_up) - 10} more" if len(other_up) > 10 else ""
+        raise ValueError(f"the files mix up axes: {files[0].name} stands along {options.up}, but not "
+                         f"{', '.join(other_up[:10])}{more}; give the up axis (--up)")
     arrays = {k: np.concatenate(v) for k, v in parts.items()}
     train = [c for c in clips if c.split == "train"]
     stats = {
