@@ -17,7 +17,7 @@ from PIL import Image, ImageDraw
 from generation.motion.types import Motion
 from generation.render.camera import Camera, character_size
 from generation.render.floor import FloorGrid
-from generation.render.figure import LEFT, RIGHT, body_root_index, figure_bones, hidden_joints, joint_side
+from generation.render.figure import LEFT, RIGHT, body_root_index, figure_bones, hidden_joints, joint_sides
 from generation.render.style import Style
 
 REFERENCE_HEIGHT = 480  # Style widths are pixels at this frame height and scale with it
@@ -80,7 +80,7 @@ class FrameDrawer:
 
         skeleton = motion.skeleton
         colours = {LEFT: style.bone_left, RIGHT: style.bone_right}
-        self.joint_colours = [colours.get(joint_side(name), style.bone) for name in skeleton.names]
+        self.joint_colours = [colours.get(side, style.bone) for side in joint_sides(skeleton)]
         self.bones = np.array(figure_bones(skeleton), dtype=np.int64).reshape(-1, 2)
         hidden = hidden_joints(skeleton)
         self.loose_joints = [  # joints in no drawn bone still get a dot
