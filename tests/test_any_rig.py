@@ -128,7 +128,7 @@ def test_a_folder_mixing_units_is_refused_naming_the_outliers(motion_data, tmp_p
     for name in ("walk_normal_001", "run_normal_001"):
         shutil.copy(motion_data / "data" / f"dataset-1_{name}.bvh", folder)
     shutil.copy(paths["metres"], folder / "in-metres.bvh")
-    with pytest.raises(ValueError, match=r"mix units: 2 are in cm.*not in-metres\.bvh \(1\.\d+ units tall: m\)"):
+    with pytest.raises(ValueError, match=r"mix units: 2 are in cm.*not in-metres\.bvh \(1\.\d+ units: m\)"):
         build_dataset(folder, DatasetOptions(), cache_dir=tmp_path / "cache", progress=False)
     # Given a scale, the files are read alike (the user has said what they are).
     build_dataset(folder, DatasetOptions(scale=1.0, up="y"), cache_dir=tmp_path / "cache", progress=False)

@@ -57,12 +57,12 @@ def _detect_scale(files: list[Path], root: RootOptions) -> tuple[float, str]:
     unit, _ = counts.most_common(1)[0]
     outliers = [p for p in files if units[p] != unit]
     if outliers:
-        def what(path: Path) -> str:
-            return f"{path.name} ({sizes[path]:.4g} units tall: {units[path] or 'no common unit'})"
-        listed = ", ".join(what(p) for p in outliers[:10]) + (f" and {len(outliers) - 10} more" if len(outliers) > 10 else "")
+        example = next(p for p in files if units[p] == unit)
+        listed = ", ".join(f"{p.name} ({sizes[p]:.4g} units: {units[p] or 'no common unit'})" for p in outliers[:10])
+        more = f" and {len(outliers) - 10} more" if len(outliers) > 10 else ""
         raise ValueError(
-            f"the files mix units: {counts[unit]} are in {unit or 'no common unit'} "
-            f"({what(next(p for p in files if units[p] == unit))}), but not {listed}; "
+            f"the files mix units: {counts[unit]} are in {unit or 'no common unit'} (such as {example.name}, "
+            f"{sizes[example]:.4g} units from foot to head), but not {listed}{more}; "
             "convert them, or give the scale (--scale) to read them all alike"
         )
     size = float(np.median(list(sizes.values())))
