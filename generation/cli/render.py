@@ -22,9 +22,9 @@ def render(args: argparse.Namespace) -> int:
         raise ValueError("with several input files, --out must be a folder")
     camera = camera_from(args)
     sources = [Path(source) for source in args.bvh]
-    choice = choose_units(sources, args.scale, up_axis(args))
-    print(choice.description)
     root = RootOptions(pairs=args.mirror_pairs)
+    choice = choose_units(sources, args.scale, up_axis(args), root)
+    print(choice.description)
     for source in tqdm(sources, desc="rendering", unit="clip", disable=len(sources) < 2):
         motion = load_body_motion(source, args.fps, scale=choice.units.scale, root=root, up=choice.units.up)
         target = out if out.suffix else out / f"{source.stem}.mp4"
