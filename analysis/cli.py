@@ -25,6 +25,7 @@ from analysis.objective import objective_metrics
 from analysis.ratings import read_ratings
 from analysis.report import build_report, write_report
 from analysis.tables import objective_table, to_markdown, write_table
+from analysis.units import parse_scale, to_centimetres_y_up
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -88,6 +89,11 @@ def _add_objective_parser(commands) -> None:
     objective.add_argument("--natural", default="NAT", help="name of the natural-motion system")
     objective.add_argument("--foot-joints", help="comma-separated foot joint names (default: found by name)")
     objective.add_argument("--foot-kind", choices=("heel", "toe"), default="heel")
+    objective.add_argument("--scale", default="auto",
+                           help="the motion's length unit: auto (from the figures' height), a unit (mm, cm, in, "
+                                "cmu, ft, m) or centimetres per unit (default %(default)s)")
+    objective.add_argument("--up", choices=("auto", "y", "z"), default="auto",
+                           help="the motion's up axis (default %(default)s: the one the figures stand along)")
 
 
 @contextmanager
@@ -114,7 +120,10 @@ def staged_output(out: Path) -> Iterator[Path]:
 
 def objective_command(args: argparse.Namespace, out: Path) -> list[str]:
     """Write the objective tables and figure into ``out``; returns the notes."""
-    table, curves, notes = objective_metrics(load_motion_sets(args.motion), _split(args.foot_joints), args.foot_kind)
+    motion, units = to_centimetres_y_up(load_motion_sets(args.motion), parse_scale(args.scale),
+                                        None if args.up == "auto" else args.up)
+    print(units)
+    table, curves, notes = objective_metrics(motion, _split(args.foot_joints), args.foot_kind)
     write_table(table, out / "tables", "objective_metrics")
     write_table(objective_table(table, args.natural), out / "tables", "table3_objective",
                 caption=f"Objective metrics (MoGlow Table 3 layout); marked: closest to {args.natural}.")

@@ -62,6 +62,33 @@ def find_foot_joints(names: Sequence[str], kind: str = "heel") -> list[str]:
     )
 
 
+def feet_of_rig(parents: Sequence[int], clips: Sequence[np.ndarray]) -> list[int]:
+    """The two end effectors (joints without children) lowest on average over the clips:
+    the feet of a rig whose joint names say nothing (toes, where a rig has them)."""
+    parents = np.asarray(parents)
+    ends = [j for j in range(len(parents)) if j not in set(parents.tolist())]
+    if len(ends) < 2:
+        raise AnalysisInputError("cannot find the feet: the skeleton has fewer than two end joints; "
+                                 "pass the foot joints explicitly (--foot-joints)")
+    height = np.mean([np.asarray(clip)[:, ends, 1].mean(axis=0) for clip in clips], axis=0)
+    return sorted(ends[i] for i in np.argsort(height, kind="stable")[:2])
+
+
+def choose_foot_joints(names: Sequence[str], parents: Sequence[int], clips: Sequence[np.ndarray],
+                       kind: str = "heel", given: Sequence[str] | None = None) -> list[int]:
+    """The indices of the foot joints: ``given`` by name, else found by name
+    (``find_foot_joints``), else the rig's lowest end effectors (``feet_of_rig``)."""
+    if given:
+        unknown = [f for f in given if f not in names]
+        if unknown:
+            raise AnalysisInputError(f"no joint(s) {', '.join(unknown)} in the skeleton ({', '.join(names)})")
+        return [list(names).index(f) for f in given]
+    try:
+        return [list(names).index(f) for f in find_foot_joints(names, kind)]
+    except AnalysisInputError:
+        return feet_of_rig(parents, clips)
+
+
 class FootSpeeds:
     """Horizontal foot speeds of many clips laid end to end, one NaN row between clips.
 

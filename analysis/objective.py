@@ -10,7 +10,7 @@ import pandas as pd
 
 from analysis.bones import bone_length_rmse
 from analysis.errors import AnalysisInputError
-from analysis.footsteps import DEFAULT_MIN_CONTACT_S, HUMAN_TOLERANCES, find_foot_joints, footstep_summary
+from analysis.footsteps import DEFAULT_MIN_CONTACT_S, HUMAN_TOLERANCES, choose_foot_joints, footstep_summary
 from analysis.motion_io import SystemClips
 from analysis.smoothness import lower_foot_speed, mean_joint_acceleration
 
@@ -27,15 +27,15 @@ def objective_metrics(motion: dict[str, SystemClips], foot_joints: Sequence[str]
     Returns (table with columns system, n_clips, steps_per_s, v_tol_95,
     step_duration_mean, step_duration_sd, bone_length_rmse, joint_acceleration,
     lower_foot_speed; curves with columns system, v_tol, footsteps, f_est; notes on
-    anything not computed). Foot joints are found by name (`find_foot_joints`) unless given.
+    anything not computed). Foot joints are found by name or from the rig (`choose_foot_joints`)
+    unless given.
     """
     rows, curves, notes = [], [], []
     for system, clips in sorted(motion.items()):
-        feet = list(foot_joints) if foot_joints else find_foot_joints(clips.names, foot_kind)
-        unknown = [f for f in feet if f not in clips.names]
-        if unknown:
-            raise AnalysisInputError(f"system {system!r} has no joint(s) {', '.join(unknown)}")
-        foot_indices = [clips.names.index(f) for f in feet]
+        try:
+            foot_indices = choose_foot_joints(clips.names, clips.parents, clips.clips, foot_kind, foot_joints)
+        except AnalysisInputError as error:
+            raise AnalysisInputError(f"system {system!r}: {error}") from None
         summary, curve = footstep_summary(clips.clips, clips.fps, foot_indices, tolerances, min_contact_s)
         if not np.isfinite(summary["v_tol_95"]):
             notes.append(f"{system}: no footsteps at any tolerance up to {tolerances[-1]:g} cm/s; "

@@ -8,15 +8,16 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from tqdm import tqdm
 
 from .files import write_atomic
 from .motion.bvh import bvh_duration
-from .motion.dataset import find_bvh_files, load_body_motion, read_labels
+from .motion.dataset import content_matches, find_bvh_files, load_body_motion, read_labels
 from .motion.root import RootOptions, root_trajectory
+from .motion.unit_detection import choose_units
 from .render import Camera, contact_sheet, render_video
 
 
@@ -28,6 +29,8 @@ class GalleryOptions:
     per_content: int = 1  # clips per content label
     contents: tuple[str, ...] | None = None
     camera: Camera = Camera()
+    scale: float | None = None  # the files' unit in cm; None: detected
+    up: str | None = None  # the files' up axis; None: detected
 
     def to_dict(self) -> dict:
         """JSON-serialisable, to send to a worker."""
@@ -35,7 +38,7 @@ class GalleryOptions:
             "fps": self.fps, "seconds": self.seconds, "size": list(self.size),
             "per_content": self.per_content,
             "contents": list(self.contents) if self.contents is not None else None,
-            "camera": self.camera.to_dict(),
+            "camera": self.camera.to_dict(), "scale": self.scale, "up": self.up,
         }
 
     @classmethod
@@ -44,7 +47,7 @@ class GalleryOptions:
             fps=data["fps"], seconds=data["seconds"], size=tuple(data["size"]),
             per_content=data["per_content"],
             contents=tuple(data["contents"]) if data["contents"] is not None else None,
-            camera=Camera.from_dict(data["camera"]),
+            camera=Camera.from_dict(data["camera"]), scale=data.get("scale"), up=data.get("up"),
         )
 
 
@@ -57,7 +60,7 @@ def choose_clips(folder: str | os.PathLike, per_content: int, contents: tuple[st
     files = sorted(labels, key=lambda p: (bvh_duration(p) < seconds, labels[p][1] != "normal", p.name))
     for path in files:
         content = labels[path][0]
-        if contents is not None and content not in contents:
+        if contents is not None and not any(content_matches(content, c) for c in contents):
             continue
         group = chosen.setdefault(content, [])
         if len(group) < per_content:
@@ -68,7 +71,8 @@ def choose_clips(folder: str | os.PathLike, per_content: int, contents: tuple[st
 def render_clip(path: Path, out_dir: Path, options: GalleryOptions) -> dict:
     """Render one BVH clip (video and contact sheet) unless already there; its index entry."""
     video, sheet = out_dir / f"{path.stem}.mp4", out_dir / f"{path.stem}.png"
-    motion = load_body_motion(path, options.fps, options.seconds)
+    units = choose_units([path], options.scale, options.up).units
+    motion = load_body_motion(path, options.fps, options.seconds, units.scale, up=units.up)
     floor = root_trajectory(motion, RootOptions()).xz
     if not video.exists():
         render_video(motion, video, camera=options.camera, size=options.size, root_path=floor)
@@ -95,9 +99,15 @@ def write_index(out_dir: str | os.PathLike, entries: list[dict]) -> Path:
 
 
 def build_gallery(folder: str | os.PathLike, out_dir: str | os.PathLike, options: GalleryOptions = GalleryOptions(), progress: bool = True) -> list[dict]:
-    """Render the chosen clips into ``out_dir`` and write its ``index.json``."""
+    """Render the chosen clips into ``out_dir`` and write its ``index.json``; units the
+    options leave open are detected for all the clips together (and printed)."""
     out_dir = Path(out_dir)
     clips = choose_clips(folder, options.per_content, options.contents, options.seconds)
+    if clips and (options.scale is None or options.up is None):
+        choice = choose_units(clips, options.scale, options.up)
+        options = replace(options, scale=choice.units.scale, up=choice.units.up)
+        if progress:
+            print(choice.description)
     entries = [render_clip(p, out_dir, options) for p in tqdm(clips, desc="rendering gallery", unit="clip", disable=not progress)]
     write_index(out_dir, entries)
     return entries

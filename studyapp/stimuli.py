@@ -119,7 +119,7 @@ def stimulus_motion(stimulus: Stimulus) -> tuple[Motion, np.ndarray]:
         source = Path(settings.MOTION_DATA) / control.source_clip
         if not source.is_file():
             raise FileNotFoundError(f"the natural clip {source} is missing (MOTION_DATA={settings.MOTION_DATA})")
-        motion = load_body_motion(source, options.fps, control.seconds, options.scale, options.root)
+        motion = load_body_motion(source, options.fps, control.seconds, options.scale, options.root, options.up)
         return motion, root_trajectory(motion, options.root).xz
     path = system.checkpoint_path()
     if path is None or not path.is_file():

@@ -9,16 +9,29 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 MOTION_DATA = Path(os.environ.get("MOTION_DATA", REPO.parent / "shared" / "data" / "bandai-namco-1")).resolve()
+MOTION_DATA_2 = Path(os.environ.get(
+    "MOTION_DATA_2", REPO.parent / "shared" / "data" / "bandai-namco-2-locomotion")).resolve()
+
+
+def _real_data(folder: Path, variable: str) -> Path:
+    if not (folder / "data").is_dir():
+        if os.environ.get("CI"):
+            pytest.fail(f"real motion data not found at {folder}; set {variable}")
+        pytest.skip(f"real motion data not found at {folder}; set {variable}")
+    return folder
 
 
 @pytest.fixture(scope="session")
 def motion_data() -> Path:
     """The real BVH folder (the Bandai-Namco data); tests that need it fail in CI without it."""
-    if not (MOTION_DATA / "data").is_dir():
-        if os.environ.get("CI"):
-            pytest.fail(f"real motion data not found at {MOTION_DATA}; set MOTION_DATA")
-        pytest.skip(f"real motion data not found at {MOTION_DATA}; set MOTION_DATA")
-    return MOTION_DATA
+    return _real_data(MOTION_DATA, "MOTION_DATA")
+
+
+@pytest.fixture(scope="session")
+def motion_data_2() -> Path:
+    """Bandai-Namco dataset-2's locomotion (another BVH formatting, data the project was
+    not written on); tests that need it fail in CI without it."""
+    return _real_data(MOTION_DATA_2, "MOTION_DATA_2")
 
 
 @pytest.fixture(scope="session")

@@ -21,10 +21,11 @@ from scipy.signal import find_peaks
 from analysis.bones import bone_length_rmse, rigid_bones
 from analysis.correlation import subjective_objective_correlation
 from analysis.errors import AnalysisInputError
-from analysis.footsteps import (FootSpeeds, find_foot_joints, footstep_summary,
+from analysis.footsteps import (FootSpeeds, choose_foot_joints, find_foot_joints, footstep_summary,
                                 footstep_tolerance_curve, step_durations, v_tol_95)
 from analysis.scores import frechet_distance, inception_score
 from analysis.smoothness import lower_foot_speed, mean_joint_acceleration
+from analysis.units import Z_UP_TO_Y_UP
 
 
 @pytest.fixture(scope="module")
@@ -201,3 +202,33 @@ def test_correlation_between_ratings_and_metrics_notes_what_it_cannot_compute():
     assert table["metric"].tolist() == ["v_tol_95"]
     assert table["r"].iloc[0] < -0.9
     assert any("bone_length_rmse" in n and "constant" in n for n in notes)
+
+
+def test_feet_are_the_lowest_end_joints_when_names_say_nothing(walks):
+    skeleton = walks[0].skeleton
+    nameless = [f"J{j}" for j in range(skeleton.n_joints)]
+    clips = [w.positions for w in walks[:3]]
+    feet = choose_foot_joints(nameless, skeleton.parents, clips)
+    assert feet == [skeleton.index("Toes_L"), skeleton.index("Toes_R")]
+    assert choose_foot_joints(skeleton.names, skeleton.parents, clips) == [skeleton.index("Foot_L"), skeleton.index("Foot_R")]
+    assert choose_foot_joints(nameless, skeleton.parents, clips, given=["J2"]) == [2]
+    with pytest.raises(AnalysisInputError, match="no joint.* Heel_L"):
+        choose_foot_joints(nameless, skeleton.parents, clips, given=["Heel_L"])
+
+
+def test_objective_metrics_of_motion_in_metres_with_z_up_equal_those_in_centimetres(walks, tmp_path, capsys):
+    from analysis.cli import main
+    from analysis.motion_io import save_clips
+
+    skeleton = walks[0].skeleton
+    for name, scale, rotation in (("cm", 1.0, np.eye(3)), ("m-z-up", 0.01, Z_UP_TO_Y_UP.T)):
+        (tmp_path / name / "NAT").mkdir(parents=True)
+        for k, walk in enumerate(walks[:4]):
+            save_clips(tmp_path / name / "NAT" / f"{k}.npz", walk.positions @ rotation.T * scale, walk.fps,
+                       skeleton.names, skeleton.parents, skeleton.offsets * scale)
+        assert main(["objective", str(tmp_path / name), "--out", str(tmp_path / f"out-{name}")]) == 0
+    said = capsys.readouterr().out
+    assert "motion units: cm, y up" in said and "motion units: m, z up" in said
+    tables = [pd.read_csv(tmp_path / f"out-{name}" / "tables" / "objective_metrics.csv") for name in ("cm", "m-z-up")]
+    pd.testing.assert_frame_equal(tables[0], tables[1], rtol=1e-4, atol=1e-4)  # float32 files
+    assert tables[0]["steps_per_s"].iloc[0] > 1.0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from generation.cli import main
 from generation.gallery import GalleryOptions, build_gallery
@@ -74,3 +75,47 @@ def test_natural_clips_export_feeds_the_objective_metrics(motion_data, tmp_path,
     table = (tmp_path / "objective" / "tables" / "objective_metrics.csv").read_text()
     assert table.startswith("system,n_clips,v_tol_95,steps_per_s")
     assert "NAT" in table and (tmp_path / "objective" / "figures" / "footstep_curves.png").is_file()
+
+
+def test_commands_read_other_units_and_up_axes_and_say_which(clip_path, tmp_path, capsys):
+    from tests.rig_variants import write_variants
+
+    variants = write_variants(clip_path("walk_normal_001"), tmp_path / "rigs")
+    odd = variants["cmu, z-up, inches"]
+    assert main(["render", str(odd), "-o", str(tmp_path / "odd.mp4"), "--size", "160x120"]) == 0
+    assert "motion units: inches (x2.54 to cm), z up (unit detected" in capsys.readouterr().out
+    assert main(["info", str(odd), "--scale", "in", "--up", "z"]) == 0
+    assert "motion units: inches (x2.54 to cm), z up (scale given; up axis given)" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exit_:
+        main(["render", str(odd), "-o", str(tmp_path / "x.mp4"), "--scale", "furlongs"])
+    assert exit_.value.code == 2 and "scale must be auto, a unit" in capsys.readouterr().err
+
+
+def test_build_dataset_refuses_mixed_units_naming_the_outliers(clip_path, tmp_path, capsys):
+    from tests.rig_variants import write_variants
+
+    folder = tmp_path / "mixed"
+    folder.mkdir()
+    for name in ("walk_normal_001", "run_normal_001"):
+        (folder / f"{name}.bvh").symlink_to(clip_path(name))
+    write_variants(clip_path("walk_happy_001"), tmp_path / "rigs")["metres"].rename(folder / "metres.bvh")
+    assert main(["build-dataset", str(folder), "--cache-dir", str(tmp_path / "cache")]) == 2
+    assert "2 are in cm (such as run_normal_001.bvh, 161.2 units from foot to head), but not metres.bvh (1.462 units: m)" \
+        in capsys.readouterr().err
+    assert main(["build-dataset", str(folder), "--cache-dir", str(tmp_path / "cache"), "--scale", "cm"]) == 0
+
+
+def test_natural_exports_every_clip_of_a_folder_without_labels_and_names_short_takes(clip_path, tmp_path, capsys):
+    folder = tmp_path / "unlabelled"
+    folder.mkdir()
+    names = ["walk_normal_001", "walk_happy_001", "walk_old_001", "run_normal_001", "walk_normal_002"]
+    for name in names:
+        (folder / f"{name}.bvh").symlink_to(clip_path(name))
+    out = tmp_path / "NAT"
+    assert main(["natural", str(folder), "--split", "train", "--out", str(out), "--cache-dir", str(tmp_path / "cache")]) == 0
+    said = capsys.readouterr()
+    assert "no content labels: all of them are used" in said.out
+    assert "take(s) shorter than one 4-s window give no windows" in said.err  # run_normal_001 lasts 0.8 s
+    assert "run_normal_001" in said.err or "walk_normal_002" in said.err
+    exported = {p.stem for p in out.glob("*.npz")}
+    assert exported and exported <= set(names)

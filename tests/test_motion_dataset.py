@@ -8,7 +8,8 @@ import time
 import numpy as np
 import pytest
 
-from generation.motion.dataset import DatasetOptions, MotionDataset, build_dataset, find_bvh_files, split_takes
+from generation.motion.dataset import (SPLITS, DatasetOptions, MotionDataset, build_dataset, contents_or_all, find_bvh_files,
+                                      split_takes)
 
 CLIPS = [f"{c}_{s}_001" for c in ("walk", "walk-left", "run") for s in ("normal", "happy", "old")] + ["walk_normal_002"]
 
@@ -122,3 +123,64 @@ def test_pooled_folders_with_the_same_clip_name_are_refused(small_folder, tmp_pa
     (other / source.name).write_bytes(source.read_bytes())
     with pytest.raises(ValueError, match="also in"):
         find_bvh_files([small_folder, other])
+
+
+def copy_of(small_folder, tmp_path, name: str, labels_beside: bool = False):
+    """A folder of links to the clips (and their JSON labels unless told) with its own
+    copies of the label-name files: in cfg/, or beside the clips."""
+    folder = tmp_path / name
+    data = folder / "data"
+    data.mkdir(parents=True)
+    for path in (small_folder / "data").iterdir():
+        (data / path.name).symlink_to(path.resolve())
+    names = data if labels_beside else folder / "cfg"
+    names.mkdir(exist_ok=True)
+    for kind in ("content", "style"):
+        (names / f"{kind}_label.txt").write_text((small_folder / "cfg" / f"{kind}_label.txt").read_text())
+    return folder
+
+
+def test_renaming_a_label_rebuilds_the_cache_and_keeps_the_fingerprint(small_folder, tmp_path):
+    folder = copy_of(small_folder, tmp_path, "renamed")
+    first = build_dataset(folder, DatasetOptions(), cache_dir=tmp_path / "cache", progress=False)
+    names = folder / "cfg" / "content_label.txt"
+    names.write_text(names.read_text().replace("dataset-1_walk-left\n", "dataset-1_sidestep\n"))
+    again = build_dataset(folder, DatasetOptions(), cache_dir=tmp_path / "cache", progress=False)
+    assert {c.content for c in first.clips} == {"walk", "walk-left", "run"}
+    assert {c.content for c in again.clips} == {"walk", "sidestep", "run"}
+    assert again.fingerprint == first.fingerprint  # the same data: checkpoints' records stay valid
+    assert len(list((tmp_path / "cache").glob("dataset-*.npz"))) == 2
+
+
+def test_label_names_beside_the_clips_and_contents_with_a_dataset_prefix_are_read(small_folder, tmp_path):
+    folder = copy_of(small_folder, tmp_path, "beside", labels_beside=True)
+    dataset = build_dataset(folder, DatasetOptions(contents=("dataset-1_run", "walk")),
+                            cache_dir=tmp_path / "cache", progress=False)
+    assert {c.content for c in dataset.clips} == {"walk", "run"}
+    assert {c.style for c in dataset.clips} == {"normal", "happy", "old"}
+
+
+def test_a_folder_without_labels_gives_every_clip_as_one_content(small_folder, tmp_path):
+    folder = tmp_path / "unlabelled"
+    folder.mkdir()
+    for path in (small_folder / "data").glob("*.bvh"):
+        (folder / path.name).symlink_to(path.resolve())
+    assert contents_or_all(folder, ("walk", "run")) is None
+    assert contents_or_all(small_folder, ("walk", "run")) == ("walk", "run")
+    dataset = build_dataset(folder, DatasetOptions(), cache_dir=tmp_path / "cache", progress=False)
+    assert len(dataset.select("train", augmented=False)) + len(dataset.select("validation")) \
+        + len(dataset.select("test")) == len(CLIPS)
+    assert {(c.content, c.style) for c in dataset.clips} == {(None, None)}
+
+
+def test_takes_too_short_for_a_window_are_named(small_folder, tmp_path):
+    dataset = build_dataset(small_folder, DatasetOptions(), cache_dir=tmp_path, progress=False)
+    short = {"dataset-1_run_normal_001", "dataset-1_walk_normal_002", "dataset-1_run_old_001"}  # 0.8, 1.0, 3.4 s
+    assert {name for split in SPLITS for name in dataset.takes_without_windows(split)} == short
+    warnings = dataset.window_warnings()
+    assert sum(int(line.split()[0]) for line in warnings) == 3
+    assert all("shorter than one 4-s window give no windows" in line for line in warnings)
+    for split, role in (("train", "training"), ("validation", "validation"), ("test", "held-out")):
+        named = dataset.takes_without_windows(split)
+        assert any(line.startswith(f"{len(named)} {role}") and all(n in line for n in named)
+                   for line in warnings) == bool(named)

@@ -19,7 +19,7 @@ import pytest
 from generation.motion.types import Motion, Skeleton
 from generation.render import Camera, FrameDrawer, Style, contact_sheet, render_video
 from generation.render.draw import frame_indices
-from generation.render.figure import LEFT, RIGHT, CENTRE, body_root_index, figure_bones, joint_side
+from generation.render.figure import LEFT, RIGHT, CENTRE, body_root_index, figure_bones, joint_sides
 from generation.render.synthetic import walking_in_a_circle
 
 SIZE = (160, 120)
@@ -99,7 +99,7 @@ def test_joints_appear_where_the_camera_projects_them(walker, video):
     background = np.array(Style().background)
     for k in (0, 10, 19):
         source = drawer.source[k]
-        pixels, visible = Camera().project(walker.positions[source], drawer.targets[k], SIZE)
+        pixels, visible = drawer.camera.project(walker.positions[source], drawer.targets[k], SIZE)
         assert visible.all()
         for j in (walker.skeleton.index("Head"), walker.skeleton.index("Foot_L")):
             x, y = np.round(pixels[j]).astype(int)
@@ -214,14 +214,32 @@ def test_root_path_override_is_drawn_on_the_floor(walker):
     assert near_future.sum() > 20
 
 
-def test_reference_joints_above_the_pelvis_are_not_drawn():
+def test_reference_joints_above_the_pelvis_are_not_drawn_and_sides_follow_the_mirror_pairs():
     skeleton = Skeleton(
-        names=("joint_Root", "Hips", "Spine", "UpperLeg_L", "LeftFoot", "R_Foot"),
-        parents=np.array([-1, 0, 1, 1, 3, 1]),
-        offsets=np.zeros((6, 3)),
+        names=("joint_Root", "Hips", "Spine", "UpperLeg_L", "UpperLeg_R", "mixamorig:LeftFoot", "mixamorig:RightFoot"),
+        parents=np.array([-1, 0, 1, 1, 1, 3, 4]),
+        offsets=np.zeros((7, 3)),
     )
     assert body_root_index(skeleton) == 1
-    assert figure_bones(skeleton) == [(1, 2), (1, 3), (3, 4), (1, 5)]
-    sides = [joint_side(name) for name in skeleton.names]
-    assert sides == [CENTRE, CENTRE, CENTRE, LEFT, LEFT, RIGHT]
-    assert joint_side("Hand.R") == RIGHT and joint_side("HandRight") == RIGHT
+    assert figure_bones(skeleton) == [(1, 2), (1, 3), (1, 4), (3, 5), (4, 6)]
+    assert joint_sides(skeleton) == [CENTRE, CENTRE, CENTRE, LEFT, RIGHT, LEFT, RIGHT]
+
+
+def test_the_figure_fills_the_same_share_of_the_frame_whatever_its_size(walker):
+    def height(motion, camera=Camera()):
+        drawer = FrameDrawer(motion, camera, SIZE)
+        pixels = drawer.camera.to_pixels(drawer.joints_cam[0], SIZE)
+        return np.ptp(pixels[:, 1])
+
+    giant = Motion(walker.positions * 2.5, walker.fps,
+                   Skeleton(walker.skeleton.names, walker.skeleton.parents, walker.skeleton.offsets * 2.5))
+    assert height(giant) == pytest.approx(height(walker), rel=1e-6)
+    assert 0.3 * SIZE[1] < height(walker) < 0.6 * SIZE[1]
+    framed = Camera().framing(200.0)
+    assert framed.target_height == pytest.approx(0.58 * 200.0)
+    assert framed.distance == pytest.approx(200.0 / (2 * 0.48 * np.tan(np.radians(20.0))))
+    # A camera with its own distance (as studies made before framing stored) keeps it.
+    fixed = Camera(distance=420.0, target_height=85.0)
+    assert height(giant, fixed) > 2 * height(walker, fixed)
+    with pytest.raises(ValueError, match="call framing"):
+        Camera().eye_offset()

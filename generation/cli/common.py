@@ -1,9 +1,13 @@
-"""What several command groups share: the camera arguments of every rendering command."""
+"""What several command groups share: the camera arguments of every rendering command,
+and the unit and rig arguments of every command that reads BVH files."""
 
 from __future__ import annotations
 
 import argparse
+import sys
 
+from ..motion.root import RootOptions
+from ..motion.units import parse_scale
 from ..render import Camera
 
 
@@ -21,10 +25,59 @@ def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("camera (keep it the same for every system of a study)")
     group.add_argument("--azimuth", type=float, default=default.azimuth, help="degrees about the vertical (default %(default)s)")
     group.add_argument("--elevation", type=float, default=default.elevation, help="degrees above the horizon (default %(default)s)")
-    group.add_argument("--distance", type=float, default=default.distance, help="cm from the character (default %(default)s)")
+    group.add_argument("--distance", type=float, default=default.distance,
+                       help="cm from the character (default: its foot-to-head length fills "
+                            f"{default.figure_share * 100:.0f} %% of the frame's height)")
     group.add_argument("--size", type=_size, default=(640, 480), help="frame size WIDTHxHEIGHT (default 640x480)")
     group.add_argument("--fps", type=float, default=20.0, help="frame rate of the video (default %(default)s)")
 
 
 def camera_from(args: argparse.Namespace) -> Camera:
     return Camera(azimuth=args.azimuth, elevation=args.elevation, distance=args.distance)
+
+
+def _scale(text: str) -> float | None:
+    try:
+        return parse_scale(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def _pairs(text: str) -> dict[str, str]:
+    pairs = {}
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        left, colon, right = item.partition(":")
+        if not (colon and left and right):
+            raise argparse.ArgumentTypeError(f"mirror pairs look like LeftArm:RightArm,LeftLeg:RightLeg, got {item!r}")
+        pairs[left] = right
+    return pairs
+
+
+def add_unit_arguments(parser: argparse.ArgumentParser, pairs: bool = True) -> None:
+    """The files' unit and up axis (detected unless given) and, with ``pairs``, the
+    left/right joints of rigs whose names follow no convention."""
+    group = parser.add_argument_group("units and rig (everything is read into cm, y up)")
+    group.add_argument("--scale", type=_scale, default=None, metavar="auto|UNIT|NUMBER",
+                       help="the files' length unit: auto (from the skeleton's size), mm, cm, in, cmu (CMU's "
+                            "5.64 cm), ft, m, or centimetres per unit (default auto)")
+    group.add_argument("--up", choices=("auto", "y", "z"), default="auto",
+                       help="the files' up axis (default auto: from the floor)")
+    if pairs:
+        group.add_argument("--mirror-pairs", type=_pairs, metavar="LEFT:RIGHT,...",
+                           help="left and right joints for the facing and mirroring, where names follow no "
+                                "convention (default: paired by name)")
+
+
+def dataset_units(args: argparse.Namespace) -> dict:
+    """The ``DatasetOptions`` fields that the unit and rig arguments set."""
+    pairs = getattr(args, "mirror_pairs", None)
+    return {"scale": args.scale, "up": up_axis(args), "mirror_pairs": pairs, "root": RootOptions(pairs=pairs)}
+
+
+def up_axis(args: argparse.Namespace) -> str | None:
+    return None if args.up == "auto" else args.up
+
+
+def warn(lines: list[str]) -> None:
+    for line in lines:
+        print(f"warning: {line}", file=sys.stderr)

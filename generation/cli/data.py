@@ -8,6 +8,8 @@ from pathlib import Path
 
 from ..motion.bvh import read_bvh
 from ..motion.dataset import SPLITS, DatasetOptions, MotionDataset, build_dataset, default_cache_dir
+from ..motion.unit_detection import choose_units
+from .common import add_unit_arguments, dataset_units, up_axis, warn
 
 
 def info(args: argparse.Namespace) -> int:
@@ -22,7 +24,9 @@ def info(args: argparse.Namespace) -> int:
         print("options:", json.dumps(dataset.options.to_dict()))
         return 0
     bvh = read_bvh(path)
-    motion = bvh.to_motion()
+    choice = choose_units([path], args.scale, up_axis(args))
+    motion = bvh.to_motion(choice.units.scale, choice.units.up)
+    print(choice.description)
     print(f"{path}: {len(bvh.values)} frames at {bvh.fps:g} fps ({motion.duration:.2f} s), {bvh.skeleton.n_joints} joints, {bvh.values.shape[1]} channels")
     for j, name in enumerate(bvh.skeleton.names):
         parent = bvh.skeleton.names[bvh.skeleton.parents[j]] if bvh.skeleton.parents[j] >= 0 else "-"
@@ -42,9 +46,10 @@ def build(args: argparse.Namespace) -> int:
         validation_fraction=args.validation,
         seed=args.seed,
         angle_representation=args.representation,
-        scale=args.scale,
+        **dataset_units(args),
     )
     dataset = build_dataset(args.folder, options, cache_dir=args.cache_dir)
+    warn(dataset.window_warnings())
     dataset.require_training_windows()
     if args.out:
         dataset.save(args.out)
@@ -61,6 +66,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     """Add the group's commands to the ``generation`` command line's subparsers."""
     p = commands.add_parser("info", help="describe a BVH file or a dataset .npz")
     p.add_argument("path", help="a .bvh file or a dataset .npz")
+    add_unit_arguments(p, pairs=False)
     p.set_defaults(run=info)
 
     p = commands.add_parser("build-dataset", help="encode a BVH folder into a cached training set",
@@ -83,5 +89,5 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
                         "(default %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="seed of the held-out choice (default %(default)s)")
     p.add_argument("--representation", choices=("quaternion", "expmap"), default="quaternion", help="joint rotations as (default %(default)s)")
-    p.add_argument("--scale", type=float, default=1.0, help="multiply lengths by this to get centimetres (default %(default)s)")
+    add_unit_arguments(p)
     p.set_defaults(run=build)

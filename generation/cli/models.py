@@ -17,12 +17,12 @@ from tqdm import tqdm
 
 from ..control import PRESETS, held_out_paths, load_control_file, preset_path
 from ..motion.bvh import motion_to_bvh, write_bvh
-from ..motion.dataset import DatasetOptions, build_dataset, find_bvh_files, load_body_motion
+from ..motion.dataset import DatasetOptions, build_dataset, contents_or_all, find_bvh_files, load_body_motion
 from ..motion.npz import save_motion_npz
 from ..motion.root import RootOptions, root_trajectory
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
-from .common import add_camera_arguments, camera_from
+from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, up_axis, warn
 
 
 LOCOMOTION = "walk,run,dash,walk-back,walk-left,walk-right"
@@ -35,12 +35,22 @@ def _dataset_for_training(args: argparse.Namespace, attributes: bool):
         from ..hvrnn.data import load_attribute_data
 
         contents = tuple(args.contents.split(",")) if args.contents else None
-        return load_attribute_data(args.folder, contents, cache_dir=args.cache_dir)
-    options = DatasetOptions(contents=tuple((args.contents or LOCOMOTION).split(",")), reverse=args.reverse,
-                             overlap=args.overlap)
+        return load_attribute_data(args.folder, contents, cache_dir=args.cache_dir, scale=args.scale, up=up_axis(args))
+    options = DatasetOptions(contents=_contents(args), reverse=args.reverse, overlap=args.overlap, **dataset_units(args))
     dataset = build_dataset(args.folder, options, cache_dir=args.cache_dir)
+    warn(dataset.window_warnings())
     dataset.require_training_windows()
     return dataset
+
+
+def _contents(args: argparse.Namespace) -> tuple[str, ...] | None:
+    """--contents, else the locomotion contents, or every clip of folders without labels."""
+    if args.contents:
+        return tuple(args.contents.split(","))
+    contents = contents_or_all(args.folder, tuple(LOCOMOTION.split(",")))
+    if contents is None:
+        print("note: the clips have no content labels: all of them are used, as one content")
+    return contents
 
 
 def train_command(args: argparse.Namespace) -> int:
@@ -144,13 +154,15 @@ def _sample_attributes(args: argparse.Namespace, generator) -> int:
 
 
 def natural_command(args: argparse.Namespace) -> int:
-    options = DatasetOptions(contents=tuple(args.contents.split(",")) if args.contents else None)
-    dataset = build_dataset(args.folder, options, cache_dir=args.cache_dir)
+    dataset = build_dataset(args.folder, DatasetOptions(contents=_contents(args), **dataset_units(args)),
+                            cache_dir=args.cache_dir)
+    warn(dataset.window_warnings())
+    options = dataset.options  # with the units as detected
     clips = dataset.select(args.split, augmented=False)
     files = {p.stem: p for p in find_bvh_files(args.folder)}
     out = Path(args.out)
     for clip in tqdm(clips, desc="natural clips", unit="clip", disable=len(clips) < 2):
-        motion = load_body_motion(files[clip.name], options.fps, args.seconds, options.scale, options.root)
+        motion = load_body_motion(files[clip.name], options.fps, args.seconds, options.scale, options.root, options.up)
         save_motion_npz(motion, out / f"{clip.name}.npz")
         if args.render:
             floor = root_trajectory(motion, options.root).xz
@@ -204,7 +216,8 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--steps", type=int, default=4000, help="total training steps (default %(default)s)")
     p.add_argument("--eval-every", type=int, default=250, help="steps between validation and checkpoint (default %(default)s)")
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint at --out")
-    p.add_argument("--contents", help="content labels to train on (default: locomotion for path models, all for attribute models)")
+    p.add_argument("--contents", help="content labels to train on (default: locomotion for path models, all for "
+                                      "attribute models; every clip where the clips have no labels)")
     p.add_argument("--reverse", action="store_true", help="path models: also train on the training takes played backwards "
                    "(as the MoGlow authors' locomotion set-up does; held-out takes are never augmented)")
     p.add_argument("--overlap", type=float, default=0.5, help="path models: overlap of consecutive 4-s training "
@@ -213,6 +226,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--device", default="cpu", help="cpu or cuda (default %(default)s)")
     p.add_argument("--threads", type=int, help="CPU threads for torch")
     p.add_argument("--seed", type=int, default=0)
+    add_unit_arguments(p)
     p.set_defaults(run=train_command)
 
     p = commands.add_parser("sample", help="generate motion for control signals",
@@ -248,11 +262,12 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("folder", nargs="+", help="folder of .bvh files; several are pooled (clip names must differ)")
     p.add_argument("--out", "-o", required=True, help="output folder")
     p.add_argument("--split", choices=("test", "train"), default="test", help="which takes (default: held-out)")
-    p.add_argument("--contents", default=LOCOMOTION, help="content labels (default: locomotion)")
+    p.add_argument("--contents", help="content labels (default: locomotion; every clip where the clips have no labels)")
     p.add_argument("--seconds", type=float, default=4.0, help="length of each clip (default %(default)s)")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--render", action="store_true", help="also render each clip to MP4")
     add_camera_arguments(p)
+    add_unit_arguments(p)
     p.set_defaults(run=natural_command)
 
     p = commands.add_parser("evaluate", help="held-out loss of a checkpoint")

@@ -10,8 +10,9 @@ from tqdm import tqdm
 from ..gallery import GalleryOptions, build_gallery
 from ..motion.dataset import load_body_motion
 from ..motion.root import RootOptions, root_trajectory
+from ..motion.unit_detection import choose_units
 from ..render import contact_sheet, render_video
-from .common import add_camera_arguments, camera_from
+from .common import add_camera_arguments, add_unit_arguments, camera_from, up_axis
 
 
 def render(args: argparse.Namespace) -> int:
@@ -20,11 +21,17 @@ def render(args: argparse.Namespace) -> int:
     if len(args.bvh) > 1 and out.suffix:
         raise ValueError("with several input files, --out must be a folder")
     camera = camera_from(args)
-    for source in tqdm(args.bvh, desc="rendering", unit="clip", disable=len(args.bvh) < 2):
-        source = Path(source)
-        motion = load_body_motion(source, args.fps)
+    sources = [Path(source) for source in args.bvh]
+    root = RootOptions(pairs=args.mirror_pairs)
+    choice = choose_units(sources, args.scale, up_axis(args), root)
+    print(choice.description)
+    for source in tqdm(sources, desc="rendering", unit="clip", disable=len(sources) < 2):
+        motion = load_body_motion(source, args.fps, scale=choice.units.scale, root=root, up=choice.units.up)
         target = out if out.suffix else out / f"{source.stem}.mp4"
-        floor = root_trajectory(motion, RootOptions()).xz
+        try:
+            floor = root_trajectory(motion, root).xz
+        except ValueError as error:
+            raise ValueError(f"{source}: {error}") from None
         render_video(motion, target, camera=camera, size=args.size, root_path=floor)
         if args.sheet:
             contact_sheet(motion, target.with_suffix(".png"), camera=camera, root_path=floor)
@@ -36,6 +43,7 @@ def gallery(args: argparse.Namespace) -> int:
     options = GalleryOptions(
         fps=args.fps, seconds=args.seconds, size=args.size, per_content=args.per_content,
         contents=tuple(args.contents.split(",")) if args.contents else None, camera=camera_from(args),
+        scale=args.scale, up=up_axis(args),
     )
     entries = build_gallery(args.folder, args.out, options)
     print(f"{len(entries)} clips in {args.out} (index.json lists them)")
@@ -49,6 +57,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--out", "-o", required=True, help="an .mp4 path (one input) or a folder")
     p.add_argument("--sheet", action="store_true", help="also write a contact-sheet PNG beside each video")
     add_camera_arguments(p)
+    add_unit_arguments(p)
     p.set_defaults(run=render)
 
     p = commands.add_parser("gallery", help="render a few natural clips per content label, with index.json")
@@ -58,4 +67,5 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--contents", help="comma-separated content labels to include")
     p.add_argument("--seconds", type=float, default=4.0, help="length of each clip (default %(default)s)")
     add_camera_arguments(p)
+    add_unit_arguments(p, pairs=False)
     p.set_defaults(run=gallery)

@@ -39,10 +39,12 @@ HOLDOUT_FRACTION = 0.2
 PARTS = ("train", "classifier", "model", "validation", "test")
 
 
-def dataset_options(contents: tuple[str, ...] | None = None, seed: int = 0) -> DatasetOptions:
-    """The dataset options of every attribute-controlled model (see the module docstring)."""
+def dataset_options(contents: tuple[str, ...] | None = None, seed: int = 0,
+                    scale: float | None = None, up: str | None = None) -> DatasetOptions:
+    """The dataset options of every attribute-controlled model (see the module docstring);
+    the files' unit and up axis are detected unless given."""
     return DatasetOptions(fps=FPS, window_seconds=MAX_FRAMES / FPS, overlap=0.5, mirror=False, reverse=False,
-                          contents=contents, holdout_fraction=HOLDOUT_FRACTION, seed=seed)
+                          contents=contents, holdout_fraction=HOLDOUT_FRACTION, seed=seed, scale=scale, up=up)
 
 
 @dataclass(frozen=True)
@@ -227,7 +229,8 @@ class AttributeData:
 
 
 def load_attribute_data(folder: str | os.PathLike, contents: tuple[str, ...] | None = None,
-                        cache_dir: str | os.PathLike | None = None, progress: bool = True, seed: int = 0) -> AttributeData:
+                        cache_dir: str | os.PathLike | None = None, progress: bool = True, seed: int = 0,
+                        scale: float | None = None, up: str | None = None) -> AttributeData:
     """Build (or reuse from the cache) the angle dataset of a BVH folder with labels."""
-    dataset = build_dataset(folder, dataset_options(contents, seed), cache_dir=cache_dir, progress=progress)
+    dataset = build_dataset(folder, dataset_options(contents, seed, scale, up), cache_dir=cache_dir, progress=progress)
     return AttributeData.from_dataset(dataset, seed)

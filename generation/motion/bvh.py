@@ -21,6 +21,7 @@ from ..files import write_atomic
 from .kinematics import forward_kinematics
 from .rotations import euler_to_matrix, matrix_to_euler, matrix_to_quat, quat_to_matrix
 from .types import Motion, Skeleton
+from .units import Z_UP_TO_Y_UP, Units
 
 POSITION_AXIS = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
 ROTATION_AXIS = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
@@ -70,11 +71,14 @@ class BVH:
             start += len(names)
         return columns
 
-    def to_motion(self, scale: float = 1.0) -> Motion:
-        """Joint rotations, translations and (by forward kinematics) positions.
+    def to_motion(self, scale: float = 1.0, up: str = "y") -> Motion:
+        """Joint rotations, translations and (by forward kinematics) positions, in
+        centimetres with y up.
 
-        ``scale`` converts the file's length unit to centimetres (e.g. 100 for metres).
+        ``scale`` converts the file's length unit to centimetres (e.g. 100 for metres);
+        ``up`` is the file's vertical axis ("y" or "z"), turned into y by rotating the root.
         """
+        Units(scale, up)  # validates both
         n_frames, n_joints = len(self.values), self.skeleton.n_joints
         rotations = np.empty((n_frames, n_joints, 3, 3))
         translations = np.broadcast_to(self.skeleton.offsets, (n_frames, n_joints, 3)).copy()
@@ -92,6 +96,9 @@ class BVH:
             angles = np.radians(self.values[:, columns])  # (frames, joints, len(order))
             rotations[:, joints] = euler_to_matrix(angles, order)
         translations *= scale
+        if up == "z":
+            rotations[:, 0] = Z_UP_TO_Y_UP @ rotations[:, 0]
+            translations[:, 0] = translations[:, 0] @ Z_UP_TO_Y_UP.T
         skeleton = self.skeleton
         if scale != 1.0:
             skeleton = Skeleton(
@@ -110,11 +117,16 @@ class BVH:
         )
 
 
-def read_bvh(path: str | os.PathLike) -> BVH:
-    """Parse a BVH file. Raises BVHError naming the file and line on malformed input."""
+def _bvh_path(path: str | os.PathLike) -> Path:
     path = Path(path)
     if path.is_dir():
         raise BVHError(path, "is a folder, not a BVH file")
+    return path
+
+
+def read_bvh(path: str | os.PathLike) -> BVH:
+    """Parse a BVH file. Raises BVHError naming the file and line on malformed input."""
+    path = _bvh_path(path)
     try:
         text = path.read_text()
     except UnicodeDecodeError as error:
@@ -143,9 +155,25 @@ def bvh_duration(path: str | os.PathLike) -> float:
     return seconds if math.isfinite(seconds) and seconds > 0 else 0.0
 
 
-def load_motion(path: str | os.PathLike, scale: float = 1.0) -> Motion:
-    """Read a BVH file straight into a Motion (positions by forward kinematics)."""
-    return read_bvh(path).to_motion(scale)
+def load_motion(path: str | os.PathLike, scale: float = 1.0, up: str = "y") -> Motion:
+    """Read a BVH file straight into a Motion (positions by forward kinematics), in
+    centimetres with y up (see ``BVH.to_motion``)."""
+    return read_bvh(path).to_motion(scale, up)
+
+
+def read_bvh_skeleton(path: str | os.PathLike) -> Skeleton:
+    """The skeleton of a BVH file, read from its hierarchy only (fast on long files)."""
+    path = _bvh_path(path)
+    lines = []
+    try:
+        with open(path) as f:
+            for raw in f:
+                lines.append(raw)
+                if raw.split()[:1] == ["MOTION"]:
+                    break
+    except UnicodeDecodeError as error:
+        raise BVHError(path, f"not a text file ({error.reason})") from None
+    return _parse_hierarchy(path, lines)[0]
 
 
 def _floats(path: Path, tokens: list[str], count: int, what: str, line: int) -> list[float]:

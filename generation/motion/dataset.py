@@ -5,9 +5,14 @@ optionally augmented (training clips only), and encoded into both representation
 The result is cached as ``.npz`` under a fingerprint of the input files' contents and
 every option, so a changed file or option rebuilds it and nothing else does.
 
-Labels: a ``NAME.json`` beside ``NAME.bvh`` holding ``{"content": i, "style": j}``
-indexes the lines of ``cfg/content_label.txt`` and ``cfg/style_label.txt`` (looked for
-in the BVH folder and its parent), as in the Bandai-Namco data.
+Labels are optional: a ``NAME.json`` beside ``NAME.bvh`` holding ``{"content": i,
+"style": j}`` indexes the lines of ``content_label.txt`` and ``style_label.txt`` (looked
+for beside the BVH files, in their folder's ``cfg/`` and in its parent's ``cfg/``), as
+in the Bandai-Namco data; a clip without labels has content and style None.
+
+Units: every clip is read in centimetres with y up; the files' unit and up axis are
+given in the options or detected (``unit_detection``), and the options that the
+dataset (and every checkpoint trained on it) keeps record the choice.
 """
 
 from __future__ import annotations
@@ -33,8 +38,10 @@ from .bvh import BVHError, load_motion
 from .features import AngleFeatureSpec, angle_feature_spec, encode_angles, encode_positions
 from .kinematics import subtree_motion
 from .resample import resample
-from .root import RootOptions, hips_index
+from .root import RootOptions, hips_index, limb_root_pairs
 from .types import Motion, Skeleton
+from .unit_detection import choose_units
+from .units import detect_up
 
 FORMAT_VERSION = 1  # bump when the cached arrays change meaning
 SPLITS = ("train", "validation", "test")
@@ -58,8 +65,9 @@ class DatasetOptions:
     seed: int = 0
     angle_representation: str = "quaternion"
     mirror_pairs: dict[str, str] | None = None
-    scale: float = 1.0  # file units to centimetres
+    scale: float | None = None  # file units to centimetres; None: detected when building
     root: RootOptions = field(default_factory=RootOptions)
+    up: str | None = None  # the files' up axis, "y" or "z"; None: detected when building
 
     def __post_init__(self) -> None:
         # Checked here, before any file is read or cache written: each value below would
@@ -77,7 +85,7 @@ class DatasetOptions:
         for name in ("holdout_fraction", "validation_fraction"):
             if not 0 <= getattr(self, name) < 1:
                 refuse(name, "at least 0 and below 1")
-        if not (math.isfinite(self.scale) and self.scale > 0):
+        if self.scale is not None and not (math.isfinite(self.scale) and self.scale > 0):
             refuse("scale", "a positive number (file units to centimetres)")
 
     @property
@@ -95,6 +103,7 @@ class DatasetOptions:
     def from_dict(cls, data: dict) -> "DatasetOptions":
         data = dict(data)
         data["root"] = RootOptions(**data["root"])
+        data.setdefault("up", "y")  # recorded before the up axis was an option: y
         if data.get("contents") is not None:
             data["contents"] = tuple(data["contents"])
         return cls(**data)
@@ -205,6 +214,22 @@ class MotionDataset:
                 f"({self.options.window_seconds:g} s); use longer takes or a shorter window")
         return count
 
+    def takes_without_windows(self, split: str) -> list[str]:
+        """The takes of a split too short for one window: they give the models nothing."""
+        return [c.name for c in self.select(split, augmented=False)
+                if window_count(c.stop - c.start, self.options.window_frames, self.options.hop_frames) == 0]
+
+    def window_warnings(self) -> list[str]:
+        """What the user should know about takes that give no windows, one line each."""
+        lines = []
+        seconds = f"{self.options.window_seconds:g}-s"
+        for split, role in (("train", "training"), ("validation", "validation"), ("test", "held-out")):
+            short = self.takes_without_windows(split)
+            if short:
+                names = ", ".join(short[:10]) + (f" and {len(short) - 10} more" if len(short) > 10 else "")
+                lines.append(f"{len(short)} {role} take(s) shorter than one {seconds} window give no windows: {names}")
+        return lines
+
     def save(self, path: str | os.PathLike) -> Path:
         """Write the dataset as one ``.npz`` (no pickles), atomically."""
         meta = {
@@ -278,16 +303,25 @@ def _bvh_files_in(folder: Path) -> list[Path]:
     return files
 
 
-def _label_names(folder: Path, kind: str) -> list[str] | None:
-    for cfg in (folder / "cfg", folder.parent / "cfg"):
-        path = cfg / f"{kind}_label.txt"
+def label_name_file(folder: Path, kind: str) -> Path | None:
+    """The ``{kind}_label.txt`` that names the labels of the clips in ``folder``: beside
+    them, in ``folder/cfg`` or in ``folder/../cfg``."""
+    for place in (folder, folder / "cfg", folder.parent / "cfg"):
+        path = place / f"{kind}_label.txt"
         if path.is_file():
-            lines = [line.strip() for line in path.read_text().splitlines() if line.strip()]
-            # Drop a shared "dataset-1_" style prefix, up to its last underscore.
-            prefix = os.path.commonprefix(lines)
-            cut = prefix.rfind("_") + 1 if len(lines) > 1 else 0
-            return [line[cut:] for line in lines]
+            return path
     return None
+
+
+def _label_names(folder: Path, kind: str) -> list[str] | None:
+    path = label_name_file(folder, kind)
+    if path is None:
+        return None
+    lines = [line.strip() for line in path.read_text().splitlines() if line.strip()]
+    # Drop a shared "dataset-1_" style prefix, up to its last underscore.
+    prefix = os.path.commonprefix(lines)
+    cut = prefix.rfind("_") + 1 if len(lines) > 1 else 0
+    return [line[cut:] for line in lines]
 
 
 def read_labels(bvh_path: Path) -> tuple[str | None, str | None]:
@@ -313,9 +347,26 @@ def read_labels(bvh_path: Path) -> tuple[str | None, str | None]:
             raise ValueError(f"{side}: {kind!r} must be a label index or name, got {index!r}")
         elif names is not None and isinstance(index, int) and 0 <= index < len(names):
             result.append(names[index])
-        else:
+        else:  # a label given by name, or a number no names file covers
             result.append(str(index))
     return result[0], result[1]
+
+
+def content_matches(content: str | None, wanted: str) -> bool:
+    """Whether a clip's content label is ``wanted``, also across a dataset prefix:
+    ``dataset-2_walk`` matches ``walk`` and the other way round."""
+    if content is None:
+        return False
+    return content == wanted or content.endswith(f"_{wanted}") or wanted.endswith(f"_{content}")
+
+
+def contents_or_all(folder: str | os.PathLike | Sequence[str | os.PathLike],
+                    contents: tuple[str, ...] | None) -> tuple[str, ...] | None:
+    """``contents`` where the clips have content labels; None (every clip, as one
+    content) for folders without any."""
+    if contents is None or any(read_labels(path)[0] is not None for path in find_bvh_files(folder)):
+        return contents
+    return None
 
 
 def take_of(stem: str) -> str:
@@ -341,14 +392,35 @@ def split_takes(takes: list[tuple[str, str | None]], fraction: float, seed: int)
 
 def fingerprint(files: list[Path], options: DatasetOptions) -> str:
     """A hash of the input files' names and contents, the options and the format."""
+    settings = options.to_dict()
+    # Options added after datasets were first fingerprinted are left out at the value
+    # they had before they existed, so that existing datasets keep their fingerprints.
+    if settings["up"] == "y":
+        del settings["up"]
+    if settings["root"]["pairs"] is None:
+        del settings["root"]["pairs"]
     digest = hashlib.sha256()
-    digest.update(json.dumps([FORMAT_VERSION, options.to_dict()], sort_keys=True).encode())
+    digest.update(json.dumps([FORMAT_VERSION, settings], sort_keys=True).encode())
     for path in files:
         digest.update(path.name.encode())
         digest.update(hashlib.sha256(path.read_bytes()).digest())
         side = path.with_suffix(".json")
         if side.is_file():
             digest.update(side.read_bytes())
+    return digest.hexdigest()
+
+
+def cache_key(data_fingerprint: str, files: list[Path]) -> str:
+    """The name of a dataset's cache: its fingerprint and the label-name files its clips'
+    labels were read through (a renamed label rebuilds the cache; the data are the same,
+    so the fingerprint that checkpoints record does not change)."""
+    digest = hashlib.sha256(data_fingerprint.encode())
+    for folder in dict.fromkeys(path.parent for path in files):
+        for kind in ("content", "style"):
+            names = label_name_file(folder, kind)
+            if names is not None:
+                digest.update(f"{kind}:{names.name}".encode())
+                digest.update(hashlib.sha256(names.read_bytes()).digest())
     return digest.hexdigest()
 
 
@@ -363,19 +435,26 @@ def build_dataset(
     progress: bool = True,
 ) -> MotionDataset:
     """Read, encode and split every BVH clip in ``folder`` (or several folders, pooled);
-    reuse the cache when valid."""
-    files = find_bvh_files(folder)
-    labels = {f: read_labels(f) for f in files}
-    if options.contents is not None:
-        files = [f for f in files if labels[f][0] in options.contents]
-        if not files:
-            folders = ", ".join(str(f) for f in motion_folders(folder))
-            raise ValueError(f"no clips in {folders} have content in {list(options.contents)}")
-    key = fingerprint(files, options)
+    reuse the cache when valid. Units the options leave open (None) are detected, and
+    the choice is printed when ``progress`` is on."""
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     if cache.exists() and not cache.is_dir():
         raise ValueError(f"the cache folder {cache} is a file; name a folder (or none, for {default_cache_dir()})")
-    cached = cache / f"dataset-{key[:20]}.npz"
+    files = find_bvh_files(folder)
+    labels = {f: read_labels(f) for f in files}
+    if options.contents is not None:
+        files = [f for f in files if any(content_matches(labels[f][0], c) for c in options.contents)]
+        if not files:
+            folders = ", ".join(str(f) for f in motion_folders(folder))
+            raise ValueError(f"no clips in {folders} have content in {list(options.contents)}")
+    detect_up_axis = options.up is None
+    if options.scale is None or options.up is None:
+        choice = choose_units(files, options.scale, options.up, options.root)
+        options = dataclasses.replace(options, scale=choice.units.scale, up=choice.units.up)
+        if progress:
+            print(choice.description)
+    key = fingerprint(files, options)
+    cached = cache / f"dataset-{cache_key(key, files)[:20]}.npz"
     if cached.is_file():
         return MotionDataset.load(cached)
 
@@ -384,14 +463,18 @@ def build_dataset(
     validation = split_takes([t for t in takes if t[0] not in held_out], options.validation_fraction, options.seed + 1)
     skeleton = spec = None
     clips, parts = [], {"pose": [], "control": [], "angles": []}
-    rows = 0
+    rows, other_up = 0, []
     for path in tqdm(files, desc="encoding clips", unit="clip", disable=not progress):
         with _naming(path):
-            body = load_body_motion(path, options.fps, scale=options.scale, root=options.root)
+            body = load_body_motion(path, options.fps, scale=options.scale, root=options.root, up=options.up)
             if skeleton is None:
-                skeleton, spec = body.skeleton, angle_feature_spec(body.skeleton, options.angle_representation)
+                skeleton = body.skeleton
+                limb_root_pairs(skeleton, options.root.pairs)  # refuses a rig with no facing (_naming names the file)
+                spec = angle_feature_spec(skeleton, options.angle_representation, pairs=options.root.pairs)
             elif body.skeleton.names != skeleton.names:
                 raise ValueError(f"{path}: its skeleton differs from the first file's; one dataset needs one skeleton")
+            if detect_up_axis and detect_up(body) != "y":
+                other_up.append(path.name)
             take = take_of(path.stem)
             split = "test" if take in held_out else "validation" if take in validation else "train"
             for augmentation, motion in _augmented(body, options, split == "train"):
@@ -403,6 +486,10 @@ def build_dataset(
                 clips.append(Clip(path.stem, take_of(path.stem), content, style, augmentation, split,
                                   rows, rows + motion.n_frames, motion.rotations is not None))
                 rows += motion.n_frames
+    if other_up:
+        more = f" and {len(other_up) - 10} more" if len(other_up) > 10 else ""
+        raise ValueError(f"the files mix up axes: {files[0].name} stands along {options.up}, but not "
+                         f"{', '.join(other_up[:10])}{more}; give the up axis (--up)")
     arrays = {k: np.concatenate(v) for k, v in parts.items()}
     train = [c for c in clips if c.split == "train"]
     stats = {
@@ -427,10 +514,11 @@ def _naming(path: Path) -> Iterator[None]:
 
 
 def load_body_motion(path: str | os.PathLike, fps: float, seconds: float | None = None,
-                     scale: float = 1.0, root: RootOptions = RootOptions()) -> Motion:
-    """A BVH clip as the models see it: resampled to ``fps``, reduced to the body (the
-    hips and below), and cut to its first ``seconds`` (positions only) when given."""
-    motion = resample(load_motion(path, scale), fps)
+                     scale: float = 1.0, root: RootOptions = RootOptions(), up: str = "y") -> Motion:
+    """A BVH clip as the models see it: in centimetres with y up (from the file's unit
+    ``scale`` and ``up`` axis), resampled to ``fps``, reduced to the body (the hips and
+    below), and cut to its first ``seconds`` (positions only) when given."""
+    motion = resample(load_motion(path, scale, up), fps)
     motion = subtree_motion(motion, hips_index(motion.skeleton, root.hips))
     if seconds is None:
         return motion

@@ -36,6 +36,7 @@ from .rotations import (
     quat_to_matrix,
     yaw_matrix,
 )
+from .symmetry import left_right_pairs
 from .types import Motion, Skeleton
 
 CONTROL_NAMES = ("forward velocity (cm/s)", "sideways velocity, left positive (cm/s)", "yaw rate (rad/s)")
@@ -109,13 +110,14 @@ class AngleFeatureSpec:
         return cls(data["representation"], int(data["hips"]), tuple(data["joints"]), np.asarray(data["alignment"]))
 
 
-def angle_feature_spec(skeleton: Skeleton, representation: str = "quaternion", hips: str | None = None) -> AngleFeatureSpec:
-    """The angle-feature layout for a skeleton."""
+def angle_feature_spec(skeleton: Skeleton, representation: str = "quaternion", hips: str | None = None,
+                       pairs: dict[str, str] | None = None) -> AngleFeatureSpec:
+    """The angle-feature layout for a skeleton (``pairs``: left/right joints, as in ``RootOptions``)."""
     if representation not in ("quaternion", "expmap"):
         raise ValueError(f"unknown rotation representation {representation!r}; use 'quaternion' or 'expmap'")
     h = hips_index(skeleton, hips)
     below = [j for j in range(skeleton.n_joints) if _descends_from(skeleton, j, h) and j != h]
-    return AngleFeatureSpec(representation, h, tuple(below), hips_alignment(skeleton, h))
+    return AngleFeatureSpec(representation, h, tuple(below), hips_alignment(skeleton, h, pairs))
 
 
 def _descends_from(skeleton: Skeleton, j: int, ancestor: int) -> bool:
@@ -126,22 +128,43 @@ def _descends_from(skeleton: Skeleton, j: int, ancestor: int) -> bool:
     return False
 
 
-def hips_alignment(skeleton: Skeleton, hips: int) -> np.ndarray:
+def hips_alignment(skeleton: Skeleton, hips: int, pairs: dict[str, str] | None = None) -> np.ndarray:
     """The canonical body frame (columns: left, up, forward) in the hips' local axes.
 
-    Rigs disagree on which local axis of the hips points up or forward; the rest
-    offsets of the hips' children tell: the leg roots give left, the spine gives up.
+    Rigs disagree on which local axis of the hips points up or forward; the rest pose
+    below the hips tells: the legs' across vector gives left, the spine gives up.
     """
-    children = [j for j in range(skeleton.n_joints) if skeleton.parents[j] == hips]
-    legs = [(l, r) for l, r in limb_root_pairs(skeleton) if l in children]
-    spine = [j for j in children if not any(j in pair for pair in legs)]
+    sided = {j for pair in left_right_pairs(skeleton.names, pairs) for j in pair}
+    legs = [(l, r) for l, r in limb_root_pairs(skeleton, pairs) if _limb_base(skeleton, l, sided) == hips]
+    spine = [j for j in range(skeleton.n_joints) if skeleton.parents[j] == hips and j not in sided]
     if not legs or not spine:
-        return np.eye(3)
-    left = sum(skeleton.offsets[l] - skeleton.offsets[r] for l, r in legs)
+        raise ValueError(
+            f"cannot align the hips {skeleton.names[hips]!r}: it needs a spine and a pair of legs below it "
+            f"(left/right joints found: {', '.join(skeleton.names[j] for j in sorted(sided)) or 'none'})"
+        )
+    rest = _rest_below(skeleton, hips)
+    left = sum(rest[l] - rest[r] for l, r in legs)
     left = left / np.linalg.norm(left)
     up = skeleton.offsets[spine[0]] - np.dot(skeleton.offsets[spine[0]], left) * left
     up = up / np.linalg.norm(up)
     return np.column_stack([left, up, np.cross(left, up)])
+
+
+def _limb_base(skeleton: Skeleton, j: int, sided: set[int]) -> int:
+    """The first ancestor of joint j that belongs to neither side: where its limb hangs."""
+    while j in sided:
+        j = int(skeleton.parents[j])
+    return j
+
+
+def _rest_below(skeleton: Skeleton, joint: int) -> np.ndarray:
+    """Rest positions (J, 3) relative to ``joint`` of the joints below it (others: zero)."""
+    rest = np.zeros((skeleton.n_joints, 3))
+    for j in range(joint + 1, skeleton.n_joints):
+        if _descends_from(skeleton, j, joint):
+            p = int(skeleton.parents[j])
+            rest[j] = skeleton.offsets[j] if p == joint else rest[p] + skeleton.offsets[j]
+    return rest
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,9 @@ class RootOptions:
     hips: str | None = None  # default: the first joint named like hips or pelvis
     position_sigma: float = 0.1
     facing_sigma: float = 0.25
+    # Left -> right joint names whose across vectors give the facing, for rigs whose
+    # names follow no common convention; default: found from the names (``symmetry``).
+    pairs: dict[str, str] | None = None
 
 
 def hips_index(skeleton: Skeleton, name: str | None = None) -> int:
@@ -43,24 +46,48 @@ def _is_sided(skeleton: Skeleton, j: int) -> bool:
     return any(j in pair for pair in left_right_pairs(skeleton.names))
 
 
-def limb_root_pairs(skeleton: Skeleton) -> list[tuple[int, int]]:
-    """Left/right pairs that share a parent (hips and shoulders): their difference
-    vectors point to the character's left and define its facing."""
-    pairs = [
-        (l, r) for l, r in left_right_pairs(skeleton.names)
-        if skeleton.parents[l] == skeleton.parents[r]
-    ]
-    if not pairs:
+def limb_root_pairs(skeleton: Skeleton, pairs: dict[str, str] | None = None) -> list[tuple[int, int]]:
+    """The first left/right pairs of each pair of limbs (upper legs, shoulders or upper
+    arms) that stand apart at rest: their difference vectors point to the character's
+    left and define its facing.
+
+    A limb starts at a left/right pair with a common parent; where that pair sits at the
+    same place (the zero-offset hip and collar joints of CMU-style rigs) the pair of
+    their children is taken instead, and so on down the limb. ``pairs`` overrides the
+    pairing found from names.
+    """
+    sides = dict(left_right_pairs(skeleton.names, pairs))
+    rest = _rest_positions(skeleton)
+    size = max(float(np.linalg.norm(skeleton.offsets, axis=-1).max()), 1e-12)
+    found = []
+    starts = [(l, r) for l, r in sides.items() if skeleton.parents[l] == skeleton.parents[r]]
+    while starts:
+        l, r = starts.pop()
+        if np.linalg.norm(rest[l] - rest[r]) > 1e-6 * size:
+            found.append((l, r))
+            continue
+        children = {c for c in range(skeleton.n_joints) if skeleton.parents[c] == r}
+        starts += [(cl, cr) for cl, cr in sides.items() if skeleton.parents[cl] == l and cr in children]
+    if not found:
         raise ValueError(
-            "cannot find the facing direction: no left/right joint pairs with a common "
-            "parent (name them with _L/_R, Left/Right, ... or pass mirror pairs)"
+            "cannot find the facing direction: no left/right joints that stand apart "
+            f"(joints: {', '.join(skeleton.names)}); name them with _L/_R, Left/Right, ... "
+            "or give the pairs explicitly (--mirror-pairs LEFT:RIGHT,...)"
         )
-    return pairs
+    return sorted(found)
 
 
-def facing_directions(positions: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+def _rest_positions(skeleton: Skeleton) -> np.ndarray:
+    """Joint positions (J, 3) in the rest pose (every rotation the identity)."""
+    rest = np.zeros((skeleton.n_joints, 3))
+    for j, p in enumerate(skeleton.parents):
+        rest[j] = skeleton.offsets[j] + (rest[p] if p >= 0 else 0.0)
+    return rest
+
+
+def facing_directions(positions: np.ndarray, skeleton: Skeleton, pairs: dict[str, str] | None = None) -> np.ndarray:
     """Unfiltered horizontal unit forward vectors (frames, 3) from the across vectors."""
-    across = sum(positions[:, l] - positions[:, r] for l, r in limb_root_pairs(skeleton))
+    across = sum(positions[:, l] - positions[:, r] for l, r in limb_root_pairs(skeleton, pairs))
     forward = np.cross(across, np.array([0.0, 1.0, 0.0]))
     forward[:, 1] = 0.0
     norm = np.linalg.norm(forward, axis=-1, keepdims=True)
@@ -80,7 +107,7 @@ def root_trajectory(motion: Motion, options: RootOptions = RootOptions()) -> Roo
     hips = motion.positions[:, hips_index(motion.skeleton, options.hips)]
     xz = gaussian_filter1d(hips[:, [0, 2]], options.position_sigma * motion.fps, axis=0, mode="nearest")
     forward = gaussian_filter1d(
-        facing_directions(motion.positions, motion.skeleton),
+        facing_directions(motion.positions, motion.skeleton, options.pairs),
         options.facing_sigma * motion.fps, axis=0, mode="nearest",
     )
     yaw = np.unwrap(np.arctan2(forward[:, 0], forward[:, 2]))

@@ -15,9 +15,9 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from generation.motion.types import Motion
-from generation.render.camera import Camera
+from generation.render.camera import Camera, character_size
 from generation.render.floor import FloorGrid
-from generation.render.figure import LEFT, RIGHT, body_root_index, figure_bones, hidden_joints, joint_side
+from generation.render.figure import LEFT, RIGHT, body_root_index, figure_bones, hidden_joints, joint_sides
 from generation.render.style import Style
 
 REFERENCE_HEIGHT = 480  # Style widths are pixels at this frame height and scale with it
@@ -68,6 +68,7 @@ class FrameDrawer:
         width, height = size
         if width < 1 or height < 1:
             raise ValueError(f"size must be positive, got {size}")
+        camera = camera.framing(character_size(motion))
         self.size, self.camera, self.style = (int(width), int(height)), camera, style
         self.fps = float(fps) if fps is not None else float(motion.fps)
         if not (np.isfinite(self.fps) and self.fps > 0):
@@ -85,7 +86,7 @@ class FrameDrawer:
 
         skeleton = motion.skeleton
         colours = {LEFT: style.bone_left, RIGHT: style.bone_right}
-        self.joint_colours = [colours.get(joint_side(name), style.bone) for name in skeleton.names]
+        self.joint_colours = [colours.get(side, style.bone) for side in joint_sides(skeleton)]
         self.bones = np.array(figure_bones(skeleton), dtype=np.int64).reshape(-1, 2)
         hidden = hidden_joints(skeleton)
         self.loose_joints = [  # joints in no drawn bone still get a dot

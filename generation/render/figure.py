@@ -8,6 +8,7 @@ from the *body root*: the pelvis if the skeleton names one, else joint 0.
 
 from __future__ import annotations
 
+from generation.motion.symmetry import left_right_pairs
 from generation.motion.types import Skeleton
 
 BODY_ROOT_NAMES = ("hips", "pelvis", "hip")
@@ -40,15 +41,10 @@ def hidden_joints(skeleton: Skeleton) -> set[int]:
     return hidden
 
 
-def joint_side(name: str) -> int:
-    """LEFT, RIGHT or CENTRE from naming conventions (Foot_L, LeftFoot, L_Foot, foot.l)."""
-    lowered = name.lower()
-    for side, word, letter in ((LEFT, "left", "l"), (RIGHT, "right", "r")):
-        if (
-            lowered.startswith(word)
-            or lowered.endswith(word)
-            or lowered.startswith(letter + "_")
-            or lowered.endswith(("_" + letter, "." + letter))
-        ):
-            return side
-    return CENTRE
+def joint_sides(skeleton: Skeleton) -> list[int]:
+    """LEFT, RIGHT or CENTRE for every joint: the sides of its left/right pair, paired
+    from the names as mirroring pairs them (``generation.motion.symmetry``)."""
+    sides = [CENTRE] * skeleton.n_joints
+    for left, right in left_right_pairs(skeleton.names):
+        sides[left], sides[right] = LEFT, RIGHT
+    return sides

@@ -1,0 +1,81 @@
+"""Motion arrays in other units or with z up, brought to the centimetres and y up that
+the metrics are stated in (footstep tolerances in cm/s, bone errors in cm).
+
+Given, or detected from the clips: the up axis is the one along which the figures
+stand tallest, and the unit the one common unit that makes that height a human's
+(joint positions span 1.0-2.1 m from foot to head; at most one unit fits).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from analysis.errors import AnalysisInputError
+from analysis.motion_io import SystemClips
+
+UNITS = {"mm": 0.1, "cm": 1.0, "in": 2.54, "cmu": 2.54 / 0.45, "ft": 30.48, "m": 100.0}
+FIGURE_HEIGHT_CM = (100.0, 210.0)
+UP_AXES = {"y": 1, "z": 2}
+# (x, y, z) with z up -> (x, z, -y) with y up
+Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+def parse_scale(text: str) -> float | None:
+    """'auto' (None), a unit name (m, cm, in, ...) or a number of centimetres per unit."""
+    text = text.strip().lower()
+    if text == "auto":
+        return None
+    if text in UNITS:
+        return UNITS[text]
+    try:
+        scale = float(text)
+    except ValueError:
+        raise AnalysisInputError(f"--scale must be auto, a unit ({', '.join(UNITS)}) or a number, got {text!r}") from None
+    if not (np.isfinite(scale) and scale > 0):
+        raise AnalysisInputError(f"--scale must be positive, got {text!r}")
+    return scale
+
+
+def to_centimetres_y_up(motion: dict[str, SystemClips], scale: float | None = None,
+                        up: str | None = None) -> tuple[dict[str, SystemClips], str]:
+    """Every system's clips (and offsets) in cm with y up, and a line saying what the
+    input was taken to be. ``scale`` (cm per unit) and ``up`` are detected where None."""
+    if up is not None and up not in UP_AXES:
+        raise AnalysisInputError(f"--up must be auto, y or z, got {up!r}")
+    how = f"scale {'detected' if scale is None else 'given'}, up axis {'detected' if up is None else 'given'}"
+    if up is None:
+        up = max(UP_AXES, key=lambda axis: _median_height(motion, UP_AXES[axis]))
+    if scale is None:
+        height = _median_height(motion, UP_AXES[up])
+        fits = [name for name, factor in UNITS.items() if FIGURE_HEIGHT_CM[0] <= height * factor <= FIGURE_HEIGHT_CM[1]]
+        if len(fits) != 1:
+            raise AnalysisInputError(
+                f"cannot tell the unit of the motion: the figures stand {height:.4g} units tall, which no common "
+                f"unit makes human-sized ({FIGURE_HEIGHT_CM[0]:g}-{FIGURE_HEIGHT_CM[1]:g} cm); give --scale")
+        scale = UNITS[fits[0]]
+    rotation = Z_UP_TO_Y_UP if up == "z" else np.eye(3)
+    if scale == 1.0 and up == "y":
+        converted = motion
+    else:
+        converted = {
+            name: replace(system, clips=[clip @ rotation.T * scale for clip in system.clips],
+                          offsets=None if system.offsets is None else system.offsets * scale)
+            for name, system in motion.items()
+        }
+    unit = next((name for name, factor in UNITS.items() if np.isclose(factor, scale)), f"x{scale:g} cm")
+    return converted, f"motion units: {unit}, {up} up ({how})"
+
+
+def _median_height(motion: dict[str, SystemClips], axis: int) -> float:
+    """The median over all frames of the figures' extent along ``axis``. A root joint
+    with a single child is a reference on the floor that stays behind as the figure
+    walks off (as in the Bandai-Namco rig), not part of the figure."""
+    heights = []
+    for system in motion.values():
+        parents = np.asarray(system.parents)
+        root = int(np.flatnonzero(parents < 0)[0])
+        figure = [j for j in range(len(parents)) if not (j == root and (parents == root).sum() == 1)]
+        heights += [np.ptp(clip[:, figure, axis], axis=-1) for clip in system.clips]
+    return float(np.median(np.concatenate(heights)))
