@@ -5,7 +5,9 @@ commit bd906cf (generation.stylegestures.SUPPORTED_COMMIT): a small locomotion m
 (K=3, 16 hidden units, 10 past poses) trained for 30 steps on 12 real Bandai-Namco
 clips put into their layout, its weights then perturbed so that no part is trivial;
 the log-likelihood their code reports for two held-out clips, and the sample their
-code draws for those clips' control under noise drawn as our MoGlow draws it.
+code draws for those clips' control under noise drawn as our MoGlow draws it. The
+scaler is the one their locomotion loader fitted (with a numpy stand-in for sklearn's
+StandardScaler: float64 mean and population standard deviation).
 """
 
 from __future__ import annotations
