@@ -12,6 +12,7 @@ StandardScaler: float64 mean and population standard deviation).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -21,14 +22,16 @@ import pytest
 import torch
 from safetensors.torch import load_file
 
-from generation.checkpoint import load_checkpoint
+from generation.checkpoint import load_checkpoint, read_meta
 from generation.cli import main
 from generation.control import preset_path
 from generation.generator import Generator
+from generation.models.moglow import MoGlowConfig
 from generation.motion.root import integrate
 from generation.stylegestures import stylegestures_control
 
-FIXTURE = Path(__file__).parent / "fixtures" / "stylegestures"
+REPO = Path(__file__).resolve().parents[1]
+FIXTURE = REPO / "tests" / "fixtures" / "stylegestures"
 POSE_DIM = 63
 
 
@@ -164,3 +167,14 @@ def test_hparams_that_do_not_fit_the_tensors_name_the_tensor(tmp_path, reference
     status, err, out = run_import(tmp_path, checkpoint, path, reference, capsys)
     assert status == 2 and "tensor flow.layers.0.f.lstm.weight_ih_l0 has shape (64, 694), the hparams need (128, 694)" in err
     assert not out.exists()
+
+
+def test_checkpoints_saved_before_the_scale_options_load_as_before_and_keep_their_preset():
+    from studyapp.systems import preset_name
+
+    meta = read_meta(REPO / "models" / "moglow-cpu.safetensors")
+    older = {k: v for k, v in meta.hyperparameters.items() if k not in ("scale_offset", "scale_floor")}
+    meta = dataclasses.replace(meta, hyperparameters=older)
+    assert preset_name(meta) == "cpu"
+    config = MoGlowConfig(**older)
+    assert (config.scale_offset, config.scale_floor) == (0.0, 0.05)
