@@ -284,9 +284,9 @@ def stylegestures_control(velocities: np.ndarray, fps: float) -> np.ndarray:
     (sideways, forward) and the yaw change from i to i+1 negated, per frame; the last
     frame repeats the one before.
     """
-    root = integrate(velocities, fps)
     if len(velocities) < 2:
         return np.zeros((len(velocities), 3))
+    root = integrate(velocities, fps)
     step = to_root_frame(np.diff(root.xz, axis=0), root.yaw[1:])
     control = np.column_stack([step, -np.diff(root.yaw)])
     return np.vstack([control, control[-1:]])
