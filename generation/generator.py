@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 
 import numpy as np
 import torch
@@ -25,6 +26,7 @@ from .control import AttributeControl, Control, PathControl
 from .motion.dataset import Standardizer
 from .motion.features import AngleFeatureSpec, decode_angles, decode_positions
 from .motion.types import Motion, Skeleton
+from .stylegestures import CONTROL_LAYOUT, stylegestures_control
 from .models.attribute import AttributeModel
 from .models.base import MotionModel
 from .models.path import PathModel
@@ -46,6 +48,21 @@ def check_request(n: int, temperature: float, warmup_seconds: float | None) -> N
         raise ValueError(f"warmup_seconds must be between 0 and {MAX_WARMUP_SECONDS:g}, got {warmup_seconds}")
 
 
+def _own_layout(velocities: np.ndarray, fps: float) -> np.ndarray:
+    return velocities
+
+
+# How a checkpoint's model reads the path control (features["control_layout"]): ours
+# (forward, sideways, yaw velocity) unless it was imported from the authors' code.
+CONTROL_LAYOUTS = {None: _own_layout, CONTROL_LAYOUT: stylegestures_control}
+
+
+def control_layout(name: str | None) -> Callable[[np.ndarray, float], np.ndarray]:
+    if name not in CONTROL_LAYOUTS:
+        raise ValueError(f"unknown control_layout {name!r} in the checkpoint's features")
+    return CONTROL_LAYOUTS[name]
+
+
 class Generator:
     """A trained model with everything needed to turn control into motion."""
 
@@ -59,6 +76,7 @@ class Generator:
             self.angle_spec = AngleFeatureSpec.from_dict(meta.features["angle_spec"])
         else:
             self.control_stats = Standardizer.from_dict(meta.stats["control"])
+            self.control_layout = control_layout(meta.features.get("control_layout"))
 
     @classmethod
     def load(cls, path: str | os.PathLike, device: str | torch.device = "cpu") -> "Generator":
@@ -103,7 +121,8 @@ class Generator:
             warmup_seconds = 1.0 if context_frames else 0.0
         warmup = max(int(round(warmup_seconds * self.fps)), context_frames)
         velocities = np.concatenate([np.repeat(control.velocities[:1], warmup, axis=0), control.velocities])
-        c = torch.as_tensor(self.control_stats.apply(velocities), dtype=torch.float32, device=self.device)
+        c = torch.as_tensor(self.control_stats.apply(self.control_layout(velocities, self.fps)),
+                            dtype=torch.float32, device=self.device)
         c = c.expand(n, -1, -1).contiguous()
 
         seed_poses = None

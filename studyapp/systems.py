@@ -92,12 +92,14 @@ def safetensors_header_problem(path: Path) -> str | None:
 def preset_name(meta: CheckpointMeta) -> str:
     """The named presets whose configuration the checkpoint has ("paper/cpu" where they
     are the same), or "custom"."""
-    from generation.registry import preset
+    from generation.registry import model_class, preset
 
+    # With the defaults of options newer than the checkpoint filled in, as loading does.
+    hyperparameters = dataclasses.asdict(model_class(meta.kind).Config(**meta.hyperparameters))
     matches = []
     for name in KNOWN_PRESETS:
         try:
-            if dataclasses.asdict(preset(meta.kind, name)) == meta.hyperparameters:
+            if dataclasses.asdict(preset(meta.kind, name)) == hyperparameters:
                 matches.append(name)
         except ValueError:  # a kind without this preset
             continue

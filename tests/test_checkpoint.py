@@ -85,7 +85,8 @@ def test_resuming_continues_from_the_saved_step(checkpoint, dataset, tiny_preset
 def test_the_model_configuration_and_the_training_knobs_are_recorded_apart(checkpoint):
     meta = read_meta(checkpoint)
     assert meta.training == {"learning_rate": 3e-3, "grad_clip": 100.0, "batch_size": 8, "warmup_steps": 0, "classifiers": ""}
-    assert meta.hyperparameters == {"steps": 2, "tau": 3, "lstm_hidden": 16, "lstm_layers": 2, "dropout": 0.3}
+    assert meta.hyperparameters == {"steps": 2, "tau": 3, "lstm_hidden": 16, "lstm_layers": 2, "dropout": 0.3,
+                                    "scale_offset": 0.0, "scale_floor": 0.05}
 
 
 def _move_training_into_hyperparameters(header):

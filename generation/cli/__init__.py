@@ -8,6 +8,8 @@
   sample CHECKPOINT     generate motion for control signals or labels (npz, BVH, optional MP4)
   natural FOLDER        export held-out natural clips the same way (the NAT system)
   evaluate CHECKPOINT   held-out loss (MoGlow: negative log-likelihood per frame)
+  import-stylegestures CHECKPOINT
+                        a checkpoint of the authors' MoGlow code as a project checkpoint
   hvrnn-classifiers, hvrnn-denoiser, hvrnn-eval FOLDER
                         HVRNN's classifiers, denoiser and evaluation (generation/cli/hvrnn.py)
 """
@@ -18,10 +20,10 @@ import argparse
 import sys
 
 from ..motion.bvh import BVHError
-from . import data, hvrnn, models, render
+from . import data, hvrnn, models, render, stylegestures
 
 # The command groups, in the order --help lists their commands.
-GROUPS = (data, render, models, hvrnn)
+GROUPS = (data, render, models, stylegestures, hvrnn)
 
 
 def parser() -> argparse.ArgumentParser:

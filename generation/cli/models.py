@@ -177,6 +177,9 @@ def evaluate_command(args: argparse.Namespace) -> int:
     from ..train import attribute_tensors, evaluate_loss, tensors
 
     model, meta = load_checkpoint(args.checkpoint, args.device)
+    if meta.features.get("control_layout"):
+        raise ValueError(f"{args.checkpoint} reads control in the {meta.features['control_layout']} layout, which "
+                         "the held-out data here is not in; evaluate it with the code it came from")
     folder = args.data or os.environ.get("MOTION_DATA")
     if not folder:
         raise ValueError("evaluation needs the motion folder: --data FOLDER or $MOTION_DATA")

@@ -110,26 +110,30 @@ class InvertibleLinearLU(nn.Module):
         return lambda y, context: y @ inverse_t
 
 
-def coupling_scale(h: torch.Tensor) -> torch.Tensor:
-    """The reference implementation's coupling scale, sigmoid(h) + 0.05 (see ``AffineCoupling``)."""
-    return torch.sigmoid(h) + 0.05
+def coupling_scale(h: torch.Tensor, offset: float = 0.0, floor: float = 0.05) -> torch.Tensor:
+    """The coupling's scale, sigmoid(h + offset) + floor (see ``AffineCoupling``); the reference
+    implementation's is sigmoid(h) + 0.05, the authors' public code's sigmoid(h + 2) + 1e-6."""
+    return torch.sigmoid(h + offset) + floor
 
 
 class AffineCoupling(nn.Module):
-    """x = (x_a, x_b) ↦ (y_a, x_b) with y_a = (x_a + t) ⊙ scale, scale = sigmoid(h) + 0.05.
+    """x = (x_a, x_b) ↦ (y_a, x_b) with y_a = (x_a + t) ⊙ scale, scale = sigmoid(h + offset) + floor.
 
     (h, t) = A(x_b, context) where A is a unidirectional LSTM followed by a linear layer,
     run along the frames, so each frame's transform depends on x_b and the context of
     all earlier frames too. The shift is added before scaling. The last layer starts at zero, so every coupling starts as the same
-    fixed scaling. The floor of 0.05 on the scale bounds how far one coupling can shrink
-    a dimension (the inverse divides by the scale), which keeps sampling stable.
+    fixed scaling. The floor (0.05 by default) on the scale bounds how far one coupling
+    can shrink a dimension (the inverse divides by the scale), which keeps sampling
+    stable. The authors' code uses offset 2 and floor 1e-6 (``generation.stylegestures``).
 
     x_b is the first ``dim // 2`` dimensions and x_a the rest.
     """
 
-    def __init__(self, dim: int, context_dim: int, hidden: int, layers: int) -> None:
+    def __init__(self, dim: int, context_dim: int, hidden: int, layers: int,
+                 scale_offset: float = 0.0, scale_floor: float = 0.05) -> None:
         super().__init__()
         self.split = dim // 2
+        self.scale_offset, self.scale_floor = scale_offset, scale_floor
         self.lstm = nn.LSTM(self.split + context_dim, hidden, num_layers=layers, batch_first=True)
         self.out = nn.Linear(hidden, 2 * (dim - self.split))
         nn.init.zeros_(self.out.weight)
@@ -138,7 +142,7 @@ class AffineCoupling(nn.Module):
     def _scale_and_shift(self, x_b: torch.Tensor, context: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         hidden, _ = self.lstm(torch.cat([x_b, context], dim=-1))
         h, shift = self.out(hidden).chunk(2, dim=-1)
-        return coupling_scale(h), shift
+        return coupling_scale(h, self.scale_offset, self.scale_floor), shift
 
     def forward(self, x: torch.Tensor, context: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         x_b, x_a = x[..., : self.split], x[..., self.split :]
@@ -174,7 +178,7 @@ class _CouplingFrameInverse:
     def __init__(self, coupling: AffineCoupling, network_dtype: torch.dtype | None = None) -> None:
         lstm = coupling.lstm
         self.dtype = network_dtype or coupling.out.weight.dtype
-        self.split = coupling.split
+        self.split, self.scale_terms = coupling.split, (coupling.scale_offset, coupling.scale_floor)
         self.layers = [
             (
                 self._right_operand(torch.cat([getattr(lstm, f"weight_ih_l{k}"), getattr(lstm, f"weight_hh_l{k}")], dim=1), self.dtype),
@@ -204,7 +208,7 @@ class _CouplingFrameInverse:
             self.state[k] = (hidden, cell)
             inputs = [hidden]
         h, shift = torch.addmm(self.out[1], inputs[0], self.out[0]).to(y.dtype).chunk(2, dim=1)
-        return torch.cat([x_b, y_a / coupling_scale(h) - shift], dim=1)
+        return torch.cat([x_b, y_a / coupling_scale(h, *self.scale_terms) - shift], dim=1)
 
 
 class Flow(nn.Module):
@@ -241,6 +245,8 @@ class Flow(nn.Module):
         return invert
 
 
-def glow_step(dim: int, context_dim: int, hidden: int, layers: int) -> list[nn.Module]:
+def glow_step(dim: int, context_dim: int, hidden: int, layers: int,
+              scale_offset: float = 0.0, scale_floor: float = 0.05) -> list[nn.Module]:
     """One step of flow: actnorm, then an invertible linear map, then an affine coupling."""
-    return [ActNorm(dim), InvertibleLinearLU(dim), AffineCoupling(dim, context_dim, hidden, layers)]
+    return [ActNorm(dim), InvertibleLinearLU(dim),
+            AffineCoupling(dim, context_dim, hidden, layers, scale_offset, scale_floor)]

@@ -38,6 +38,10 @@ class MoGlowConfig:
     lstm_hidden: int = 512
     lstm_layers: int = 2
     dropout: float = 0.95  # probability of zeroing each past pose in the conditioning (training only)
+    # The coupling's scale is sigmoid(h + scale_offset) + scale_floor (flows.AffineCoupling);
+    # checkpoints imported from the authors' code use 2 and 1e-6.
+    scale_offset: float = 0.0
+    scale_floor: float = 0.05
 
 
 # What each precision of ``generate`` means for the coupling networks' matrix products
@@ -65,12 +69,15 @@ class MoGlow(PathModel):
             raise ValueError(f"tau must be at least 1, not {config.tau}")
         if not 0.0 <= config.dropout <= 1.0:
             raise ValueError(f"dropout must lie in [0, 1], not {config.dropout}")
+        if not config.scale_floor > 0.0:
+            raise ValueError(f"scale_floor must be positive (the inverse divides by the scale), not {config.scale_floor}")
         self.context_frames = config.tau
         self.conditioning_dim = config.tau * pose_dim + (config.tau + 1) * control_dim
         self.flow = Flow([
             transform
             for _ in range(config.steps)
-            for transform in glow_step(pose_dim, self.conditioning_dim, config.lstm_hidden, config.lstm_layers)
+            for transform in glow_step(pose_dim, self.conditioning_dim, config.lstm_hidden, config.lstm_layers,
+                                       config.scale_offset, config.scale_floor)
         ])
 
     def conditioning(self, pose: torch.Tensor, control: torch.Tensor) -> torch.Tensor:
