@@ -19,13 +19,13 @@ from analysis.exclusions import ExclusionRules, apply_exclusions
 from analysis.ratings import read_ratings
 from analysis.stats import system_means
 from studyapp.models import ATTENTION_NAME, NATURAL_NAME, Stimulus, Study
-from studyapp.ratings import EXPORT_COLUMNS, ratings_rows
+from studyapp.ratings import export_columns, ratings_rows
 
 
 def ratings_csv(study: Study) -> bytes:
     """The study's ratings table (docs/ratings-schema.md) as CSV."""
     buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=EXPORT_COLUMNS, lineterminator="\n")
+    writer = csv.DictWriter(buffer, fieldnames=export_columns(study), lineterminator="\n")
     writer.writeheader()
     writer.writerows(ratings_rows(study))
     return buffer.getvalue().encode()
@@ -41,7 +41,7 @@ def flagged_ratings(study: Study) -> pd.DataFrame:
     """The ratings table with ``kept``, ``excluded_participant`` and ``discarded_early`` flags (may be empty)."""
     csv_bytes = ratings_csv(study)
     if csv_bytes.count(b"\n") < 2:
-        return pd.DataFrame(columns=[*EXPORT_COLUMNS, "kept"])
+        return pd.DataFrame(columns=[*export_columns(study), "kept"])
     return apply_exclusions(read_ratings(io.StringIO(csv_bytes.decode())), exclusion_rules(study))
 
 
@@ -110,7 +110,8 @@ def study_monitor(study: Study) -> StudyMonitor:
         per_stimulus_max=int(collected.max()) if done else 0,
         kept_per_stimulus_min=int(kept_counts.min()) if done else 0,
         kept_per_stimulus_max=int(kept_counts.max()) if done else 0,
-        means=system_mean_rows(kept, systems),
+        # Pairwise pages carry preferences, not values: their summary is the analysis report's.
+        means=system_mean_rows(kept, systems) if study.design != Study.Design.PAIRWISE else [],
     )
 
 

@@ -1,0 +1,153 @@
+"""Which pages a new participant answers in the side-by-side and pairwise designs.
+
+A page is identified by its content: the ids of its non-BAD clips (a side-by-side page
+is one control's clips of every system; a pairwise page one control's clips of two
+systems). Its load counts the participants who answered it and are kept (not excluded,
+no clip of it answered before its end where early answers are discarded) plus those who
+hold it while still active, as ``assignment.stimulus_loads`` counts single clips; pages
+are handed out least loaded first and never past ``ratings_per_stimulus``.
+
+- Side-by-side: ``pages_per_participant`` controls' pages; every system with a clip of
+  the control is on its page (NAT as a hidden reference), and a BAD clip joins
+  ``bad_checks`` of them as an anchor. Positions are counterbalanced: each clip takes
+  the free position it has held least often so far.
+- Pairwise: ``bad_checks`` BAD-versus-NAT pages (attention checks, no target) and the
+  rest from every pair of non-BAD systems on every control, among the least loaded the
+  pair whose systems this participant has seen least. Sides are balanced the same way
+  as positions.
+
+Callers hold the study's lock (``assignment.enrol``), so loads cannot move underneath.
+"""
+
+from __future__ import annotations
+
+import itertools
+import random
+from collections import Counter, defaultdict
+from dataclasses import dataclass, field
+from datetime import datetime
+
+from studyapp.models import Assignment, Stimulus, Study, System
+
+PageKey = frozenset[int]  # the ids of a page's non-BAD clips
+
+
+@dataclass
+class PlannedPage:
+    """One page of a participant's plan: its clips in slot order."""
+
+    clips: list[Stimulus]
+    is_check: bool = False
+    expected: list[str] = field(default_factory=list)  # an instructed check's answer, per clip
+
+    @property
+    def key(self) -> PageKey:
+        return frozenset(s.id for s in self.clips if s.system.role != System.Role.BAD)
+
+
+def page_loads(study: Study, cutoff: datetime) -> Counter:
+    """Load of each page content (``PageKey``): kept answered pages plus pages held by
+    participants active since ``cutoff``. Instructed checks repeat other pages and do not count."""
+    rows = (Assignment.objects.filter(participant__study=study, participant__excluded=False, expected="")
+            .values_list("participant_id", "page", "stimulus_id", "stimulus__system__role", "rating__id",
+                         "rating__answered_before_end", "participant__finished_at", "participant__last_seen"))
+    pages: dict[tuple[int, int], list[tuple]] = defaultdict(list)
+    for participant, page, *rest in rows:
+        pages[participant, page].append(tuple(rest))
+    loads: Counter = Counter()
+    for clips in pages.values():
+        if all(_counted(study, cutoff, *clip[2:]) for clip in clips):
+            loads[frozenset(stimulus for stimulus, role, *_ in clips if role != System.Role.BAD)] += 1
+    return loads
+
+
+def _counted(study: Study, cutoff: datetime, rating: int | None, early: bool | None, finished: datetime | None,
+             last_seen: datetime) -> bool:
+    if rating is not None:
+        return not (study.discard_early and early)
+    return finished is None and last_seen >= cutoff
+
+
+def slot_counts(study: Study) -> Counter:
+    """How often each clip has been at each slot: (stimulus id, slot) -> count."""
+    rows = Assignment.objects.filter(participant__study=study, expected="").values_list("stimulus_id", "slot")
+    return Counter(rows)
+
+
+def _by_control(rendered: list[Stimulus]) -> tuple[dict[int, list[Stimulus]], dict[int | None, list[Stimulus]]]:
+    """Non-BAD clips per control (one per system: the first rendered) and BAD clips per
+    control (None: uploaded BAD videos, which can join any page)."""
+    clips: dict[int, dict[int, Stimulus]] = defaultdict(dict)
+    bad: dict[int | None, list[Stimulus]] = defaultdict(list)
+    for stimulus in sorted(rendered, key=lambda s: s.id):
+        if stimulus.system.role == System.Role.BAD:
+            bad[stimulus.control_id].append(stimulus)
+        elif stimulus.control_id is not None:
+            clips[stimulus.control_id].setdefault(stimulus.system_id, stimulus)
+    return {control: list(systems.values()) for control, systems in clips.items()}, bad
+
+
+def _bad_for(control: int, bad: dict[int | None, list[Stimulus]], rng: random.Random) -> Stimulus | None:
+    """A BAD clip for a page of ``control``: its own if it has one, else an uploaded one."""
+    candidates = bad.get(control) or bad.get(None) or []
+    return rng.choice(candidates) if candidates else None
+
+
+def _counterbalanced(clips: list[Stimulus], counts: Counter, rng: random.Random) -> list[Stimulus]:
+    """The clips in slot order: each, in random turn, takes the free slot it has held least
+    often (ties at random); ``counts`` is updated."""
+    order = list(clips)
+    rng.shuffle(order)
+    free = list(range(1, len(clips) + 1))
+    placed: dict[int, Stimulus] = {}
+    for stimulus in order:
+        rng.shuffle(free)
+        slot = min(free, key=lambda s: counts[stimulus.id, s])
+        free.remove(slot)
+        placed[slot] = stimulus
+        counts[stimulus.id, slot] += 1
+    return [placed[slot] for slot in sorted(placed)]
+
+
+def side_by_side_plan(study: Study, rendered: list[Stimulus], loads: Counter, counts: Counter,
+                      rng: random.Random) -> list[PlannedPage]:
+    clips, bad = _by_control(rendered)
+    pages = [page for page in clips.values() if len(page) >= 2]
+    rng.shuffle(pages)  # ties at random: sort() is stable
+    pages.sort(key=lambda page: loads[frozenset(s.id for s in page)])
+    chosen = [page for page in pages if loads[frozenset(s.id for s in page)] < study.ratings_per_stimulus]
+    chosen = chosen[:study.pages_per_participant]
+    planned = []
+    for index, page in enumerate(chosen):
+        anchor = _bad_for(page[0].control_id, bad, rng) if index < study.bad_checks else None
+        planned.append(PlannedPage(_counterbalanced(page + ([anchor] if anchor else []), counts, rng),
+                                   is_check=anchor is not None))
+    rng.shuffle(planned)
+    return planned
+
+
+def pairwise_plan(study: Study, rendered: list[Stimulus], loads: Counter, counts: Counter,
+                  rng: random.Random) -> list[PlannedPage]:
+    clips, bad = _by_control(rendered)
+    checks = []
+    natural = [s for page in clips.values() for s in page if s.system.role == System.Role.NATURAL]
+    rng.shuffle(natural)
+    for nat in natural[:study.bad_checks]:
+        anchor = _bad_for(nat.control_id, bad, rng)
+        if anchor is not None:
+            checks.append(PlannedPage(_counterbalanced([nat, anchor], counts, rng), is_check=True))
+    pairs = [pair for page in clips.values() for pair in itertools.combinations(page, 2)
+             if loads[frozenset(s.id for s in pair)] < study.ratings_per_stimulus]
+    rng.shuffle(pairs)  # ties at random: min() takes the first
+    seen = Counter(s.system_id for page in checks for s in page.clips)
+    rated = []
+    while pairs and len(rated) + len(checks) < study.pages_per_participant:
+        pair = min(pairs, key=lambda p: (loads[frozenset(s.id for s in p)], seen[p[0].system_id] + seen[p[1].system_id]))
+        pairs.remove(pair)
+        seen.update(s.system_id for s in pair)
+        rated.append(PlannedPage(_counterbalanced(list(pair), counts, rng)))
+    if not rated:
+        return []
+    for check in checks:
+        rated.insert(rng.randint(0, len(rated)), check)
+    return rated
