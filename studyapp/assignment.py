@@ -1,9 +1,12 @@
-"""Which clips a new participant rates: balanced across stimuli, with attention checks.
+"""Which pages a new participant answers: balanced across stimuli, with attention checks.
 
-A participant gets ``clips_per_participant`` clips: ``bad_checks`` BAD clips and
-``natural_checks`` NAT clips as attention checks, and the rest from every non-BAD system,
-least-loaded first with ties broken at random, skipping stimuli that have reached the
-study's target. The rated clips are shuffled and the checks put at random positions.
+In the single design a participant gets ``clips_per_participant`` clips, one a page:
+``bad_checks`` BAD clips and ``natural_checks`` NAT clips as attention checks, and the
+rest from every non-BAD system, least-loaded first, among equally loaded ones of the
+system they have been given least (so each participant sees the systems evenly), ties
+broken at random, skipping stimuli that have reached the study's target. The rated clips
+are shuffled and the checks put at random positions. Side-by-side and pairwise pages
+are planned by ``page_assignment``; instructed checks are added by ``instructed_checks``.
 
 A stimulus's load counts the ratings that will be kept (not from an excluded participant,
 not given before the clip ended) plus the clips reserved by participants who are still
@@ -24,7 +27,7 @@ from django.utils import timezone
 
 from studyapp.instructed_checks import add_instructed_checks
 from studyapp.models import Assignment, Participant, Stimulus, Study, System
-from studyapp.page_assignment import PlannedPage, page_loads, pairwise_plan, side_by_side_plan, slot_counts
+from studyapp.page_assignment import PlannedPage, page_loads, page_orders, pairwise_plan, side_by_side_plan
 
 
 class StudyFull(Exception):
@@ -171,7 +174,7 @@ def _pages(study: Study, rng: random.Random) -> list[PlannedPage]:
             raise StudyNotReady("no clips have been rendered for this study yet")
         plan = side_by_side_plan if study.design == Study.Design.SIDE_BY_SIDE else pairwise_plan
         cutoff = timezone.now() - _reservation(study)
-        pages = plan(study, rendered, page_loads(study, cutoff), slot_counts(study), rng)
+        pages = plan(study, rendered, page_loads(study, cutoff), page_orders(study), rng)
         if not pages:
             raise StudyFull("every page of this study has its target number of answers")
     return add_instructed_checks(study, pages, rng)

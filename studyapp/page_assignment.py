@@ -9,12 +9,12 @@ are handed out least loaded first and never past ``ratings_per_stimulus``.
 
 - Side-by-side: ``pages_per_participant`` controls' pages; every system with a clip of
   the control is on its page (NAT as a hidden reference), and a BAD clip joins
-  ``bad_checks`` of them as an anchor. Positions are counterbalanced: each clip takes
-  the free position it has held least often so far.
+  ``bad_checks`` of them as an anchor. The order on a page is the next row of a
+  Williams design (``williams_row``), so positions and neighbours are counterbalanced.
 - Pairwise: ``bad_checks`` BAD-versus-NAT pages (attention checks, no target) and the
   rest from every pair of non-BAD systems on every control, among the least loaded the
-  pair whose systems this participant has seen least. Sides are balanced the same way
-  as positions.
+  pair whose systems this participant has seen least. Sides are balanced: each pair is
+  shown in the order (left, right) it has been shown less often.
 
 Callers hold the study's lock (``assignment.enrol``), so loads cannot move underneath.
 """
@@ -68,10 +68,20 @@ def _counted(study: Study, cutoff: datetime, rating: int | None, early: bool | N
     return finished is None and last_seen >= cutoff
 
 
-def slot_counts(study: Study) -> Counter:
-    """How often each clip has been at each slot: (stimulus id, slot) -> count."""
-    rows = Assignment.objects.filter(participant__study=study, expected="").values_list("stimulus_id", "slot")
-    return Counter(rows)
+def page_orders(study: Study) -> Counter:
+    """How often each page content has been handed out in each order: (PageKey, stimulus
+    ids in slot order) -> count, over every participant (answered, held or released)."""
+    rows = (Assignment.objects.filter(participant__study=study, expected="")
+            .values_list("participant_id", "page", "slot", "stimulus_id", "stimulus__system__role"))
+    pages: dict[tuple[int, int], list[tuple[int, int, str]]] = defaultdict(list)
+    for participant, page, slot, stimulus, role in rows:
+        pages[participant, page].append((slot, stimulus, role))
+    orders: Counter = Counter()
+    for clips in pages.values():
+        clips.sort()
+        key = frozenset(stimulus for _, stimulus, role in clips if role != System.Role.BAD)
+        orders[key, tuple(stimulus for _, stimulus, _ in clips)] += 1
+    return orders
 
 
 def _by_control(rendered: list[Stimulus]) -> tuple[dict[int, list[Stimulus]], dict[int | None, list[Stimulus]]]:
@@ -93,23 +103,46 @@ def _bad_for(control: int, bad: dict[int | None, list[Stimulus]], rng: random.Ra
     return rng.choice(candidates) if candidates else None
 
 
-def _counterbalanced(clips: list[Stimulus], counts: Counter, rng: random.Random) -> list[Stimulus]:
-    """The clips in slot order: each, in random turn, takes the free slot it has held least
-    often (ties at random); ``counts`` is updated."""
-    order = list(clips)
-    rng.shuffle(order)
-    free = list(range(1, len(clips) + 1))
-    placed: dict[int, Stimulus] = {}
-    for stimulus in order:
-        rng.shuffle(free)
-        slot = min(free, key=lambda s: counts[stimulus.id, s])
-        free.remove(slot)
-        placed[slot] = stimulus
-        counts[stimulus.id, slot] += 1
-    return [placed[slot] for slot in sorted(placed)]
+def _balanced_sides(pair: tuple[Stimulus, Stimulus], orders: Counter, rng: random.Random) -> list[Stimulus]:
+    """The pair in the order (left, right) it has been shown less often (ties at random); ``orders`` is updated."""
+    key = frozenset(s.id for s in pair)
+    both = [list(pair), list(pair[::-1])]
+    rng.shuffle(both)
+    order = min(both, key=lambda clips: orders[key, tuple(s.id for s in clips)])
+    orders[key, tuple(s.id for s in order)] += 1
+    return order
 
 
-def side_by_side_plan(study: Study, rendered: list[Stimulus], loads: Counter, counts: Counter,
+def williams_row(k: int, row: int) -> list[int]:
+    """Row ``row`` of a Williams design for ``k`` clips: the order of the clips' indices.
+
+    Every k consecutive rows (2k when k is odd: the square, then its mirror) put each clip
+    at each position once, and after each other clip equally often, so neither position
+    nor the clip seen just before favours any system.
+    """
+    first, low, high = [0], 1, k - 1
+    while len(first) < k:
+        first.append(low)
+        low += 1
+        if len(first) < k:
+            first.append(high)
+            high -= 1
+    order = [(index + row) % k for index in first]
+    return order[::-1] if k % 2 and (row // k) % 2 else order
+
+
+def _williams_order(clips: list[Stimulus], orders: Counter, offset: int) -> list[Stimulus]:
+    """The clips in slot order: the page's next row of its Williams design (rows counted
+    from ``offset``, once per earlier hand-out of the same clips); ``orders`` is updated."""
+    clips = sorted(clips, key=lambda s: s.id)
+    ids = {s.id for s in clips}
+    handed_out = sum(n for (_, order), n in orders.items() if set(order) == ids)
+    order = [clips[i] for i in williams_row(len(clips), handed_out + offset)]
+    orders[PlannedPage(order).key, tuple(s.id for s in order)] += 1
+    return order
+
+
+def side_by_side_plan(study: Study, rendered: list[Stimulus], loads: Counter, orders: Counter,
                       rng: random.Random) -> list[PlannedPage]:
     clips, bad = _by_control(rendered)
     pages = [page for page in clips.values() if len(page) >= 2]
@@ -120,13 +153,16 @@ def side_by_side_plan(study: Study, rendered: list[Stimulus], loads: Counter, co
     planned = []
     for index, page in enumerate(chosen):
         anchor = _bad_for(page[0].control_id, bad, rng) if index < study.bad_checks else None
-        planned.append(PlannedPage(_counterbalanced(page + ([anchor] if anchor else []), counts, rng),
+        # Each control's design starts at a row of its own, fixed for the study, so that
+        # the first participants do not all see the same order on every page.
+        offset = random.Random(f"{study.key}:{page[0].control_id}").randrange(2 * len(page) + 2)
+        planned.append(PlannedPage(_williams_order(page + ([anchor] if anchor else []), orders, offset),
                                    is_check=anchor is not None))
     rng.shuffle(planned)
     return planned
 
 
-def pairwise_plan(study: Study, rendered: list[Stimulus], loads: Counter, counts: Counter,
+def pairwise_plan(study: Study, rendered: list[Stimulus], loads: Counter, orders: Counter,
                   rng: random.Random) -> list[PlannedPage]:
     clips, bad = _by_control(rendered)
     checks = []
@@ -135,17 +171,17 @@ def pairwise_plan(study: Study, rendered: list[Stimulus], loads: Counter, counts
     for nat in natural[:study.bad_checks]:
         anchor = _bad_for(nat.control_id, bad, rng)
         if anchor is not None:
-            checks.append(PlannedPage(_counterbalanced([nat, anchor], counts, rng), is_check=True))
+            checks.append(PlannedPage(_balanced_sides((nat, anchor), orders, rng), is_check=True))
     pairs = [pair for page in clips.values() for pair in itertools.combinations(page, 2)
              if loads[frozenset(s.id for s in pair)] < study.ratings_per_stimulus]
     rng.shuffle(pairs)  # ties at random: min() takes the first
-    seen = Counter(s.system_id for page in checks for s in page.clips)
+    seen: Counter = Counter()  # systems on this participant's rated pages (the checks are not analysed)
     rated = []
     while pairs and len(rated) + len(checks) < study.pages_per_participant:
         pair = min(pairs, key=lambda p: (loads[frozenset(s.id for s in p)], seen[p[0].system_id] + seen[p[1].system_id]))
         pairs.remove(pair)
         seen.update(s.system_id for s in pair)
-        rated.append(PlannedPage(_counterbalanced(list(pair), counts, rng)))
+        rated.append(PlannedPage(_balanced_sides(pair, orders, rng)))
     if not rated:
         return []
     for check in checks:
