@@ -66,6 +66,8 @@ def _check(study: Study, answer: PageAnswer) -> None:
 def record_page(participant: Participant, page_token: str, answer: PageAnswer) -> list[Rating]:
     """Store the answer to the participant's current page, or raise RatingRejected (nothing stored)."""
     study = participant.study
+    if participant.finished_at is not None:  # the last page answered, or stopped with pages left
+        raise RatingRejected("this participant has already finished the study", status=409)
     _check(study, answer)
     try:
         with transaction.atomic():

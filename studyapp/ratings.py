@@ -68,6 +68,8 @@ def exclusion(study: Study, system: System, value: int) -> str:
 def record_rating(participant: Participant, assignment_token: str, value: int, times: ClientTimes) -> Rating:
     """Store the rating of the participant's current clip, or raise RatingRejected (nothing stored)."""
     study = participant.study
+    if participant.finished_at is not None:  # the last page answered, or stopped with pages left
+        raise RatingRejected("this participant has already finished the study", status=409)
     if value not in study.scale:
         raise RatingRejected(f"rating {value} is outside the scale {study.scale_min}-{study.scale_max}")
     try:
