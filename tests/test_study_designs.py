@@ -164,3 +164,36 @@ def test_the_design_is_fixed_once_participants_start_and_side_by_side_rates_on_0
     Participant.objects.create(study=study, platform_id="p1")
     fixed = StudyForm(instance=study)
     assert fixed.fields["design"].disabled and fixed.fields["preference_strengths"].disabled
+
+
+def answer_everything(study: Study, pids: list[str], value_of, choice: str = "left") -> None:
+    for pid in pids:
+        client = Client()
+        participant = through_practice(client, study, pid)
+        while current_page(participant):
+            if study.design == Study.Design.SIDE_BY_SIDE:
+                rate_page(client, study, participant, value_of)
+            else:
+                compare(client, study, participant, choice)
+
+
+def test_the_monitor_summarises_each_design_with_the_analysis_functions():
+    from studyapp.monitor import study_monitor
+
+    sbs = make_study(**SIDE_BY_SIDE, bad_checks=0, ratings_per_stimulus=10)
+    by_system = {"MoGlow": 60, "RNN": 40, "NAT": 90}
+    answer_everything(sbs, ["a", "b", "c"], lambda a: by_system[a.stimulus.system.name])
+    monitor = study_monitor(sbs)
+    assert [title for title, _ in monitor.tables] == [
+        "Median and mean per system (95 % CIs)", "How many more ratings give 80 % power per pair (at alpha 0.05)"]
+    summary = monitor.tables[0][1]
+    for system, value in by_system.items():  # n = 3 participants x 2 pages; median = mean = the value given
+        assert re.search(rf"<td>{system}</td>\s*<td>6</td>\s*<td>{value}</td>(\s*<td>{value}</td>){{3}}", summary)
+
+    pairwise = make_study(**PAIRWISE, bad_checks=1, ratings_per_stimulus=10)
+    answer_everything(pairwise, ["a", "b"], None, choice="left")
+    monitor = study_monitor(pairwise)
+    assert [title for title, _ in monitor.tables] == [
+        "Preference per pair (Wilson 95 % CI, sign test, Holm)",
+        "How many more ratings give 80 % power per pair (at alpha 0.05)"]
+    assert "BAD" not in monitor.tables[0][1] and monitor.means == []
