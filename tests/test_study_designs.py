@@ -197,3 +197,23 @@ def test_the_monitor_summarises_each_design_with_the_analysis_functions():
         "Preference per pair (Wilson 95 % CI, sign test, Holm)",
         "How many more ratings give 80 % power per pair (at alpha 0.05)"]
     assert "BAD" not in monitor.tables[0][1] and monitor.means == []
+
+
+def test_the_demo_opens_a_side_by_side_study_on_the_single_studys_clips(settings, tmp_path):
+    from studyapp.assignment import enrol
+    from studyapp.demo import ensure_side_by_side_study
+
+    settings.MEDIA_ROOT = tmp_path / "media"
+    video = tmp_path / "clip.mp4"
+    video.write_bytes(b"a rendered clip")
+    single = make_study(video=video)
+    side_by_side = ensure_side_by_side_study(single)
+    assert (side_by_side.design, side_by_side.scale_min, side_by_side.scale_max) == ("side-by-side", 0, 100)
+    assert side_by_side.is_open and side_by_side.owner == single.owner
+    clips = list(side_by_side.stimuli.all())
+    assert sorted(s.content_key for s in clips) == sorted(single.stimuli.values_list("content_key", flat=True))
+    assert not {s.token for s in clips} & set(single.stimuli.values_list("token", flat=True))
+    assert all(s.video_path().read_bytes() == b"a rendered clip" for s in clips)
+    assert ensure_side_by_side_study(single).pk == side_by_side.pk and side_by_side.stimuli.count() == len(clips)
+    participant = enrol(side_by_side, "p1", {})
+    assert len(current_page(participant)) >= 3
