@@ -115,3 +115,20 @@ def test_simultaneous_participants_never_pass_a_page_target_and_lose_no_answer(l
     assert set(page_loads(study, an_hour_ago()).values()) == {target}
     clips_per_page = 3 if design == Study.Design.SIDE_BY_SIDE else 2
     assert Rating.objects.count() == expected * pages * clips_per_page
+
+
+@pytest.mark.django_db
+def test_an_idle_participant_back_after_their_page_was_filled_by_others_loses_only_that_page():
+    from studyapp.assignment import renew_reservations
+
+    study = make_study(design=Study.Design.SIDE_BY_SIDE, scale_min=0, scale_max=100, controls=2,
+                       pages_per_participant=2, ratings_per_stimulus=1, bad_checks=0, reservation_minutes=30)
+    idle = enrol(study, "idle", {})
+    with pytest.raises(StudyFull):
+        enrol(study, "second", {})
+    Participant.objects.filter(pk=idle.pk).update(last_seen=timezone.now() - timedelta(minutes=31))
+    taker = enrol(study, "second", {}, rng=random.Random(0))  # both pages again, the idle one's places free
+    assert taker.assignments.values("page").distinct().count() == 2
+    idle = renew_reservations(Participant.objects.get(pk=idle.pk))
+    assert not idle.assignments.exists() and idle.finished_at is not None  # nothing fits under the targets now
+    assert set(page_loads(study, an_hour_ago()).values()) == {1}

@@ -217,3 +217,16 @@ def test_the_demo_opens_a_side_by_side_study_on_the_single_studys_clips(settings
     assert ensure_side_by_side_study(single).pk == side_by_side.pk and side_by_side.stimuli.count() == len(clips)
     participant = enrol(side_by_side, "p1", {})
     assert len(current_page(participant)) >= 3
+
+
+def test_create_study_takes_the_design_and_side_by_side_rates_on_0_to_100():
+    from io import StringIO
+
+    from django.contrib.auth.models import User
+    from django.core.management import call_command
+
+    User.objects.create(username="r")
+    out = StringIO()
+    call_command("create_study", "r", "Sliders", "--design", "side-by-side", "--pages", "5", stdout=out)
+    study = Study.objects.get(pk=int(out.getvalue()))
+    assert (study.design, study.scale_min, study.scale_max, study.pages_per_participant) == ("side-by-side", 0, 100, 5)
