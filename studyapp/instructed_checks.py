@@ -28,8 +28,8 @@ TOP_SHARE = 0.1  # a side-by-side target passes in the top tenth of the scale
 
 
 def clip_label(slot: int) -> str:
-    """The neutral name of the clip at ``slot`` (1: A)."""
-    return chr(ord("A") + slot - 1)
+    """The neutral name of the clip at ``slot`` (1: A; past Z, or a slot a form made up, its number)."""
+    return chr(ord("A") + slot - 1) if 1 <= slot <= 26 else str(slot)
 
 
 def add_instructed_checks(study: Study, pages: list[PlannedPage], rng: random.Random) -> list[PlannedPage]:

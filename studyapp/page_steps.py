@@ -62,9 +62,10 @@ def page_context(study: Study, participant: Participant) -> dict:
     return {
         "clips": [{"slot": a.slot, "label": clip_label(a.slot), "video_url": a.stimulus.video_url} for a in page],
         "form": {"page": page[0].token}, "heading": f"Page {done + 1} of {total}", "done": done, "total": total,
-        "percent": round(100 * done / total) if total else 100, "instruction": instruction(study, [a.expected for a in page]),
-        "middle": (study.scale_min + study.scale_max) // 2, "strengths": list(study.strengths),
-        "time_fields": TIME_FIELDS,
+        "percent": round(100 * done / total) if total else 100,
+        "instruction": instruction(study, [a.expected for a in page]),
+        "middle": (study.scale_min + study.scale_max) // 2,  # where every slider starts
+        "strengths": list(study.strengths), "time_fields": TIME_FIELDS,
     }
 
 

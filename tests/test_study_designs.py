@@ -230,3 +230,16 @@ def test_create_study_takes_the_design_and_side_by_side_rates_on_0_to_100():
     call_command("create_study", "r", "Sliders", "--design", "side-by-side", "--pages", "5", stdout=out)
     study = Study.objects.get(pk=int(out.getvalue()))
     assert (study.design, study.scale_min, study.scale_max, study.pages_per_participant) == ("side-by-side", 0, 100, 5)
+
+
+def test_made_up_clips_and_numbers_in_a_page_form_are_refused_with_a_message():
+    study = make_study(**SIDE_BY_SIDE)
+    client = Client()
+    participant = through_practice(client, study)
+    token = page_token(page_html(client, study))
+    values = {f"value-{slot}": 50 for slot in (1, 2, 3)}
+    for extra in ({"value-99999999999": 50}, {"value-2": "fifty"}, {"started_s-1": "soon"}):
+        response = post(client, study, "rate-page", page=token, **{**values, **watched((1, 2, 3)), **extra})
+        assert response.status_code == 400, extra
+    assert post(client, study, "rate-page", page="f" * 32, **values).status_code == 403
+    assert not Rating.objects.exists() and current_page(participant)
