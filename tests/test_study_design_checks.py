@@ -11,7 +11,7 @@ from django.test import Client
 from django.utils import timezone
 
 from analysis.ratings import read_ratings
-from studyapp.models import Rating, Study, System
+from studyapp.models import Participant, Rating, Study, System
 from studyapp.monitor import ratings_csv
 from studyapp.page_assignment import page_loads
 from studyapp.page_ratings import current_page
@@ -129,3 +129,33 @@ def test_a_session_ends_politely_after_the_studys_number_of_failed_instructed_ch
     answered = participant.assignments.filter(rating__isnull=False, expected="").values("page").distinct().count()
     assert participant.assignments.filter(rating__isnull=True).exists()
     assert sum(page_loads(study, timezone.now() - timedelta(hours=1)).values()) == answered
+
+
+@pytest.mark.parametrize("settings", [SIDE_BY_SIDE, PAIRWISE])
+def test_the_analysis_recomputes_the_apps_flags_of_each_design_and_agrees(settings):
+    from analysis.exclusions import apply_exclusions, exclusion_notes
+    from studyapp.monitor import exclusion_rules
+
+    study = make_study(**{**settings, "bad_checks": 1, "instructed_checks": 1})
+    side_by_side = study.design == Study.Design.SIDE_BY_SIDE
+    for pid, careful, hasty in (("careful", True, False), ("careless", False, False), ("hasty", True, True)):
+        client = Client()
+        participant = through_practice(client, study, pid)
+        first = True
+        while page := current_page(participant):
+            early = {"ended_s-1": "", "ended_s-2": ""} if hasty and first else {}
+            if side_by_side:
+                low = not careful and any(a.stimulus.system.role == System.Role.NATURAL for a in page)
+                rate_page(client, study, participant, lambda a: 10 if low and a.stimulus.system.role ==
+                          System.Role.NATURAL else 100 if a.expected == "max" else 60, **early)
+            else:
+                roles = [a.stimulus.system.role for a in page]
+                prefer_bad = not careful and System.Role.BAD in roles and not page[0].expected
+                answer = page[0].expected or ("left" if (roles[0] == System.Role.BAD) == prefer_bad else "right")
+                compare(client, study, participant, answer, **early)
+            first = False
+    flags = {p.platform_id: p.excluded for p in Participant.objects.filter(study=study)}
+    assert flags == {"careful": False, "careless": True, "hasty": False}
+    flagged = apply_exclusions(read_ratings(io.StringIO(ratings_csv(study).decode())), exclusion_rules(study))
+    assert not [note for note in exclusion_notes(flagged, exclusion_rules(study)) if "disagrees" in note]
+    assert flagged["discarded_early"].any() and flagged["excluded_participant"].any()

@@ -53,14 +53,13 @@ def rate_page(client: Client, study: Study, participant: Participant, value_of=l
     page = current_page(participant)
     make_shown_long_ago(participant)
     values = {f"value-{a.slot}": value_of(a) for a in page}
-    return post(client, study, "rate-page", page=page_token(html), **values, **watched(a.slot for a in page),
-                **extra)
+    return post(client, study, "rate-page", page=page_token(html), **{**values, **watched(a.slot for a in page), **extra})
 
 
 def compare(client: Client, study: Study, participant: Participant, answer: str = "left", **extra):
     html = page_html(client, study)
     make_shown_long_ago(participant)
-    return post(client, study, "compare", page=page_token(html), answer=answer, **watched((1, 2)), **extra)
+    return post(client, study, "compare", page=page_token(html), answer=answer, **{**watched((1, 2)), **extra})
 
 
 def test_a_side_by_side_page_shows_every_system_of_one_control_under_neutral_labels():
