@@ -23,7 +23,7 @@ class StudyForm(forms.ModelForm):
     ratings on a new scale, or add a second set of clips drawn differently.
     """
 
-    INSTRUMENT = ("design", "question", "scale_min", "scale_max", "label_min", "label_max", "preference_strengths",
+    INSTRUMENT = ("design", "abx", "question", "scale_min", "scale_max", "label_min", "label_max", "preference_strengths",
                   "bad_threshold", "natural_threshold", "camera", "video_width", "video_height")
     SLIDER_SCALE = (0, 100)  # side-by-side's scale unless the researcher sets one (HEMVIP, GENEA)
 

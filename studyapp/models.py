@@ -68,6 +68,9 @@ class Study(models.Model):
     ratings_per_stimulus = models.PositiveSmallIntegerField(default=10, help_text="target number of ratings of each stimulus")
     pages_per_participant = models.PositiveSmallIntegerField(
         default=8, help_text="side-by-side and pairwise: pages each participant answers, attention checks included")
+    abx = models.BooleanField(
+        default=False, help_text="pairwise: show the control's natural clip as the reference X above A and B, and ask "
+                                 "which of them is closer to it (held-out controls only; NAT is then not paired)")
     preference_strengths = models.PositiveSmallIntegerField(
         default=0, help_text="pairwise: how many degrees of preference to ask (0: only which one)")
     training_clips = models.PositiveSmallIntegerField(default=4, help_text="practice clips shown first and not recorded")
@@ -107,6 +110,8 @@ class Study(models.Model):
             raise ValidationError({"clips_per_participant": "leave room for rated clips besides the attention checks"})
         if self.design == self.Design.PAIRWISE and self.bad_checks >= self.pages_per_participant:
             raise ValidationError({"pages_per_participant": "leave room for rated pages besides the BAD-versus-NAT checks"})
+        if self.abx and self.design != self.Design.PAIRWISE:
+            raise ValidationError({"abx": "a reference X goes with the pairwise design"})
         if self.design != self.Design.SINGLE and self.pages_per_participant == 0:
             raise ValidationError({"pages_per_participant": "a participant needs at least one page"})
         try:

@@ -12,7 +12,8 @@ are handed out least loaded first and never past ``ratings_per_stimulus``.
   ``bad_checks`` of them as an anchor. The order on a page is the next row of a
   Williams design (``williams_row``), so positions and neighbours are counterbalanced.
 - Pairwise: ``bad_checks`` BAD-versus-NAT pages (attention checks, no target) and the
-  rest from every pair of non-BAD systems on every control, among the least loaded the
+  rest from every pair of non-BAD systems on every control (ABX: of the systems other
+  than NAT, on controls with a natural clip to show as X), among the least loaded the
   pair whose systems this participant has seen least. Sides are balanced: each pair is
   shown in the order (left, right) it has been shown less often.
 
@@ -167,6 +168,10 @@ def pairwise_plan(study: Study, rendered: list[Stimulus], loads: Counter, orders
     clips, bad = _by_control(rendered)
     checks = []
     natural = [s for page in clips.values() for s in page if s.system.role == System.Role.NATURAL]
+    if study.abx:  # X is the control's natural clip: held-out controls only, and NAT is not paired with itself
+        with_x = {s.control_id for s in natural}
+        clips = {control: [s for s in page if s.system.role != System.Role.NATURAL]
+                 for control, page in clips.items() if control in with_x}
     rng.shuffle(natural)
     for nat in natural[:study.bad_checks]:
         anchor = _bad_for(nat.control_id, bad, rng)

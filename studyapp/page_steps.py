@@ -14,7 +14,7 @@ from django.shortcuts import redirect
 from django.utils import timezone
 
 from studyapp.instructed_checks import clip_label, instruction
-from studyapp.models import Assignment, Participant, Study
+from studyapp.models import Assignment, Participant, Stimulus, Study, System
 from studyapp.page_ratings import PageAnswer, current_page, record_page
 from studyapp.ratings import ClientTimes, RatingRejected
 
@@ -65,8 +65,17 @@ def page_context(study: Study, participant: Participant) -> dict:
         "percent": round(100 * done / total) if total else 100,
         "instruction": instruction(study, [a.expected for a in page]),
         "middle": (study.scale_min + study.scale_max) // 2,  # where every slider starts
-        "strengths": list(study.strengths), "time_fields": TIME_FIELDS,
+        "strengths": list(study.strengths), "time_fields": TIME_FIELDS, "reference": _reference(study, page),
     }
+
+
+def _reference(study: Study, page: list[Assignment]) -> dict | None:
+    """ABX: the page's reference X, the natural clip of its control (played like the others, not rated)."""
+    if not study.abx:
+        return None
+    natural = Stimulus.objects.filter(study=study, control_id=page[0].stimulus.control_id, status=Stimulus.Status.DONE,
+                                      system__role=System.Role.NATURAL).first()
+    return {"video_url": natural.video_url} if natural else None
 
 
 def rate_side_by_side(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:

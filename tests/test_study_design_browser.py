@@ -1,6 +1,6 @@
 """Side-by-side and pairwise studies end to end in a real browser (headless Chromium).
 
-For each design: a careful participant on a phone and one on a desktop (every clip
+For each design (and pairwise's ABX variant): a careful participant on a phone and one on a desktop (every clip
 played to its end, the instructed check followed), one who fails the checks (NAT rated
 low or BAD preferred, the instructed check ignored) and one who tries to answer before
 playing (the buttons stay disabled; forcing the form sends an answer the server flags
@@ -23,17 +23,17 @@ from tests.test_study_browser import browser, clip_video  # noqa: F401 (fixtures
 CLIP_SECONDS = 1.0
 PHONE = {"viewport": {"width": 390, "height": 844}, "is_mobile": True, "has_touch": True}
 DESKTOP = {"viewport": {"width": 1280, "height": 900}}
-SUBMIT = {Study.Design.SIDE_BY_SIDE: "Submit ratings", Study.Design.PAIRWISE: "A is better"}
 
 
 def video(slot: int) -> str:
     return f"document.querySelector('video[data-slot=\"{slot}\"]')"
 
 
-def play_every_clip(page, clips) -> None:
-    for clip in clips:
-        page.locator(f'button[data-play="{clip.slot}"]').click()
-        page.wait_for_function(f"() => {video(clip.slot)}.ended", timeout=20_000)
+def play_every_clip(page) -> None:
+    """Play each clip on the page (ABX's reference X too) to its end, one after the other."""
+    for slot in page.eval_on_selector_all("video[data-slot]", "videos => videos.map((v) => v.dataset.slot)"):
+        page.locator(f'button[data-play="{slot}"]').click()
+        page.wait_for_function(f"() => {video(slot)}.ended", timeout=20_000)
 
 
 def one_plays_at_a_time(page) -> bool:
@@ -82,7 +82,8 @@ def answer_page(page, study: Study, clips, careful: bool) -> None:
         return
     choice = (careful_choice if careful else careless_choice)(clips)
     page.get_by_role("radio", name="slightly").check()
-    page.get_by_role("button", name={"left": "A is better", "right": "B is better"}[choice]).click()
+    verb = "closer" if study.abx else "better"
+    page.get_by_role("button", name=f"{'A' if choice == 'left' else 'B'} is {verb}").click()
 
 
 def take_part(browser, live_server, study: Study, pid: str, screen: dict, careful: bool = True,
@@ -100,7 +101,8 @@ def take_part(browser, live_server, study: Study, pid: str, screen: dict, carefu
     first = True
     while clips := current_page(participant):
         page.wait_for_selector("video[data-slot]")
-        assert page.get_by_role("button", name=SUBMIT[study.design]).is_disabled()  # nothing played yet
+        assert page.eval_on_selector_all("#page-form button[type=submit]",  # nothing played yet
+                                         "buttons => buttons.every((b) => b.disabled)")
         if first:
             assert one_plays_at_a_time(page)
             assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth")  # no sideways scroll
@@ -110,7 +112,7 @@ def take_part(browser, live_server, study: Study, pid: str, screen: dict, carefu
         if hasty and first:
             page.evaluate("document.querySelectorAll('#page-form button').forEach((b) => { b.disabled = false; })")
         else:
-            play_every_clip(page, clips)
+            play_every_clip(page)
         answer_page(page, study, clips, careful)
         page.wait_for_function(f"() => !document.body.innerHTML.includes('{clips[0].token}')")
         first = False
@@ -124,6 +126,7 @@ def take_part(browser, live_server, study: Study, pid: str, screen: dict, carefu
 @pytest.mark.parametrize("design, fields", [
     (Study.Design.SIDE_BY_SIDE, {"scale_min": 0, "scale_max": 100, "pages_per_participant": 2}),
     (Study.Design.PAIRWISE, {"pages_per_participant": 3, "preference_strengths": 3}),
+    (Study.Design.PAIRWISE, {"pages_per_participant": 3, "preference_strengths": 3, "abx": True}),
 ])
 def test_careful_careless_and_hasty_participants_in_a_browser(browser, live_server, clip_video, settings, tmp_path,
                                                               design, fields):

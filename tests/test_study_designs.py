@@ -6,6 +6,7 @@ import io
 import re
 
 import pytest
+from django.core.exceptions import ValidationError
 from django.test import Client
 from django.urls import reverse
 
@@ -242,3 +243,24 @@ def test_made_up_clips_and_numbers_in_a_page_form_are_refused_with_a_message():
         assert response.status_code == 400, extra
     assert post(client, study, "rate-page", page="f" * 32, **values).status_code == 403
     assert not Rating.objects.exists() and current_page(participant)
+
+
+def test_abx_pages_pair_the_models_under_the_controls_natural_clip_as_reference_x():
+    study = make_study(**PAIRWISE, abx=True, bad_checks=1)
+    client = Client()
+    participant = through_practice(client, study)
+    while current_page(participant):
+        page = current_page(participant)
+        html = page_html(client, study)
+        natural = study.stimuli.get(control=page[0].stimulus.control, system__role=System.Role.NATURAL)
+        assert 'data-slot="x"' in html and f'src="{natural.video_url}"' in html and "closer to the reference X" in html
+        roles = sorted(a.stimulus.system.role for a in page)
+        assert roles in (["model", "model"], ["bad", "natural"])  # NAT is X, so it is paired only in the check
+        assert compare(client, study, participant, "left").status_code == 302
+    table = read_ratings(io.StringIO(ratings_csv(study).decode()))
+    assert table.groupby("page").size().eq(2).all()  # X is not a row: the pairwise schema as it is
+
+    single = make_study(owner_name="other")
+    single.abx = True
+    with pytest.raises(ValidationError):
+        single.full_clean()
