@@ -166,15 +166,16 @@ def test_the_design_is_fixed_once_participants_start_and_side_by_side_rates_on_0
     assert fixed.fields["design"].disabled and fixed.fields["preference_strengths"].disabled
 
 
-def answer_everything(study: Study, pids: list[str], value_of, choice: str = "left") -> None:
+def answer_everything(study: Study, pids: list[str], value_of=None) -> None:
     for pid in pids:
         client = Client()
         participant = through_practice(client, study, pid)
         while current_page(participant):
             if study.design == Study.Design.SIDE_BY_SIDE:
                 rate_page(client, study, participant, value_of)
-            else:
-                compare(client, study, participant, choice)
+            else:  # the left clip, or the other one where it is BAD (an attention check)
+                bad_left = current_page(participant)[0].stimulus.system.role == System.Role.BAD
+                compare(client, study, participant, "right" if bad_left else "left")
 
 
 def test_the_monitor_summarises_each_design_with_the_analysis_functions():
@@ -191,12 +192,13 @@ def test_the_monitor_summarises_each_design_with_the_analysis_functions():
         assert re.search(rf"<td>{system}</td>\s*<td>6</td>\s*<td>{value}</td>(\s*<td>{value}</td>){{3}}", summary)
 
     pairwise = make_study(**PAIRWISE, bad_checks=1, ratings_per_stimulus=10)
-    answer_everything(pairwise, ["a", "b"], None, choice="left")
+    answer_everything(pairwise, ["a", "b"])
     monitor = study_monitor(pairwise)
     assert [title for title, _ in monitor.tables] == [
         "Preference per pair (Wilson 95 % CI, sign test, Holm)",
         "How many more ratings give 80 % power per pair (at alpha 0.05)"]
     assert "BAD" not in monitor.tables[0][1] and monitor.means == []
+    assert not Participant.objects.filter(study=pairwise, excluded=True).exists()
 
 
 def test_the_demo_opens_a_side_by_side_study_on_the_single_studys_clips(settings, tmp_path):
