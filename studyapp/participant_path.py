@@ -31,8 +31,8 @@ from django.shortcuts import get_object_or_404, redirect, render
 from django.utils import timezone
 
 from studyapp.assignment import is_idle, renew_reservations
-from studyapp.models import Participant, Stimulus, Study
 from studyapp.instructed_checks import instruction
+from studyapp.models import Participant, Stimulus, Study
 from studyapp.page_steps import client_times, page_context, rate_pairwise, rate_side_by_side
 from studyapp.ratings import RatingRejected, current_assignment, record_rating
 
