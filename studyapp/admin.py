@@ -39,7 +39,7 @@ OWNER_PATHS = {Study: "owner", System: "study__owner", ControlSignal: "study__ow
 @admin.register(Study)
 class StudyAdmin(OwnStudiesOnly):
     owner_path = OWNER_PATHS[Study]
-    list_display = ["title", "owner", "scale_min", "scale_max", "platform", "is_open", "created"]
+    list_display = ["title", "owner", "design", "scale_min", "scale_max", "platform", "is_open", "created"]
     list_filter = ["is_open", "platform"]
     search_fields = ["title"]
     readonly_fields = ["key", "created"]
@@ -76,7 +76,8 @@ class StimulusAdmin(OwnStudiesOnly):
 
 @admin.register(Participant)
 class ParticipantAdmin(OwnStudiesOnly):
-    list_display = ["platform_id", "study", "started_at", "finished_at", "excluded", "exclusion_reason"]
+    list_display = ["platform_id", "study", "started_at", "finished_at", "excluded", "exclusion_reason", "failed_checks",
+                    "stopped_at"]
     list_filter = ["excluded"]
     search_fields = ["platform_id", "code"]
     readonly_fields = ["code", "started_at"]
@@ -85,7 +86,7 @@ class ParticipantAdmin(OwnStudiesOnly):
 @admin.register(Assignment)
 class AssignmentAdmin(OwnStudiesOnly):
     owner_path = OWNER_PATHS[Assignment]
-    list_display = ["participant", "position", "stimulus", "is_check", "shown_at"]
+    list_display = ["participant", "position", "page", "slot", "stimulus", "is_check", "expected", "shown_at"]
     list_filter = ["is_check"]
     readonly_fields = ["token"]
 
@@ -93,6 +94,6 @@ class AssignmentAdmin(OwnStudiesOnly):
 @admin.register(Rating)
 class RatingAdmin(OwnStudiesOnly):
     owner_path = OWNER_PATHS[Rating]
-    list_display = ["assignment", "value", "answered_at", "answered_before_end"]
+    list_display = ["assignment", "value", "answer", "strength", "answered_at", "answered_before_end"]
     list_filter = ["answered_before_end"]
     readonly_fields = ["answered_at"]

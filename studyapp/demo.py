@@ -10,8 +10,10 @@
 5. has the worker render a gallery of natural clips (one per content label);
 6. sets up the demo study (MoGlow, RNN, VAE, NAT and BAD; held-out and synthetic
    control) and has the worker sample and render every stimulus;
-7. opens the study and serves it with Django's runserver until Ctrl-C, printing the
-   participant link and the researcher's login.
+7. sets up a side-by-side study beside it (the same systems, controls and clips, rated
+   on 0-100 sliders, every system's clip of one control on a page);
+8. opens both studies and serves them with Django's runserver until Ctrl-C, printing the
+   participant links and the researcher's login.
 """
 
 from __future__ import annotations
@@ -31,6 +33,11 @@ REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "data" / "bandai-namco-1"
 LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right")
 DEMO_STUDY = "Demo: naturalness of generated locomotion"
+SIDE_BY_SIDE_STUDY = "Demo: naturalness of generated locomotion, side by side"
+SIDE_BY_SIDE_INSTRUCTIONS = (
+    "Each page shows several short videos of a stick figure moving. Play every video to its end (playing one "
+    "pauses the others), then rate how natural each one looks on its slider, from 0 (completely unnatural) to 100 "
+    "(completely natural). Compare them with each other: the videos on one page follow the same path.")
 # (system name, model kind, training steps, role, checkpoint). The baselines train in
 # minutes and keep the state with the lowest validation loss ("best"); MoGlow's is the
 # project's own hour of training (README, "Trained on the real data"), committed under
@@ -150,6 +157,38 @@ def _create_study(owner, models: Path):
     return study
 
 
+def ensure_side_by_side_study(single):
+    """The side-by-side demo study: the single study's systems, controls and rendered clips
+    (each clip's file linked under a token of its own), so it needs no rendering of its
+    own; clips rendered since the last run are added."""
+    from django.db import transaction
+
+    from studyapp.models import ControlSignal, Stimulus, Study, System
+
+    with transaction.atomic():
+        study, _ = Study.objects.get_or_create(owner=single.owner, title=SIDE_BY_SIDE_STUDY, defaults={
+            "design": Study.Design.SIDE_BY_SIDE, "scale_min": 0, "scale_max": 100, "pages_per_participant": 6,
+            "ratings_per_stimulus": 10, "training_clips": 3, "bad_checks": 2, "instructed_checks": 1,
+            "instructions": SIDE_BY_SIDE_INSTRUCTIONS, "completion_code": "DEMO-DONE", "camera": single.camera,
+            "video_width": single.video_width, "video_height": single.video_height})
+        systems = {s.pk: System.objects.get_or_create(study=study, name=s.name, defaults={
+            "role": s.role, "checkpoint": s.checkpoint, "checkpoint_digest": s.checkpoint_digest, "kind": s.kind,
+            "metadata": s.metadata, "temperature": s.temperature})[0] for s in single.systems.all()}
+        controls = {c.pk: ControlSignal.objects.get_or_create(study=study, name=c.name, defaults={
+            "origin": c.origin, "control": c.control, "source_clip": c.source_clip, "seconds": c.seconds})[0]
+            for c in single.controls.all()}
+        copied = set(study.stimuli.values_list("content_key", flat=True))
+        for clip in single.stimuli.filter(status=Stimulus.Status.DONE).exclude(content_key__in=copied):
+            twin = Stimulus.objects.create(
+                study=study, system=systems[clip.system_id], control=controls.get(clip.control_id), seed=clip.seed,
+                content_key=clip.content_key, status=Stimulus.Status.DONE, duration_s=clip.duration_s)
+            twin.video_path().parent.mkdir(parents=True, exist_ok=True)
+            os.link(clip.video_path(), twin.video_path())
+        study.is_open = study.stimuli.filter(status=Stimulus.Status.DONE).exists()
+        study.save(update_fields=["is_open"])
+    return study
+
+
 def ensure_researcher(var_dir: Path):
     """The demo's researcher login; the password is made once and kept under var/."""
     from django.contrib.auth.models import Permission, User
@@ -233,6 +272,7 @@ def main() -> int:
         count = render_gallery(data, Path(settings.MEDIA_ROOT))
         say(f"{count} natural clips rendered into {Path(settings.MEDIA_ROOT) / 'gallery'}")
         study = ensure_study(researcher, models)
+        side_by_side = ensure_side_by_side_study(study)
         server = subprocess.Popen(
             [sys.executable, "manage.py", "runserver", "--noreload", f"127.0.0.1:{port}"],
             cwd=REPO, start_new_session=True,
@@ -240,12 +280,13 @@ def main() -> int:
         base = f"http://127.0.0.1:{port}"
         if study.is_open:
             id_name = PLATFORM_PARAMETERS[study.platform][0]
-            say(f"participant link: {base}{reverse('participant-enter', args=[study.key])}?{id_name}=demo-participant-1")
+            for label, each in (("single clips", study), ("side by side", side_by_side)):
+                say(f"participant link ({label}): "
+                    f"{base}{reverse('participant-enter', args=[each.key])}?{id_name}=demo-participant-1")
             say(f"   (another {id_name} starts a new participant; the same one resumes)")
         else:
             say("no stimulus could be rendered, so the study stays closed: see the stimuli page for the reasons")
-        say(f"researcher:       {base}{reverse('study-monitor', args=[study.pk])}  "
-            f"(login {researcher.username} / {password})")
+        say(f"researcher:       {base}{reverse('study-list')}  (login {researcher.username} / {password})")
         say(f"gallery:          {base}/    health: {base}/health/    analysis: {base}/analysis/")
         say("press Ctrl-C to stop")
         server.wait()

@@ -23,8 +23,9 @@ class StudyForm(forms.ModelForm):
     ratings on a new scale, or add a second set of clips drawn differently.
     """
 
-    INSTRUMENT = ("question", "scale_min", "scale_max", "label_min", "label_max", "bad_threshold",
-                  "natural_threshold", "camera", "video_width", "video_height")
+    INSTRUMENT = ("design", "abx", "question", "scale_min", "scale_max", "label_min", "label_max", "preference_strengths",
+                  "bad_threshold", "natural_threshold", "camera", "video_width", "video_height")
+    SLIDER_SCALE = (0, 100)  # side-by-side's scale unless the researcher sets one (HEMVIP, GENEA)
 
     redirect_url = forms.URLField(required=False, assume_scheme="https",
                                   help_text=Study._meta.get_field("redirect_url").help_text)
@@ -35,6 +36,14 @@ class StudyForm(forms.ModelForm):
             for name in self.INSTRUMENT:
                 self.fields[name].disabled = True  # posted values are ignored
                 self.fields[name].help_text = "fixed: participants have started this study"
+
+    def clean(self) -> dict:
+        cleaned = super().clean()
+        changed = set(self.changed_data)
+        if (cleaned.get("design") == Study.Design.SIDE_BY_SIDE and "design" in changed
+                and not changed & {"scale_min", "scale_max"}):
+            cleaned["scale_min"], cleaned["scale_max"] = self.SLIDER_SCALE
+        return cleaned
 
     class Meta:
         model = Study

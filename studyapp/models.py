@@ -56,7 +56,13 @@ def camera_problem(data: object) -> str | None:
 
 
 class Study(models.Model):
-    """One rating study: its question, scale, protocol and crowd platform."""
+    """One rating study: its question, scale, design, protocol and crowd platform."""
+
+    class Design(models.TextChoices):
+        # The names the ratings table's design column uses (analysis.designs).
+        SINGLE = "single", "single clip per page, rated on the scale"
+        SIDE_BY_SIDE = "side-by-side", "side by side: every system's clip of one control on a page, each on a slider"
+        PAIRWISE = "pairwise", "pairwise: two systems' clips of one control, which is better"
 
     class Platform(models.TextChoices):
         PROLIFIC = "prolific", "Prolific"
@@ -79,13 +85,25 @@ class Study(models.Model):
         "This study is part of research on computer-generated motion. Taking part is voluntary and you "
         "may stop at any time. We record your ratings, the time you take, and the id your crowd "
         "platform gives you; nothing else about you."))
+    design = models.CharField(max_length=12, choices=Design.choices, default=Design.SINGLE)
     clips_per_participant = models.PositiveSmallIntegerField(default=20, help_text="rated clips, attention checks included")
     ratings_per_stimulus = models.PositiveSmallIntegerField(default=10, help_text="target number of ratings of each stimulus")
+    pages_per_participant = models.PositiveSmallIntegerField(
+        default=8, help_text="side-by-side and pairwise: pages each participant answers, attention checks included")
+    abx = models.BooleanField(
+        default=False, help_text="pairwise: show the control's natural clip as the reference X above A and B, and ask "
+                                 "which of them is closer to it (held-out controls only; NAT is then not paired)")
+    preference_strengths = models.PositiveSmallIntegerField(
+        default=0, help_text="pairwise: how many degrees of preference to ask (0: only which one)")
     training_clips = models.PositiveSmallIntegerField(default=4, help_text="practice clips shown first and not recorded")
     bad_checks = models.PositiveSmallIntegerField(default=1, help_text="BAD clips per participant (attention checks)")
     natural_checks = models.PositiveSmallIntegerField(default=1, help_text="NAT clips per participant placed as attention checks")
     bad_threshold = models.FloatField(default=4.0, help_text="on the 1-5 scale: rating a BAD clip this high or higher excludes")
     natural_threshold = models.FloatField(default=2.0, help_text="on the 1-5 scale: rating a NAT clip below this excludes")
+    instructed_checks = models.PositiveSmallIntegerField(
+        default=0, help_text="pages per participant that tell them which answer to give (not analysed)")
+    stop_after_failed_checks = models.PositiveSmallIntegerField(
+        default=0, help_text="end a participant's session politely after this many failed instructed checks (0: never)")
     discard_early = models.BooleanField(default=True, help_text="flag ratings given before the clip finished playing")
     reservation_minutes = models.PositiveIntegerField(
         default=90, help_text="an unfinished participant's unrated clips stop counting towards the target after this idle time")
@@ -110,8 +128,14 @@ class Study(models.Model):
             raise ValidationError({"scale_max": f"the scale must rise: {self.scale_min} to {self.scale_max} does not"})
         if self.video_width % 2 or self.video_height % 2:
             raise ValidationError({"video_width": "H.264 video needs an even width and height"})
-        if self.bad_checks + self.natural_checks >= self.clips_per_participant:
+        if self.design == self.Design.SINGLE and self.bad_checks + self.natural_checks >= self.clips_per_participant:
             raise ValidationError({"clips_per_participant": "leave room for rated clips besides the attention checks"})
+        if self.design == self.Design.PAIRWISE and self.bad_checks >= self.pages_per_participant:
+            raise ValidationError({"pages_per_participant": "leave room for rated pages besides the BAD-versus-NAT checks"})
+        if self.abx and self.design != self.Design.PAIRWISE:
+            raise ValidationError({"abx": "a reference X goes with the pairwise design"})
+        if self.design != self.Design.SINGLE and self.pages_per_participant == 0:
+            raise ValidationError({"pages_per_participant": "a participant needs at least one page"})
         problem = camera_problem(self.camera)
         if problem:
             raise ValidationError({"camera": f"not a camera description: {problem}"})
@@ -119,6 +143,10 @@ class Study(models.Model):
     @property
     def scale(self) -> range:
         return range(self.scale_min, self.scale_max + 1)
+
+    @property
+    def strengths(self) -> range:
+        return range(1, self.preference_strengths + 1)
 
     def bad_cutoff(self) -> float:
         return scaled_threshold(self.bad_threshold, self.scale_min, self.scale_max)
@@ -251,6 +279,9 @@ class Participant(models.Model):
     training = models.JSONField(default=list, blank=True, help_text="ids of the practice stimuli, in order")
     training_done = models.PositiveSmallIntegerField(default=0)
     finished_at = models.DateTimeField(null=True, blank=True)
+    failed_checks = models.PositiveSmallIntegerField(default=0, help_text="instructed checks answered otherwise than asked")
+    # Set with finished_at when failed_checks reaches the study's stop_after_failed_checks.
+    stopped_at = models.DateTimeField(null=True, blank=True)
     excluded = models.BooleanField(default=False)
     exclusion_reason = models.CharField(max_length=100, blank=True)
     user_agent = models.CharField(max_length=300, blank=True)
@@ -264,12 +295,25 @@ class Participant(models.Model):
 
 
 class Assignment(models.Model):
-    """A clip placed at a position in a participant's sequence."""
+    """A clip placed at a position in a participant's sequence, on one of their pages.
+
+    A page shows one clip (single design), K clips at slots 1..K (side-by-side) or two at
+    slots 1 (left) and 2 (right) (pairwise); the clips of a page are answered together.
+    """
+
+    LEFT, RIGHT = 1, 2  # a pairwise page's slots
 
     participant = models.ForeignKey(Participant, on_delete=models.CASCADE, related_name="assignments")
     stimulus = models.ForeignKey(Stimulus, on_delete=models.PROTECT, related_name="assignments")
     position = models.PositiveSmallIntegerField()
+    page = models.PositiveSmallIntegerField(default=0)
+    slot = models.PositiveSmallIntegerField(default=1, help_text="where on its page, from 1 (pairwise: 1 left, 2 right)")
     is_check = models.BooleanField(default=False, help_text="placed as an attention check")
+    # An instructed check: the answer its page asks for ("" on every other page). Its
+    # clips repeat others the participant sees, and its answers are not exported. (A
+    # clip may also be on several pairwise pages of one participant, so no constraint
+    # keeps clips unique per participant; the single design's plan never repeats one.)
+    expected = models.CharField(max_length=10, blank=True)
     token = models.CharField(max_length=32, unique=True, default=new_token, editable=False)
     shown_at = models.DateTimeField(null=True, blank=True, help_text="when the server first sent its page")
 
@@ -277,15 +321,22 @@ class Assignment(models.Model):
         ordering = ["participant", "position"]
         constraints = [
             models.UniqueConstraint(fields=["participant", "position"], name="one_clip_per_position"),
-            models.UniqueConstraint(fields=["participant", "stimulus"], name="each_clip_once_per_participant"),
+            models.UniqueConstraint(fields=["participant", "page", "slot"], name="one_clip_per_slot"),
         ]
 
 
 class Rating(models.Model):
     """A participant's answer to one assignment, with the timings that judge it."""
 
+    class Answer(models.TextChoices):  # a pairwise page's answer, the same on both its ratings
+        LEFT = "left", "left"
+        RIGHT = "right", "right"
+        NONE = "none", "no preference"
+
     assignment = models.OneToOneField(Assignment, on_delete=models.CASCADE, related_name="rating")
-    value = models.SmallIntegerField()
+    value = models.SmallIntegerField(null=True, blank=True, help_text="on the study's scale; none on pairwise pages")
+    answer = models.CharField(max_length=5, choices=Answer.choices, blank=True)
+    strength = models.PositiveSmallIntegerField(null=True, blank=True)
     answered_at = models.DateTimeField(auto_now_add=True)
     # Client-side times in seconds after the page was shown (None: the event never happened).
     client_started_s = models.FloatField(null=True, blank=True)

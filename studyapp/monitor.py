@@ -13,14 +13,20 @@ import csv
 import io
 from dataclasses import dataclass
 
+from django.utils.safestring import SafeString
+
 import pandas as pd
 
 from analysis.exclusions import ExclusionRules, apply_exclusions
+from analysis.pairwise import preference_pairs
+from analysis.power import more_ratings_for_power
 from analysis.ratings import read_ratings
+from analysis.side_by_side import median_and_mean
 from analysis.stats import system_means
 from analysis.tables import spreadsheet_safe
 from studyapp.models import ATTENTION_NAME, NATURAL_NAME, Stimulus, Study
-from studyapp.ratings import EXPORT_COLUMNS, ratings_rows
+from studyapp.ratings import export_columns, ratings_rows
+from studyapp.reports import html_table
 
 
 def ratings_csv(study: Study, for_spreadsheets: bool = False) -> bytes:
@@ -33,7 +39,7 @@ def ratings_csv(study: Study, for_spreadsheets: bool = False) -> bytes:
     if for_spreadsheets:
         rows = ({column: spreadsheet_safe(value) for column, value in row.items()} for row in rows)
     buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=EXPORT_COLUMNS, lineterminator="\n")
+    writer = csv.DictWriter(buffer, fieldnames=export_columns(study), lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
     return buffer.getvalue().encode()
@@ -49,7 +55,7 @@ def flagged_ratings(study: Study) -> pd.DataFrame:
     """The ratings table with ``kept``, ``excluded_participant`` and ``discarded_early`` flags (may be empty)."""
     csv_bytes = ratings_csv(study)
     if csv_bytes.count(b"\n") < 2:
-        return pd.DataFrame(columns=[*EXPORT_COLUMNS, "kept"])
+        return pd.DataFrame(columns=[*export_columns(study), "kept"])
     return apply_exclusions(read_ratings(io.StringIO(csv_bytes.decode())), exclusion_rules(study))
 
 
@@ -79,6 +85,8 @@ class StudyMonitor:
     kept_per_stimulus_min: int
     kept_per_stimulus_max: int
     means: list[SystemMean]
+    failed_instructed_checks: int  # participants who failed at least one
+    tables: list[tuple[str, SafeString]]  # the design's own summary and the power table, by the analysis
 
 
 def system_mean_rows(kept: pd.DataFrame, systems: list[str]) -> list[SystemMean]:
@@ -97,6 +105,33 @@ def system_mean_rows(kept: pd.DataFrame, systems: list[str]) -> list[SystemMean]
             values = kept.loc[kept["system"] == system, "value"]
             rows.append(SystemMean(system, n, float(values.mean()) if n else None, None, None))
     return rows
+
+
+def compared_ratings(study: Study, kept: pd.DataFrame) -> pd.DataFrame:
+    """The kept ratings of the compared systems: BAD's rows left out, and on pairwise pages
+    the whole page showing BAD (a BAD-versus-NAT check compares nothing)."""
+    if study.design != Study.Design.PAIRWISE:
+        return kept[kept["system"] != ATTENTION_NAME]
+    checks = kept.loc[kept["system"] == ATTENTION_NAME, ["participant", "page"]].drop_duplicates()
+    on_check = kept.merge(checks, on=["participant", "page"], how="left", indicator=True)["_merge"] == "both"
+    return kept[~on_check.to_numpy()]
+
+
+def analysis_tables(study: Study, kept: pd.DataFrame) -> list[tuple[str, SafeString]]:
+    """What the analysis says so far: the design's summary (side-by-side: medians and means;
+    pairwise: preference shares) and, for every design, the ratings needed for 80 % power."""
+    compared = compared_ratings(study, kept)
+    counts = compared.groupby("system").size()
+    compared = compared[compared["system"].isin(counts.index[counts >= 2])]
+    if compared["system"].nunique() < 2:
+        return []
+    tables = []
+    if study.design == Study.Design.SIDE_BY_SIDE:
+        tables.append(("Median and mean per system (95 % CIs)", median_and_mean(compared)))
+    elif study.design == Study.Design.PAIRWISE:
+        tables.append(("Preference per pair (Wilson 95 % CI, sign test, Holm)", preference_pairs(compared)))
+    tables.append(("How many more ratings give 80 % power per pair (at alpha 0.05)", more_ratings_for_power(compared)))
+    return [(title, html_table(table)) for title, table in tables]
 
 
 def study_monitor(study: Study) -> StudyMonitor:
@@ -118,7 +153,10 @@ def study_monitor(study: Study) -> StudyMonitor:
         per_stimulus_max=int(collected.max()) if done else 0,
         kept_per_stimulus_min=int(kept_counts.min()) if done else 0,
         kept_per_stimulus_max=int(kept_counts.max()) if done else 0,
-        means=system_mean_rows(kept, systems),
+        # Pairwise pages carry preferences, not values: their summary is the analysis report's.
+        means=system_mean_rows(kept, systems) if study.design != Study.Design.PAIRWISE else [],
+        failed_instructed_checks=participants.filter(failed_checks__gt=0).count(),
+        tables=analysis_tables(study, kept),
     )
 
 

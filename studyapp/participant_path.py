@@ -1,6 +1,11 @@
 """The participant's path through a study, declared once: ``PATH``, its steps in order.
 
-    entry link -> consent -> instructions -> practice clips -> one clip per page -> completion
+    entry link -> consent -> instructions -> practice clips -> the study's pages -> completion
+
+The pages are those of the study's design (``Study.design``): one clip each (single),
+every system's clip of one control on sliders (side-by-side), or two clips to choose
+between (pairwise); a step with a ``design`` belongs to that design's path only. A
+participant who fails too many instructed checks leaves the path with a polite ending.
 
 Each ``Step`` says when the participant is on it (``pending``: the first pending
 step is theirs, so a reload or a return on another day shows the page they left), what
@@ -26,8 +31,10 @@ from django.shortcuts import get_object_or_404, redirect, render
 from django.utils import timezone
 
 from studyapp.assignment import is_idle, renew_reservations
+from studyapp.instructed_checks import instruction
 from studyapp.models import Participant, Stimulus, Study
-from studyapp.ratings import ClientTimes, RatingRejected, current_assignment, record_rating
+from studyapp.page_steps import client_times, page_context, rate_pairwise, rate_side_by_side
+from studyapp.ratings import RatingRejected, current_assignment, record_rating
 
 PROLIFIC_COMPLETION_URL = "https://app.prolific.com/submissions/complete"
 MTURK_SUBMIT_HOSTS = {"www.mturk.com", "workersandbox.mturk.com"}
@@ -43,6 +50,7 @@ class Step:
     name: str
     template: str  # under studyapp/templates/studyapp/participant/
     pending: Callable[[Participant], bool]  # not passed yet
+    design: str | None = None  # on the path of studies of this design only (None: of every design)
     page: PageContext = lambda study, participant: {}
     submit: Submit | None = None
     # Its form is still passed to ``submit`` once the participant has gone past the step,
@@ -76,11 +84,13 @@ def _consent(request: HttpRequest, study: Study, participant: Participant) -> Ht
 
 
 def _clip_page(study: Study, stimulus: Stimulus, action: str, form: dict, heading: str, done: int,
-               total: int) -> dict:
+               total: int, instruction: str = "") -> dict:
     return {
         "video_url": stimulus.video_url, "action": action, "form": form, "heading": heading,
         "scale": list(study.scale), "keys": len(study.scale) <= 10, "done": done, "total": total,
-        "percent": round(100 * done / total) if total else 100,
+        "percent": round(100 * done / total) if total else 100, "instruction": instruction,
+        # Practice of the multi-clip designs is to watch the range of motion, not to answer.
+        "watch_only": action == "participant-practice" and study.design != Study.Design.SINGLE,
     }
 
 
@@ -108,20 +118,7 @@ def _rating_page(study: Study, participant: Participant) -> dict:
     counts = participant.assignments.aggregate(total=Count("pk"), done=Count("rating"))
     total, done = counts["total"], counts["done"]
     return _clip_page(study, assignment.stimulus, "participant-rate", {"assignment": assignment.token},
-                      f"Clip {done + 1} of {total}", done, total)
-
-
-def _optional_float(request: HttpRequest, name: str) -> float | None:
-    text = request.POST.get(name, "").strip()
-    if not text:
-        return None
-    try:
-        value = float(text)
-    except ValueError:
-        raise RatingRejected(f"{name} must be a number of seconds, not {text[:20]!r}") from None
-    if not 0 <= value < 1e6:
-        raise RatingRejected(f"{name} must lie between 0 and a million seconds, not {value}")
-    return value
+                      f"Clip {done + 1} of {total}", done, total, instruction(study, [assignment.expected]))
 
 
 def _rate(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
@@ -139,8 +136,7 @@ def _rate(request: HttpRequest, study: Study, participant: Participant) -> HttpR
     except ValueError:
         raise RatingRejected(f"the rating must be a whole number from {study.scale_min} to {study.scale_max}, "
                              f"not {text[:20]!r}") from None
-    times = ClientTimes(*(_optional_float(request, name) for name in ("started_s", "ended_s", "answered_s", "played_until_s")))
-    record_rating(participant, token, value, times)  # after the last clip, it says why not
+    record_rating(participant, token, value, client_times(request))  # after the last clip, it says why not
     return _next_page(study)
 
 
@@ -159,6 +155,13 @@ def _completion_page(study: Study, participant: Participant) -> dict:
     return {"code": code, "redirect_url": target, "mturk_submit": mturk_submit}
 
 
+def _stopped_page(study: Study, participant: Participant) -> dict:
+    """The polite end of a session stopped by failed instructed checks (no completion code)."""
+    return {"title": "Thank you", "text": (
+        "Thank you for your time. Some answers did not follow the instructions shown on the page, so this "
+        "session has ended here. Please return the study on your platform.")}
+
+
 PATH: tuple[Step, ...] = (
     Step("consent", "consent.html", pending=lambda p: p.consented_at is None, submit=_consent),
     Step("instructions", "instructions.html", pending=lambda p: p.instructed_at is None,
@@ -166,14 +169,23 @@ PATH: tuple[Step, ...] = (
     Step("practice", "clip.html", pending=lambda p: p.training_done < len(p.training), page=_practice_page,
          submit=_practice),
     Step("rate", "clip.html", pending=lambda p: p.finished_at is None, page=_rating_page, submit=_rate,
-         takes_late_posts=True),
+         takes_late_posts=True, design=Study.Design.SINGLE),
+    Step("rate-page", "side_by_side.html", pending=lambda p: p.finished_at is None, page=page_context,
+         submit=rate_side_by_side, takes_late_posts=True, design=Study.Design.SIDE_BY_SIDE),
+    Step("compare", "pairwise.html", pending=lambda p: p.finished_at is None, page=page_context,
+         submit=rate_pairwise, takes_late_posts=True, design=Study.Design.PAIRWISE),
+    Step("stopped", "message.html", pending=lambda p: p.stopped_at is not None, page=_stopped_page),
     Step("done", "done.html", pending=lambda p: True, page=_completion_page),
 )
 
 
+def _on_path(step: Step, participant: Participant) -> bool:
+    return step.design is None or step.design == participant.study.design
+
+
 def current_step(participant: Participant) -> Step:
-    """The step the participant is on: the first one not passed."""
-    return next(step for step in PATH if step.pending(participant))
+    """The step the participant is on: the first one of their study's design not passed."""
+    return next(step for step in PATH if _on_path(step, participant) and step.pending(participant))
 
 
 def stage(participant: Participant) -> str:
@@ -183,6 +195,8 @@ def stage(participant: Participant) -> str:
 
 def may_post(step: Step, participant: Participant) -> bool:
     """Whether ``step``'s form may be sent now: the participant is on it (or past it, where it takes late posts)."""
+    if not _on_path(step, participant):
+        return False
     current = PATH.index(current_step(participant))
     here = PATH.index(step)
     return current == here or (step.takes_late_posts and current > here)

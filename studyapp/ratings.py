@@ -15,6 +15,7 @@ from django.db import IntegrityError, transaction
 from django.utils import timezone
 
 from studyapp.assignment import last_seen_is_stale
+from studyapp.instructed_checks import failure_changes, passed
 from studyapp.models import Assignment, Participant, Rating, Study, System
 
 
@@ -56,7 +57,7 @@ def answered_early(assignment: Assignment, answered_at, times: ClientTimes) -> b
     return times.answered_s is not None and times.answered_s < times.ended_s
 
 
-def _exclusion(study: Study, system: System, value: int) -> str:
+def exclusion(study: Study, system: System, value: int) -> str:
     if system.role == System.Role.BAD and value >= study.bad_cutoff():
         return "rated a BAD clip high"
     if system.role == System.Role.NATURAL and value < study.natural_cutoff():
@@ -67,6 +68,8 @@ def _exclusion(study: Study, system: System, value: int) -> str:
 def record_rating(participant: Participant, assignment_token: str, value: int, times: ClientTimes) -> Rating:
     """Store the rating of the participant's current clip, or raise RatingRejected (nothing stored)."""
     study = participant.study
+    if participant.finished_at is not None:  # the last page answered, or stopped with pages left
+        raise RatingRejected("this participant has already finished the study", status=409)
     if value not in study.scale:
         raise RatingRejected(f"rating {value} is outside the scale {study.scale_min}-{study.scale_max}")
     try:
@@ -88,22 +91,24 @@ def _store_rating(study: Study, participant: Participant, assignment_token: str,
     if not unrated:
         raise RatingRejected("this participant has already finished the study", status=409)
     if unrated[0].token != assignment_token:
-        raise _refusal(participant, assignment_token)
+        raise refusal(participant, assignment_token)
     assignment, now = unrated[0], timezone.now()
     rating = Rating.objects.create(
         assignment=assignment, value=value, client_started_s=times.started_s, client_ended_s=times.ended_s,
         client_answered_s=times.answered_s, played_until_s=times.played_until_s,
         answered_before_end=answered_early(assignment, now, times))
     changes = {"finished_at": now} if len(unrated) == 1 else {}
+    if assignment.expected and not passed(study, [assignment.expected], [value]):
+        changes.update(failure_changes(study, participant, now))
     if changes or last_seen_is_stale(participant, now):
         Participant.objects.filter(pk=participant.pk).update(last_seen=now, **changes)
-    reason = _exclusion(study, assignment.stimulus.system, value)
+    reason = "" if assignment.expected else exclusion(study, assignment.stimulus.system, value)
     if reason and not participant.excluded:  # the first reason stays
         Participant.objects.filter(pk=participant.pk, excluded=False).update(excluded=True, exclusion_reason=reason)
     return rating
 
 
-def _refusal(participant: Participant, assignment_token: str) -> RatingRejected:
+def refusal(participant: Participant, assignment_token: str) -> RatingRejected:
     """Why ``assignment_token`` is not the clip on screen (asked only when it is not)."""
     assignment = Assignment.objects.filter(participant=participant, token=assignment_token).first()
     if assignment is None:
@@ -119,21 +124,43 @@ EXPORT_COLUMNS = (
     "played_until_s", "answered_before_end",
     "excluded_participant", "discarded_early", "exclusion_reason",
 )
+_SCALE_COLUMNS = ("value", "scale_min", "scale_max")
+# The page structure each design adds in front (docs/ratings-schema.md); pairwise rows carry no scale.
+DESIGN_COLUMNS = {
+    Study.Design.SINGLE: (),
+    Study.Design.SIDE_BY_SIDE: ("design", "page", "position"),
+    Study.Design.PAIRWISE: ("design", "page", "side", "answer", "strength"),
+}
+
+
+def export_columns(study: Study) -> tuple[str, ...]:
+    """The columns of the study's ratings table, by its design."""
+    columns = EXPORT_COLUMNS
+    if study.design == Study.Design.PAIRWISE:
+        columns = tuple(c for c in columns if c not in _SCALE_COLUMNS)
+    return (*DESIGN_COLUMNS[study.design], *columns)
 
 
 def ratings_rows(study: Study) -> list[dict]:
-    """The study's ratings in the schema of docs/ratings-schema.md, one dict per rating."""
-    ratings = (Rating.objects.filter(assignment__participant__study=study)
+    """The study's ratings in the schema of docs/ratings-schema.md, one dict per rating.
+
+    Instructed checks are left out: their answers were dictated, not given."""
+    ratings = (Rating.objects.filter(assignment__participant__study=study, assignment__expected="")
                .select_related("assignment__participant", "assignment__stimulus__system",
                                "assignment__stimulus__control")
                .order_by("answered_at", "pk"))
+    columns = export_columns(study)
     rows = []
     for rating in ratings:
         assignment = rating.assignment
         participant, stimulus = assignment.participant, assignment.stimulus
-        early = rating.answered_before_end
-        discarded = early and study.discard_early and not participant.excluded
-        rows.append({
+        row = {
+            "design": study.design,
+            "page": assignment.page + 1,
+            "position": assignment.slot,
+            "side": "left" if assignment.slot == Assignment.LEFT else "right",
+            "answer": rating.answer,
+            "strength": rating.strength,
             "participant": participant.code,
             "system": stimulus.system.export_name,
             "stimulus": stimulus.token,
@@ -149,9 +176,22 @@ def ratings_rows(study: Study) -> list[dict]:
             "client_ended_s": rating.client_ended_s,
             "client_answered_s": rating.client_answered_s,
             "played_until_s": rating.played_until_s,
-            "answered_before_end": early,
+            "answered_before_end": rating.answered_before_end,
             "excluded_participant": participant.excluded,
-            "discarded_early": discarded,
-            "exclusion_reason": participant.exclusion_reason or ("answered before clip end" if discarded else ""),
-        })
+            "exclusion_reason": participant.exclusion_reason,
+        }
+        rows.append({column: row[column] for column in columns if column in row})
+    _flag_discarded(study, rows)
     return rows
+
+
+def _flag_discarded(study: Study, rows: list[dict]) -> None:
+    """Add ``discarded_early`` and ``exclusion_reason``: an early answer discards its
+    clip's rating, and on a pairwise page the whole page (its one answer)."""
+    pairwise = study.design == Study.Design.PAIRWISE
+    early_pages = {(row["participant"], row["page"]) for row in rows if pairwise and row["answered_before_end"]}
+    for row in rows:
+        early = row["answered_before_end"] or (pairwise and (row["participant"], row["page"]) in early_pages)
+        discarded = early and study.discard_early and not row["excluded_participant"]
+        row["discarded_early"] = discarded
+        row["exclusion_reason"] = row["exclusion_reason"] or ("answered before clip end" if discarded else "")

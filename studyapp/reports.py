@@ -98,7 +98,8 @@ def _paragraphs(markdown: str) -> list[SafeString]:
     return [mark_safe(bold.sub(r"<strong>\1</strong>", str(escape(p.strip())))) for p in markdown.split("\n\n") if p.strip()]
 
 
-def _html(table: pd.DataFrame) -> SafeString:
+def html_table(table: pd.DataFrame) -> SafeString:
+    """A table as escaped HTML (MultiIndex columns flattened), for the report and the monitor."""
     flat = table.copy()
     if isinstance(flat.columns, pd.MultiIndex):
         flat.columns = [" · ".join(str(p) for p in c if str(p)) for c in flat.columns]
@@ -117,8 +118,8 @@ def report_page(media_root: Path, digest: str, owner_id: int) -> ReportPage:
         raise FileNotFoundError(digest)
     report = _analyse(folder)
     if isinstance(report, DesignReport):  # side-by-side and pairwise: their own tables
-        tables = [("Exclusions", _html(report.exclusions))]
-        tables += [(title, _html(table)) for title, table in report.tables.values() if len(table)]
+        tables = [("Exclusions", html_table(report.exclusions))]
+        tables += [(title, html_table(table)) for title, table in report.tables.values() if len(table)]
     else:
         tables = _single_design_tables(report)
     figures = sorted(str(p.relative_to(media_root)) for p in (folder / "figures").glob("*.svg"))
@@ -127,15 +128,16 @@ def report_page(media_root: Path, digest: str, owner_id: int) -> ReportPage:
 
 
 def _single_design_tables(report: Report) -> list[tuple[str, SafeString]]:
-    tables = [("Mean ratings ± 95 % CI (MoGlow Table 2 layout)", _html(report.significance_display)),
-              ("Exclusions", _html(report.exclusions)),
-              ("One-way ANOVA", _html(report.anova)),
-              ("Tukey HSD, all pairs", _html(report.tukey)),
-              ("Linear mixed model (participant random intercept)", _html(report.mixed))]
-    tables += [(f"Adjusted p-values, {task} · {cc}", _html(m)) for (task, cc), m in report.pvalues_display.items()]
+    tables = [("Mean ratings ± 95 % CI (MoGlow Table 2 layout)", html_table(report.significance_display)),
+              ("Exclusions", html_table(report.exclusions)),
+              ("One-way ANOVA", html_table(report.anova)),
+              ("Tukey HSD, all pairs", html_table(report.tukey)),
+              ("Linear mixed model (participant random intercept)", html_table(report.mixed))]
+    tables += [(f"Adjusted p-values, {task} · {cc}", html_table(m)) for (task, cc), m in report.pvalues_display.items()]
     if report.power is not None and len(report.power):
-        tables.append(("Ratings needed for 80 % power per pair", _html(report.power)))
+        tables.append(("Ratings needed for 80 % power per pair", html_table(report.power)))
     return tables
 
 
-__all__ = ["AnalysisInputError", "ReportPage", "create_report", "report_folder", "report_owner", "report_page"]
+__all__ = ["AnalysisInputError", "ReportPage", "create_report", "html_table", "report_folder", "report_owner",
+           "report_page"]

@@ -3,7 +3,8 @@
 A dry run before a study goes to the crowd, the concurrency test and the ratings
 benchmark all use it. Each participant is an independent cookie-carrying client that
 reads the page it is on, as a browser would, and answers it: consent, instructions,
-practice clips, then a rating per clip (claiming to have watched it to the end).
+practice clips, then a rating per clip, or an answer per side-by-side or pairwise page
+(claiming to have watched every clip to the end).
 
     python -m studyapp.simulated_participants http://127.0.0.1:8000/p/KEY/ -n 20
 
@@ -29,6 +30,12 @@ from dataclasses import dataclass, field
 _FORM = re.compile(r'<form method="post" action="([^"]+)"[^>]*>(.*?)</form>', re.S)
 _HIDDEN = re.compile(r'<input type="hidden" name="([^"]+)"(?: value="([^"]*)")?>')
 _POINT = re.compile(r'<button type="submit" name="value" value="(-?\d+)">')
+# Side-by-side and pairwise pages: a slider per clip, or the answer buttons and strengths.
+_SLIDER = re.compile(r'<input type="range" form="page-form" id="[^"]+" name="(value-\d+)" min="(-?\d+)" max="(-?\d+)"')
+_ANSWER = re.compile(r'<button type="submit" name="answer" value="(\w+)"')
+_STRENGTH = re.compile(r'<input type="radio" name="strength" value="(\d+)"')
+_PLAY = re.compile(r'data-play="(\d+)"')
+_RATING_STEPS = ("/rate/", "/rate-page/", "/compare/")
 
 
 @dataclass
@@ -81,13 +88,17 @@ class SimulatedParticipant:
         data = {name: html.unescape(value or "") for name, value in _HIDDEN.findall(form)}
         points = [int(p) for p in _POINT.findall(form)]
         url = urllib.parse.urljoin(page_url, action)
+        sliders, answers = _SLIDER.findall(body), _ANSWER.findall(form)
         if action.endswith("/consent/"):
             data["agree"] = "yes"
         elif points:
             time.sleep(self.watch_s)
             data.update(value=str(self.rng.choice(points)), started_s="0.05", ended_s="0.5",
                         answered_s="0.6", played_until_s="0.45")
-        if action.endswith("/rate/"):
+        elif sliders or answers:
+            time.sleep(self.watch_s)
+            data.update(self._page_answer(body, sliders, answers, _STRENGTH.findall(form)))
+        if action.endswith(_RATING_STEPS):
             start = time.perf_counter()
             next_page = self._rate(url, data)
             self.outcome.ratings += 1
@@ -95,6 +106,19 @@ class SimulatedParticipant:
             self.outcome.rating_latencies_s.append(time.perf_counter() - start)
             return result
         return self._open(url, data)
+
+    def _page_answer(self, body: str, sliders: list[tuple[str, str, str]], answers: list[str],
+                     strengths: list[str]) -> dict:
+        """A random answer to a side-by-side or pairwise page, every clip claimed watched to its end."""
+        data = {name: str(self.rng.randint(int(low), int(high))) for name, low, high in sliders}
+        if answers:
+            data["answer"] = self.rng.choice(answers)
+            if strengths and data["answer"] != "none":
+                data["strength"] = self.rng.choice(strengths)
+        for slot in _PLAY.findall(body):
+            data.update({f"started_s-{slot}": "0.05", f"ended_s-{slot}": "0.5", f"answered_s-{slot}": "0.6",
+                         f"played_until_s-{slot}": "0.45"})
+        return data
 
     def _rate(self, url: str, data: dict) -> str:
         """POST a rating; the URL of the page the server redirects to once it has stored it."""

@@ -34,7 +34,7 @@ def store_ratings(study) -> None:
         participant = Participant.objects.create(study=study, platform_id=platform_id, finished_at=now)
         for position, (system, control, value, early) in enumerate(ratings):
             stimulus = Stimulus.objects.get(study=study, system__name=system, control__name=f"control-{control}")
-            assignment = Assignment.objects.create(participant=participant, stimulus=stimulus, position=position,
+            assignment = Assignment.objects.create(participant=participant, stimulus=stimulus, position=position, page=position,
                                                    shown_at=now)
             Rating.objects.create(assignment=assignment, value=value, answered_before_end=early)
             if system == "BAD" and value >= study.bad_cutoff():

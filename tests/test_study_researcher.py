@@ -173,7 +173,8 @@ def test_the_study_form_checks_the_study_and_needs_csrf(client, researcher):
               "ratings_per_stimulus": 5, "training_clips": 2, "bad_checks": 1, "natural_checks": 1,
               "bad_threshold": 4, "natural_threshold": 2, "discard_early": "on", "reservation_minutes": 60,
               "platform": "prolific", "completion_code": "XYZ", "redirect_url": "", "camera": '{"azimuth": 20}',
-              "video_width": 320, "video_height": 240}
+              "video_width": 320, "video_height": 240, "design": "single", "pages_per_participant": 8,
+              "preference_strengths": 0, "instructed_checks": 0, "stop_after_failed_checks": 0}
     refused = client.post("/studies/new/", {**fields, "scale_min": 10, "scale_max": 1})
     assert refused.status_code == 400 and "the scale must rise" in refused.content.decode()
     assert client.post("/studies/new/", {**fields, "video_width": 321}).status_code == 400

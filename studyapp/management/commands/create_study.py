@@ -24,8 +24,11 @@ class Command(BaseCommand):
     def add_arguments(self, parser):
         parser.add_argument("owner", help="username of the researcher who owns it")
         parser.add_argument("title")
-        parser.add_argument("--scale", nargs=2, type=int, metavar=("MIN", "MAX"), default=(1, 5))
+        parser.add_argument("--design", choices=Study.Design.values, default=Study.Design.SINGLE)
+        parser.add_argument("--scale", nargs=2, type=int, metavar=("MIN", "MAX"),
+                            help="default 1 5 (side-by-side: 0 100)")
         parser.add_argument("--clips", type=int, default=20, help="clips per participant, attention checks included")
+        parser.add_argument("--pages", type=int, default=8, help="side-by-side and pairwise: pages per participant")
         parser.add_argument("--ratings-per-stimulus", type=int, default=10)
         parser.add_argument("--training-clips", type=int, default=4)
         parser.add_argument("--platform", choices=Study.Platform.values, default=Study.Platform.LINK)
@@ -36,9 +39,10 @@ class Command(BaseCommand):
         owner = get_user_model().objects.filter(username=options["owner"]).first()
         if owner is None:
             raise CommandError(f"no user named {options['owner']!r} (create one with createsuperuser)")
+        scale = options["scale"] or ((0, 100) if options["design"] == Study.Design.SIDE_BY_SIDE else (1, 5))
         study = create_study(
-            owner, options["title"], scale_min=options["scale"][0], scale_max=options["scale"][1],
-            clips_per_participant=options["clips"], ratings_per_stimulus=options["ratings_per_stimulus"],
+            owner, options["title"], design=options["design"], scale_min=scale[0], scale_max=scale[1],
+            clips_per_participant=options["clips"], pages_per_participant=options["pages"], ratings_per_stimulus=options["ratings_per_stimulus"],
             training_clips=options["training_clips"], platform=options["platform"],
             completion_code=options["completion_code"], video_width=options["size"][0], video_height=options["size"][1])
         self.stdout.write(str(study.pk))

@@ -1,0 +1,268 @@
+"""The side-by-side and pairwise designs on the participant's path: pages, answers, export."""
+
+from __future__ import annotations
+
+import io
+import re
+
+import pytest
+from django.core.exceptions import ValidationError
+from django.test import Client
+from django.urls import reverse
+
+from analysis.ratings import read_ratings
+from studyapp.forms import StudyForm
+from studyapp.models import Participant, Rating, Study, System
+from studyapp.monitor import ratings_csv
+from studyapp.page_ratings import current_page
+from tests.study_fixtures import make_study
+from tests.test_study_participant import enter, make_shown_long_ago, post
+
+pytestmark = pytest.mark.django_db
+
+SIDE_BY_SIDE = {"design": Study.Design.SIDE_BY_SIDE, "scale_min": 0, "scale_max": 100, "pages_per_participant": 2}
+PAIRWISE = {"design": Study.Design.PAIRWISE, "pages_per_participant": 4}
+
+
+def watched(slots) -> dict:
+    """Every clip of a page played to its end before the answer."""
+    return {f"{name}-{slot}": value for slot in slots
+            for name, value in (("started_s", 0.1), ("ended_s", 4.2), ("answered_s", 9.0), ("played_until_s", 4.0))}
+
+
+def through_practice(client: Client, study: Study, pid: str = "pid-1") -> Participant:
+    enter(client, study, pid)
+    post(client, study, "consent", agree="yes")
+    post(client, study, "instructions")
+    participant = Participant.objects.get(study=study, platform_id=pid)
+    for index in range(len(participant.training)):
+        post(client, study, "practice", index=index)
+    return participant
+
+
+def page_html(client: Client, study: Study) -> str:
+    return client.get(reverse("participant-page", args=[study.key])).content.decode()
+
+
+def page_token(html: str) -> str:
+    return re.search(r'name="page" value="([0-9a-f]+)"', html).group(1)
+
+
+def rate_page(client: Client, study: Study, participant: Participant, value_of=lambda a: 50, **extra):
+    """Answer the side-by-side page on screen; ``value_of(assignment)`` gives each slider's value."""
+    html = page_html(client, study)
+    page = current_page(participant)
+    make_shown_long_ago(participant)
+    values = {f"value-{a.slot}": value_of(a) for a in page}
+    return post(client, study, "rate-page", page=page_token(html), **{**values, **watched(a.slot for a in page), **extra})
+
+
+def compare(client: Client, study: Study, participant: Participant, answer: str = "left", **extra):
+    html = page_html(client, study)
+    make_shown_long_ago(participant)
+    return post(client, study, "compare", page=page_token(html), answer=answer, **{**watched((1, 2)), **extra})
+
+
+def test_a_side_by_side_page_shows_every_system_of_one_control_under_neutral_labels():
+    study = make_study(**SIDE_BY_SIDE, bad_checks=2)
+    client = Client()
+    participant = through_practice(client, study)
+    html = page_html(client, study)
+    page = current_page(participant)
+    assert {a.stimulus.system.name for a in page} == {"MoGlow", "RNN", "NAT", "BAD"}  # BAD as the anchor
+    assert len({a.stimulus.control_id for a in page}) == 1
+    assert [a.slot for a in page] == [1, 2, 3, 4]
+    for a in page:
+        assert f'src="{a.stimulus.video_url}"' in html
+    assert re.findall(r"<h2>Clip (\w)</h2>", html) == ["A", "B", "C", "D"]
+    assert html.count('type="range"') == 4 and 'min="0" max="100"' in html
+    for system in System.objects.filter(study=study):
+        assert not re.search(rf"\b{re.escape(system.name)}\b", html), system.name
+    assert "control-" not in html
+
+
+def test_practice_of_a_side_by_side_study_is_watched_not_rated():
+    study = make_study(**SIDE_BY_SIDE, controls=4)
+    client = Client()
+    enter(client, study)
+    post(client, study, "consent", agree="yes")
+    post(client, study, "instructions")
+    html = page_html(client, study)
+    assert ">Next</button>" in html and 'name="value"' not in html
+
+
+def test_side_by_side_answers_are_stored_per_clip_and_export_in_the_schema():
+    study = make_study(**SIDE_BY_SIDE, bad_checks=1)
+    client = Client()
+    participant = through_practice(client, study)
+    seen = []
+    for _ in range(study.pages_per_participant):
+        seen.append(current_page(participant))
+        assert rate_page(client, study, participant, lambda a: 10 * a.slot).status_code == 302
+    assert "C0MPL3TE" in page_html(client, study)
+    ratings = Rating.objects.filter(assignment__participant=participant)
+    assert sorted(r.value for r in ratings) == sorted(10 * a.slot for page in seen for a in page)
+
+    table = read_ratings(io.StringIO(ratings_csv(study).decode()))
+    assert set(table["design"]) == {"side-by-side"}
+    assert len(table) == sum(len(page) for page in seen)
+    first = table[table["page"] == table["page"].iloc[0]]
+    assert sorted(first["position"]) == list(range(1, len(first) + 1))
+    assert (first["value"] == 10 * first["position"]).all()
+    assert set(table["scale_min"]) == {0} and set(table["scale_max"]) == {100}
+
+
+def test_a_side_by_side_page_without_every_rating_or_off_the_scale_is_refused_and_stores_nothing():
+    study = make_study(**SIDE_BY_SIDE)
+    client = Client()
+    participant = through_practice(client, study)
+    html = page_html(client, study)
+    make_shown_long_ago(participant)
+    missing = post(client, study, "rate-page", page=page_token(html), **{"value-1": 50}, **watched((1,)))
+    assert missing.status_code == 400 and "needs a rating" in missing.content.decode()
+    values = {f"value-{slot}": 50 for slot in (1, 2, 3)}
+    off = post(client, study, "rate-page", page=page_token(html), **{**values, "value-2": 101}, **watched((1, 2, 3)))
+    assert off.status_code == 400 and "outside the scale" in off.content.decode()
+    assert post(client, study, "rate", assignment=page_token(html), value=3).status_code == 409  # not this design
+    assert not Rating.objects.exists()
+
+
+def test_a_pairwise_page_shows_two_systems_of_one_control_and_stores_the_answer_on_both():
+    study = make_study(**PAIRWISE, bad_checks=0, preference_strengths=3)
+    client = Client()
+    participant = through_practice(client, study)
+    html = page_html(client, study)
+    page = current_page(participant)
+    assert [a.slot for a in page] == [1, 2] and len({a.stimulus.control_id for a in page}) == 1
+    assert page[0].stimulus.system_id != page[1].stimulus.system_id
+    assert "A is better" in html and "No preference" in html and html.count('name="strength"') == 3
+    for system in System.objects.filter(study=study):
+        assert not re.search(rf"\b{re.escape(system.name)}\b", html), system.name
+
+    assert compare(client, study, participant, "left").status_code == 400  # a preference needs its strength
+    assert compare(client, study, participant, "none", strength=2).status_code == 400
+    assert compare(client, study, participant, "sideways").status_code == 400
+    assert not Rating.objects.exists()
+    assert compare(client, study, participant, "right", strength=2).status_code == 302
+    stored = Rating.objects.filter(assignment__in=page)
+    assert [(r.answer, r.strength, r.value) for r in stored] == [("right", 2, None)] * 2
+
+    while compare(client, study, participant, "none").status_code == 302 and current_page(participant):
+        pass
+    table = read_ratings(io.StringIO(ratings_csv(study).decode()))
+    assert set(table["design"]) == {"pairwise"} and "value" not in table.columns
+    assert len(table) == 2 * study.pages_per_participant
+    assert table.groupby("page")["side"].apply(sorted).tolist() == [["left", "right"]] * study.pages_per_participant
+
+
+def test_the_design_is_fixed_once_participants_start_and_side_by_side_rates_on_0_to_100():
+    study = make_study()
+    form = StudyForm({**StudyForm(instance=study).initial, "design": Study.Design.SIDE_BY_SIDE,
+                      "scale_min": study.scale_min, "scale_max": study.scale_max}, instance=study)
+    assert form.is_valid(), form.errors
+    assert (form.cleaned_data["scale_min"], form.cleaned_data["scale_max"]) == (0, 100)
+    Participant.objects.create(study=study, platform_id="p1")
+    fixed = StudyForm(instance=study)
+    assert fixed.fields["design"].disabled and fixed.fields["preference_strengths"].disabled
+
+
+def answer_everything(study: Study, pids: list[str], value_of=None) -> None:
+    for pid in pids:
+        client = Client()
+        participant = through_practice(client, study, pid)
+        while current_page(participant):
+            if study.design == Study.Design.SIDE_BY_SIDE:
+                rate_page(client, study, participant, value_of)
+            else:  # the left clip, or the other one where it is BAD (an attention check)
+                bad_left = current_page(participant)[0].stimulus.system.role == System.Role.BAD
+                compare(client, study, participant, "right" if bad_left else "left")
+
+
+def test_the_monitor_summarises_each_design_with_the_analysis_functions():
+    from studyapp.monitor import study_monitor
+
+    sbs = make_study(**SIDE_BY_SIDE, bad_checks=0, ratings_per_stimulus=10)
+    by_system = {"MoGlow": 60, "RNN": 40, "NAT": 90}
+    answer_everything(sbs, ["a", "b", "c"], lambda a: by_system[a.stimulus.system.name])
+    monitor = study_monitor(sbs)
+    assert [title for title, _ in monitor.tables] == [
+        "Median and mean per system (95 % CIs)", "How many more ratings give 80 % power per pair (at alpha 0.05)"]
+    summary = monitor.tables[0][1]
+    for system, value in by_system.items():  # n = 3 participants x 2 pages; median = mean = the value given
+        assert re.search(rf"<td>{system}</td>\s*<td>6</td>\s*<td>{value}</td>(\s*<td>{value}</td>){{3}}", summary)
+
+    pairwise = make_study(**PAIRWISE, bad_checks=1, ratings_per_stimulus=10)
+    answer_everything(pairwise, ["a", "b"])
+    monitor = study_monitor(pairwise)
+    assert [title for title, _ in monitor.tables] == [
+        "Preference per pair (Wilson 95 % CI, sign test, Holm)",
+        "How many more ratings give 80 % power per pair (at alpha 0.05)"]
+    assert "BAD" not in monitor.tables[0][1] and monitor.means == []
+    assert not Participant.objects.filter(study=pairwise, excluded=True).exists()
+
+
+def test_the_demo_opens_a_side_by_side_study_on_the_single_studys_clips(settings, tmp_path):
+    from studyapp.assignment import enrol
+    from studyapp.demo import ensure_side_by_side_study
+
+    settings.MEDIA_ROOT = tmp_path / "media"
+    video = tmp_path / "clip.mp4"
+    video.write_bytes(b"a rendered clip")
+    single = make_study(video=video)
+    side_by_side = ensure_side_by_side_study(single)
+    assert (side_by_side.design, side_by_side.scale_min, side_by_side.scale_max) == ("side-by-side", 0, 100)
+    assert side_by_side.is_open and side_by_side.owner == single.owner
+    clips = list(side_by_side.stimuli.all())
+    assert sorted(s.content_key for s in clips) == sorted(single.stimuli.values_list("content_key", flat=True))
+    assert not {s.token for s in clips} & set(single.stimuli.values_list("token", flat=True))
+    assert all(s.video_path().read_bytes() == b"a rendered clip" for s in clips)
+    assert ensure_side_by_side_study(single).pk == side_by_side.pk and side_by_side.stimuli.count() == len(clips)
+    participant = enrol(side_by_side, "p1", {})
+    assert len(current_page(participant)) >= 3
+
+
+def test_create_study_takes_the_design_and_side_by_side_rates_on_0_to_100():
+    from io import StringIO
+
+    from django.contrib.auth.models import User
+    from django.core.management import call_command
+
+    User.objects.create(username="r")
+    out = StringIO()
+    call_command("create_study", "r", "Sliders", "--design", "side-by-side", "--pages", "5", stdout=out)
+    study = Study.objects.get(pk=int(out.getvalue()))
+    assert (study.design, study.scale_min, study.scale_max, study.pages_per_participant) == ("side-by-side", 0, 100, 5)
+
+
+def test_made_up_clips_and_numbers_in_a_page_form_are_refused_with_a_message():
+    study = make_study(**SIDE_BY_SIDE)
+    client = Client()
+    participant = through_practice(client, study)
+    token = page_token(page_html(client, study))
+    values = {f"value-{slot}": 50 for slot in (1, 2, 3)}
+    for extra in ({"value-99999999999": 50}, {"value-2": "fifty"}, {"started_s-1": "soon"}):
+        response = post(client, study, "rate-page", page=token, **{**values, **watched((1, 2, 3)), **extra})
+        assert response.status_code == 400, extra
+    assert post(client, study, "rate-page", page="f" * 32, **values).status_code == 403
+    assert not Rating.objects.exists() and current_page(participant)
+
+
+def test_abx_pages_pair_the_models_under_the_controls_natural_clip_as_reference_x():
+    study = make_study(**PAIRWISE, abx=True, bad_checks=1)
+    client = Client()
+    participant = through_practice(client, study)
+    while current_page(participant):
+        page = current_page(participant)
+        html = page_html(client, study)
+        natural = study.stimuli.get(control=page[0].stimulus.control, system__role=System.Role.NATURAL)
+        assert 'data-slot="x"' in html and f'src="{natural.video_url}"' in html and "closer to the reference X" in html
+        roles = sorted(a.stimulus.system.role for a in page)
+        assert roles in (["model", "model"], ["bad", "natural"])  # NAT is X, so it is paired only in the check
+        assert compare(client, study, participant, "left").status_code == 302
+    table = read_ratings(io.StringIO(ratings_csv(study).decode()))
+    assert table.groupby("page").size().eq(2).all()  # X is not a row: the pairwise schema as it is
+
+    single = make_study(owner_name="other")
+    single.abx = True
+    with pytest.raises(ValidationError):
+        single.full_clean()
