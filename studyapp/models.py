@@ -34,6 +34,10 @@ def default_camera() -> dict:
     return Camera().to_dict()
 
 
+# Camera fields whose None means "from the character's size" (generation.render.camera).
+OPTIONAL_CAMERA_FIELDS = ("distance", "target_height")
+
+
 def camera_problem(data: object) -> str | None:
     """What makes ``data`` no camera description (a JSON object of Camera's fields), or None.
 
@@ -43,6 +47,8 @@ def camera_problem(data: object) -> str | None:
     if not isinstance(data, dict):
         return f"expected a JSON object of camera fields, got {type(data).__name__}"
     for name, value in data.items():
+        if value is None and name in OPTIONAL_CAMERA_FIELDS:
+            continue
         if isinstance(value, bool) or not isinstance(value, int | float):
             if not (name == "follow" and isinstance(value, bool)):
                 return f"{name!r} must be a number, got {value!r}"

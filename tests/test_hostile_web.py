@@ -138,7 +138,9 @@ def test_the_admin_makes_a_staff_researchers_new_study_their_own_and_lists_no_ot
               "label_max": "yes", "instructions": "Watch.", "consent_text": "OK?", "clips_per_participant": 12,
               "ratings_per_stimulus": 5, "training_clips": 2, "bad_checks": 1, "natural_checks": 1,
               "bad_threshold": 4, "natural_threshold": 2, "reservation_minutes": 60, "platform": "link",
-              "camera": '{"azimuth": 30}', "video_width": 320, "video_height": 240, "owner": victim.pk}
+              "camera": '{"azimuth": 30}', "video_width": 320, "video_height": 240, "owner": victim.pk,
+              "design": "single", "pages_per_participant": 0, "preference_strengths": 0, "instructed_checks": 0,
+              "stop_after_failed_checks": 0}
     response = client.post("/admin/studyapp/study/add/", fields)
 
     assert response.status_code == 302, response.content.decode()[:3000]
