@@ -105,7 +105,7 @@ def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
 
 def sample_command(args: argparse.Namespace) -> int:
     from ..generator import Generator
-    from ..models.moglow import cpu_has_bfloat16_units
+    from ..models.precision import cpu_has_bfloat16_units
 
     generator = Generator.load(args.checkpoint, args.device)
     if generator.attributes:
