@@ -87,7 +87,7 @@ class Generator:
     def resolve_precision(self, precision: str = "auto") -> str:
         """The precision sampling multiplies in: ``precision`` itself, or for "auto" the
         one ``generation.models.precision.auto_precision`` picks for this model and device
-        (bfloat16 on CPUs with bfloat16 units, int8 on other x86 CPUs, float32 elsewhere)."""
+        (bfloat16 on CPUs with bfloat16 units, float32 elsewhere)."""
         if precision == "auto":
             return auto_precision(self.device, self.model.precisions)
         self.model.check_precision(precision)
