@@ -17,7 +17,7 @@ a lower precision speeds up; everything else stays in the parameters' dtype.
 ``auto`` is bfloat16 on CPUs with bfloat16 units and float32 on anything else: bfloat16
 samples of the trained MoGlow stay within the bound ``tests/test_moglow.py`` holds them
 to (under 1 cm per joint, and under 1/20 of a change of seed), int8 samples do not (README,
-"Sampling precision"), so int8 is there to be asked for, never the default.
+``sample --precision``), so int8 is there to be asked for, never the default.
 """
 
 from __future__ import annotations
