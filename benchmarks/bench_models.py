@@ -25,6 +25,7 @@ of those weights, which do not fit in any cache and are read once per frame, aga
 machine's copy bandwidth (bytes read plus bytes written per second).
 
     MOGLOW_REFERENCE_CODE=PATH python benchmarks/bench_models.py [--json] [--threads N] [--models moglow ...]
+        [--repetitions N] [--no-training]
 """
 
 from __future__ import annotations
