@@ -30,6 +30,7 @@ from .stylegestures import CONTROL_LAYOUT, stylegestures_control
 from .models.attribute import AttributeModel
 from .models.base import MotionModel
 from .models.path import PathModel
+from .models.precision import auto_precision
 
 
 # Bounds on a request, checked before anything is allocated: a warm-up is a second or
@@ -83,6 +84,15 @@ class Generator:
         model, meta = load_checkpoint(path, device)
         return cls(model, meta, device)
 
+    def resolve_precision(self, precision: str = "auto") -> str:
+        """The precision sampling multiplies in: ``precision`` itself, or for "auto" the
+        one ``generation.models.precision.auto_precision`` picks for this model and device
+        (bfloat16 on CPUs with bfloat16 units, float32 elsewhere)."""
+        if precision == "auto":
+            return auto_precision(self.device, self.model.precisions)
+        self.model.check_precision(precision)
+        return precision
+
     def sample(
         self,
         control: Control,
@@ -91,7 +101,7 @@ class Generator:
         temperature: float = 1.0,
         warmup_seconds: float | None = None,
         context: np.ndarray | None = None,
-        precision: str = "float32",
+        precision: str = "auto",
     ) -> list[Motion]:
         """``n`` motions following ``control``; the same seed gives the same motions.
 
@@ -100,10 +110,10 @@ class Generator:
         first control frame. ``context`` (context_frames, 3 × joints, in the root frame,
         cm) seeds autoregressive models; by default they start from the mean pose.
         Attribute models take an ``AttributeControl`` and neither of those two.
-        ``precision`` is one the model offers (``model.precisions``): MoGlow's
-        "bfloat16" is several times faster at large ``n`` on CPUs with AMX.
+        ``precision`` is "auto" or one the model offers (``model.precisions``); see
+        ``resolve_precision``.
         """
-        self.model.check_precision(precision)
+        precision = self.resolve_precision(precision)
         check_request(n, temperature, warmup_seconds)
         if isinstance(self.model, AttributeModel):
             return self._sample_attributes(self.model, control, n, seed, temperature)

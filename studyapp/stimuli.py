@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 from collections import Counter
 from functools import lru_cache
 from importlib import metadata
@@ -44,6 +45,8 @@ try:
     CODE_VERSION = metadata.version("motion-study")
 except metadata.PackageNotFoundError:
     CODE_VERSION = "unknown"
+
+logger = logging.getLogger(__name__)
 
 
 def content_key(study: Study, system: System, control: ControlSignal, seed: int) -> str:
@@ -106,7 +109,9 @@ def _generator(path: str, digest: str):
     """A worker keeps a few models loaded; the digest keys the cache to the file's content."""
     from generation.generator import Generator  # torch loads in workers, not in every web process
 
-    return Generator.load(path)
+    generator = Generator.load(path)
+    logger.info("%s samples in %s (precision auto)", path, generator.resolve_precision())
+    return generator
 
 
 def stimulus_motion(stimulus: Stimulus) -> tuple[Motion, np.ndarray]:

@@ -238,6 +238,26 @@ def test_sample_command_warmup_seconds_changes_what_precedes_the_kept_clip(check
     assert none.shape == default.shape and not np.allclose(none, default)
 
 
+@pytest.mark.parametrize(("bfloat16_units", "chosen"), [(True, "bfloat16"), (False, "float32")])
+def test_sample_command_samples_in_the_precision_auto_chose_and_says_which(checkpoint, tmp_path, capsys, monkeypatch,
+                                                                             bfloat16_units, chosen):
+    from generation.cli import main
+    from generation.models import precision
+
+    monkeypatch.setattr(precision, "cpu_has_bfloat16_units", lambda: bfloat16_units)
+
+    def sampled(name: str, *extra: str) -> np.ndarray:
+        out = tmp_path / name
+        assert main(["sample", str(checkpoint), "-c", "walk-straight", "--out", str(out), *extra]) == 0
+        with np.load(out / "walk-straight_00.npz") as clip:
+            return clip["positions"]
+
+    auto = sampled("auto")
+    assert f"sampling in {chosen} (--precision auto)" in capsys.readouterr().err
+    np.testing.assert_array_equal(auto, sampled(chosen, "--precision", chosen))
+    assert not np.array_equal(auto, sampled("int8", "--precision", "int8"))
+
+
 def test_evaluate_command_reports_held_out_nll(checkpoint, clips_folder, dataset, tmp_path, capsys):
     from generation.cli import main
 

@@ -105,7 +105,7 @@ def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
 
 def sample_command(args: argparse.Namespace) -> int:
     from ..generator import Generator
-    from ..models.moglow import cpu_has_bfloat16_units
+    from ..models.precision import cpu_has_bfloat16_units
 
     generator = Generator.load(args.checkpoint, args.device)
     if generator.attributes:
@@ -113,13 +113,15 @@ def sample_command(args: argparse.Namespace) -> int:
     if args.action or args.style:
         raise ValueError(f"--action and --style are for attribute-controlled models; {args.checkpoint} follows a path (--control)")
     controls = _controls(args, generator.fps, generator.meta.features["dataset_options"])
-    if args.precision == "bfloat16" and generator.device.type == "cpu" and not cpu_has_bfloat16_units():
+    precision = generator.resolve_precision(args.precision)
+    print(f"sampling in {precision}" + (" (--precision auto)" if args.precision == "auto" else ""), file=sys.stderr)
+    if precision == "bfloat16" and generator.device.type == "cpu" and not cpu_has_bfloat16_units():
         print("warning: this CPU has no bfloat16 units (AVX512-BF16 or AMX); torch emulates them, "
               "so --precision bfloat16 samples far slower than float32 here", file=sys.stderr)
     out = Path(args.out)
     for control in tqdm(controls, desc="sampling", unit="control", disable=len(controls) < 2):
         motions = generator.sample(control, n=args.n, seed=args.seed, temperature=args.temperature,
-                                   warmup_seconds=args.warmup_seconds, precision=args.precision)
+                                   warmup_seconds=args.warmup_seconds, precision=precision)
         path = control.path()
         for i, motion in enumerate(motions):
             stem = f"{control.name}_{i:02d}"
@@ -247,9 +249,11 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--warmup-seconds", type=float,
                    help="path models: motion generated before the kept clip and discarded, holding the first "
                         "control frame (default: 1 s for MoGlow, as in its paper; 0 for the baselines)")
-    p.add_argument("--precision", choices=("float32", "bfloat16"), default="float32",
-                   help="MoGlow's coupling networks in bfloat16: faster for large --n on CPUs with AMX or "
-                        "AVX512-BF16 (far slower on others), samples close to float32's (default %(default)s)")
+    # generation.models.precision.PRECISIONS, spelt out so that building the parser imports no torch
+    p.add_argument("--precision", choices=("auto", "float32", "bfloat16", "int8"), default="auto",
+                   help="how MoGlow's coupling networks multiply: auto is bfloat16 on CPUs with bfloat16 units "
+                        "(AVX512-BF16 or AMX), float32 elsewhere; int8 (x86 CPUs) is faster still but further "
+                        "from float32's samples (default %(default)s)")
     p.add_argument("--seconds", type=float, default=4.0, help="length of held-out control or of attribute-controlled clips (default %(default)s)")
     p.add_argument("--data", nargs="+", help="motion folder(s) for held-out control (default $MOTION_DATA)")
     p.add_argument("--cache-dir", help="dataset cache folder")

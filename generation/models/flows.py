@@ -5,15 +5,15 @@ Every transform maps ``x`` (batch, frames, dim) to ``(y, logabsdet)`` where ``lo
 the log-determinant of the inverse. ``context`` (batch, frames, context_dim) is the
 conditioning information; only the coupling uses it.
 
-Sampling inverts the flow one frame at a time. ``frame_inverse(network_dtype)`` returns
+Sampling inverts the flow one frame at a time. ``frame_inverse(precision)`` returns
 a callable ``(y_t, context_t) -> x_t`` for that, with everything that does not change
 between frames (inverse weight matrices, concatenated LSTM weights) computed once, and
 with the recurrent state of the coupling network kept inside the callable rather than
-the module. ``network_dtype`` (default: the parameters' own) is the precision of the
-coupling networks' matrix products, where sampling spends its time; ``torch.bfloat16``
-runs them on the CPU's bf16 units. Everything else (actnorm, the inverse linear map, the
-affine arithmetic of the coupling, the LSTM cell state) stays in the parameters' dtype.
-Call it under ``torch.inference_mode()``, as ``MoGlow.generate`` does.
+the module. ``precision`` (one of ``precision.PRECISIONS``; "float32" is the parameters'
+own dtype) is that of the coupling networks' matrix products, where sampling spends its
+time. Everything else (actnorm, the inverse linear map, the affine arithmetic of the
+coupling, the LSTM cell state) stays in the parameters' dtype. Call it under
+``torch.inference_mode()``, as ``MoGlow.generate`` does.
 """
 
 from __future__ import annotations
@@ -22,6 +22,8 @@ from typing import Callable
 
 import torch
 from torch import nn
+
+from .precision import input_dtype, matrix_product
 
 FrameInverse = Callable[[torch.Tensor, torch.Tensor | None], torch.Tensor]
 
@@ -57,7 +59,7 @@ class ActNorm(nn.Module):
         x = y * torch.exp(-self.log_scale) - self.bias
         return x, (-self.log_scale.sum()).expand(y.shape[:-1])
 
-    def frame_inverse(self, network_dtype: torch.dtype | None = None) -> FrameInverse:
+    def frame_inverse(self, precision: str = "float32") -> FrameInverse:
         inverse_scale, negative_bias = torch.exp(-self.log_scale), -self.bias
         return lambda y, context: torch.addcmul(negative_bias, y, inverse_scale)
 
@@ -105,7 +107,7 @@ class InvertibleLinearLU(nn.Module):
     def inverse(self, y: torch.Tensor, context: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         return y @ self.inverse_weight().T, (-self.log_s.sum()).expand(y.shape[:-1])
 
-    def frame_inverse(self, network_dtype: torch.dtype | None = None) -> FrameInverse:
+    def frame_inverse(self, precision: str = "float32") -> FrameInverse:
         inverse_t = self.inverse_weight().T.contiguous()
         return lambda y, context: y @ inverse_t
 
@@ -154,8 +156,19 @@ class AffineCoupling(nn.Module):
         scale, shift = self._scale_and_shift(x_b, context)
         return torch.cat([x_b, y_a / scale - shift], dim=-1), -torch.log(scale).sum(-1)
 
-    def frame_inverse(self, network_dtype: torch.dtype | None = None) -> FrameInverse:
-        return _CouplingFrameInverse(self, network_dtype)
+    def frame_products(self) -> list[tuple[torch.Tensor, torch.Tensor]]:
+        """(weight, bias) of each matrix product the network makes per frame when sampling,
+        as ``nn.Linear`` holds them: per LSTM layer, (input, h) times [W_ih W_hh]; then the
+        output layer."""
+        lstm = self.lstm
+        return [
+            (torch.cat([getattr(lstm, f"weight_ih_l{k}"), getattr(lstm, f"weight_hh_l{k}")], dim=1),
+             getattr(lstm, f"bias_ih_l{k}") + getattr(lstm, f"bias_hh_l{k}"))
+            for k in range(lstm.num_layers)
+        ] + [(self.out.weight, self.out.bias)]
+
+    def frame_inverse(self, precision: str = "float32") -> FrameInverse:
+        return _CouplingFrameInverse(self, precision)
 
 
 class _CouplingFrameInverse:
@@ -164,30 +177,15 @@ class _CouplingFrameInverse:
     Each LSTM layer is one matrix product of (input, h) with [W_ih W_hh], concatenated
     once per sampling run: fewer and larger products, and fewer elementwise calls, than
     ``torch.lstm_cell`` or ``nn.LSTM`` make, which is where sampling spends its time.
-    The products run in ``network_dtype`` (their inputs and the hidden state are kept in
-    it); gates, cell state, scale and shift are computed in the parameters' dtype.
+    The products run in ``precision`` (their inputs and the hidden state are kept in its
+    input dtype); gates, cell state, scale and shift are computed in the parameters' dtype.
     """
 
-    @staticmethod
-    def _right_operand(weight: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
-        """weightᵀ for ``input @ weightᵀ`` in ``dtype``. A bfloat16 copy is laid out
-        contiguously, which oneDNN multiplies about a quarter faster than the transposed
-        view; float32 keeps the view (MKL is as fast with it) and so its exact results."""
-        return weight.T if dtype == weight.dtype else weight.to(dtype).T.contiguous()
-
-    def __init__(self, coupling: AffineCoupling, network_dtype: torch.dtype | None = None) -> None:
-        lstm = coupling.lstm
-        self.dtype = network_dtype or coupling.out.weight.dtype
+    def __init__(self, coupling: AffineCoupling, precision: str = "float32") -> None:
+        self.dtype = input_dtype(precision, coupling.out.weight.dtype)
         self.split, self.scale_terms = coupling.split, (coupling.scale_offset, coupling.scale_floor)
-        self.layers = [
-            (
-                self._right_operand(torch.cat([getattr(lstm, f"weight_ih_l{k}"), getattr(lstm, f"weight_hh_l{k}")], dim=1), self.dtype),
-                (getattr(lstm, f"bias_ih_l{k}") + getattr(lstm, f"bias_hh_l{k}")).to(self.dtype),
-            )
-            for k in range(lstm.num_layers)
-        ]
-        self.hidden_size = lstm.hidden_size
-        self.out = self._right_operand(coupling.out.weight, self.dtype), coupling.out.bias.to(self.dtype)
+        *self.layers, self.out = [matrix_product(weight, bias, precision) for weight, bias in coupling.frame_products()]
+        self.hidden_size = coupling.lstm.hidden_size
         self.state: list[tuple[torch.Tensor, torch.Tensor]] | None = None
 
     def __call__(self, y: torch.Tensor, context: torch.Tensor | None) -> torch.Tensor:
@@ -195,11 +193,11 @@ class _CouplingFrameInverse:
         if self.state is None:
             zeros = y.new_zeros(y.shape[0], self.hidden_size)
             self.state = [(zeros.to(self.dtype), zeros)] * len(self.layers)
-        # The context arrives in the network's dtype (cast once per frame by Flow).
+        # The context arrives in the products' input dtype (cast once per frame by Flow).
         size, inputs = self.hidden_size, [x_b.to(self.dtype), context]
-        for k, (weight_t, bias) in enumerate(self.layers):
+        for k, product in enumerate(self.layers):
             hidden, cell = self.state[k]
-            gates = torch.addmm(bias, torch.cat([*inputs, hidden], dim=1), weight_t).to(y.dtype)
+            gates = product(torch.cat([*inputs, hidden], dim=1)).to(y.dtype)
             # nn.LSTM's gate order is (input, forget, cell, output); one sigmoid serves three.
             sigmoids = torch.sigmoid(gates)
             cell_input = torch.tanh(gates[:, 2 * size : 3 * size])
@@ -207,7 +205,7 @@ class _CouplingFrameInverse:
             hidden = (sigmoids[:, 3 * size :] * torch.tanh(cell)).to(self.dtype)
             self.state[k] = (hidden, cell)
             inputs = [hidden]
-        h, shift = torch.addmm(self.out[1], inputs[0], self.out[0]).to(y.dtype).chunk(2, dim=1)
+        h, shift = self.out(inputs[0]).to(y.dtype).chunk(2, dim=1)
         return torch.cat([x_b, y_a / coupling_scale(h, *self.scale_terms) - shift], dim=1)
 
 
@@ -232,11 +230,13 @@ class Flow(nn.Module):
             total = total + logabsdet
         return y, total
 
-    def frame_inverse(self, network_dtype: torch.dtype | None = None) -> FrameInverse:
-        steps = [transform.frame_inverse(network_dtype) for transform in reversed(self.transforms)]
+    def frame_inverse(self, precision: str = "float32") -> FrameInverse:
+        steps = [transform.frame_inverse(precision) for transform in reversed(self.transforms)]
+        dtype = next(self.parameters()).dtype
+        network_dtype = input_dtype(precision, dtype)
 
         def invert(y: torch.Tensor, context: torch.Tensor | None) -> torch.Tensor:
-            if network_dtype is not None and context is not None:
+            if network_dtype != dtype and context is not None:
                 context = context.to(network_dtype)  # once for all couplings
             for step in steps:
                 y = step(y, context)

@@ -27,6 +27,7 @@ import torch
 
 from .path import PathModel
 from .flows import Flow, glow_step
+from .precision import PRECISIONS, available_precisions
 
 
 @dataclass
@@ -44,24 +45,10 @@ class MoGlowConfig:
     scale_floor: float = 0.05
 
 
-# What each precision of ``generate`` means for the coupling networks' matrix products
-# (None: the parameters' own dtype).
-NETWORK_DTYPES = {"float32": None, "bfloat16": torch.bfloat16}
-
-
-def cpu_has_bfloat16_units() -> bool:
-    """Whether this CPU multiplies bfloat16 natively (AVX512-BF16 or AMX).
-
-    Without those units torch emulates bfloat16, and sampling in it is many times slower
-    than in float32.
-    """
-    return torch.ops.mkldnn._is_mkldnn_bf16_supported()
-
-
 class MoGlow(PathModel):
     kind = "moglow"
     Config = MoGlowConfig
-    precisions = tuple(NETWORK_DTYPES)
+    precisions = PRECISIONS
 
     def __init__(self, config: MoGlowConfig, pose_dim: int, control_dim: int) -> None:
         super().__init__(config, pose_dim, control_dim)
@@ -117,9 +104,10 @@ class MoGlow(PathModel):
 
         z (batch, T-τ, pose_dim) ~ N(0, θ²) is one draw from ``generator``, so frame t
         depends only on z_τ..z_t, the context and control up to t. With ``precision``
-        "bfloat16" the LSTMs and linear layers of the couplings multiply in bfloat16
-        (several times faster at large batches on CPUs with AMX); the flow's arithmetic
-        stays in float32, and the result stays close to the float32 sample of the same seed.
+        "bfloat16" or "int8" (CPU only) the LSTMs and linear layers of the couplings
+        multiply in that precision (``generation.models.precision``); the flow's
+        arithmetic stays in float32, and the result stays close to the float32 sample of
+        the same seed.
         """
         self.check_precision(precision)
         batch, frames, _ = control.shape
@@ -127,6 +115,9 @@ class MoGlow(PathModel):
         if frames < tau:
             raise ValueError(f"need at least tau={tau} frames of control, got {frames}")
         parameter = next(self.parameters())
+        if precision not in available_precisions(parameter.device):
+            raise ValueError(f"precision {precision} is not available on {parameter.device} "
+                             f"(there: {', '.join(available_precisions(parameter.device))})")
         control = control.to(parameter)
         if context is None:
             context = control.new_zeros(batch, tau, self.pose_dim)  # the mean pose, standardised
@@ -136,7 +127,7 @@ class MoGlow(PathModel):
         noise = temperature * torch.randn(shape, generator=generator, dtype=pose.dtype, device=pose.device)
         # The control part of every c_t is known in advance; c_t is laid out as in conditioning().
         controls = control.unfold(1, tau + 1, 1).transpose(2, 3).flatten(2)  # (batch, T-τ, (τ+1)·control_dim)
-        invert = self.flow.frame_inverse(NETWORK_DTYPES[precision])
+        invert = self.flow.frame_inverse(precision)
         for t in range(tau, frames):
             conditioning = torch.cat([pose[:, t - tau : t].flatten(1), controls[:, t - tau]], dim=-1)
             pose[:, t] = invert(noise[:, t - tau], conditioning)
