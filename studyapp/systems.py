@@ -187,7 +187,7 @@ def add_natural_system(study: Study, name: str = "NAT") -> System:
     if existing is not None:
         raise UploadRefused(f"this study already has its natural system {existing.name!r}")
     _check_name(study, name)
-    return System.objects.create(study=study, name=name, role=System.Role.NATURAL, kind="natural")
+    return System.objects.create(study=study, name=name, role=System.Role.NATURAL, kind=System.SourceKind.NATURAL)
 
 
 def video_duration(path: Path) -> float:
@@ -236,7 +236,7 @@ def add_video_system(study: Study, name: str, uploads: list[File]) -> System:
     _check_name(study, name)
     # Files move into place when the stack closes, just before the rows commit.
     with transaction.atomic(), ExitStack() as stack:
-        system = System.objects.create(study=study, name=name, role=System.Role.BAD, kind="video",
+        system = System.objects.create(study=study, name=name, role=System.Role.BAD, kind=System.SourceKind.VIDEO,
                                        metadata={"videos": [Path(u.name).name for u in uploads]})
         scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="video-upload-")))
         for upload in uploads:

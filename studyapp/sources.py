@@ -1,0 +1,136 @@
+"""Where a system's motion comes from: one interface for every kind of system.
+
+Every system answers the same question, "the motion for this control", through its
+source: a checkpoint (a built-in model kind or one an installed plugin registers) is
+sampled, the natural system (NAT) reads the held-out clip the control came from, and
+submitted motion (another lab's files, one per control) is read from where it was
+stored. The stimuli module asks a system's source for a clip and renders every answer
+the same way. Uploaded videos are the one source that is never rendered: their
+stimuli are made finished when they are uploaded, so the source plans no clips.
+
+``source_of(system)`` picks the source by ``System.source_kind``; a new kind of system
+is one more class here and one more entry in ``SOURCES``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+from django.conf import settings
+
+from generation.control import PathControl, control_from_dict
+from generation.motion.dataset import load_body_motion
+from generation.motion.root import root_trajectory
+from generation.motion.types import Motion
+from studyapp.controls import training_options
+from studyapp.models import ControlSignal, Stimulus, System
+
+
+@dataclass(frozen=True)
+class Clip:
+    """A source's answer: the motion, and the floor path (frames × 2, x and z) drawn under it."""
+
+    motion: Motion
+    floor: np.ndarray
+
+
+class MotionSource(Protocol):
+    """What every kind of system answers."""
+
+    def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
+        """The controls of the study this system has motion for."""
+
+    def identity(self, system: System, control: ControlSignal, seed: int) -> dict:
+        """What the motion depends on besides the control: ``source``, ``seed`` and ``temperature``
+        (None where they do not matter). Part of the stimulus's content key."""
+
+    def clip(self, stimulus: Stimulus) -> Clip:
+        """The motion of ``stimulus.system`` for ``stimulus.control``."""
+
+
+def commanded_floor(control: ControlSignal, motion: Motion) -> np.ndarray:
+    """The floor path drawn under a generated clip: the path it was told to follow, or,
+    for label controls, where its root went."""
+    signal = control_from_dict(control.control)
+    if isinstance(signal, PathControl):
+        return signal.path().xz
+    return root_trajectory(motion, training_options(control.study).root).xz
+
+
+@lru_cache(maxsize=4)
+def _generator(path: str, digest: str):
+    """A worker keeps a few models loaded; the digest keys the cache to the file's content."""
+    from generation.generator import Generator  # torch loads in workers, not in every web process
+
+    return Generator.load(path)
+
+
+class CheckpointSource:
+    """A model checkpoint of any registered kind, sampled with the stimulus's seed."""
+
+    def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
+        return controls
+
+    def identity(self, system: System, control: ControlSignal, seed: int) -> dict:
+        return {"source": f"checkpoint:{system.checkpoint_digest}", "seed": seed, "temperature": system.temperature}
+
+    def clip(self, stimulus: Stimulus) -> Clip:
+        system = stimulus.system
+        path = system.checkpoint_path()
+        if path is None or not path.is_file():
+            raise FileNotFoundError(f"the checkpoint of {system.name} is missing ({path})")
+        signal = control_from_dict(stimulus.control.control)
+        motion = _generator(str(path), system.checkpoint_digest).sample(
+            signal, n=1, seed=stimulus.seed, temperature=system.temperature)[0]
+        return Clip(motion, commanded_floor(stimulus.control, motion))
+
+
+class NaturalClips:
+    """NAT: the held-out clip each held-out control came from, as the models see the data."""
+
+    def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
+        return [c for c in controls if c.origin == ControlSignal.Origin.HELD_OUT and c.source_clip]
+
+    def identity(self, system: System, control: ControlSignal, seed: int) -> dict:
+        return {"source": f"natural:{control.source_clip}", "seed": None, "temperature": None}
+
+    def clip(self, stimulus: Stimulus) -> Clip:
+        control = stimulus.control
+        options = training_options(stimulus.study)
+        source = Path(settings.MOTION_DATA) / control.source_clip
+        if not source.is_file():
+            raise FileNotFoundError(f"the natural clip {source} is missing (MOTION_DATA={settings.MOTION_DATA})")
+        motion = load_body_motion(source, options.fps, control.seconds, options.scale, options.root)
+        return Clip(motion, root_trajectory(motion, options.root).xz)
+
+
+class UploadedVideos:
+    """Videos uploaded as they are: finished stimuli from the start, never rendered."""
+
+    def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
+        return []
+
+    def identity(self, system: System, control: ControlSignal, seed: int) -> dict:
+        raise ValueError("an uploaded video has no motion to plan")
+
+    def clip(self, stimulus: Stimulus) -> Clip:
+        raise ValueError("an uploaded video has nothing to generate")
+
+
+SOURCES: dict[str, MotionSource] = {
+    System.SourceKind.CHECKPOINT: CheckpointSource(),
+    System.SourceKind.NATURAL: NaturalClips(),
+    System.SourceKind.VIDEO: UploadedVideos(),
+}
+
+
+def source_of(system: System) -> MotionSource:
+    """The source of a system's motion."""
+    return SOURCES[system.source_kind]
+
+
+__all__ = ["Clip", "MotionSource", "SOURCES", "commanded_floor", "source_of"]
