@@ -20,6 +20,7 @@ from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
 from studyapp.celery import app as celery_app
+from studyapp.control_export import bundle_zip
 from studyapp.controls import (ControlError, add_control_file, add_held_out_controls, add_label_controls,
                                add_preset_controls, control_kind, study_labels)
 from studyapp.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
@@ -121,6 +122,22 @@ def study_controls(request: HttpRequest, pk: int) -> HttpResponse:
     }
     return _forms_page(request, study, "controls", forms, actions, ControlError,
                        {"controls": study.controls.all(), "kind": kind})
+
+
+@never_cache
+@login_required
+@require_safe
+def study_controls_download(request: HttpRequest, pk: int) -> HttpResponse:
+    """The controls as a zip (``control_export``); ``?natural=1`` adds the held-out controls' natural clips."""
+    study = _study(request, pk)
+    try:
+        data = bundle_zip(study, natural=request.GET.get("natural") == "1")
+    except (ControlError, ValueError, FileNotFoundError) as error:
+        messages.error(request, f"No download: {error}")
+        return redirect("study-controls", pk=study.pk)
+    response = HttpResponse(data, content_type="application/zip")
+    response["Content-Disposition"] = f'attachment; filename="controls-study-{study.pk}.zip"'
+    return response
 
 
 @login_required
