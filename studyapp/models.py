@@ -118,6 +118,7 @@ class System(models.Model):
         """Where the motion comes from (``studyapp.sources``); apart from checkpoints, the ``kind`` field."""
         CHECKPOINT = "checkpoint", "model checkpoint"
         NATURAL = "natural", "natural clips"
+        SUBMITTED = "submitted", "submitted motion"
         VIDEO = "video", "uploaded videos"
 
     study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="systems")

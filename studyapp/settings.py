@@ -151,6 +151,7 @@ MOTION_DATA = Path(env_str("MOTION_DATA", str(BASE_DIR.parent / "shared" / "data
 # The paper-sized MoGlow is about 300 MB in float32.
 MAX_CHECKPOINT_UPLOAD_BYTES = int(env_float("MAX_CHECKPOINT_UPLOAD_MB", 500) * 1_000_000)
 MAX_VIDEO_UPLOAD_BYTES = int(env_float("MAX_VIDEO_UPLOAD_MB", 50) * 1_000_000)
+MAX_MOTION_UPLOAD_BYTES = int(env_float("MAX_MOTION_UPLOAD_MB", 200) * 1_000_000)  # a zip, and what it unpacks to
 # Large uploads go to a temporary file, not memory.
 FILE_UPLOAD_MAX_MEMORY_SIZE = 5_000_000
 

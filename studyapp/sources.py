@@ -28,6 +28,7 @@ from generation.motion.root import root_trajectory
 from generation.motion.types import Motion
 from studyapp.controls import training_options
 from studyapp.models import ControlSignal, Stimulus, System
+from studyapp.submissions import read_stored_motion
 
 
 @dataclass(frozen=True)
@@ -108,6 +109,22 @@ class NaturalClips:
         return Clip(motion, root_trajectory(motion, options.root).xz)
 
 
+class SubmittedMotion:
+    """Motion another lab made for the study's exported controls, validated and stored as
+    one ``.npz`` per control (``studyapp.submissions``)."""
+
+    def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
+        stored = set(system.metadata.get("controls", []))
+        return [c for c in controls if c.name in stored]
+
+    def identity(self, system: System, control: ControlSignal, seed: int) -> dict:
+        return {"source": f"submitted:{system.checkpoint_digest}:{control.name}", "seed": None, "temperature": None}
+
+    def clip(self, stimulus: Stimulus) -> Clip:
+        motion = read_stored_motion(stimulus.system, stimulus.control)
+        return Clip(motion, commanded_floor(stimulus.control, motion))
+
+
 class UploadedVideos:
     """Videos uploaded as they are: finished stimuli from the start, never rendered."""
 
@@ -124,6 +141,7 @@ class UploadedVideos:
 SOURCES: dict[str, MotionSource] = {
     System.SourceKind.CHECKPOINT: CheckpointSource(),
     System.SourceKind.NATURAL: NaturalClips(),
+    System.SourceKind.SUBMITTED: SubmittedMotion(),
     System.SourceKind.VIDEO: UploadedVideos(),
 }
 
