@@ -142,6 +142,14 @@ CELERY_RESULT_EXPIRES = 24 * 3600
 # One deployment's web processes and workers share a queue; several deployments (or
 # test runs) on one Redis keep apart by naming their own.
 CELERY_TASK_DEFAULT_QUEUE = env_str("CELERY_QUEUE", "celery")
+# Sampling a model and rendering clips may go to different queues, so that a GPU
+# machine's worker (-Q on the sampling queue) takes the sampling alone; both default to
+# the one queue. STUDY_DEVICE is where a worker samples: auto (CUDA when present), cpu, cuda.
+STUDY_SAMPLE_QUEUE = env_str("STUDY_SAMPLE_QUEUE", CELERY_TASK_DEFAULT_QUEUE)
+STUDY_RENDER_QUEUE = env_str("STUDY_RENDER_QUEUE", CELERY_TASK_DEFAULT_QUEUE)
+STUDY_DEVICE = env_str("STUDY_DEVICE", "auto")
+if STUDY_DEVICE not in ("auto", "cpu", "cuda"):
+    raise ImproperlyConfigured(f"STUDY_DEVICE={STUDY_DEVICE!r} is not one of auto, cpu, cuda")
 
 # Uploaded checkpoints live here, named by content digest; never under MEDIA_ROOT,
 # which is served to the public.

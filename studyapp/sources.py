@@ -24,6 +24,7 @@ from django.conf import settings
 
 from generation.control import PathControl, control_from_dict
 from generation.motion.dataset import load_body_motion
+from generation.motion.npz import load_motion_npz, save_motion_npz
 from generation.motion.root import root_trajectory
 from generation.motion.types import Motion
 from studyapp.controls import training_options
@@ -41,6 +42,8 @@ class Clip:
 
 class MotionSource(Protocol):
     """What every kind of system answers."""
+
+    samples: bool  # whether its motion is sampled from a model (on STUDY_SAMPLE_QUEUE's workers)
 
     def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
         """The controls of the study this system has motion for."""
@@ -62,16 +65,38 @@ def commanded_floor(control: ControlSignal, motion: Motion) -> np.ndarray:
     return root_trajectory(motion, training_options(control.study).root).xz
 
 
+def sampling_device(setting: str) -> str:
+    """The torch device STUDY_DEVICE names: "auto" is CUDA where a GPU is present."""
+    if setting != "auto":
+        return setting
+    import torch  # workers only
+
+    return "cuda" if torch.cuda.is_available() else "cpu"
+
+
 @lru_cache(maxsize=4)
-def _generator(path: str, digest: str):
+def _generator(path: str, digest: str, device: str):
     """A worker keeps a few models loaded; the digest keys the cache to the file's content."""
     from generation.generator import Generator  # torch loads in workers, not in every web process
 
-    return Generator.load(path)
+    return Generator.load(path, device)
+
+
+def sampled_path(stimulus: Stimulus) -> Path:
+    """Where a sampling worker leaves a stimulus's motion for the rendering worker (named by
+    its content key, so it is the motion of exactly this clip)."""
+    return Path(settings.VAR_DIR) / "sampled" / f"{stimulus.content_key}.npz"
 
 
 class CheckpointSource:
-    """A model checkpoint of any registered kind, sampled with the stimulus's seed."""
+    """A model checkpoint of any registered kind, sampled with the stimulus's seed.
+
+    With ``sample_ahead``, a worker on STUDY_SAMPLE_QUEUE samples every control of one
+    system in one task, the model loaded once, and leaves the motion at ``sampled_path``;
+    the rendering worker reads it. Where nothing was sampled ahead, ``clip`` samples.
+    """
+
+    samples = True  # dispatch sends its stimuli to the sampling queue first
 
     def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
         return controls
@@ -79,19 +104,31 @@ class CheckpointSource:
     def identity(self, system: System, control: ControlSignal, seed: int) -> dict:
         return {"source": f"checkpoint:{system.checkpoint_digest}", "seed": seed, "temperature": system.temperature}
 
+    def sample_ahead(self, stimulus: Stimulus) -> None:
+        """Sample the stimulus's motion into ``sampled_path`` (the model stays loaded for the next)."""
+        target = sampled_path(stimulus)
+        if not target.is_file():
+            save_motion_npz(self._sample(stimulus.system, stimulus), target)
+
     def clip(self, stimulus: Stimulus) -> Clip:
-        system = stimulus.system
+        sampled = sampled_path(stimulus)
+        motion = load_motion_npz(sampled) if sampled.is_file() else self._sample(stimulus.system, stimulus)
+        return Clip(motion, commanded_floor(stimulus.control, motion))
+
+    @staticmethod
+    def _sample(system: System, stimulus: Stimulus) -> Motion:
         path = system.checkpoint_path()
         if path is None or not path.is_file():
             raise FileNotFoundError(f"the checkpoint of {system.name} is missing ({path})")
+        generator = _generator(str(path), system.checkpoint_digest, sampling_device(settings.STUDY_DEVICE))
         signal = control_from_dict(stimulus.control.control)
-        motion = _generator(str(path), system.checkpoint_digest).sample(
-            signal, n=1, seed=stimulus.seed, temperature=system.temperature)[0]
-        return Clip(motion, commanded_floor(stimulus.control, motion))
+        return generator.sample(signal, n=1, seed=stimulus.seed, temperature=system.temperature)[0]
 
 
 class NaturalClips:
     """NAT: the held-out clip each held-out control came from, as the models see the data."""
+
+    samples = False
 
     def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
         return [c for c in controls if c.origin == ControlSignal.Origin.HELD_OUT and c.source_clip]
@@ -113,6 +150,8 @@ class SubmittedMotion:
     """Motion another lab made for the study's exported controls, validated and stored as
     one ``.npz`` per control (``studyapp.submissions``)."""
 
+    samples = False
+
     def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
         stored = set(system.metadata.get("controls", []))
         return [c for c in controls if c.name in stored]
@@ -127,6 +166,8 @@ class SubmittedMotion:
 
 class UploadedVideos:
     """Videos uploaded as they are: finished stimuli from the start, never rendered."""
+
+    samples = False
 
     def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
         return []

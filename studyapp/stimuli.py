@@ -88,6 +88,25 @@ def progress(study: Study) -> dict:
 
 # --- the work of one task ---------------------------------------------------------
 
+def sample_ahead(sent: list[tuple[int, str]]) -> list[tuple[int, str]]:
+    """Sample the motion of the stimuli a sampling task was sent for, as (stimulus id, the
+    task id its render was sent under) pairs; the pairs sampled. A row sent again since
+    (another task id) is left to its later task; a row that fails is marked failed."""
+    task_ids = dict(sent)
+    rows = Stimulus.objects.filter(pk__in=task_ids).select_related("study", "system", "control")
+    ready = []
+    for stimulus in rows:
+        if stimulus.task_id != task_ids[stimulus.pk]:
+            continue
+        try:
+            source_of(stimulus.system).sample_ahead(stimulus)
+        except Exception as error:  # the reason is shown on the progress page, where it can be retried
+            finish(stimulus, error=f"{type(error).__name__}: {error}")
+            continue
+        ready.append((stimulus.pk, stimulus.task_id))
+    return ready
+
+
 def remove_partial_files(stimulus: Stimulus) -> int:
     """Delete temporaries a killed attempt left beside the video; how many there were."""
     target = stimulus.video_path()
@@ -133,4 +152,5 @@ def finish(stimulus: Stimulus, duration_s: float | None = None, error: str = "")
         status=status, duration_s=duration_s, error=error, updated=timezone.now())
 
 
-__all__ = ["claim", "content_key", "finish", "plan_stimuli", "progress", "remove_partial_files", "render_stimulus"]
+__all__ = ["claim", "content_key", "finish", "plan_stimuli", "progress", "remove_partial_files", "render_stimulus",
+           "sample_ahead"]
