@@ -188,8 +188,12 @@ SOURCES: dict[str, MotionSource] = {
 
 
 def source_of(system: System) -> MotionSource:
-    """The source of a system's motion."""
-    return SOURCES[system.source_kind]
+    """The source of a system's motion (ValueError for a system that has none)."""
+    source = SOURCES.get(system.source_kind)
+    if source is None:
+        raise ValueError(f"system {system.name!r} has no source of motion: no checkpoint, and kind "
+                         f"{system.kind!r} is none of {', '.join(SOURCES)}")
+    return source
 
 
 __all__ = ["Clip", "MotionSource", "SOURCES", "commanded_floor", "source_of"]
