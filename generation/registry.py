@@ -3,8 +3,11 @@
 The command line's choices, checkpoint loading, training, the study app and the
 benchmarks all read this table. Importing it imports no torch: a class is imported only
 when ``model_class`` asks for it, so listing kinds and presets stays cheap for the web
-app. A kind installed by another package would be one more ``ModelKind`` entry, found
-under the entry-point group ``motion_study.models``.
+app. An installed package adds a kind with one more ``ModelKind``, named in its
+entry-point group ``motion_study.models`` (``name = "package.module:KIND"``, a module
+that imports no torch); ``load_plugins`` reads them into ``MODELS`` when this module is
+imported. Plugins are code the administrator installs; nothing a user uploads is ever
+imported.
 
 A preset is a configuration by name: ``model`` replaces fields of the kind's ``Config``
 (its architecture and loss), ``training`` replaces the kind's training knobs (learning
@@ -16,6 +19,8 @@ without data dropout.
 from __future__ import annotations
 
 import importlib
+import warnings
+from importlib import metadata
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -127,6 +132,35 @@ MODELS: dict[str, ModelKind] = {
 }
 
 
+ENTRY_POINT_GROUP = "motion_study.models"
+BUILT_IN = frozenset(MODELS)
+
+
+def load_plugins() -> list[str]:
+    """Add the kinds installed packages name under ``ENTRY_POINT_GROUP`` to ``MODELS``; their names.
+
+    A plugin that does not load, is no ``ModelKind`` or takes a built-in kind's name is
+    left out with a warning that says why, so one broken package cannot stop the rest.
+    """
+    added = []
+    for entry_point in metadata.entry_points(group=ENTRY_POINT_GROUP):
+        where = f"model plugin {entry_point.name!r} ({entry_point.value})"
+        if entry_point.name in BUILT_IN:
+            warnings.warn(f"{where} is left out: {entry_point.name!r} is a built-in kind", stacklevel=2)
+            continue
+        try:
+            kind = entry_point.load()
+        except Exception as error:  # any failure of someone else's package: say which and go on
+            warnings.warn(f"{where} is left out: it does not load ({type(error).__name__}: {error})", stacklevel=2)
+            continue
+        if not isinstance(kind, ModelKind) or kind.control not in (PATH, LABELS):
+            warnings.warn(f"{where} is left out: it names no ModelKind with a path or labels control", stacklevel=2)
+            continue
+        MODELS[entry_point.name] = kind
+        added.append(entry_point.name)
+    return added
+
+
 def model_kind(kind: str) -> ModelKind:
     """The registry entry of a kind (KeyError naming the known kinds)."""
     if kind not in MODELS:
@@ -163,3 +197,6 @@ def training_knobs(kind: str, name: str) -> dict[str, Any]:
 def preset(kind: str, name: str) -> Any:
     """The model configuration (the kind's ``Config``) of a preset; imports the model's class."""
     return model_class(kind).Config(**resolve_preset(kind, name).model)
+
+
+load_plugins()

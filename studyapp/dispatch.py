@@ -20,7 +20,8 @@ from studyapp.celery import app
 from studyapp.health import check_broker
 from studyapp.models import Stimulus, Study
 from studyapp.stimuli import plan_stimuli
-from studyapp.tasks import generate_stimulus
+from studyapp.sources import source_of
+from studyapp.tasks import generate_stimulus, sample_stimuli
 
 # A queued or running row unchanged this long has lost its task; generating again re-sends
 # it. Rendering one clip takes seconds; a long queue is the only reason to wait this long.
@@ -40,13 +41,65 @@ def _sendable(stimulus: Stimulus, now: datetime) -> bool:
     return stuck and now - stimulus.updated > timedelta(minutes=STALE_TASK_MINUTES)
 
 
-def queue_stimuli(stimuli: list[Stimulus], timeout_s: float | None = None) -> int:
-    """Send each row that needs it (``_sendable``) to a worker; how many were sent.
+@dataclass(frozen=True)
+class Marked:
+    """A row marked queued under a new task id, and what it was before, for undoing."""
 
-    Each send gives the row a new task id and only the task with the row's current id
-    may work on it (``stimuli.claim``), so a row sent twice (two clicks, a stuck row
-    re-sent) is rendered once. Raises BrokerUnavailable, with the rows left as they were,
-    when the broker does not answer within ``timeout_s`` (default: settings.HEALTH_TIMEOUT_S).
+    row: Stimulus
+    status: str
+    task_id: str
+    updated: datetime
+
+
+def _mark_queued(stimulus: Stimulus) -> Marked | None:
+    """Mark the row queued under a new task id; None if somebody changed it since it was
+    read (two clicks send it once)."""
+    before = Marked(stimulus, stimulus.status, stimulus.task_id, stimulus.updated)
+    task_id = str(uuid.uuid4())
+    # Marked before sending, since a fast worker may mark it running first.
+    marked = Stimulus.objects.filter(pk=stimulus.pk, status=stimulus.status, task_id=stimulus.task_id).update(
+        status=Stimulus.Status.QUEUED, task_id=task_id, error="", updated=timezone.now())
+    if not marked:
+        return None
+    stimulus.status, stimulus.task_id = Stimulus.Status.QUEUED, task_id
+    return before
+
+
+def _unmark(marks: list[Marked]) -> None:
+    for mark in marks:
+        Stimulus.objects.filter(pk=mark.row.pk, task_id=mark.row.task_id).update(
+            status=mark.status, task_id=mark.task_id, updated=mark.updated)
+        mark.row.status, mark.row.task_id = mark.status, mark.task_id
+
+
+def _messages(marks: list[Marked]) -> list[tuple[list[Marked], object, tuple, dict]]:
+    """(marks, task, args, options) of each message: the rows of a system whose source
+    samples go to STUDY_SAMPLE_QUEUE together, the others to STUDY_RENDER_QUEUE one each."""
+    sampled: dict[int, list[Marked]] = {}
+    messages = []
+    for mark in marks:
+        row = mark.row
+        if source_of(row.system).samples:
+            sampled.setdefault(row.system_id, []).append(mark)
+        else:
+            messages.append(([mark], generate_stimulus, (row.pk,),
+                             {"task_id": row.task_id, "queue": settings.STUDY_RENDER_QUEUE}))
+    for group in sampled.values():
+        messages.append((group, sample_stimuli, ([(m.row.pk, m.row.task_id) for m in group],),
+                         {"queue": settings.STUDY_SAMPLE_QUEUE}))
+    return messages
+
+
+def queue_stimuli(stimuli: list[Stimulus], timeout_s: float | None = None) -> int:
+    """Send each row that needs it (``_sendable``) to the workers; how many were sent.
+
+    Rows whose source samples a model go, all of one system in one message, to the
+    sampling queue, whose task sends each on to the rendering queue; the others go to
+    the rendering queue directly. Each send gives the row a new task id and only the
+    task with the row's current id may work on it (``stimuli.claim``), so a row sent
+    twice (two clicks, a stuck row re-sent) is rendered once. Raises BrokerUnavailable,
+    with the rows not sent left as they were, when the broker does not answer within
+    ``timeout_s`` (default: settings.HEALTH_TIMEOUT_S).
     """
     now = timezone.now()
     todo = [s for s in stimuli if _sendable(s, now)]
@@ -58,24 +111,17 @@ def queue_stimuli(stimuli: list[Stimulus], timeout_s: float | None = None) -> in
         if not broker.ok:
             raise BrokerUnavailable(f"the task queue's broker does not answer ({broker.detail}); "
                                     "nothing was queued: start it (and a worker), then generate again")
+        marked = [row for row in map(_mark_queued, todo) if row is not None]
         sent = 0
-        for stimulus in todo:
-            task_id = str(uuid.uuid4())
-            # Marked queued before sending (a fast worker may mark it running first), and
-            # only if nobody changed the row since it was read: two clicks send it once.
-            marked = Stimulus.objects.filter(pk=stimulus.pk, status=stimulus.status, task_id=stimulus.task_id).update(
-                status=Stimulus.Status.QUEUED, task_id=task_id, error="", updated=timezone.now())
-            if not marked:
-                continue
+        messages = _messages(marked)
+        for i, (marks, task, args, options) in enumerate(messages):
             try:
-                generate_stimulus.apply_async((stimulus.pk,), task_id=task_id, connection=connection, retry=False)
+                task.apply_async(args, connection=connection, retry=False, **options)
             except Exception as error:  # kombu raises many kinds; all mean "not sent"
-                Stimulus.objects.filter(pk=stimulus.pk, task_id=task_id).update(
-                    status=stimulus.status, task_id=stimulus.task_id, updated=stimulus.updated)
+                _unmark([mark for later in messages[i:] for mark in later[0]])
                 raise BrokerUnavailable(f"sending to the task queue failed after {sent} of {len(todo)} "
                                         f"({type(error).__name__}: {error}); the rest stay as they were") from None
-            stimulus.status, stimulus.task_id = Stimulus.Status.QUEUED, task_id
-            sent += 1
+            sent += len(marks)
     return sent
 
 

@@ -87,8 +87,18 @@ class MultipleFileField(forms.FileField):
         return [super(MultipleFileField, self).clean(item, initial) for item in files]
 
 
+class SubmittedMotionSystemForm(forms.Form):
+    name = forms.CharField(max_length=60, help_text="shown to you only; participants never see it")
+    role = forms.ChoiceField(choices=[(System.Role.MODEL, "model"), (System.Role.BAD, "BAD")])
+    motion = forms.FileField(help_text="a .zip of one BVH or .npz per control, named by the control's id, "
+                                       f"{_megabytes(settings.MAX_MOTION_UPLOAD_BYTES)}")
+
+
 class VideoSystemForm(forms.Form):
     name = forms.CharField(max_length=60, initial="BAD")
+    role = forms.TypedChoiceField(required=False, empty_value=System.Role.BAD,
+                                  choices=[(System.Role.BAD, "BAD (attention checks)"),
+                                           (System.Role.MODEL, "model (rendered elsewhere: not the study's camera)")])
     videos = MultipleFileField(help_text=f"MP4 files, each {_megabytes(settings.MAX_VIDEO_UPLOAD_BYTES)}")
 
 

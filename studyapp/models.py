@@ -169,6 +169,13 @@ class System(models.Model):
         NATURAL = "natural", "natural motion (NAT)"
         BAD = "bad", "attention check (BAD)"
 
+    class SourceKind(models.TextChoices):
+        """Where the motion comes from (``studyapp.sources``); apart from checkpoints, the ``kind`` field."""
+        CHECKPOINT = "checkpoint", "model checkpoint"
+        NATURAL = "natural", "natural clips"
+        SUBMITTED = "submitted", "submitted motion"
+        VIDEO = "video", "uploaded videos"
+
     study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="systems")
     name = models.CharField(max_length=60)
     role = models.CharField(max_length=10, choices=Role.choices, default=Role.MODEL)
@@ -191,6 +198,11 @@ class System(models.Model):
     def export_name(self) -> str:
         """The name in the ratings table: NAT and BAD for their roles, so the analysis finds them."""
         return {self.Role.NATURAL: NATURAL_NAME, self.Role.BAD: ATTENTION_NAME}.get(self.role, self.name)
+
+    @property
+    def source_kind(self) -> str:
+        """A ``SourceKind``: a checkpoint system's ``kind`` names its model kind instead."""
+        return self.SourceKind.CHECKPOINT if self.checkpoint else self.kind
 
     def checkpoint_path(self) -> Path | None:
         return Path(settings.CHECKPOINT_ROOT) / self.checkpoint if self.checkpoint else None

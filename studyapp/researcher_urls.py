@@ -10,6 +10,7 @@ urlpatterns = [
     path("<int:pk>/", views.study_edit, name="study-edit"),
     path("<int:pk>/systems/", views.study_systems, name="study-systems"),
     path("<int:pk>/controls/", views.study_controls, name="study-controls"),
+    path("<int:pk>/controls.zip", views.study_controls_download, name="study-controls-download"),
     path("<int:pk>/stimuli/", views.study_stimuli, name="study-stimuli"),
     path("<int:pk>/stimuli/progress.json", views.study_progress, name="study-progress"),
     path("<int:pk>/stimuli/<int:stimulus_id>/retry/", views.stimulus_retry, name="stimulus-retry"),

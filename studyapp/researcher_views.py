@@ -20,17 +20,20 @@ from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
 from studyapp.celery import app as celery_app
+from studyapp.control_export import bundle_zip
 from studyapp.controls import (ControlError, add_control_file, add_held_out_controls, add_label_controls,
                                add_preset_controls, control_kind, study_labels)
 from studyapp.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
 from studyapp.forms import (CheckpointSystemForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
-                            LabelControlsForm, NaturalSystemForm, PresetControlsForm, StudyForm, VideoSystemForm)
+                            LabelControlsForm, NaturalSystemForm, PresetControlsForm, StudyForm,
+                            SubmittedMotionSystemForm, VideoSystemForm)
 from studyapp.health import collect_health
 from studyapp.models import NATURAL_NAME, Stimulus, Study, System
 from studyapp.monitor import ratings_csv, study_monitor
 from studyapp.participant_views import PLATFORM_PARAMETERS
 from studyapp.reports import AnalysisInputError, create_report
 from studyapp.stimuli import progress
+from studyapp.submissions import add_submitted_upload
 from studyapp.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
 
 # Prolific fills these placeholders in a study URL; MTurk appends its own ids.
@@ -84,16 +87,22 @@ def _forms_page(request: HttpRequest, study: Study, page: str, forms: dict, acti
                   status=status)
 
 
+def _submitted(system: System) -> str:
+    return f"Registered {system.name} with motion for {len(system.metadata['controls'])} control(s)."
+
+
 @login_required
 def study_systems(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
-    forms = {"checkpoint": CheckpointSystemForm, "natural": NaturalSystemForm, "videos": VideoSystemForm}
+    forms = {"checkpoint": CheckpointSystemForm, "natural": NaturalSystemForm, "motion": SubmittedMotionSystemForm,
+             "videos": VideoSystemForm}
     actions = {
         "checkpoint": lambda data: "Registered {}.".format(add_checkpoint_system(
             study, data["name"], data["checkpoint"], data["role"], data["temperature"]).name),
         "natural": lambda data: f"Registered {add_natural_system(study, data['name']).name}.",
+        "motion": lambda data: _submitted(add_submitted_upload(study, data["name"], data["motion"], data["role"])),
         "videos": lambda data: "Registered {} with {} video(s).".format(
-            add_video_system(study, data["name"], data["videos"]).name, len(data["videos"])),
+            add_video_system(study, data["name"], data["videos"], data["role"]).name, len(data["videos"])),
     }
     return _forms_page(request, study, "systems", forms, actions, UploadRefused, {"systems": study.systems.all()})
 
@@ -121,6 +130,22 @@ def study_controls(request: HttpRequest, pk: int) -> HttpResponse:
     }
     return _forms_page(request, study, "controls", forms, actions, ControlError,
                        {"controls": study.controls.all(), "kind": kind})
+
+
+@never_cache
+@login_required
+@require_safe
+def study_controls_download(request: HttpRequest, pk: int) -> HttpResponse:
+    """The controls as a zip (``control_export``); ``?natural=1`` adds the held-out controls' natural clips."""
+    study = _study(request, pk)
+    try:
+        data = bundle_zip(study, natural=request.GET.get("natural") == "1")
+    except (ControlError, ValueError, FileNotFoundError) as error:
+        messages.error(request, f"No download: {error}")
+        return redirect("study-controls", pk=study.pk)
+    response = HttpResponse(data, content_type="application/zip")
+    response["Content-Disposition"] = f'attachment; filename="controls-study-{study.pk}.zip"'
+    return response
 
 
 @login_required

@@ -141,6 +141,14 @@ CELERY_RESULT_EXPIRES = 24 * 3600
 # One deployment's web processes and workers share a queue; several deployments (or
 # test runs) on one Redis keep apart by naming their own.
 CELERY_TASK_DEFAULT_QUEUE = env_str("CELERY_QUEUE", "celery")
+# Sampling a model and rendering clips may go to different queues, so that a GPU
+# machine's worker (-Q on the sampling queue) takes the sampling alone; both default to
+# the one queue. STUDY_DEVICE is where a worker samples: auto (CUDA when present), cpu, cuda.
+STUDY_SAMPLE_QUEUE = env_str("STUDY_SAMPLE_QUEUE", CELERY_TASK_DEFAULT_QUEUE)
+STUDY_RENDER_QUEUE = env_str("STUDY_RENDER_QUEUE", CELERY_TASK_DEFAULT_QUEUE)
+STUDY_DEVICE = env_str("STUDY_DEVICE", "auto")
+if STUDY_DEVICE not in ("auto", "cpu", "cuda"):
+    raise ImproperlyConfigured(f"STUDY_DEVICE={STUDY_DEVICE!r} is not one of auto, cpu, cuda")
 
 # Uploaded checkpoints live here, named by content digest; never under MEDIA_ROOT,
 # which is served to the public.
@@ -150,6 +158,7 @@ MOTION_DATA = Path(env_str("MOTION_DATA", str(BASE_DIR.parent / "shared" / "data
 # The paper-sized MoGlow is about 300 MB in float32.
 MAX_CHECKPOINT_UPLOAD_BYTES = int(env_float("MAX_CHECKPOINT_UPLOAD_MB", 500) * 1_000_000)
 MAX_VIDEO_UPLOAD_BYTES = int(env_float("MAX_VIDEO_UPLOAD_MB", 50) * 1_000_000)
+MAX_MOTION_UPLOAD_BYTES = int(env_float("MAX_MOTION_UPLOAD_MB", 200) * 1_000_000)  # a zip, and what it unpacks to
 # Large uploads go to a temporary file, not memory.
 FILE_UPLOAD_MAX_MEMORY_SIZE = 5_000_000
 

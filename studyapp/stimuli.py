@@ -3,11 +3,12 @@
 ``plan_stimuli`` makes the rows. Each row's ``content_key`` digests everything its clip
 depends on (the checkpoint's digest or the natural clip, the control, seed, temperature,
 camera, video size and code version), so planning again finds the same rows and never
-duplicates a stimulus. Models and BAD checkpoints get every control; NAT only the
-held-out ones, since a synthetic path has no natural clip.
+duplicates a stimulus. Each system gets the controls its source has motion for
+(``sources``): checkpoints every control, NAT the held-out ones (a synthetic path has no
+natural clip), submitted motion those it was submitted for, uploaded videos none.
 
-``render_stimulus`` is the work a task does: sample (or read the natural clip), render
-with the study's camera and write ``MEDIA_ROOT/stimuli/<token>.mp4`` atomically. A
+``render_stimulus`` is the work a task does: ask the system's source for the motion and
+render it, whatever the source, with the study's camera and write ``MEDIA_ROOT/stimuli/<token>.mp4`` atomically. A
 killed attempt leaves only a hidden ``.<token>.mp4.*.part`` temporary, which the next
 attempt removes and the media view never serves.
 
@@ -19,25 +20,17 @@ from __future__ import annotations
 
 import hashlib
 import json
-import logging
 from collections import Counter
-from functools import lru_cache
 from importlib import metadata
 from pathlib import Path
 
-import numpy as np
-from django.conf import settings
 from django.db import transaction
 from django.db.models import F
 from django.utils import timezone
 
-from generation.control import PathControl, control_from_dict
-from generation.motion.dataset import load_body_motion
-from generation.motion.root import root_trajectory
-from generation.motion.types import Motion
 from generation.render import Camera, render_video
-from studyapp.controls import training_options
 from studyapp.models import ControlSignal, Stimulus, Study, System
+from studyapp.sources import source_of
 
 # The package version, not the git commit: a commit that changes no rendering code
 # must not make every stimulus new.
@@ -46,19 +39,15 @@ try:
 except metadata.PackageNotFoundError:
     CODE_VERSION = "unknown"
 
-logger = logging.getLogger(__name__)
 
 
 def content_key(study: Study, system: System, control: ControlSignal, seed: int) -> str:
     """SHA-256 of everything the clip of ``system`` for ``control`` depends on."""
-    natural = system.role == System.Role.NATURAL
     parts = {
         "role": system.role,
-        "source": f"natural:{control.source_clip}" if natural else f"checkpoint:{system.checkpoint_digest}",
+        **source_of(system).identity(system, control, seed),  # source, seed, temperature
         "control": control.control,
         "seconds": control.seconds,
-        "seed": None if natural else seed,
-        "temperature": None if natural else system.temperature,
         "camera": study.camera,
         "size": [study.video_width, study.video_height],
         "code": CODE_VERSION,
@@ -67,14 +56,10 @@ def content_key(study: Study, system: System, control: ControlSignal, seed: int)
 
 
 def _pairs(study: Study) -> list[tuple[System, ControlSignal]]:
+    """Each system with each control its source has motion for."""
     controls = list(study.controls.all())
-    pairs = []
-    for system in study.systems.all():
-        if system.role == System.Role.NATURAL:
-            pairs += [(system, c) for c in controls if c.origin == ControlSignal.Origin.HELD_OUT and c.source_clip]
-        elif system.checkpoint:
-            pairs += [(system, c) for c in controls]
-    return pairs
+    return [(system, control) for system in study.systems.all()
+            for control in source_of(system).controls(system, controls)]
 
 
 def plan_stimuli(study: Study, seed: int = 0) -> tuple[list[Stimulus], int]:
@@ -104,37 +89,23 @@ def progress(study: Study) -> dict:
 
 # --- the work of one task ---------------------------------------------------------
 
-@lru_cache(maxsize=4)
-def _generator(path: str, digest: str):
-    """A worker keeps a few models loaded; the digest keys the cache to the file's content."""
-    from generation.generator import Generator  # torch loads in workers, not in every web process
-
-    generator = Generator.load(path)
-    logger.info("%s samples in %s (precision auto)", path, generator.resolve_precision())
-    return generator
-
-
-def stimulus_motion(stimulus: Stimulus) -> tuple[Motion, np.ndarray]:
-    """The stimulus's motion and the floor path (frames × 2) drawn under it."""
-    system, control = stimulus.system, stimulus.control
-    if control is None:
-        raise ValueError("an uploaded video has nothing to generate")
-    if system.role == System.Role.NATURAL:
-        options = training_options(stimulus.study)
-        source = Path(settings.MOTION_DATA) / control.source_clip
-        if not source.is_file():
-            raise FileNotFoundError(f"the natural clip {source} is missing (MOTION_DATA={settings.MOTION_DATA})")
-        motion = load_body_motion(source, options.fps, control.seconds, options.scale, options.root, options.up)
-        return motion, root_trajectory(motion, options.root).xz
-    path = system.checkpoint_path()
-    if path is None or not path.is_file():
-        raise FileNotFoundError(f"the checkpoint of {system.name} is missing ({path})")
-    signal = control_from_dict(control.control)
-    motion = _generator(str(path), system.checkpoint_digest).sample(
-        signal, n=1, seed=stimulus.seed, temperature=system.temperature)[0]
-    if isinstance(signal, PathControl):
-        return motion, signal.path().xz  # the path the model was told to follow
-    return motion, root_trajectory(motion, training_options(stimulus.study).root).xz  # labels: where it went
+def sample_ahead(sent: list[tuple[int, str]]) -> list[tuple[int, str]]:
+    """Sample the motion of the stimuli a sampling task was sent for, as (stimulus id, the
+    task id its render was sent under) pairs; the pairs sampled. A row sent again since
+    (another task id) is left to its later task; a row that fails is marked failed."""
+    task_ids = dict(sent)
+    rows = Stimulus.objects.filter(pk__in=task_ids).select_related("study", "system", "control")
+    ready = []
+    for stimulus in rows:
+        if stimulus.task_id != task_ids[stimulus.pk]:
+            continue
+        try:
+            source_of(stimulus.system).sample_ahead(stimulus)
+        except Exception as error:  # the reason is shown on the progress page, where it can be retried
+            finish(stimulus, error=f"{type(error).__name__}: {error}")
+            continue
+        ready.append((stimulus.pk, stimulus.task_id))
+    return ready
 
 
 def remove_partial_files(stimulus: Stimulus) -> int:
@@ -149,11 +120,13 @@ def remove_partial_files(stimulus: Stimulus) -> int:
 def render_stimulus(stimulus: Stimulus) -> float:
     """Write the stimulus's video atomically; its duration in seconds."""
     remove_partial_files(stimulus)
-    motion, floor = stimulus_motion(stimulus)
+    if stimulus.control is None:
+        raise ValueError("an uploaded video has nothing to generate")
+    clip = source_of(stimulus.system).clip(stimulus)
     study = stimulus.study
-    render_video(motion, stimulus.video_path(), camera=Camera.from_dict(study.camera),
-                 size=(study.video_width, study.video_height), root_path=floor)
-    return motion.n_frames / motion.fps
+    render_video(clip.motion, stimulus.video_path(), camera=Camera.from_dict(study.camera),
+                 size=(study.video_width, study.video_height), root_path=clip.floor)
+    return clip.motion.n_frames / clip.motion.fps
 
 
 def claim(stimulus_id: int, task_id: str) -> Stimulus | None:
@@ -180,4 +153,5 @@ def finish(stimulus: Stimulus, duration_s: float | None = None, error: str = "")
         status=status, duration_s=duration_s, error=error, updated=timezone.now())
 
 
-__all__ = ["claim", "content_key", "finish", "plan_stimuli", "progress", "remove_partial_files", "render_stimulus"]
+__all__ = ["claim", "content_key", "finish", "plan_stimuli", "progress", "remove_partial_files", "render_stimulus",
+           "sample_ahead"]

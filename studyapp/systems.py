@@ -159,7 +159,8 @@ def checkpoint_metadata(stored: StoredCheckpoint, original_name: str) -> dict:
     }
 
 
-def _check_name(study: Study, name: str) -> None:
+def check_name(study: Study, name: str) -> None:
+    """UploadRefused unless ``name`` is a new, non-blank system name of the study."""
     if not name.strip():
         raise UploadRefused("a system needs a name")
     if study.systems.filter(name=name).exists():
@@ -173,7 +174,7 @@ def add_checkpoint_system(study: Study, name: str, upload: File, role: str = Sys
         raise UploadRefused(f"a checkpoint makes a model or a BAD system, not {role!r}")
     if not temperature > 0:
         raise UploadRefused(f"the sampling temperature must be positive, got {temperature}")
-    _check_name(study, name)
+    check_name(study, name)
     stored = store_checkpoint(upload)
     twin = study.systems.filter(checkpoint_digest=stored.digest, role=role, temperature=temperature).first()
     if twin is not None:
@@ -188,8 +189,8 @@ def add_natural_system(study: Study, name: str = "NAT") -> System:
     existing = study.systems.filter(role=System.Role.NATURAL).first()
     if existing is not None:
         raise UploadRefused(f"this study already has its natural system {existing.name!r}")
-    _check_name(study, name)
-    return System.objects.create(study=study, name=name, role=System.Role.NATURAL, kind="natural")
+    check_name(study, name)
+    return System.objects.create(study=study, name=name, role=System.Role.NATURAL, kind=System.SourceKind.NATURAL)
 
 
 def video_duration(path: Path) -> float:
@@ -225,20 +226,24 @@ def strip_metadata(source: Path, target: Path) -> None:
         raise UploadRefused(f"its video could not be copied ({detail})")
 
 
-def add_video_system(study: Study, name: str, uploads: list[File]) -> System:
-    """A BAD system whose stimuli are uploaded videos, stored as finished stimuli.
+def add_video_system(study: Study, name: str, uploads: list[File], role: str = System.Role.BAD) -> System:
+    """A BAD system (or a model rendered elsewhere) whose stimuli are uploaded videos,
+    stored as finished stimuli. Such videos do not share the study's camera, renderer or
+    size: the systems page says so beside a model system made of them.
 
     All videos are checked before any is kept: one bad video refuses the whole upload.
     Each is stored with its container metadata removed (``strip_metadata``).
     """
+    if role not in (System.Role.MODEL, System.Role.BAD):
+        raise UploadRefused(f"videos make a model or a BAD system, not {role!r}")
     if not uploads:
         raise UploadRefused("choose at least one video")
     for upload in uploads:
         _check_upload(upload, VIDEO_SUFFIX, settings.MAX_VIDEO_UPLOAD_BYTES, "video")
-    _check_name(study, name)
+    check_name(study, name)
     # Files move into place when the stack closes, just before the rows commit.
     with transaction.atomic(), ExitStack() as stack:
-        system = System.objects.create(study=study, name=name, role=System.Role.BAD, kind="video",
+        system = System.objects.create(study=study, name=name, role=role, kind=System.SourceKind.VIDEO,
                                        metadata={"videos": [Path(u.name).name for u in uploads]})
         scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="video-upload-")))
         for upload in uploads:
@@ -259,5 +264,5 @@ def add_video_system(study: Study, name: str, uploads: list[File]) -> System:
     return system
 
 
-__all__ = ["UploadRefused", "add_checkpoint_system", "add_natural_system", "add_video_system",
+__all__ = ["UploadRefused", "add_checkpoint_system", "check_name", "add_natural_system", "add_video_system",
            "safetensors_header_problem", "store_checkpoint", "video_duration"]

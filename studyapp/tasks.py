@@ -7,6 +7,7 @@ import os
 from pathlib import Path
 
 from celery import shared_task
+from django.conf import settings
 
 from generation.gallery import GalleryOptions, render_clip
 from studyapp import stimuli
@@ -50,3 +51,13 @@ def generate_stimulus(self, stimulus_id: int) -> dict:
         return {"stimulus": stimulus_id, "status": "failed", "attempt": stimulus.attempts}
     stimuli.finish(stimulus, duration_s=duration)
     return {"stimulus": stimulus_id, "status": "done", "attempt": stimulus.attempts}
+
+
+@shared_task(bind=True, acks_late=True, reject_on_worker_lost=True)
+def sample_stimuli(self, sent: list[tuple[int, str]]) -> dict:
+    """Sample every stimulus of one system (on STUDY_SAMPLE_QUEUE), then send each to be
+    rendered (on STUDY_RENDER_QUEUE) under the task id the row was given."""
+    ready = stimuli.sample_ahead([(int(pk), task_id) for pk, task_id in sent])
+    for stimulus_id, task_id in ready:
+        generate_stimulus.apply_async((stimulus_id,), task_id=task_id, queue=settings.STUDY_RENDER_QUEUE)
+    return {"sampled": len(ready), "of": len(sent), "hostname": self.request.hostname}

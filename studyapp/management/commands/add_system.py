@@ -6,6 +6,7 @@ from django.core.files import File
 from django.core.management.base import BaseCommand, CommandError
 
 from studyapp.models import System
+from studyapp.submissions import add_submitted_system, add_submitted_upload, read_folder
 from studyapp.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
 
 from ._study import study_by_id
@@ -13,32 +14,44 @@ from ._study import study_by_id
 
 class Command(BaseCommand):
     help = ("Register a system: a checkpoint (role model or bad), the natural clips (--role natural, "
-            "no file) or BAD videos (--video FILE ...).")
+            "no file), submitted motion (--motion DIR_OR_ZIP) or videos (--video FILE ..., BAD unless --role model).")
 
     def add_arguments(self, parser):
         parser.add_argument("study_id", type=int)
         parser.add_argument("name")
         parser.add_argument("checkpoint", nargs="?", help="a .safetensors checkpoint")
-        parser.add_argument("--role", choices=System.Role.values, default=System.Role.MODEL)
+        parser.add_argument("--role", choices=System.Role.values, default=None,
+                            help="model (default), bad or natural; videos default to bad")
         parser.add_argument("--temperature", type=float, default=1.0)
-        parser.add_argument("--video", nargs="+", default=[], help="MP4 files of a BAD system")
+        parser.add_argument("--video", nargs="+", default=[], help="MP4 files")
+        parser.add_argument("--motion", type=Path, help="a folder or .zip of one BVH or .npz per control "
+                                                        "(see export_controls)")
 
     def handle(self, *args, **options):
         study = study_by_id(options["study_id"])
-        name, role, checkpoint, videos = options["name"], options["role"], options["checkpoint"], options["video"]
-        if sum(map(bool, (checkpoint, videos, role == System.Role.NATURAL))) != 1:
-            raise CommandError("give exactly one of: a checkpoint, --video FILE ..., or --role natural")
+        name, checkpoint, videos, motion = options["name"], options["checkpoint"], options["video"], options["motion"]
+        role = options["role"] or (System.Role.BAD if videos else System.Role.MODEL)
+        if sum(map(bool, (checkpoint, videos, motion, role == System.Role.NATURAL))) != 1:
+            raise CommandError("give exactly one of: a checkpoint, --motion DIR_OR_ZIP, --video FILE ..., "
+                               "or --role natural")
         for path in [checkpoint, *videos]:
             if path and not Path(path).is_file():
                 raise CommandError(f"{path}: no such file")
+        if motion and not motion.exists():
+            raise CommandError(f"{motion}: no such folder or file")
         try:
             if checkpoint:
                 with File(Path(checkpoint).open("rb"), name=Path(checkpoint).name) as upload:
                     system = add_checkpoint_system(study, name, upload, role, options["temperature"])
+            elif motion and motion.is_dir():
+                system = add_submitted_system(study, name, read_folder(motion), role, motion.name)
+            elif motion:
+                with File(motion.open("rb"), name=motion.name) as upload:
+                    system = add_submitted_upload(study, name, upload, role)
             elif videos:
                 uploads = [File(Path(p).open("rb"), name=Path(p).name) for p in videos]
                 try:
-                    system = add_video_system(study, name, uploads)
+                    system = add_video_system(study, name, uploads, role)
                 finally:
                     for upload in uploads:
                         upload.close()
