@@ -8,6 +8,7 @@ from the demo to production.
 from pathlib import Path
 
 import dj_database_url
+from django.core.exceptions import ImproperlyConfigured
 
 from studyapp.embedded import (
     FILESYSTEM_BROKER_URL,
