@@ -65,6 +65,9 @@ class Study(models.Model):
     bad_threshold = models.FloatField(default=4.0, help_text="on the 1-5 scale: rating a BAD clip this high or higher excludes")
     natural_threshold = models.FloatField(default=2.0, help_text="on the 1-5 scale: rating a NAT clip below this excludes")
     discard_early = models.BooleanField(default=True, help_text="flag ratings given before the clip finished playing")
+    require_full_play = models.BooleanField(
+        default=True, help_text="the rating buttons unlock when the clip has played to its end, and answers sent "
+                                "sooner after the page than the clip lasts are refused")
     reservation_minutes = models.PositiveIntegerField(
         default=90, help_text="an unfinished participant's unrated clips stop counting towards the target after this idle time")
     platform = models.CharField(max_length=10, choices=Platform.choices, default=Platform.LINK)
@@ -232,6 +235,9 @@ class Participant(models.Model):
     finished_at = models.DateTimeField(null=True, blank=True)
     excluded = models.BooleanField(default=False)
     exclusion_reason = models.CharField(max_length=100, blank=True)
+    # Answers refused for coming sooner than the clip lasts (require_full_play): they are
+    # not ratings, so only this count keeps them for the researcher.
+    refused_early = models.PositiveSmallIntegerField(default=0)
     user_agent = models.CharField(max_length=300, blank=True)
 
     class Meta:

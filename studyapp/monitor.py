@@ -14,6 +14,7 @@ import io
 from dataclasses import dataclass
 
 import pandas as pd
+from django.db.models import Q
 
 from analysis.exclusions import ExclusionRules, apply_exclusions
 from analysis.ratings import read_ratings
@@ -62,7 +63,8 @@ class SystemMean:
 class StudyMonitor:
     participants_started: int
     participants_finished: int
-    participants_excluded: int
+    participants_excluded: int  # failed an attention check
+    participants_early: int  # answered a clip before its end at least once (refused or flagged)
     ratings_collected: int
     ratings_kept: int
     clips: int  # finished stimuli
@@ -103,6 +105,8 @@ def study_monitor(study: Study) -> StudyMonitor:
         participants_started=participants.count(),
         participants_finished=participants.filter(finished_at__isnull=False).count(),
         participants_excluded=participants.filter(excluded=True).count(),
+        participants_early=participants.filter(
+            Q(refused_early__gt=0) | Q(assignments__rating__answered_before_end=True)).distinct().count(),
         ratings_collected=len(flagged),
         ratings_kept=len(kept),
         clips=len(done),

@@ -50,9 +50,10 @@ class Step:
     takes_late_posts: bool = False
 
 
-def message(request: HttpRequest, title: str, text: str, status: int = 200) -> HttpResponse:
-    """A page with a title and one notice, and no form: the end of the path, for now."""
-    return render(request, "studyapp/participant/message.html", {"title": title, "text": text}, status=status)
+def message(request: HttpRequest, title: str, text: str, status: int = 200, back: str = "") -> HttpResponse:
+    """A page with a title and one notice, and no form; ``back``, a link to the page to go on from."""
+    return render(request, "studyapp/participant/message.html", {"title": title, "text": text, "back": back},
+                  status=status)
 
 
 def _next_page(study: Study) -> HttpResponse:
@@ -78,7 +79,7 @@ def _consent(request: HttpRequest, study: Study, participant: Participant) -> Ht
 def _clip_page(study: Study, stimulus: Stimulus, action: str, form: dict, heading: str, done: int,
                total: int) -> dict:
     return {
-        "video_url": stimulus.video_url, "action": action, "form": form, "heading": heading,
+        "video_url": stimulus.video_url, "seconds": stimulus.duration_s or 0.0, "action": action, "form": form, "heading": heading,
         "scale": list(study.scale), "keys": len(study.scale) <= 10, "done": done, "total": total,
         "percent": round(100 * done / total) if total else 100,
     }

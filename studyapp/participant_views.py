@@ -15,6 +15,7 @@ from django.conf import settings
 from django.db import IntegrityError
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import redirect, render
+from django.urls import reverse
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
@@ -103,7 +104,8 @@ def participant_access(step: Step | None = None) -> Callable[[ParticipantView], 
                                          f"at {stage(participant)})", status=409)
                 response = view(request, study, participant)
             except RatingRejected as rejection:
-                response = message(request, "That did not work", str(rejection), rejection.status)
+                response = message(request, "That did not work", str(rejection),
+                                   rejection.status, back=reverse("participant-page", args=[key]))
             return _framed(study, response)
         return guarded
     return decorate

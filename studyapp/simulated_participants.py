@@ -3,7 +3,8 @@
 A dry run before a study goes to the crowd, the concurrency test and the ratings
 benchmark all use it. Each participant is an independent cookie-carrying client that
 reads the page it is on, as a browser would, and answers it: consent, instructions,
-practice clips, then a rating per clip (claiming to have watched it to the end).
+practice clips, then a rating per clip (claiming to have watched it to the end, and
+waiting as long as the clip lasts where the study locks the buttons until then).
 
     python -m studyapp.simulated_participants http://127.0.0.1:8000/p/KEY/ -n 20
 
@@ -28,7 +29,8 @@ from dataclasses import dataclass, field
 
 _FORM = re.compile(r'<form method="post" action="([^"]+)"[^>]*>(.*?)</form>', re.S)
 _HIDDEN = re.compile(r'<input type="hidden" name="([^"]+)"(?: value="([^"]*)")?>')
-_POINT = re.compile(r'<button type="submit" name="value" value="(-?\d+)">')
+_POINT = re.compile(r'<button type="submit" name="value" value="(-?\d+)"( disabled)?>')
+_CLIP_SECONDS = re.compile(r'<video id="clip"[^>]* data-seconds="([0-9.]+)"')
 
 
 @dataclass
@@ -79,12 +81,16 @@ class SimulatedParticipant:
             return None
         action, form = html.unescape(match.group(1)), match.group(2)
         data = {name: html.unescape(value or "") for name, value in _HIDDEN.findall(form)}
-        points = [int(p) for p in _POINT.findall(form)]
+        buttons = _POINT.findall(form)
+        points = [int(point) for point, _ in buttons]
         url = urllib.parse.urljoin(page_url, action)
         if action.endswith("/consent/"):
             data["agree"] = "yes"
         elif points:
-            time.sleep(self.watch_s)
+            # Locked buttons open when the clip has played to its end, as in a browser.
+            clip = _CLIP_SECONDS.search(body)
+            locked_s = float(clip.group(1)) if clip and any(disabled for _, disabled in buttons) else 0.0
+            time.sleep(max(self.watch_s, locked_s))
             data.update(value=str(self.rng.choice(points)), started_s="0.05", ended_s="0.5",
                         answered_s="0.6", played_until_s="0.45")
         if action.endswith("/rate/"):

@@ -208,8 +208,36 @@ def test_on_a_ten_point_scale_the_thresholds_are_rescaled():
     assert (study.bad_cutoff(), study.natural_cutoff()) == (7.75, 3.25)
 
 
-def test_an_answer_before_the_clip_ends_is_kept_but_flagged():
-    study = make_study()
+def test_an_answer_sooner_than_the_clip_lasts_is_refused_and_counted():
+    study = make_study()  # require_full_play is on by default
+    client = Client()
+    participant = through_practice(client, study)
+    token = on_screen_token(client, study)  # the server has just sent the page: 4 s have not passed
+    response = post(client, study, "rate", assignment=token, value=3, **WATCHED)  # whatever the browser claims
+    assert response.status_code == 409
+    page = response.content.decode()
+    assert "Please watch the clip to its end" in page and "it lasts 4.0 s" in page
+    assert f'href="{reverse("participant-page", args=[study.key])}"' in page  # back to the clip
+    assert Rating.objects.count() == 0
+    assert Participant.objects.get(pk=participant.pk).refused_early == 1
+    assert on_screen_token(client, study) == token  # the same clip, still to rate
+    rate_current(client, study, participant, 3)
+    assert Rating.objects.get().answered_before_end is False
+
+
+def test_the_rating_buttons_are_locked_until_the_end_only_where_the_study_asks():
+    for required in (True, False):
+        study = make_study(require_full_play=required, title=f"full play {required}")
+        client = Client()
+        through_practice(client, study, f"pid-{required}")
+        page = client.get(reverse("participant-page", args=[study.key])).content.decode()
+        buttons = re.findall(r'<button type="submit" name="value"[^>]*>', page)
+        assert len(buttons) == 5 and all(("disabled" in b) == required for b in buttons)
+        assert ("unlock when the clip has played to its end" in page) == required
+
+
+def test_without_the_full_play_rule_an_answer_before_the_clip_ends_is_kept_but_flagged():
+    study = make_study(require_full_play=False)
     client = Client()
     participant = through_practice(client, study)
     token = on_screen_token(client, study)  # the server has just sent the page: 4 s have not passed
