@@ -145,18 +145,23 @@ def _rate(request: HttpRequest, study: Study, participant: Participant) -> HttpR
     return _next_page(study)
 
 
+def mturk_submit_url(platform_data: dict) -> str | None:
+    """MTurk's external-submit URL from the link's turkSubmitTo, if that is MTurk's own site."""
+    submit_to = platform_data.get("turkSubmitTo", "")
+    parsed = urlparse(submit_to)
+    if parsed.scheme == "https" and parsed.hostname in MTURK_SUBMIT_HOSTS:
+        return f"{submit_to.rstrip('/')}/mturk/externalSubmit"
+    return None
+
+
 def _completion_page(study: Study, participant: Participant) -> dict:
     """Where a finished participant goes and what code they are given."""
     code, target = study.completion_code, study.redirect_url
     mturk_submit = None
     if study.platform == Study.Platform.PROLIFIC and code and not target:
         target = f"{PROLIFIC_COMPLETION_URL}?{urlencode({'cc': code})}"
-    if study.platform == Study.Platform.MTURK:
-        submit_to = participant.platform_data.get("turkSubmitTo", "")
-        parsed = urlparse(submit_to)
-        if parsed.scheme == "https" and parsed.hostname in MTURK_SUBMIT_HOSTS:
-            mturk_submit = {"url": f"{submit_to.rstrip('/')}/mturk/externalSubmit",
-                            "assignment_id": participant.platform_data.get("assignmentId", "")}
+    if study.platform == Study.Platform.MTURK and (url := mturk_submit_url(participant.platform_data)):
+        mturk_submit = {"url": url, "assignment_id": participant.platform_data.get("assignmentId", "")}
     return {"code": code, "redirect_url": target, "mturk_submit": mturk_submit}
 
 
@@ -189,4 +194,4 @@ def may_post(step: Step, participant: Participant) -> bool:
     return current == here or (step.takes_late_posts and current > here)
 
 
-__all__ = ["PATH", "Step", "current_step", "may_post", "message", "stage"]
+__all__ = ["PATH", "Step", "current_step", "may_post", "message", "mturk_submit_url", "stage"]

@@ -21,7 +21,7 @@ from django.views.decorators.http import require_POST, require_safe
 
 from studyapp.assignment import StudyFull, StudyNotReady, enrol, renew_reservations
 from studyapp.models import Participant, Study, new_token
-from studyapp.participant_path import Step, current_step, may_post, message, stage
+from studyapp.participant_path import Step, current_step, may_post, message, mturk_submit_url, stage
 from studyapp.ratings import RatingRejected
 
 # The query parameters each platform adds to the entry link; the first one is the id.
@@ -30,6 +30,9 @@ PLATFORM_PARAMETERS = {
     Study.Platform.MTURK: ("workerId", "assignmentId", "hitId", "turkSubmitTo"),
     Study.Platform.LINK: ("pid",),
 }
+# The parameter naming the platform's session: a platform id continues in another browser
+# only with the session it started in (elsewhere, only the browser's cookie continues it).
+SESSION_PARAMETERS = {Study.Platform.PROLIFIC: "SESSION_ID", Study.Platform.MTURK: "assignmentId"}
 # MTurk shows the study in an iframe of its own site; other platforms link to it, so
 # their pages keep Django's X-Frame-Options: DENY.
 MTURK_FRAME_ANCESTORS = "frame-ancestors https://*.mturk.com"
@@ -125,6 +128,9 @@ def _enrolled(request: HttpRequest, study: Study) -> HttpResponse:
     data = {name: request.GET[name][:MAX_ID_LENGTH] for name in names if request.GET.get(name)}
     if study.platform == Study.Platform.MTURK and data.get("assignmentId") == "ASSIGNMENT_ID_NOT_AVAILABLE":
         return message(request, study.title, "This is a preview. Accept the task to take part.")
+    if study.platform == Study.Platform.MTURK and mturk_submit_url(data) is None:
+        return message(request, "Link incomplete", "The link lacks MTurk's submit address (turkSubmitTo). "
+                       "Please open the task from MTurk again.", 400)
     platform_id = data.get(names[0])
     pk = _participant_pk(request, key)
     existing = Participant.objects.filter(pk=pk, study=study).first() if pk else None
@@ -144,10 +150,20 @@ def _enrolled(request: HttpRequest, study: Study) -> HttpResponse:
                            "received the ratings it needs. Please return the study on your platform.")
         except StudyNotReady:
             return message(request, "Not ready yet", "This study has no clips yet. Please try again later.", 503)
-        except IntegrityError:  # the same id arriving twice at once: the other request enrolled it
+        except IntegrityError:  # the same id arriving twice at once (a double click): the other request enrolled it
             participant = Participant.objects.get(study=study, platform_id=platform_id)
+    elif not _same_session(study, participant, data):
+        return message(request, "Already started elsewhere", "This id has already started the study in another "
+                       "browser or platform session. Please go on where you started it.", 409)
     participant.study = study
     return _remember(redirect("participant-page", key=key), participant)
+
+
+def _same_session(study: Study, participant: Participant, data: dict) -> bool:
+    """Whether the link continues the platform session ``participant`` started in (the
+    link this browser has no cookie for: without a session parameter, nothing continues)."""
+    name = SESSION_PARAMETERS.get(study.platform)
+    return bool(name and participant.platform_data.get(name) and participant.platform_data[name] == data.get(name))
 
 
 def step_form(step: Step) -> Callable[..., HttpResponse]:

@@ -28,7 +28,9 @@ from studyapp.forms import (CheckpointSystemForm, ControlFileForm, GenerateForm,
 from studyapp.health import collect_health
 from studyapp.models import NATURAL_NAME, Stimulus, Study, System
 from studyapp.monitor import ratings_csv, study_monitor
+from studyapp.participant_list import participant_rows, participants_csv
 from studyapp.participant_views import PLATFORM_PARAMETERS
+from studyapp.readiness import open_problems
 from studyapp.reports import AnalysisInputError, create_report
 from studyapp.stimuli import progress
 from studyapp.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
@@ -184,9 +186,29 @@ def study_monitor_page(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
     context = {
         "study": study, "monitor": study_monitor(study), "entry_link": entry_link(request, study),
-        "parameters": PLATFORM_PARAMETERS[study.platform],
+        "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study),
     }
     return render(request, "studyapp/researcher/monitor.html", context)
+
+
+@never_cache
+@login_required
+@require_safe
+def study_participants(request: HttpRequest, pk: int) -> HttpResponse:
+    """Who took part, how far they got and what the study's rules suggest doing with their submission."""
+    study = _study(request, pk)
+    return render(request, "studyapp/researcher/participants.html",
+                  {"study": study, "rows": participant_rows(study)})
+
+
+@never_cache
+@login_required
+@require_safe
+def study_participants_csv(request: HttpRequest, pk: int) -> HttpResponse:
+    study = _study(request, pk)
+    response = HttpResponse(participants_csv(study), content_type="text/csv")
+    response["Content-Disposition"] = f'attachment; filename="participants-study-{study.pk}.csv"'
+    return response
 
 
 @login_required
@@ -195,8 +217,8 @@ def study_open(request: HttpRequest, pk: int) -> HttpResponse:
     """Open the study to participants, or close it (``open`` = "1" or "0")."""
     study = _study(request, pk)
     want_open = request.POST.get("open") == "1"
-    if want_open and not study.stimuli.filter(status=Stimulus.Status.DONE).exists():
-        messages.error(request, "Generate stimuli first: a study with no finished clip cannot open.")
+    if want_open and (problems := open_problems(study)):
+        messages.error(request, "The study cannot open: " + "; ".join(problems) + ".")
     else:
         study.is_open = want_open
         study.save(update_fields=["is_open"])

@@ -1,15 +1,22 @@
 """Crowd operations in a real browser (headless Debian Chromium, as test_study_browser drives it):
 the rating buttons unlock only when the clip has played to its end, with the keyboard and on
-a phone, and the server refuses an answer sent sooner than the clip lasts, whatever the page."""
+a phone, and the server refuses an answer sent sooner than the clip lasts, whatever the page;
+another session of a platform id cannot continue the first one's; the researcher's
+participant list and its CSV."""
 
 from __future__ import annotations
 
+import csv
+import io
+from pathlib import Path
+
 import pytest
+from django.urls import reverse
 
 from studyapp.models import Participant, Rating, Stimulus
 from studyapp.ratings import current_assignment
 from tests.study_fixtures import make_study
-from tests.test_study_browser import CLIP_SECONDS, browser, clip_video, wait_for_clip_end  # noqa: F401 (fixtures)
+from tests.test_study_browser import CLIP_SECONDS, PASSWORD, browser, clip_video, wait_for_clip_end  # noqa: F401 (fixtures)
 
 PHONE = {"viewport": {"width": 390, "height": 844}, "is_mobile": True, "has_touch": True}
 
@@ -91,4 +98,48 @@ def test_the_server_refuses_an_answer_sooner_than_the_clip_and_the_page_says_why
     assert on_screen(page) == token and Rating.objects.count() == 0
     participant = Participant.objects.get(platform_id="speeder")
     assert participant.refused_early == 2 and current_assignment(participant).token == token
+    context.close()
+
+
+def log_in(browser, live_server, user):
+    user.set_password(PASSWORD)
+    user.save()
+    context = browser.new_context(accept_downloads=True)
+    page = context.new_page()
+    page.goto(f"{live_server.url}{reverse('login')}")
+    page.fill("input[name=username]", user.username)
+    page.fill("input[name=password]", PASSWORD)
+    page.click("input[type=submit]")
+    return context, page
+
+
+@pytest.mark.django_db(transaction=True)
+def test_another_session_of_the_same_prolific_id_cannot_continue_and_the_researcher_lists_both(
+        browser, live_server, clip_video, media):
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, clips_per_participant=2, training_clips=0,
+                       bad_checks=0, natural_checks=0)
+    context, page = first_clip(browser, live_server, study, "P1")
+    for _ in range(2):
+        wait_for_clip_end(page)
+        page.keyboard.press("4")
+        page.wait_for_load_state()
+    assert study.completion_code in page.inner_text("body")
+    context.close()
+
+    other = browser.new_context()
+    intruder = other.new_page()
+    response = intruder.goto(f"{live_server.url}/p/{study.key}/?PROLIFIC_PID=P1&STUDY_ID=S1&SESSION_ID=another")
+    text = intruder.inner_text("body")
+    assert response.status == 409 and "Already started elsewhere" in text and study.completion_code not in text
+    assert intruder.goto(f"{live_server.url}/p/{study.key}/now/").status == 403
+    other.close()
+
+    context, page = log_in(browser, live_server, study.owner)
+    page.goto(f"{live_server.url}{reverse('study-participants', args=[study.pk])}")
+    cells = page.locator("#participants tr").nth(1).locator("td").all_inner_texts()
+    assert cells[:3] == ["P1", "session-P1", "finished"] and cells[-1] == "approve"
+    with page.expect_download() as download:
+        page.get_by_role("link", name="Download as CSV").click()
+    table = list(csv.DictReader(io.StringIO(Path(download.value.path()).read_text())))
+    assert [(r["platform_id"], r["suggested_action"]) for r in table] == [("P1", "approve")]
     context.close()

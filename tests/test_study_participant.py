@@ -342,13 +342,19 @@ def test_mturk_participants_submit_to_mturk_only():
                            {"assignmentId": "ASSIGNMENT_ID_NOT_AVAILABLE", "hitId": "h"})
     assert "preview" in preview.content.decode() and Participant.objects.count() == 0
     client = Client()
-    client.get(reverse("participant-enter", args=[study.key]),
-               {"workerId": "W1", "assignmentId": "A1", "hitId": "H1", "turkSubmitTo": "https://evil.example.com"})
+    link = {"workerId": "W1", "assignmentId": "A1", "hitId": "H1"}
+    for submit_to in ("https://evil.example.com", "http://www.mturk.com", None):  # nowhere MTurk could take it
+        response = client.get(reverse("participant-enter", args=[study.key]),
+                              {**link, **({"turkSubmitTo": submit_to} if submit_to else {})})
+        assert response.status_code == 400 and "turkSubmitTo" in response.content.decode()
+    assert Participant.objects.count() == 0
+    client.get(reverse("participant-enter", args=[study.key]), {**link, "turkSubmitTo": "https://workersandbox.mturk.com"})
     participant = through_practice(client, study, "W1")
     for _ in range(3):
         rate_current(client, study, participant, 3)
     done = client.get(reverse("participant-page", args=[study.key])).content.decode()
-    assert "evil.example.com" not in done and "C0MPL3TE" in done
+    assert 'action="https://workersandbox.mturk.com/mturk/externalSubmit"' in done
+    assert 'name="assignmentId" value="A1"' in done and "C0MPL3TE" in done
 
 
 def test_the_export_has_one_row_per_rating_with_the_flags():
