@@ -21,13 +21,13 @@ from dataclasses import dataclass
 from urllib.parse import urlencode, urlparse
 
 from django.db.models import Count
-from django.http import HttpRequest, HttpResponse
-from django.shortcuts import get_object_or_404, redirect, render
+from django.http import Http404, HttpRequest, HttpResponse
+from django.shortcuts import redirect, render
 from django.utils import timezone
 
 from studyapp.assignment import is_idle, renew_reservations
 from studyapp.models import Participant, Stimulus, Study
-from studyapp.ratings import ClientTimes, RatingRejected, current_assignment, record_rating
+from studyapp.ratings import ClientTimes, RatingRejected, record_rating
 
 PROLIFIC_COMPLETION_URL = "https://app.prolific.com/submissions/complete"
 MTURK_SUBMIT_HOSTS = {"www.mturk.com", "workersandbox.mturk.com"}
@@ -77,9 +77,11 @@ def _consent(request: HttpRequest, study: Study, participant: Participant) -> Ht
 
 
 def _clip_page(study: Study, stimulus: Stimulus, action: str, form: dict, heading: str, done: int,
-               total: int) -> dict:
+               total: int, upcoming: Stimulus | None) -> dict:
+    """A clip and its rating form; ``upcoming``, the next clip, which the browser fetches meanwhile."""
     return {
-        "video_url": stimulus.video_url, "seconds": stimulus.duration_s or 0.0, "action": action, "form": form, "heading": heading,
+        "video_url": stimulus.video_url, "seconds": stimulus.duration_s or 0.0, "action": action, "form": form,
+        "heading": heading, "next_video_url": upcoming.video_url if upcoming else "",
         "scale": list(study.scale), "keys": len(study.scale) <= 10, "done": done, "total": total,
         "percent": round(100 * done / total) if total else 100,
     }
@@ -87,10 +89,13 @@ def _clip_page(study: Study, stimulus: Stimulus, action: str, form: dict, headin
 
 def _practice_page(study: Study, participant: Participant) -> dict:
     index = participant.training_done
-    stimulus = get_object_or_404(Stimulus, pk=participant.training[index])
-    return _clip_page(study, stimulus, "participant-practice", {"index": index},
+    ids = participant.training[index:index + 2]
+    stimuli = Stimulus.objects.in_bulk(ids)  # this clip and the next practice clip, in one query
+    if ids[0] not in stimuli:
+        raise Http404("practice clip gone")
+    return _clip_page(study, stimuli[ids[0]], "participant-practice", {"index": index},
                       f"Practice clip {index + 1} of {len(participant.training)} (not recorded)",
-                      index, len(participant.training))
+                      index, len(participant.training), stimuli.get(ids[1]) if len(ids) > 1 else None)
 
 
 def _practice(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
@@ -102,14 +107,16 @@ def _practice(request: HttpRequest, study: Study, participant: Participant) -> H
 
 
 def _rating_page(study: Study, participant: Participant) -> dict:
-    assignment = current_assignment(participant)
+    # The clip on screen and the next, in one query (the next one is fetched while this plays).
+    assignment, *upcoming = (participant.assignments.filter(rating__isnull=True).select_related("stimulus")
+                             .order_by("position")[:2])
     if assignment.shown_at is None:
         assignment.shown_at = timezone.now()
         assignment.save(update_fields=["shown_at"])
     counts = participant.assignments.aggregate(total=Count("pk"), done=Count("rating"))
     total, done = counts["total"], counts["done"]
     return _clip_page(study, assignment.stimulus, "participant-rate", {"assignment": assignment.token},
-                      f"Clip {done + 1} of {total}", done, total)
+                      f"Clip {done + 1} of {total}", done, total, upcoming[0].stimulus if upcoming else None)
 
 
 def _optional_float(request: HttpRequest, name: str) -> float | None:

@@ -8,6 +8,7 @@ URL and redirects back to the one page URL.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from functools import wraps
 
@@ -37,6 +38,8 @@ SESSION_PARAMETERS = {Study.Platform.PROLIFIC: "SESSION_ID", Study.Platform.MTUR
 # their pages keep Django's X-Frame-Options: DENY.
 MTURK_FRAME_ANCESTORS = "frame-ancestors https://*.mturk.com"
 MAX_ID_LENGTH = 100
+
+logger = logging.getLogger(__name__)
 
 ParticipantView = Callable[[HttpRequest, Study, Participant], HttpResponse]
 
@@ -70,17 +73,50 @@ def _remember(response: HttpResponse, participant: Participant) -> HttpResponse:
     return response
 
 
+class StudyUnavailable(Exception):
+    """No study at this address, or one closed to newcomers: a plain page says which."""
+
+    def __init__(self, title: str, text: str, study: Study | None = None) -> None:
+        super().__init__(text)
+        self.title, self.text, self.study = title, text, study
+
+
 def _study(key: str, must_be_open: bool = False) -> Study:
     """The study of an entry key. Only new participants need it open: closing a study
     lets those already taking part finish and get their completion code."""
     study = Study.objects.filter(key=key).first()
-    if study is None or (must_be_open and not study.is_open):
-        raise Http404("no open study here")
+    if study is None:
+        raise StudyUnavailable("No study here", "There is no study at this address. Please check the link your "
+                               "platform gave you.")
+    if must_be_open and not study.is_open:
+        raise StudyUnavailable(study.title, "This study is closed and takes no new participants. Thank you for "
+                               "your interest; please return it on your platform.", study)
     return study
 
 
+def plain_pages(view: Callable[..., HttpResponse]) -> Callable[..., HttpResponse]:
+    """Whatever goes wrong, a participant gets a plain page of the study's own, never
+    Django's error or debug pages: a missing study or page (404) or a server error (500,
+    its traceback logged)."""
+    @wraps(view)
+    def shielded(request: HttpRequest, *args, **kwargs) -> HttpResponse:
+        try:
+            return view(request, *args, **kwargs)
+        except StudyUnavailable as unavailable:
+            response = message(request, unavailable.title, unavailable.text, 404)
+            return _framed(unavailable.study, response) if unavailable.study else response
+        except Http404:
+            return message(request, "Page not found", "There is no such page in this study. Please go back to "
+                           "the link your platform gave you.", 404)
+        except Exception:
+            logger.exception("participant page %s failed", request.path)
+            return message(request, "Something went wrong", "The server could not show this page. Please try "
+                           "again in a moment: your answers so far are saved.", 500)
+    return shielded
+
+
 def _participant(request: HttpRequest, key: str) -> tuple[Study, Participant | None]:
-    """The study of an entry key (404 if none) and this browser's participant in it, if
+    """The study of an entry key (StudyUnavailable if none) and this browser's participant in it, if
     any: one query for both when there is one, as on every page of the path."""
     pk = _participant_pk(request, key)
     participant = Participant.objects.select_related("study").filter(pk=pk, study__key=key).first() if pk else None
@@ -115,6 +151,7 @@ def participant_access(step: Step | None = None) -> Callable[[ParticipantView], 
 
 
 @never_cache
+@plain_pages
 @require_safe
 def enter(request: HttpRequest, key: str) -> HttpResponse:
     """The entry link: find or create the participant of this platform id, then go to their page."""
@@ -168,10 +205,11 @@ def _same_session(study: Study, participant: Participant, data: dict) -> bool:
 
 def step_form(step: Step) -> Callable[..., HttpResponse]:
     """The view that takes ``step``'s form (POST only)."""
-    return require_POST(participant_access(step)(step.submit))
+    return plain_pages(require_POST(participant_access(step)(step.submit)))
 
 
 @never_cache
+@plain_pages
 @require_safe
 @participant_access()
 def page(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
@@ -179,4 +217,13 @@ def page(request: HttpRequest, study: Study, participant: Participant) -> HttpRe
     participant = renew_reservations(participant)
     step = current_step(participant)
     context = {"study": study, **step.page(study, participant)}
+    # Names this page among the participant's, so that another tab still on an earlier one moves on.
+    context["page_id"] = "-".join([step.name, *map(str, context.get("form", {}).values())])
     return render(request, f"studyapp/participant/{step.template}", context)
+
+
+@never_cache
+@plain_pages
+def unknown_page(request: HttpRequest, key: str, rest: str) -> HttpResponse:
+    """Any other address under a study's pages."""
+    raise Http404(rest)

@@ -143,3 +143,96 @@ def test_another_session_of_the_same_prolific_id_cannot_continue_and_the_researc
     table = list(csv.DictReader(io.StringIO(Path(download.value.path()).read_text())))
     assert [(r["platform_id"], r["suggested_action"]) for r in table] == [("P1", "approve")]
     context.close()
+
+
+@pytest.mark.django_db(transaction=True)
+def test_a_clip_that_fails_to_load_says_so_and_plays_after_a_retry(browser, live_server, clip_video, media):
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, clips_per_participant=2, training_clips=0,
+                       bad_checks=0, natural_checks=0)
+    # Every clip file is missing when the participant arrives, and back before they retry.
+    videos = [s.video_path() for s in Stimulus.objects.filter(study=study)]
+    hidden = [path.rename(path.with_suffix(".gone")) for path in videos]
+    context, page = first_clip(browser, live_server, study, "unlucky")
+    page.wait_for_selector("#load-error", state="visible")
+    assert "The clip did not load" in page.inner_text("#load-error")
+    for away, path in zip(hidden, videos):
+        away.rename(path)
+    page.get_by_role("button", name="Try again").click()
+    wait_for_clip_end(page)
+    assert page.is_hidden("#load-error") and scale_buttons_disabled(page) == [False] * 5
+    context.close()
+
+
+@pytest.mark.django_db(transaction=True)
+def test_the_next_clip_is_fetched_while_the_current_one_plays(browser, live_server, clip_video, media):
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, clips_per_participant=2, training_clips=0,
+                       bad_checks=0, natural_checks=0)
+    context = browser.new_context()
+    page = context.new_page()
+    requested: list[str] = []
+    page.on("request", lambda request: requested.append(request.url))
+    page.goto(f"{live_server.url}/p/{study.key}/?PROLIFIC_PID=ahead&STUDY_ID=S1&SESSION_ID=S")
+    page.get_by_role("button", name="I agree to take part").click()
+    page.get_by_role("button", name="Start").click()
+    page.wait_for_selector("#clip")
+    first, second = Participant.objects.get(platform_id="ahead").assignments.order_by("position")
+    page.wait_for_function("() => document.getElementById('clip').readyState >= 2")
+    page.wait_for_timeout(300)
+    assert f"{live_server.url}{second.stimulus.video_url}" in requested  # before any answer
+    assert on_screen(page) == first.token
+    context.close()
+
+
+@pytest.mark.django_db(transaction=True)
+def test_a_stale_second_tab_moves_to_the_current_page(browser, live_server, clip_video, media):
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, clips_per_participant=2, training_clips=0,
+                       bad_checks=0, natural_checks=0)
+    context, page = first_clip(browser, live_server, study, "two-tabs")
+    second_tab = context.new_page()
+    second_tab.goto(f"{live_server.url}/p/{study.key}/now/")
+    first_token = on_screen(second_tab)
+    assert on_screen(page) == first_token
+    wait_for_clip_end(page)
+    page.keyboard.press("3")
+    page.wait_for_function(f"() => document.querySelector('input[name=assignment]')?.value !== '{first_token}'")
+    # The second tab, untouched, now shows the clip the first one moved on to.
+    second_tab.wait_for_function(f"() => document.querySelector('input[name=assignment]')?.value !== '{first_token}'")
+    assert on_screen(second_tab) == on_screen(page)
+    context.close()
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("phone", [False, True], ids=["desktop", "phone"])
+def test_the_code_copies_keys_are_offered_only_with_a_keyboard_and_the_clip_enlarges(browser, live_server, clip_video,
+                                                                                     media, phone):
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, clips_per_participant=1, training_clips=0,
+                       bad_checks=0, natural_checks=0)
+    context, page = first_clip(browser, live_server, study, f"copy-{phone}", **(PHONE if phone else {}))
+    assert page.is_visible("#keys-hint") == (not phone)
+    page.evaluate("() => { const v = document.getElementById('clip'); v.pause(); v.currentTime = 0; }")
+    page.get_by_role("button", name="Enlarge").click()
+    page.wait_for_function("() => document.fullscreenElement?.id === 'stage'")
+    page.evaluate("() => document.getElementById('clip').play()")
+    wait_for_clip_end(page)
+    page.wait_for_function("() => document.fullscreenElement === null")  # back to the buttons at the end
+    page.get_by_role("button", name="3", exact=True).click()
+    page.wait_for_selector("#copy-code")
+    context.grant_permissions(["clipboard-read", "clipboard-write"], origin=live_server.url)
+    page.get_by_role("button", name="Copy the code").click()
+    page.wait_for_selector("text=Copied.")
+    assert page.evaluate("() => navigator.clipboard.readText()") == study.completion_code
+    context.close()
+
+
+@pytest.mark.django_db(transaction=True)
+def test_unknown_links_and_closed_studies_show_plain_pages(browser, live_server, settings):
+    settings.DEBUG = True
+    study = make_study(is_open=False)
+    context = browser.new_context()
+    page = context.new_page()
+    response = page.goto(f"{live_server.url}/p/{study.key}/?PROLIFIC_PID=late")
+    assert response.status == 404 and "This study is closed" in page.inner_text("body")
+    response = page.goto(f"{live_server.url}/p/nothing-here/?PROLIFIC_PID=lost")
+    assert response.status == 404 and "There is no study at this address" in page.inner_text("body")
+    assert "Traceback" not in page.content() and "Django" not in page.content()
+    context.close()
