@@ -11,7 +11,7 @@ from django import forms
 from django.conf import settings
 
 from generation.control import PRESETS
-from studyapp.models import Study, System
+from studyapp.models import Question, Study, System
 
 
 class StudyForm(forms.ModelForm):
@@ -44,6 +44,20 @@ class StudyForm(forms.ModelForm):
             "consent_text": forms.Textarea(attrs={"rows": 4}),
             "camera": forms.Textarea(attrs={"rows": 3}),
         }
+
+
+class QuestionForm(forms.ModelForm):
+    """One question; ``Question.clean`` checks its choices, and the unique name is checked
+    against the study's other questions (the instance carries the study)."""
+
+    class Meta:
+        model = Question
+        fields = ["part", "name", "text", "kind", "choices", "accepted", "required"]
+        widgets = {"choices": forms.Textarea(attrs={"rows": 3}), "accepted": forms.Textarea(attrs={"rows": 2})}
+
+    def validate_unique(self) -> None:
+        if Question.objects.filter(study=self.instance.study, name=self.cleaned_data.get("name")).exists():
+            self.add_error("name", "another question of this study has this name")
 
 
 def _megabytes(limit: int) -> str:

@@ -2,8 +2,8 @@
 submissions on the crowd platform.
 
 One row per participant: their platform id and session, how far they got, how long it
-took, their early answers (refused by the full-play rule or flagged) and why they were
-excluded, with the action the study's rules suggest (approve the finished, reject those
+took, their early answers (refused by the full-play rule or flagged), why they were
+excluded and their questionnaire answers, with the action the study's rules suggest (approve the finished, reject those
 who failed an attention check). Platform ids arrive in the entry link, so anyone can choose
 one: every text cell is neutralised before a spreadsheet can read it as a formula.
 """
@@ -36,7 +36,8 @@ class ParticipantRow:
     ratings: int
     early_answers: int
     exclusion_reason: str
-    suggested_action: str  # approve, reject, or "" while unfinished
+    suggested_action: str  # approve, reject, or "" while unfinished (or screened out: they return it)
+    answers: dict  # questionnaire answers by question name
 
 
 def participant_rows(study: Study) -> list[ParticipantRow]:
@@ -51,7 +52,9 @@ def participant_rows(study: Study) -> list[ParticipantRow]:
     for participant in participants:
         participant.study = study  # is_idle reads the reservation time
         finished = participant.finished_at
-        if finished is not None:
+        if participant.screened_out_at is not None:
+            status = "screened out"
+        elif finished is not None:
             status = "finished"
         else:
             status = "idle" if is_idle(participant, now) else "in progress"
@@ -61,7 +64,7 @@ def participant_rows(study: Study) -> list[ParticipantRow]:
             status=status, started=participant.started_at, finished=finished,
             minutes_taken=round((finished - participant.started_at).total_seconds() / 60, 1) if finished else None,
             ratings=participant.rating_count, early_answers=participant.refused_early + participant.flagged,
-            exclusion_reason=participant.exclusion_reason, suggested_action=action))
+            exclusion_reason=participant.exclusion_reason, suggested_action=action, answers=participant.answers))
     return rows
 
 
@@ -72,17 +75,27 @@ def spreadsheet_safe(value: object) -> object:
     return value
 
 
+def question_names(study: Study) -> list[str]:
+    """The study's questions in the order participants meet them."""
+    return list(study.questions.order_by("-part", "created", "pk").values_list("name", flat=True))  # before, after
+
+
 def participants_csv(study: Study) -> bytes:
-    """The participant list as CSV: times in ISO 8601, every text cell formula-safe."""
+    """The participant list as CSV, one ``answer_<name>`` column per question: times in
+    ISO 8601, every text cell formula-safe."""
+    names = question_names(study)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(ParticipantRow.__dataclass_fields__)
+    writer.writerow([*(name for name in ParticipantRow.__dataclass_fields__ if name != "answers"),
+                     *(f"answer_{name}" for name in names)])
     for row in participant_rows(study):
         cells = asdict(row)
+        answers = cells.pop("answers")
         cells["started"] = row.started.isoformat()
         cells["finished"] = row.finished.isoformat() if row.finished else ""
-        writer.writerow(spreadsheet_safe("" if value is None else value) for value in cells.values())
+        values = [*cells.values(), *(answers.get(name) for name in names)]
+        writer.writerow(spreadsheet_safe("" if value is None else value) for value in values)
     return buffer.getvalue().encode()
 
 
-__all__ = ["ParticipantRow", "participant_rows", "participants_csv", "spreadsheet_safe"]
+__all__ = ["ParticipantRow", "participant_rows", "participants_csv", "question_names", "spreadsheet_safe"]

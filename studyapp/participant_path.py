@@ -1,6 +1,7 @@
 """The participant's path through a study, declared once: ``PATH``, its steps in order.
 
-    entry link -> consent -> instructions -> practice clips -> one clip per page -> completion
+    entry link -> (device check) -> consent -> (screening questions) -> instructions
+      -> practice clips -> one clip per page -> (closing questions) -> completion
 
 Each ``Step`` says when the participant is on it (``pending``: the first pending
 step is theirs, so a reload or a return on another day shows the page they left), what
@@ -26,7 +27,8 @@ from django.shortcuts import redirect, render
 from django.utils import timezone
 
 from studyapp.assignment import is_idle, renew_reservations
-from studyapp.models import Participant, Stimulus, Study
+from studyapp.models import Participant, Question, Stimulus, Study
+from studyapp.questionnaires import field_name, questions, read_answers, screened_out
 from studyapp.ratings import ClientTimes, RatingRejected, record_rating
 
 PROLIFIC_COMPLETION_URL = "https://app.prolific.com/submissions/complete"
@@ -70,10 +72,78 @@ def _passing(moment: str) -> Submit:
 
 
 def _consent(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
-    """Agree (or not) to take part."""
+    """Agree (or not) to take part; a study without screening questions passes that step too."""
     if request.POST.get("agree") != "yes":
         return message(request, "Thank you", "You chose not to take part. Please return the study on your platform.")
-    return _passing("consented_at")(request, study, participant)
+    participant.consented_at = timezone.now()
+    if not study.questions.filter(part=Question.Part.BEFORE).exists():
+        participant.screened_at = participant.consented_at
+    participant.save(update_fields=["consented_at", "screened_at"])
+    return _next_page(study)
+
+
+def _device_page(study: Study, participant: Participant) -> dict:
+    """A clip the participant will see anyway (their first), played before they consent."""
+    first = participant.training[0] if participant.training else participant.assignments.values_list(
+        "stimulus_id", flat=True).order_by("position").first()
+    stimulus = Stimulus.objects.filter(pk=first).first()
+    if stimulus is None:
+        raise Http404("no clip for the device check")
+    return {"video_url": stimulus.video_url, "min_width": study.min_screen_width,
+            "min_height": study.min_screen_height}
+
+
+def _device_check(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
+    """The browser played the clip; its screen is as large as the study asks."""
+    try:
+        width, height = int(request.POST.get("width", "")), int(request.POST.get("height", ""))
+    except ValueError:
+        raise RatingRejected("the device check needs the screen's width and height in whole pixels") from None
+    if width < study.min_screen_width or height < study.min_screen_height:
+        raise RatingRejected(f"this study needs a screen at least {study.min_screen_width} × "
+                             f"{study.min_screen_height} pixels, and this one is {width} × {height}: please open "
+                             f"the link on a larger screen (or turn your device)", status=409)
+    return _passing("device_checked_at")(request, study, participant)
+
+
+def _questions_page(part: str) -> PageContext:
+    def page(study: Study, participant: Participant) -> dict:
+        asked = questions(study, part)
+        return {"questions": [(question, field_name(question)) for question in asked],
+                "action": "participant-screening" if part == Question.Part.BEFORE else "participant-survey",
+                "heading": "A few questions first" if part == Question.Part.BEFORE else "A few questions to finish"}
+    return page
+
+
+def _screening(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
+    """Answers before the ratings: an answer a screening question does not accept ends the
+    study there, and the participant's clips go back to the others."""
+    asked = questions(study, Question.Part.BEFORE)
+    answers = read_answers(asked, request.POST)
+    now = timezone.now()
+    participant.answers = {**participant.answers, **answers}
+    participant.screened_at = now
+    fields = ["answers", "screened_at"]
+    if screened_out(asked, answers):
+        participant.screened_out_at = now
+        fields.append("screened_out_at")
+        participant.assignments.filter(rating__isnull=True).delete()  # reservations, not data
+    participant.save(update_fields=fields)
+    return _next_page(study)
+
+
+def _survey(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
+    """Answers after the ratings."""
+    participant.answers = {**participant.answers, **read_answers(questions(study, Question.Part.AFTER), request.POST)}
+    participant.surveyed_at = timezone.now()
+    participant.save(update_fields=["answers", "surveyed_at"])
+    return _next_page(study)
+
+
+def _screened_out_page(study: Study, participant: Participant) -> dict:
+    return {"title": "Thank you", "text": "Thank you for your answers. This study is looking for participants "
+            "with other answers, so it ends here for you. Please return it on your platform (do not submit it), "
+            "so that your place goes to someone else."}
 
 
 def _clip_page(study: Study, stimulus: Stimulus, action: str, form: dict, heading: str, done: int,
@@ -173,13 +243,22 @@ def _completion_page(study: Study, participant: Participant) -> dict:
 
 
 PATH: tuple[Step, ...] = (
+    Step("screened-out", "message.html", pending=lambda p: p.screened_out_at is not None, page=_screened_out_page),
+    Step("device", "device.html", pending=lambda p: p.study.device_check and p.device_checked_at is None,
+         page=_device_page, submit=_device_check),
     Step("consent", "consent.html", pending=lambda p: p.consented_at is None, submit=_consent),
+    Step("screening", "questions.html", pending=lambda p: p.screened_at is None,
+         page=_questions_page(Question.Part.BEFORE), submit=_screening),
     Step("instructions", "instructions.html", pending=lambda p: p.instructed_at is None,
          submit=_passing("instructed_at")),
     Step("practice", "clip.html", pending=lambda p: p.training_done < len(p.training), page=_practice_page,
          submit=_practice),
     Step("rate", "clip.html", pending=lambda p: p.finished_at is None, page=_rating_page, submit=_rate,
          takes_late_posts=True),
+    # Asked only once the ratings are done, so the query costs the rating pages nothing.
+    Step("survey", "questions.html",
+         pending=lambda p: p.surveyed_at is None and p.study.questions.filter(part=Question.Part.AFTER).exists(),
+         page=_questions_page(Question.Part.AFTER), submit=_survey),
     Step("done", "done.html", pending=lambda p: True, page=_completion_page),
 )
 

@@ -14,6 +14,7 @@ urlpatterns = [
     path("<int:pk>/stimuli/progress.json", views.study_progress, name="study-progress"),
     path("<int:pk>/stimuli/<int:stimulus_id>/retry/", views.stimulus_retry, name="stimulus-retry"),
     path("<int:pk>/monitor/", views.study_monitor_page, name="study-monitor"),
+    path("<int:pk>/questions/", views.study_questions, name="study-questions"),
     path("<int:pk>/participants/", views.study_participants, name="study-participants"),
     path("<int:pk>/participants.csv", views.study_participants_csv, name="study-participants-csv"),
     path("<int:pk>/open/", views.study_open, name="study-open"),

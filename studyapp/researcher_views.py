@@ -24,11 +24,12 @@ from studyapp.controls import (ControlError, add_control_file, add_held_out_cont
                                add_preset_controls, control_kind, study_labels)
 from studyapp.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
 from studyapp.forms import (CheckpointSystemForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
-                            LabelControlsForm, NaturalSystemForm, PresetControlsForm, StudyForm, VideoSystemForm)
+                            LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, StudyForm,
+                            VideoSystemForm)
 from studyapp.health import collect_health
-from studyapp.models import NATURAL_NAME, Stimulus, Study, System
+from studyapp.models import NATURAL_NAME, Question, Stimulus, Study, System
 from studyapp.monitor import ratings_csv, study_monitor
-from studyapp.participant_list import participant_rows, participants_csv
+from studyapp.participant_list import participant_rows, participants_csv, question_names
 from studyapp.participant_views import PLATFORM_PARAMETERS
 from studyapp.readiness import open_problems
 from studyapp.reports import AnalysisInputError, create_report
@@ -197,8 +198,34 @@ def study_monitor_page(request: HttpRequest, pk: int) -> HttpResponse:
 def study_participants(request: HttpRequest, pk: int) -> HttpResponse:
     """Who took part, how far they got and what the study's rules suggest doing with their submission."""
     study = _study(request, pk)
-    return render(request, "studyapp/researcher/participants.html",
-                  {"study": study, "rows": participant_rows(study)})
+    names = question_names(study)
+    rows = [(row, [row.answers.get(name, "") for name in names]) for row in participant_rows(study)]
+    return render(request, "studyapp/researcher/participants.html", {"study": study, "rows": rows, "questions": names})
+
+
+@login_required
+def study_questions(request: HttpRequest, pk: int) -> HttpResponse:
+    """Questions before the ratings (screening) and after them; fixed once anyone has started."""
+    study = _study(request, pk)
+    locked = study.participants.exists()
+    form = QuestionForm(instance=Question(study=study))
+    status = 200
+    if request.method == "POST":
+        if locked:
+            messages.error(request, "Participants have started: the questions are fixed.")
+            return redirect("study-questions", pk=study.pk)
+        if request.POST.get("action") == "remove":
+            question = get_object_or_404(Question, pk=request.POST.get("question"), study=study)
+            question.delete()
+            messages.success(request, f"Removed “{question.text}”.")
+            return redirect("study-questions", pk=study.pk)
+        form = QuestionForm(request.POST, instance=Question(study=study))
+        if form.is_valid():
+            messages.success(request, f"Added “{form.save().text}”.")
+            return redirect("study-questions", pk=study.pk)
+        status = 400
+    context = {"study": study, "form": form, "locked": locked, "questions": study.questions.all()}
+    return render(request, "studyapp/researcher/questions.html", context, status=status)
 
 
 @never_cache

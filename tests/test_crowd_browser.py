@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from django.urls import reverse
 
-from studyapp.models import Participant, Rating, Stimulus
+from studyapp.models import Participant, Question, Rating, Stimulus
 from studyapp.ratings import current_assignment
 from tests.study_fixtures import make_study
 from tests.test_study_browser import CLIP_SECONDS, PASSWORD, browser, clip_video, wait_for_clip_end  # noqa: F401 (fixtures)
@@ -235,4 +235,48 @@ def test_unknown_links_and_closed_studies_show_plain_pages(browser, live_server,
     response = page.goto(f"{live_server.url}/p/nothing-here/?PROLIFIC_PID=lost")
     assert response.status == 404 and "There is no study at this address" in page.inner_text("body")
     assert "Traceback" not in page.content() and "Django" not in page.content()
+    context.close()
+
+
+@pytest.mark.django_db(transaction=True)
+def test_device_check_and_questionnaires_in_a_browser_and_the_answers_reach_the_export(browser, live_server,
+                                                                                         clip_video, media):
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, clips_per_participant=1, training_clips=0,
+                       bad_checks=0, natural_checks=0, device_check=True, min_screen_width=600, min_screen_height=300)
+    Question.objects.create(study=study, part=Question.Part.BEFORE, name="language",
+                            text="Is English your first language?", choices="yes\nno", accepted="yes")
+    Question.objects.create(study=study, part=Question.Part.AFTER, name="age", text="How old are you?",
+                            kind=Question.Kind.NUMBER)
+    link = f"{live_server.url}/p/{study.key}/?PROLIFIC_PID=%s&STUDY_ID=S1&SESSION_ID=S"
+
+    phone = browser.new_context(**PHONE)  # 390 pixels wide: too narrow for this study
+    page = phone.new_page()
+    page.goto(link % "narrow")
+    wait_for_clip_end(page)
+    assert page.is_disabled("#device-ok") and "at least 600 × 300 pixels" in page.inner_text("#device-problem")
+    phone.close()
+
+    context = browser.new_context(viewport={"width": 1024, "height": 768})
+    page = context.new_page()
+    page.goto(link % "wide")
+    wait_for_clip_end(page)
+    page.get_by_role("button", name="Continue").click()
+    page.get_by_role("button", name="I agree to take part").click()
+    page.get_by_label("yes").check()
+    page.get_by_role("button", name="Continue").click()
+    page.get_by_role("button", name="Start").click()
+    wait_for_clip_end(page)
+    page.keyboard.press("4")
+    page.get_by_label("How old are you?").fill("37")
+    page.get_by_role("button", name="Continue").click()
+    assert study.completion_code in page.inner_text("body")
+    context.close()
+
+    context, page = log_in(browser, live_server, study.owner)
+    with page.expect_download() as download:
+        page.goto(f"{live_server.url}{reverse('study-participants', args=[study.pk])}")
+        page.get_by_role("link", name="Download as CSV").click()
+    table = list(csv.DictReader(io.StringIO(Path(download.value.path()).read_text())))
+    assert [(r["platform_id"], r["status"], r["answer_language"], r["answer_age"]) for r in table] == [
+        ("narrow", "in progress", "", ""), ("wide", "finished", "yes", "37.0")]
     context.close()
