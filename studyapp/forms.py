@@ -29,12 +29,22 @@ class StudyForm(forms.ModelForm):
     redirect_url = forms.URLField(required=False, assume_scheme="https",
                                   help_text=Study._meta.get_field("redirect_url").help_text)
 
+    OPTIONAL_SIZES = ("min_screen_width", "min_screen_height")  # left empty: any size
+
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
+        for name in self.OPTIONAL_SIZES:
+            self.fields[name].required = False
         if self.instance.pk and self.instance.participants.exists():
             for name in self.INSTRUMENT:
                 self.fields[name].disabled = True  # posted values are ignored
                 self.fields[name].help_text = "fixed: participants have started this study"
+
+    def clean(self) -> dict:
+        for name in self.OPTIONAL_SIZES:
+            if self.cleaned_data.get(name) is None and name not in self.errors:
+                self.cleaned_data[name] = 0
+        return super().clean()
 
     class Meta:
         model = Study

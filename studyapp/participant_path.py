@@ -106,7 +106,7 @@ def _device_check(request: HttpRequest, study: Study, participant: Participant) 
     return _passing("device_checked_at")(request, study, participant)
 
 
-def _questions_page(part: str) -> PageContext:
+def questions_page(part: str) -> PageContext:
     def page(study: Study, participant: Participant) -> dict:
         asked = questions(study, part)
         return {"questions": [(question, field_name(question)) for question in asked],
@@ -146,7 +146,7 @@ def _screened_out_page(study: Study, participant: Participant) -> dict:
             "so that your place goes to someone else."}
 
 
-def _clip_page(study: Study, stimulus: Stimulus, action: str, form: dict, heading: str, done: int,
+def clip_page(study: Study, stimulus: Stimulus, action: str, form: dict, heading: str, done: int,
                total: int, upcoming: Stimulus | None) -> dict:
     """A clip and its rating form; ``upcoming``, the next clip, which the browser fetches meanwhile."""
     return {
@@ -163,7 +163,7 @@ def _practice_page(study: Study, participant: Participant) -> dict:
     stimuli = Stimulus.objects.in_bulk(ids)  # this clip and the next practice clip, in one query
     if ids[0] not in stimuli:
         raise Http404("practice clip gone")
-    return _clip_page(study, stimuli[ids[0]], "participant-practice", {"index": index},
+    return clip_page(study, stimuli[ids[0]], "participant-practice", {"index": index},
                       f"Practice clip {index + 1} of {len(participant.training)} (not recorded)",
                       index, len(participant.training), stimuli.get(ids[1]) if len(ids) > 1 else None)
 
@@ -185,7 +185,7 @@ def _rating_page(study: Study, participant: Participant) -> dict:
         assignment.save(update_fields=["shown_at"])
     counts = participant.assignments.aggregate(total=Count("pk"), done=Count("rating"))
     total, done = counts["total"], counts["done"]
-    return _clip_page(study, assignment.stimulus, "participant-rate", {"assignment": assignment.token},
+    return clip_page(study, assignment.stimulus, "participant-rate", {"assignment": assignment.token},
                       f"Clip {done + 1} of {total}", done, total, upcoming[0].stimulus if upcoming else None)
 
 
@@ -231,7 +231,7 @@ def mturk_submit_url(platform_data: dict) -> str | None:
     return None
 
 
-def _completion_page(study: Study, participant: Participant) -> dict:
+def completion_page(study: Study, participant: Participant) -> dict:
     """Where a finished participant goes and what code they are given."""
     code, target = study.completion_code, study.redirect_url
     mturk_submit = None
@@ -248,7 +248,7 @@ PATH: tuple[Step, ...] = (
          page=_device_page, submit=_device_check),
     Step("consent", "consent.html", pending=lambda p: p.consented_at is None, submit=_consent),
     Step("screening", "questions.html", pending=lambda p: p.screened_at is None,
-         page=_questions_page(Question.Part.BEFORE), submit=_screening),
+         page=questions_page(Question.Part.BEFORE), submit=_screening),
     Step("instructions", "instructions.html", pending=lambda p: p.instructed_at is None,
          submit=_passing("instructed_at")),
     Step("practice", "clip.html", pending=lambda p: p.training_done < len(p.training), page=_practice_page,
@@ -258,8 +258,8 @@ PATH: tuple[Step, ...] = (
     # Asked only once the ratings are done, so the query costs the rating pages nothing.
     Step("survey", "questions.html",
          pending=lambda p: p.surveyed_at is None and p.study.questions.filter(part=Question.Part.AFTER).exists(),
-         page=_questions_page(Question.Part.AFTER), submit=_survey),
-    Step("done", "done.html", pending=lambda p: True, page=_completion_page),
+         page=questions_page(Question.Part.AFTER), submit=_survey),
+    Step("done", "done.html", pending=lambda p: True, page=completion_page),
 )
 
 
@@ -280,4 +280,5 @@ def may_post(step: Step, participant: Participant) -> bool:
     return current == here or (step.takes_late_posts and current > here)
 
 
-__all__ = ["PATH", "Step", "current_step", "may_post", "message", "mturk_submit_url", "stage"]
+__all__ = ["PATH", "Step", "clip_page", "completion_page", "current_step", "may_post", "message", "mturk_submit_url",
+           "questions_page", "stage"]

@@ -31,6 +31,7 @@ from studyapp.models import NATURAL_NAME, Question, Stimulus, Study, System
 from studyapp.monitor import ratings_csv, study_monitor
 from studyapp.participant_list import participant_rows, participants_csv, question_names
 from studyapp.participant_views import PLATFORM_PARAMETERS
+from studyapp.preview import preview_pages
 from studyapp.readiness import open_problems
 from studyapp.reports import AnalysisInputError, create_report
 from studyapp.stimuli import progress
@@ -190,6 +191,25 @@ def study_monitor_page(request: HttpRequest, pk: int) -> HttpResponse:
         "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study),
     }
     return render(request, "studyapp/researcher/monitor.html", context)
+
+
+@never_cache
+@login_required
+@require_safe
+def study_preview(request: HttpRequest, pk: int, index: int = 0) -> HttpResponse:
+    """Page ``index`` of the participant's path as a participant sees it; nothing is recorded."""
+    study = _study(request, pk)
+    pages = preview_pages(study)
+    if not pages:
+        messages.error(request, "The preview needs a finished clip: generate the stimuli first.")
+        return redirect("study-stimuli", pk=study.pk)
+    if index >= len(pages):
+        return redirect("study-preview-page", pk=study.pk, index=0)
+    page = pages[index]
+    following = reverse("study-preview-page", args=[study.pk, index + 1]) if index + 1 < len(pages) else ""
+    preview = {"index": index + 1, "count": len(pages), "name": page.name, "next": following,
+               "back": reverse("study-monitor", args=[study.pk])}
+    return render(request, f"studyapp/participant/{page.template}", {"study": study, "preview": preview, **page.context})
 
 
 @never_cache

@@ -280,3 +280,19 @@ def test_device_check_and_questionnaires_in_a_browser_and_the_answers_reach_the_
     assert [(r["platform_id"], r["status"], r["answer_language"], r["answer_age"]) for r in table] == [
         ("narrow", "in progress", "", ""), ("wide", "finished", "yes", "37.0")]
     context.close()
+
+
+@pytest.mark.django_db(transaction=True)
+def test_the_researcher_previews_as_a_participant_and_nothing_is_recorded(browser, live_server, clip_video, media):
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, is_open=False)
+    context, page = log_in(browser, live_server, study.owner)
+    page.goto(f"{live_server.url}{reverse('study-monitor', args=[study.pk])}")
+    page.get_by_role("link", name="Preview").click()
+    page.get_by_role("button", name="I agree to take part").click()
+    page.get_by_role("button", name="Start").click()
+    wait_for_clip_end(page)
+    page.keyboard.press("4")
+    page.wait_for_selector("text=You have finished the study")
+    assert "Preview 4 of 4" in page.inner_text(".preview-banner")
+    assert (Participant.objects.count(), Rating.objects.count()) == (0, 0)
+    context.close()
