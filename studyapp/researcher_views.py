@@ -13,6 +13,7 @@ from functools import partial
 from django.conf import settings
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
+from django.db.models import Count, Q
 from django.http import HttpRequest, HttpResponse, JsonResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.urls import reverse
@@ -48,7 +49,18 @@ def _study(request: HttpRequest, pk: int) -> Study:
 @login_required
 @require_safe
 def study_list(request: HttpRequest) -> HttpResponse:
-    studies = Study.objects.filter(owner=request.user)
+    rated_clip = Q(stimuli__status=Stimulus.Status.DONE) & ~Q(stimuli__system__role=System.Role.BAD)
+    studies = Study.objects.filter(owner=request.user).annotate(
+        started=Count("participants", distinct=True),
+        finished=Count("participants", filter=Q(participants__finished_at__isnull=False), distinct=True),
+        rated_clips=Count("stimuli", filter=rated_clip, distinct=True),
+        ratings=Count("participants__assignments__rating", distinct=True,
+                      filter=~Q(participants__assignments__stimulus__system__role=System.Role.BAD)),
+    )
+    for study in studies:
+        needed = study.rated_clips * study.ratings_per_stimulus
+        study.needed = needed
+        study.percent = min(100, round(100 * study.ratings / needed)) if needed else 0
     return render(request, "studyapp/researcher/study_list.html", {"studies": studies})
 
 

@@ -1,13 +1,19 @@
-"""The researcher's pages: the steps of a study with what is done, and the preview that records nothing."""
+"""The researcher's pages: the steps of a study with what is done, the preview that records
+nothing, the monitor's means per control class."""
 
 from __future__ import annotations
+
+import math
 
 import pytest
 from django.contrib.auth.models import User
 from django.test import Client
 from django.urls import reverse
+from django.utils import timezone
+from scipy import stats
 
 from studyapp.models import Assignment, Participant, Question, Rating, Study
+from studyapp.monitor import study_monitor
 from studyapp.study_steps import study_steps
 from tests.study_fixtures import make_study
 
@@ -52,3 +58,41 @@ def test_the_preview_shows_every_page_in_order_and_records_nothing():
     stranger = Client()
     stranger.force_login(User.objects.create(username="stranger"))
     assert stranger.get(reverse("study-preview", args=[study.pk])).status_code == 404
+
+
+def rate(study: Study, ratings: list[tuple[str, str, int]]) -> None:
+    """Store (system, control, value) ratings, each by a participant of its own."""
+    for i, (system, control, value) in enumerate(ratings):
+        participant = Participant.objects.create(study=study, platform_id=f"p{i}")
+        stimulus = study.stimuli.get(system__name=system, control__name=control)
+        Rating.objects.create(assignment=Assignment.objects.create(participant=participant, stimulus=stimulus,
+                                                                   position=0), value=value)
+
+
+def test_the_monitor_splits_means_by_control_class_and_keeps_intervals_on_the_scale():
+    study = make_study(controls=2)
+    study.controls.filter(name="control-1").update(origin="synthetic")
+    rate(study, [("MoGlow", "control-0", 1), ("MoGlow", "control-0", 5), ("MoGlow", "control-1", 4),
+                 ("MoGlow", "control-1", 4), ("MoGlow", "control-1", 3)])
+    monitor = study_monitor(study)
+    by_class = {name: {row.system: row for row in rows} for name, rows in monitor.means_by_class.items()}
+    assert sorted(by_class) == ["held-out", "synthetic"]
+    held_out, synthetic = by_class["held-out"]["MoGlow"], by_class["synthetic"]["MoGlow"]
+    assert (held_out.n, held_out.mean, synthetic.n, synthetic.mean) == (2, 3.0, 3, pytest.approx(11 / 3))
+    half = stats.t.ppf(0.975, 1) * stats.tstd([1, 5]) / math.sqrt(2)  # 25.4: far past both ends
+    assert held_out.ci_low == pytest.approx(3 - half) and (held_out.shown_low, held_out.shown_high) == (1, 5)
+    client = Client()
+    client.force_login(study.owner)
+    page = client.get(reverse("study-monitor", args=[study.pk])).content.decode()
+    assert 'id="means-held-out"' in page and 'id="means-synthetic"' in page
+    assert f"1.000 – 5.000 (± {half:.3f})" in page and 'id="copy-link"' in page
+
+
+def test_the_study_list_shows_each_studys_progress_towards_its_target():
+    study = make_study(controls=2, ratings_per_stimulus=2)  # MoGlow, RNN and NAT on 2 controls: 12 ratings needed
+    rate(study, [("MoGlow", "control-0", 3), ("RNN", "control-1", 4), ("NAT", "control-0", 5), ("BAD", "control-0", 1)])
+    Participant.objects.filter(platform_id="p0").update(finished_at=timezone.now())
+    client = Client()
+    client.force_login(study.owner)
+    page = client.get(reverse("study-list")).content.decode()
+    assert "1 / 4" in page and "3 of 12 (25 %)" in page  # the BAD rating counts towards nothing
