@@ -13,6 +13,7 @@ from django.utils import timezone
 from scipy import stats
 
 from studyapp.models import Assignment, Participant, Question, Rating, Study
+from studyapp.forms import StudyForm
 from studyapp.monitor import study_monitor
 from studyapp.study_steps import study_steps
 from tests.study_fixtures import make_study
@@ -96,3 +97,22 @@ def test_the_study_list_shows_each_studys_progress_towards_its_target():
     client.force_login(study.owner)
     page = client.get(reverse("study-list")).content.decode()
     assert "1 / 4" in page and "3 of 12 (25 %)" in page  # the BAD rating counts towards nothing
+
+
+def test_the_settings_come_in_sections_with_the_camera_as_fields():
+    study = make_study(camera={"azimuth": 10.0})
+    client = Client()
+    client.force_login(study.owner)
+    url = reverse("study-edit", args=[study.pk])
+    page = client.get(url).content.decode()
+    for title in ("Question and scale", "Crowd platform", "Device check", "Video and camera"):
+        assert f"<legend>{title}</legend>" in page
+    assert 'name="camera_azimuth" value="10.0"' in page and 'name="camera_elevation" value="18.0"' in page
+    form = StudyForm(instance=study)
+    posted = {name: value for name, value in {**form.initial, **{f.name: f.value() for f in form}}.items()
+              if value is not None and value is not False}
+    refused = client.post(url, {**posted, "camera_elevation": 95})
+    assert refused.status_code == 400 and "elevation must be strictly between -90 and 90" in refused.content.decode()
+    assert client.post(url, {**posted, "camera_elevation": 30}).status_code == 302
+    study.refresh_from_db()
+    assert (study.camera["azimuth"], study.camera["elevation"]) == (10.0, 30.0)
