@@ -9,6 +9,7 @@ urlpatterns = [
     path("new/", views.study_edit, name="study-create"),
     path("<int:pk>/", views.study_edit, name="study-edit"),
     path("<int:pk>/systems/", views.study_systems, name="study-systems"),
+    path("<int:pk>/<str:kind>/<int:item>/remove/", views.study_remove, name="study-remove"),
     path("<int:pk>/controls/", views.study_controls, name="study-controls"),
     path("<int:pk>/stimuli/", views.study_stimuli, name="study-stimuli"),
     path("<int:pk>/stimuli/progress.json", views.study_progress, name="study-progress"),

@@ -14,7 +14,7 @@ from django.conf import settings
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
 from django.db.models import Count, Q
-from django.http import HttpRequest, HttpResponse, JsonResponse
+from django.http import Http404, HttpRequest, HttpResponse, JsonResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.urls import reverse
 from django.views.decorators.cache import never_cache
@@ -28,12 +28,13 @@ from studyapp.forms import (CheckpointSystemForm, ControlFileForm, GenerateForm,
                             LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, StudyForm,
                             VideoSystemForm)
 from studyapp.health import collect_health
-from studyapp.models import NATURAL_NAME, Question, Stimulus, Study, System
+from studyapp.models import NATURAL_NAME, ControlSignal, Question, Stimulus, Study, System
 from studyapp.monitor import ratings_csv, study_monitor
 from studyapp.participant_list import participant_rows, participants_csv, question_names
 from studyapp.participant_views import PLATFORM_PARAMETERS
 from studyapp.preview import preview_pages
 from studyapp.readiness import open_problems
+from studyapp.removal import RemovalRefused, remove
 from studyapp.reports import AnalysisInputError, create_report
 from studyapp.stimuli import progress
 from studyapp.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
@@ -161,6 +162,23 @@ def study_stimuli(request: HttpRequest, pk: int) -> HttpResponse:
     context = {"study": study, "form": form, "stimuli": study.stimuli.select_related("system", "control"),
                "progress": state, "no_worker": health is not None and not health.workers, "health": health}
     return render(request, "studyapp/researcher/stimuli.html", context, status=status)
+
+
+@login_required
+@require_POST
+def study_remove(request: HttpRequest, pk: int, kind: str, item: int) -> HttpResponse:
+    """Remove a system or a control, with its clips, until the first participant starts."""
+    study = _study(request, pk)
+    model = {"systems": System, "controls": ControlSignal}.get(kind)
+    if model is None:
+        raise Http404(f"nothing called {kind} to remove")
+    target = get_object_or_404(model, pk=item, study=study)
+    try:
+        clips = remove(target)
+        messages.success(request, f"Removed {target.name} and its {clips} clip(s).")
+    except RemovalRefused as refusal:
+        messages.error(request, f"{target.name} stays: {refusal}.")
+    return redirect(f"study-{kind}", pk=study.pk)
 
 
 @never_cache

@@ -116,3 +116,31 @@ def test_the_settings_come_in_sections_with_the_camera_as_fields():
     assert client.post(url, {**posted, "camera_elevation": 30}).status_code == 302
     study.refresh_from_db()
     assert (study.camera["azimuth"], study.camera["elevation"]) == (10.0, 30.0)
+
+
+def test_systems_and_controls_can_be_removed_with_their_clips_until_someone_starts(settings, tmp_path):
+    settings.MEDIA_ROOT = tmp_path
+    study = make_study(controls=2)
+    rnn = study.systems.get(name="RNN")
+    files = [s.video_path() for s in rnn.stimuli.all()]
+    for path in files:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(b"video")
+    client = Client()
+    client.force_login(study.owner)
+    assert 'aria-label="Remove RNN"' in client.get(reverse("study-systems", args=[study.pk])).content.decode()
+    response = client.post(reverse("study-remove", args=[study.pk, "systems", rnn.pk]), follow=True)
+    assert "Removed RNN and its 2 clip(s)." in response.content.decode()
+    assert not study.systems.filter(name="RNN").exists() and not any(path.exists() for path in files)
+    control = study.controls.get(name="control-1")
+    client.post(reverse("study-remove", args=[study.pk, "controls", control.pk]))
+    assert list(study.controls.values_list("name", flat=True)) == ["control-0"] and study.stimuli.count() == 3
+    Participant.objects.create(study=study, platform_id="first")
+    moglow = study.systems.get(name="MoGlow")
+    refused = client.post(reverse("study-remove", args=[study.pk, "systems", moglow.pk]), follow=True)
+    assert "MoGlow stays: participants have started" in refused.content.decode()
+    assert study.systems.filter(name="MoGlow").exists()
+    stranger = Client()
+    stranger.force_login(User.objects.create(username="stranger"))
+    assert stranger.post(reverse("study-remove", args=[study.pk, "systems", moglow.pk])).status_code == 404
+    assert client.post(reverse("study-remove", args=[study.pk, "studies", moglow.pk])).status_code == 404
