@@ -121,8 +121,8 @@ def test_another_session_of_the_same_prolific_id_cannot_continue_and_the_researc
     context, page = first_clip(browser, live_server, study, "P1")
     for _ in range(2):
         wait_for_clip_end(page)
-        page.keyboard.press("4")
-        page.wait_for_load_state()
+        with page.expect_navigation():
+            page.keyboard.press("4")
     assert study.completion_code in page.inner_text("body")
     context.close()
 
