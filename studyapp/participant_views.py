@@ -227,3 +227,12 @@ def page(request: HttpRequest, study: Study, participant: Participant) -> HttpRe
 def unknown_page(request: HttpRequest, key: str, rest: str) -> HttpResponse:
     """Any other address under a study's pages."""
     raise Http404(rest)
+
+
+def csrf_failure(request: HttpRequest, reason: str = "") -> HttpResponse:
+    """A form sent without its CSRF token (a page kept open past its cookie, cookies
+    blocked): a plain page that leads back, never Django's explanation of CSRF."""
+    key = request.resolver_match.kwargs.get("key") if request.resolver_match else None
+    back = reverse("participant-page", args=[key]) if key and request.path.startswith("/p/") else ""
+    return message(request, "Please try again", "This page had expired, so your answer was not sent. Go back to "
+                   "the study and answer again (if this keeps happening, allow cookies for this site).", 403, back=back)

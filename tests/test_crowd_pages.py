@@ -83,3 +83,14 @@ def test_the_completion_page_offers_to_copy_the_code():
         rate_current(client, study, participant, 3)
     page = client.get(reverse("participant-page", args=[study.key])).content.decode()
     assert 'id="copy-code"' in page and 'writeText("C0MPL3TE")' in page
+
+
+def test_a_form_without_its_csrf_token_gets_a_plain_page_that_leads_back(settings):
+    settings.DEBUG = True
+    study = make_study()
+    client = Client(enforce_csrf_checks=True)
+    enter(client, study)
+    response = post(client, study, "consent", agree="yes")
+    plain(response, 403, "This page had expired")
+    assert f'href="{reverse("participant-page", args=[study.key])}"' in response.content.decode()
+    assert Participant.objects.get().consented_at is None
