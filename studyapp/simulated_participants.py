@@ -33,6 +33,14 @@ _POINT = re.compile(r'<button type="submit" name="value" value="(-?\d+)"( disabl
 _CLIP_SECONDS = re.compile(r'<video id="clip"[^>]* data-seconds="([0-9.]+)"')
 
 
+def locked_for_s(page: str) -> float:
+    """How long a clip page's rating buttons stay locked: the clip's length where the study
+    locks them until its end (a browser unlocks them then), else nothing."""
+    clip = _CLIP_SECONDS.search(page)
+    locked = any(disabled for _, disabled in _POINT.findall(page))
+    return float(clip.group(1)) if clip and locked else 0.0
+
+
 @dataclass
 class Outcome:
     """What one simulated participant did and how long each rating submission took."""
@@ -81,16 +89,12 @@ class SimulatedParticipant:
             return None
         action, form = html.unescape(match.group(1)), match.group(2)
         data = {name: html.unescape(value or "") for name, value in _HIDDEN.findall(form)}
-        buttons = _POINT.findall(form)
-        points = [int(point) for point, _ in buttons]
+        points = [int(point) for point, _ in _POINT.findall(form)]
         url = urllib.parse.urljoin(page_url, action)
         if action.endswith("/consent/"):
             data["agree"] = "yes"
         elif points:
-            # Locked buttons open when the clip has played to its end, as in a browser.
-            clip = _CLIP_SECONDS.search(body)
-            locked_s = float(clip.group(1)) if clip and any(disabled for _, disabled in buttons) else 0.0
-            time.sleep(max(self.watch_s, locked_s))
+            time.sleep(max(self.watch_s, locked_for_s(body)))
             data.update(value=str(self.rng.choice(points)), started_s="0.05", ended_s="0.5",
                         answered_s="0.6", played_until_s="0.45")
         if action.endswith("/rate/"):
