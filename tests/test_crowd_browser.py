@@ -296,3 +296,21 @@ def test_the_researcher_previews_as_a_participant_and_nothing_is_recorded(browse
     assert "Preview 4 of 4" in page.inner_text(".preview-banner")
     assert (Participant.objects.count(), Rating.objects.count()) == (0, 0)
     context.close()
+
+
+@pytest.mark.django_db(transaction=True)
+def test_the_researchers_pages_fit_a_phone(browser, live_server):
+    study = make_study(title="A study with a long title that must wrap rather than push the page sideways")
+    study.owner.set_password(PASSWORD)
+    study.owner.save()
+    context = browser.new_context(**PHONE)
+    page = context.new_page()
+    page.goto(f"{live_server.url}{reverse('login')}")
+    page.fill("input[name=username]", study.owner.username)
+    page.fill("input[name=password]", PASSWORD)
+    page.click("input[type=submit]")
+    for view, args in (("study-list", []), ("study-monitor", [study.pk]), ("study-participants", [study.pk]),
+                       ("study-edit", [study.pk])):
+        page.goto(f"{live_server.url}{reverse(view, args=args)}")
+        assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth"), view
+    context.close()
