@@ -9,7 +9,7 @@ INSTALLED := $(VENV)/.installed
 MOTION_DATA ?= $(abspath ../shared/data/bandai-namco-1)
 export MOTION_DATA
 
-.PHONY: demo test bench install clean
+.PHONY: demo test bench tour install clean
 
 install: $(INSTALLED)
 
@@ -29,6 +29,11 @@ test: $(INSTALLED)
 
 demo: $(INSTALLED)
 	$(BIN)/python -m studyapp.demo
+
+# The screenshots of docs/running-a-study.md, taken again by the tests' browser.
+tour: $(INSTALLED)
+	scripts/ensure-chromium.sh
+	$(BIN)/python -m pytest -q tests/tour.py
 
 bench: $(INSTALLED)
 	$(BIN)/python benchmarks/run_all.py

@@ -52,7 +52,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 from benchmarks.machine import describe_machine  # noqa: E402
-from studyapp.simulated_participants import Outcome, percentile, run_participants  # noqa: E402
+from studyapp.simulated_participants import Outcome, locked_for_s, percentile, run_participants  # noqa: E402
 
 TARGET_STEP_MS = 10.0  # server time of one rating step (POST and next page), median
 TARGET_P95_S = 0.1  # a watching participant should not notice the wait for the next clip
@@ -162,6 +162,7 @@ def server_time(participants: int = 10) -> str:
             if not action.endswith("/rate/"):
                 page = client.post(action, data, follow=True).content.decode()
                 continue
+            time.sleep(locked_for_s(page))  # the clip plays before the buttons unlock (not timed)
             # The first step of each participant counts queries (capturing slows it down).
             capture = CaptureQueriesContext(connection) if steps == 0 else contextlib.nullcontext()
             with capture as captured:

@@ -7,37 +7,95 @@ management commands call too.
 
 from __future__ import annotations
 
+import dataclasses
+
 from django import forms
 from django.conf import settings
 
 from generation.control import PRESETS
-from studyapp.models import Study, System
+from generation.render.camera import Camera
+from studyapp.models import Question, Study, System
+
+
+CAMERA_PREFIX = "camera_"
+
+
+def _camera_field(spec: dataclasses.Field) -> forms.Field:
+    """A form field for one field of ``Camera`` (a number, or a yes/no)."""
+    label = spec.name.replace("_", " ").capitalize()
+    if spec.type in ("bool", bool):
+        return forms.BooleanField(required=False, label=label)
+    if spec.default is None:  # the renderer derives it from the character's size
+        return forms.FloatField(required=False, label=label, help_text="empty: from the character's size")
+    return forms.FloatField(label=label)
 
 
 class StudyForm(forms.ModelForm):
-    """Every setting of a study; ``Study.clean`` checks them together.
+    """Every setting of a study, in sections; ``Study.clean`` checks them together.
 
     What participants are shown and judged by (the question, the scale and its labels,
     the attention-check thresholds, the camera and video size) is fixed once anyone has
     started: changing it would mix answers to two instruments in one table, re-read old
-    ratings on a new scale, or add a second set of clips drawn differently.
+    ratings on a new scale, or add a second set of clips drawn differently. The camera
+    is one field per ``Camera`` field, so a new camera setting appears here by itself.
     """
 
     INSTRUMENT = ("design", "abx", "question", "scale_min", "scale_max", "label_min", "label_max", "preference_strengths",
-                  "bad_threshold", "natural_threshold", "camera", "video_width", "video_height")
+                  "bad_threshold", "natural_threshold", "video_width", "video_height")
     SLIDER_SCALE = (0, 100)  # side-by-side's scale unless the researcher sets one (HEMVIP, GENEA)
+    SECTIONS = (
+        ("The study", ("title", "instructions", "consent_text")),
+        ("Design", ("design", "pages_per_participant", "abx", "preference_strengths")),
+        ("Question and scale", ("question", "scale_min", "scale_max", "label_min", "label_max")),
+        ("Clips and targets", ("clips_per_participant", "ratings_per_stimulus", "training_clips",
+                               "reservation_minutes")),
+        ("Attention checks and early answers", ("bad_checks", "natural_checks", "bad_threshold", "natural_threshold",
+                                                "instructed_checks", "stop_after_failed_checks",
+                                                "require_full_play", "discard_early")),
+        ("Crowd platform", ("platform", "completion_code", "redirect_url", "is_open")),
+        ("Device check", ("device_check", "min_screen_width", "min_screen_height")),
+        ("Video and camera", ("video_width", "video_height")),  # and every camera field
+    )
 
     redirect_url = forms.URLField(required=False, assume_scheme="https",
                                   help_text=Study._meta.get_field("redirect_url").help_text)
 
+    OPTIONAL_SIZES = ("min_screen_width", "min_screen_height")  # left empty: any size
+
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
+        for name in self.OPTIONAL_SIZES:
+            self.fields[name].required = False
+        camera = {**Camera().to_dict(), **(self.instance.camera or {})}
+        for spec in dataclasses.fields(Camera):
+            field = self.fields[CAMERA_PREFIX + spec.name] = _camera_field(spec)
+            field.initial = camera.get(spec.name)
         if self.instance.pk and self.instance.participants.exists():
-            for name in self.INSTRUMENT:
+            for name in [*self.INSTRUMENT, *self.camera_fields()]:
                 self.fields[name].disabled = True  # posted values are ignored
                 self.fields[name].help_text = "fixed: participants have started this study"
 
+    def camera_fields(self) -> list[str]:
+        return [name for name in self.fields if name.startswith(CAMERA_PREFIX)]
+
+    def sections(self) -> list[tuple[str, list[forms.BoundField]]]:
+        """The fields in their sections; any field no section names goes in the last, "Other settings"."""
+        placed = {name for _, names in self.SECTIONS for name in names} | set(self.camera_fields())
+        sections = [(title, [self[name] for name in names if name in self.fields]) for title, names in self.SECTIONS]
+        sections[-1][1].extend(self[name] for name in self.camera_fields())
+        others = [self[name] for name in self.fields if name not in placed]
+        return sections + ([("Other settings", others)] if others else [])
+
     def clean(self) -> dict:
+        for name in self.OPTIONAL_SIZES:
+            if self.cleaned_data.get(name) is None and name not in self.errors:
+                self.cleaned_data[name] = 0
+        camera = {name[len(CAMERA_PREFIX):]: self.cleaned_data.get(name) for name in self.camera_fields()}
+        if not any(name in self.errors for name in self.camera_fields()):
+            try:
+                self.instance.camera = Camera.from_dict(camera).to_dict()
+            except ValueError as error:
+                raise forms.ValidationError(f"camera: {error}") from None
         cleaned = super().clean()
         changed = set(self.changed_data)
         if (cleaned.get("design") == Study.Design.SIDE_BY_SIDE and "design" in changed
@@ -47,12 +105,25 @@ class StudyForm(forms.ModelForm):
 
     class Meta:
         model = Study
-        exclude = ["owner"]
+        exclude = ["owner", "camera"]
         widgets = {
             "instructions": forms.Textarea(attrs={"rows": 4}),
             "consent_text": forms.Textarea(attrs={"rows": 4}),
-            "camera": forms.Textarea(attrs={"rows": 3}),
         }
+
+
+class QuestionForm(forms.ModelForm):
+    """One question; ``Question.clean`` checks its choices, and the unique name is checked
+    against the study's other questions (the instance carries the study)."""
+
+    class Meta:
+        model = Question
+        fields = ["part", "name", "text", "kind", "choices", "accepted", "required"]
+        widgets = {"choices": forms.Textarea(attrs={"rows": 3}), "accepted": forms.Textarea(attrs={"rows": 2})}
+
+    def validate_unique(self) -> None:
+        if Question.objects.filter(study=self.instance.study, name=self.cleaned_data.get("name")).exists():
+            self.add_error("name", "another question of this study has this name")
 
 
 def _megabytes(limit: int) -> str:

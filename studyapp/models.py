@@ -111,8 +111,15 @@ class Study(models.Model):
     stop_after_failed_checks = models.PositiveSmallIntegerField(
         default=0, help_text="end a participant's session politely after this many failed instructed checks (0: never)")
     discard_early = models.BooleanField(default=True, help_text="flag ratings given before the clip finished playing")
+    require_full_play = models.BooleanField(
+        default=True, help_text="the rating buttons unlock when the clip has played to its end, and answers sent "
+                                "sooner after the page than the clip lasts are refused")
     reservation_minutes = models.PositiveIntegerField(
         default=90, help_text="an unfinished participant's unrated clips stop counting towards the target after this idle time")
+    device_check = models.BooleanField(
+        default=False, help_text="before consent, the browser plays a clip of the study and shows its screen size")
+    min_screen_width = models.PositiveSmallIntegerField(default=0, help_text="CSS pixels the device check asks for (0: any)")
+    min_screen_height = models.PositiveSmallIntegerField(default=0, help_text="CSS pixels the device check asks for (0: any)")
     platform = models.CharField(max_length=10, choices=Platform.choices, default=Platform.LINK)
     completion_code = models.CharField(max_length=100, blank=True)
     redirect_url = models.URLField(blank=True, help_text="where finished participants are sent (Prolific: its completion URL)")
@@ -300,8 +307,16 @@ class Participant(models.Model):
     failed_checks = models.PositiveSmallIntegerField(default=0, help_text="instructed checks answered otherwise than asked")
     # Set with finished_at when failed_checks reaches the study's stop_after_failed_checks.
     stopped_at = models.DateTimeField(null=True, blank=True)
+    device_checked_at = models.DateTimeField(null=True, blank=True)
+    screened_at = models.DateTimeField(null=True, blank=True, help_text="passed the questions before the ratings")
+    screened_out_at = models.DateTimeField(null=True, blank=True, help_text="a screening answer did not match")
+    surveyed_at = models.DateTimeField(null=True, blank=True, help_text="answered the questions after the ratings")
+    answers = models.JSONField(default=dict, blank=True, help_text="questionnaire answers by question name")
     excluded = models.BooleanField(default=False)
     exclusion_reason = models.CharField(max_length=100, blank=True)
+    # Answers refused for coming sooner than the clip lasts (require_full_play): they are
+    # not ratings, so only this count keeps them for the researcher.
+    refused_early = models.PositiveSmallIntegerField(default=0)
     user_agent = models.CharField(max_length=300, blank=True)
 
     class Meta:
@@ -310,6 +325,56 @@ class Participant(models.Model):
 
     def __str__(self) -> str:
         return f"{self.platform_id} in {self.study}"
+
+
+class Question(models.Model):
+    """A question asked before the ratings (screening: other answers than the accepted
+    ones end the study politely) or after them (demographics, comments)."""
+
+    class Part(models.TextChoices):
+        BEFORE = "before", "before the ratings (screening)"
+        AFTER = "after", "after the ratings"
+
+    class Kind(models.TextChoices):
+        CHOICE = "choice", "one of several choices"
+        NUMBER = "number", "a number"
+        TEXT = "text", "free text"
+
+    study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="questions")
+    part = models.CharField(max_length=10, choices=Part.choices)
+    name = models.SlugField(max_length=40, help_text="its column in the participant list")
+    text = models.CharField(max_length=300)
+    kind = models.CharField(max_length=10, choices=Kind.choices, default=Kind.CHOICE)
+    choices = models.TextField(blank=True, help_text="one per line (choice questions)")
+    accepted = models.TextField(blank=True, help_text="before the ratings: the choices that may go on, one per line "
+                                                      "(empty: every answer)")
+    required = models.BooleanField(default=True)
+    created = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["study", "part", "created", "pk"]
+        constraints = [models.UniqueConstraint(fields=["study", "name"], name="unique_question_name")]
+
+    def __str__(self) -> str:
+        return self.text
+
+    @property
+    def choice_list(self) -> list[str]:
+        return [line.strip() for line in self.choices.splitlines() if line.strip()]
+
+    @property
+    def accepted_list(self) -> list[str]:
+        return [line.strip() for line in self.accepted.splitlines() if line.strip()]
+
+    def clean(self) -> None:
+        if self.kind == self.Kind.CHOICE and len(self.choice_list) < 2:
+            raise ValidationError({"choices": "a choice question needs at least two choices, one per line"})
+        if self.kind != self.Kind.CHOICE and (self.choices.strip() or self.accepted.strip()):
+            raise ValidationError({"choices": "only choice questions have choices"})
+        if unknown := [a for a in self.accepted_list if a not in self.choice_list]:
+            raise ValidationError({"accepted": f"not among the choices: {', '.join(unknown)}"})
+        if self.accepted_list and self.part != self.Part.BEFORE:
+            raise ValidationError({"accepted": "only questions before the ratings screen participants"})
 
 
 class Assignment(models.Model):

@@ -13,9 +13,9 @@ import csv
 import io
 from dataclasses import dataclass
 
-from django.utils.safestring import SafeString
-
 import pandas as pd
+from django.db.models import Q
+from django.utils.safestring import SafeString
 
 from analysis.exclusions import ExclusionRules, apply_exclusions
 from analysis.pairwise import preference_pairs
@@ -66,17 +66,28 @@ class SystemMean:
     mean: float | None
     ci_low: float | None  # None with fewer than two ratings: no interval exists
     ci_high: float | None
+    scale: tuple[int, int] | None = None  # the rating scale, which no shown interval leaves
 
     @property
     def ci_half(self) -> float | None:
         return None if self.ci_low is None else (self.ci_high - self.ci_low) / 2
+
+    @property
+    def shown_low(self) -> float | None:
+        """The interval's low end within the scale: no mean can lie below its lowest point."""
+        return None if self.ci_low is None or self.scale is None else max(self.ci_low, self.scale[0])
+
+    @property
+    def shown_high(self) -> float | None:
+        return None if self.ci_high is None or self.scale is None else min(self.ci_high, self.scale[1])
 
 
 @dataclass(frozen=True)
 class StudyMonitor:
     participants_started: int
     participants_finished: int
-    participants_excluded: int
+    participants_excluded: int  # failed an attention check
+    participants_early: int  # answered a clip before its end at least once (refused or flagged)
     ratings_collected: int
     ratings_kept: int
     clips: int  # finished stimuli
@@ -87,9 +98,10 @@ class StudyMonitor:
     means: list[SystemMean]
     failed_instructed_checks: int  # participants who failed at least one
     tables: list[tuple[str, SafeString]]  # the design's own summary and the power table, by the analysis
+    means_by_class: dict[str, list[SystemMean]]  # control class (held-out, synthetic, ...) -> the same per system
 
 
-def system_mean_rows(kept: pd.DataFrame, systems: list[str]) -> list[SystemMean]:
+def system_mean_rows(kept: pd.DataFrame, systems: list[str], scale: tuple[int, int] | None = None) -> list[SystemMean]:
     """Mean ± 95 % CI of each system's kept ratings; systems with fewer than two get what exists."""
     counts = kept.groupby("system").size()
     rateable = [s for s in systems if counts.get(s, 0) >= 2]
@@ -100,10 +112,10 @@ def system_mean_rows(kept: pd.DataFrame, systems: list[str]) -> list[SystemMean]
         n = int(counts.get(system, 0))
         if system in rateable:
             row = table.loc[system]
-            rows.append(SystemMean(system, n, float(row["mean"]), float(row["ci_low"]), float(row["ci_high"])))
+            rows.append(SystemMean(system, n, float(row["mean"]), float(row["ci_low"]), float(row["ci_high"]), scale))
         else:
             values = kept.loc[kept["system"] == system, "value"]
-            rows.append(SystemMean(system, n, float(values.mean()) if n else None, None, None))
+            rows.append(SystemMean(system, n, float(values.mean()) if n else None, None, None, scale))
     return rows
 
 
@@ -142,10 +154,13 @@ def study_monitor(study: Study) -> StudyMonitor:
     collected = flagged.groupby("stimulus").size().reindex(done, fill_value=0)
     kept_counts = kept.groupby("stimulus").size().reindex(done, fill_value=0)
     systems = sorted({s.export_name for s in study.systems.all()})
+    scale = (study.scale_min, study.scale_max)
     return StudyMonitor(
         participants_started=participants.count(),
         participants_finished=participants.filter(finished_at__isnull=False).count(),
         participants_excluded=participants.filter(excluded=True).count(),
+        participants_early=participants.filter(
+            Q(refused_early__gt=0) | Q(assignments__rating__answered_before_end=True)).distinct().count(),
         ratings_collected=len(flagged),
         ratings_kept=len(kept),
         clips=len(done),
@@ -154,7 +169,10 @@ def study_monitor(study: Study) -> StudyMonitor:
         kept_per_stimulus_min=int(kept_counts.min()) if done else 0,
         kept_per_stimulus_max=int(kept_counts.max()) if done else 0,
         # Pairwise pages carry preferences, not values: their summary is the analysis report's.
-        means=system_mean_rows(kept, systems) if study.design != Study.Design.PAIRWISE else [],
+        means=system_mean_rows(kept, systems, scale) if study.design != Study.Design.PAIRWISE else [],
+        means_by_class={name: system_mean_rows(group, systems, scale)
+                        for name, group in kept.groupby("control_class", sort=True)}
+        if study.design != Study.Design.PAIRWISE else {},
         failed_instructed_checks=participants.filter(failed_checks__gt=0).count(),
         tables=analysis_tables(study, kept),
     )

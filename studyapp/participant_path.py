@@ -1,6 +1,7 @@
 """The participant's path through a study, declared once: ``PATH``, its steps in order.
 
-    entry link -> consent -> instructions -> practice clips -> the study's pages -> completion
+    entry link -> (device check) -> consent -> (screening questions) -> instructions
+      -> practice clips -> the study's pages -> (closing questions) -> completion
 
 The pages are those of the study's design (``Study.design``): one clip each (single),
 every system's clip of one control on sliders (side-by-side), or two clips to choose
@@ -26,15 +27,16 @@ from dataclasses import dataclass
 from urllib.parse import urlencode, urlparse
 
 from django.db.models import Count
-from django.http import HttpRequest, HttpResponse
-from django.shortcuts import get_object_or_404, redirect, render
+from django.http import Http404, HttpRequest, HttpResponse
+from django.shortcuts import redirect, render
 from django.utils import timezone
 
 from studyapp.assignment import is_idle, renew_reservations
 from studyapp.instructed_checks import instruction
-from studyapp.models import Participant, Stimulus, Study
+from studyapp.models import Participant, Question, Stimulus, Study
 from studyapp.page_steps import client_times, page_context, rate_pairwise, rate_side_by_side
-from studyapp.ratings import RatingRejected, current_assignment, record_rating
+from studyapp.questionnaires import field_name, questions, read_answers, screened_out
+from studyapp.ratings import RatingRejected, record_rating
 
 PROLIFIC_COMPLETION_URL = "https://app.prolific.com/submissions/complete"
 MTURK_SUBMIT_HOSTS = {"www.mturk.com", "workersandbox.mturk.com"}
@@ -58,9 +60,10 @@ class Step:
     takes_late_posts: bool = False
 
 
-def message(request: HttpRequest, title: str, text: str, status: int = 200) -> HttpResponse:
-    """A page with a title and one notice, and no form: the end of the path, for now."""
-    return render(request, "studyapp/participant/message.html", {"title": title, "text": text}, status=status)
+def message(request: HttpRequest, title: str, text: str, status: int = 200, back: str = "") -> HttpResponse:
+    """A page with a title and one notice, and no form; ``back``, a link to the page to go on from."""
+    return render(request, "studyapp/participant/message.html", {"title": title, "text": text, "back": back},
+                  status=status)
 
 
 def _next_page(study: Study) -> HttpResponse:
@@ -77,16 +80,86 @@ def _passing(moment: str) -> Submit:
 
 
 def _consent(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
-    """Agree (or not) to take part."""
+    """Agree (or not) to take part; a study without screening questions passes that step too."""
     if request.POST.get("agree") != "yes":
         return message(request, "Thank you", "You chose not to take part. Please return the study on your platform.")
-    return _passing("consented_at")(request, study, participant)
+    participant.consented_at = timezone.now()
+    if not study.questions.filter(part=Question.Part.BEFORE).exists():
+        participant.screened_at = participant.consented_at
+    participant.save(update_fields=["consented_at", "screened_at"])
+    return _next_page(study)
 
 
-def _clip_page(study: Study, stimulus: Stimulus, action: str, form: dict, heading: str, done: int,
-               total: int, instruction: str = "") -> dict:
+def _device_page(study: Study, participant: Participant) -> dict:
+    """A clip the participant will see anyway (their first), played before they consent."""
+    first = participant.training[0] if participant.training else participant.assignments.values_list(
+        "stimulus_id", flat=True).order_by("position").first()
+    stimulus = Stimulus.objects.filter(pk=first).first()
+    if stimulus is None:
+        raise Http404("no clip for the device check")
+    return {"video_url": stimulus.video_url, "min_width": study.min_screen_width,
+            "min_height": study.min_screen_height}
+
+
+def _device_check(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
+    """The browser played the clip; its screen is as large as the study asks."""
+    try:
+        width, height = int(request.POST.get("width", "")), int(request.POST.get("height", ""))
+    except ValueError:
+        raise RatingRejected("the device check needs the screen's width and height in whole pixels") from None
+    if width < study.min_screen_width or height < study.min_screen_height:
+        raise RatingRejected(f"this study needs a screen at least {study.min_screen_width} × "
+                             f"{study.min_screen_height} pixels, and this one is {width} × {height}: please open "
+                             f"the link on a larger screen (or turn your device)", status=409)
+    return _passing("device_checked_at")(request, study, participant)
+
+
+def questions_page(part: str) -> PageContext:
+    def page(study: Study, participant: Participant) -> dict:
+        asked = questions(study, part)
+        return {"questions": [(question, field_name(question)) for question in asked],
+                "action": "participant-screening" if part == Question.Part.BEFORE else "participant-survey",
+                "heading": "A few questions first" if part == Question.Part.BEFORE else "A few questions to finish"}
+    return page
+
+
+def _screening(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
+    """Answers before the ratings: an answer a screening question does not accept ends the
+    study there, and the participant's clips go back to the others."""
+    asked = questions(study, Question.Part.BEFORE)
+    answers = read_answers(asked, request.POST)
+    now = timezone.now()
+    participant.answers = {**participant.answers, **answers}
+    participant.screened_at = now
+    fields = ["answers", "screened_at"]
+    if screened_out(asked, answers):
+        participant.screened_out_at = now
+        fields.append("screened_out_at")
+        participant.assignments.filter(rating__isnull=True).delete()  # reservations, not data
+    participant.save(update_fields=fields)
+    return _next_page(study)
+
+
+def _survey(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
+    """Answers after the ratings."""
+    participant.answers = {**participant.answers, **read_answers(questions(study, Question.Part.AFTER), request.POST)}
+    participant.surveyed_at = timezone.now()
+    participant.save(update_fields=["answers", "surveyed_at"])
+    return _next_page(study)
+
+
+def _screened_out_page(study: Study, participant: Participant) -> dict:
+    return {"title": "Thank you", "text": "Thank you for your answers. This study is looking for participants "
+            "with other answers, so it ends here for you. Please return it on your platform (do not submit it), "
+            "so that your place goes to someone else."}
+
+
+def clip_page(study: Study, stimulus: Stimulus, action: str, form: dict, heading: str, done: int,
+              total: int, upcoming: Stimulus | None, instruction: str = "") -> dict:
+    """A clip and its rating form; ``upcoming``, the next clip, which the browser fetches meanwhile."""
     return {
-        "video_url": stimulus.video_url, "action": action, "form": form, "heading": heading,
+        "video_url": stimulus.video_url, "seconds": stimulus.duration_s or 0.0, "action": action, "form": form,
+        "heading": heading, "next_video_url": upcoming.video_url if upcoming else "",
         "scale": list(study.scale), "keys": len(study.scale) <= 10, "done": done, "total": total,
         "percent": round(100 * done / total) if total else 100, "instruction": instruction,
         # Practice of the multi-clip designs is to watch the range of motion, not to answer.
@@ -96,10 +169,13 @@ def _clip_page(study: Study, stimulus: Stimulus, action: str, form: dict, headin
 
 def _practice_page(study: Study, participant: Participant) -> dict:
     index = participant.training_done
-    stimulus = get_object_or_404(Stimulus, pk=participant.training[index])
-    return _clip_page(study, stimulus, "participant-practice", {"index": index},
+    ids = participant.training[index:index + 2]
+    stimuli = Stimulus.objects.in_bulk(ids)  # this clip and the next practice clip, in one query
+    if ids[0] not in stimuli:
+        raise Http404("practice clip gone")
+    return clip_page(study, stimuli[ids[0]], "participant-practice", {"index": index},
                       f"Practice clip {index + 1} of {len(participant.training)} (not recorded)",
-                      index, len(participant.training))
+                      index, len(participant.training), stimuli.get(ids[1]) if len(ids) > 1 else None)
 
 
 def _practice(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
@@ -111,14 +187,17 @@ def _practice(request: HttpRequest, study: Study, participant: Participant) -> H
 
 
 def _rating_page(study: Study, participant: Participant) -> dict:
-    assignment = current_assignment(participant)
+    # The clip on screen and the next, in one query (the next one is fetched while this plays).
+    assignment, *upcoming = (participant.assignments.filter(rating__isnull=True).select_related("stimulus")
+                             .order_by("position")[:2])
     if assignment.shown_at is None:
         assignment.shown_at = timezone.now()
         assignment.save(update_fields=["shown_at"])
     counts = participant.assignments.aggregate(total=Count("pk"), done=Count("rating"))
     total, done = counts["total"], counts["done"]
-    return _clip_page(study, assignment.stimulus, "participant-rate", {"assignment": assignment.token},
-                      f"Clip {done + 1} of {total}", done, total, instruction(study, [assignment.expected]))
+    return clip_page(study, assignment.stimulus, "participant-rate", {"assignment": assignment.token},
+                     f"Clip {done + 1} of {total}", done, total, upcoming[0].stimulus if upcoming else None,
+                     instruction(study, [assignment.expected]))
 
 
 def _rate(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
@@ -140,18 +219,23 @@ def _rate(request: HttpRequest, study: Study, participant: Participant) -> HttpR
     return _next_page(study)
 
 
-def _completion_page(study: Study, participant: Participant) -> dict:
+def mturk_submit_url(platform_data: dict) -> str | None:
+    """MTurk's external-submit URL from the link's turkSubmitTo, if that is MTurk's own site."""
+    submit_to = platform_data.get("turkSubmitTo", "")
+    parsed = urlparse(submit_to)
+    if parsed.scheme == "https" and parsed.hostname in MTURK_SUBMIT_HOSTS:
+        return f"{submit_to.rstrip('/')}/mturk/externalSubmit"
+    return None
+
+
+def completion_page(study: Study, participant: Participant) -> dict:
     """Where a finished participant goes and what code they are given."""
     code, target = study.completion_code, study.redirect_url
     mturk_submit = None
     if study.platform == Study.Platform.PROLIFIC and code and not target:
         target = f"{PROLIFIC_COMPLETION_URL}?{urlencode({'cc': code})}"
-    if study.platform == Study.Platform.MTURK:
-        submit_to = participant.platform_data.get("turkSubmitTo", "")
-        parsed = urlparse(submit_to)
-        if parsed.scheme == "https" and parsed.hostname in MTURK_SUBMIT_HOSTS:
-            mturk_submit = {"url": f"{submit_to.rstrip('/')}/mturk/externalSubmit",
-                            "assignment_id": participant.platform_data.get("assignmentId", "")}
+    if study.platform == Study.Platform.MTURK and (url := mturk_submit_url(participant.platform_data)):
+        mturk_submit = {"url": url, "assignment_id": participant.platform_data.get("assignmentId", "")}
     return {"code": code, "redirect_url": target, "mturk_submit": mturk_submit}
 
 
@@ -163,7 +247,12 @@ def _stopped_page(study: Study, participant: Participant) -> dict:
 
 
 PATH: tuple[Step, ...] = (
+    Step("screened-out", "message.html", pending=lambda p: p.screened_out_at is not None, page=_screened_out_page),
+    Step("device", "device.html", pending=lambda p: p.study.device_check and p.device_checked_at is None,
+         page=_device_page, submit=_device_check),
     Step("consent", "consent.html", pending=lambda p: p.consented_at is None, submit=_consent),
+    Step("screening", "questions.html", pending=lambda p: p.screened_at is None,
+         page=questions_page(Question.Part.BEFORE), submit=_screening),
     Step("instructions", "instructions.html", pending=lambda p: p.instructed_at is None,
          submit=_passing("instructed_at")),
     Step("practice", "clip.html", pending=lambda p: p.training_done < len(p.training), page=_practice_page,
@@ -175,7 +264,11 @@ PATH: tuple[Step, ...] = (
     Step("compare", "pairwise.html", pending=lambda p: p.finished_at is None, page=page_context,
          submit=rate_pairwise, takes_late_posts=True, design=Study.Design.PAIRWISE),
     Step("stopped", "message.html", pending=lambda p: p.stopped_at is not None, page=_stopped_page),
-    Step("done", "done.html", pending=lambda p: True, page=_completion_page),
+    # Asked only once the ratings are done, so the query costs the rating pages nothing.
+    Step("survey", "questions.html",
+         pending=lambda p: p.surveyed_at is None and p.study.questions.filter(part=Question.Part.AFTER).exists(),
+         page=questions_page(Question.Part.AFTER), submit=_survey),
+    Step("done", "done.html", pending=lambda p: True, page=completion_page),
 )
 
 
@@ -202,4 +295,5 @@ def may_post(step: Step, participant: Participant) -> bool:
     return current == here or (step.takes_late_posts and current > here)
 
 
-__all__ = ["PATH", "Step", "current_step", "may_post", "message", "stage"]
+__all__ = ["PATH", "Step", "clip_page", "completion_page", "current_step", "may_post", "message", "mturk_submit_url",
+           "questions_page", "stage"]

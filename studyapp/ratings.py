@@ -9,9 +9,10 @@ flagged. Both are flags; nothing is deleted, and the analysis recomputes them.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from datetime import timedelta
+from datetime import datetime, timedelta
 
 from django.db import IntegrityError, transaction
+from django.db.models import F
 from django.utils import timezone
 
 from studyapp.assignment import last_seen_is_stale
@@ -43,14 +44,29 @@ def current_assignment(participant: Participant) -> Assignment | None:
             .order_by("position").first())
 
 
-def answered_early(assignment: Assignment, answered_at, times: ClientTimes) -> bool:
+class AnsweredTooSoon(RatingRejected):
+    """An answer that arrived sooner after its page was sent than the clip lasts."""
+
+    def __init__(self, waited: timedelta, duration_s: float) -> None:
+        super().__init__(f"Please watch the clip to its end before you answer: it lasts {duration_s:.1f} s and "
+                         f"your answer came {waited.total_seconds():.1f} s after it was sent.", status=409)
+
+
+def _sooner_than_clip(assignment: Assignment, answered_at: datetime) -> timedelta | None:
+    """How long after the server sent the clip's page the answer came, if that is less than the clip lasts."""
+    if assignment.shown_at is None:
+        return None
+    waited = answered_at - assignment.shown_at
+    return waited if waited < timedelta(seconds=assignment.stimulus.duration_s or 0.0) else None
+
+
+def answered_early(assignment: Assignment, answered_at: datetime, times: ClientTimes) -> bool:
     """True when the clip cannot have finished playing before the answer.
 
     The server's own clock decides when it can (less time passed since it sent the page
     than the clip lasts); otherwise the browser's report of the video's end does.
     """
-    duration = assignment.stimulus.duration_s or 0.0
-    if assignment.shown_at is not None and answered_at - assignment.shown_at < timedelta(seconds=duration):
+    if _sooner_than_clip(assignment, answered_at) is not None:
         return True
     if times.ended_s is None:
         return True
@@ -77,6 +93,9 @@ def record_rating(participant: Participant, assignment_token: str, value: int, t
             rating = _store_rating(study, participant, assignment_token, value, times)
     except IntegrityError:  # a second submission racing this one; the transaction stored nothing
         raise RatingRejected("that clip has already been rated", status=409) from None
+    except AnsweredTooSoon:  # counted outside the transaction, which stored nothing
+        Participant.objects.filter(pk=participant.pk).update(refused_early=F("refused_early") + 1)
+        raise
     return rating
 
 
@@ -93,6 +112,8 @@ def _store_rating(study: Study, participant: Participant, assignment_token: str,
     if unrated[0].token != assignment_token:
         raise refusal(participant, assignment_token)
     assignment, now = unrated[0], timezone.now()
+    if study.require_full_play and (waited := _sooner_than_clip(assignment, now)) is not None:
+        raise AnsweredTooSoon(waited, assignment.stimulus.duration_s)
     rating = Rating.objects.create(
         assignment=assignment, value=value, client_started_s=times.started_s, client_ended_s=times.ended_s,
         client_answered_s=times.answered_s, played_until_s=times.played_until_s,

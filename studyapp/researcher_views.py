@@ -13,7 +13,8 @@ from functools import partial
 from django.conf import settings
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
-from django.http import HttpRequest, HttpResponse, JsonResponse
+from django.db.models import Count, Q
+from django.http import Http404, HttpRequest, HttpResponse, JsonResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.urls import reverse
 from django.views.decorators.cache import never_cache
@@ -25,12 +26,16 @@ from studyapp.controls import (ControlError, add_control_file, add_held_out_cont
                                add_preset_controls, control_kind, study_labels)
 from studyapp.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
 from studyapp.forms import (CheckpointSystemForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
-                            LabelControlsForm, NaturalSystemForm, PresetControlsForm, StudyForm,
+                            LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, StudyForm,
                             SubmittedMotionSystemForm, VideoSystemForm)
 from studyapp.health import collect_health
-from studyapp.models import NATURAL_NAME, Stimulus, Study, System
+from studyapp.models import NATURAL_NAME, ControlSignal, Question, Stimulus, Study, System
 from studyapp.monitor import ratings_csv, study_monitor
+from studyapp.participant_list import participant_rows, participants_csv, question_names
 from studyapp.participant_views import PLATFORM_PARAMETERS
+from studyapp.preview import preview_pages
+from studyapp.readiness import open_problems
+from studyapp.removal import RemovalRefused, remove
 from studyapp.reports import AnalysisInputError, create_report
 from studyapp.stimuli import progress
 from studyapp.submissions import add_submitted_upload
@@ -47,7 +52,18 @@ def _study(request: HttpRequest, pk: int) -> Study:
 @login_required
 @require_safe
 def study_list(request: HttpRequest) -> HttpResponse:
-    studies = Study.objects.filter(owner=request.user)
+    rated_clip = Q(stimuli__status=Stimulus.Status.DONE) & ~Q(stimuli__system__role=System.Role.BAD)
+    studies = Study.objects.filter(owner=request.user).annotate(
+        started=Count("participants", distinct=True),
+        finished=Count("participants", filter=Q(participants__finished_at__isnull=False), distinct=True),
+        rated_clips=Count("stimuli", filter=rated_clip, distinct=True),
+        ratings=Count("participants__assignments__rating", distinct=True,
+                      filter=~Q(participants__assignments__stimulus__system__role=System.Role.BAD)),
+    )
+    for study in studies:
+        needed = study.rated_clips * study.ratings_per_stimulus
+        study.needed = needed
+        study.percent = min(100, round(100 * study.ratings / needed)) if needed else 0
     return render(request, "studyapp/researcher/study_list.html", {"studies": studies})
 
 
@@ -172,6 +188,23 @@ def study_stimuli(request: HttpRequest, pk: int) -> HttpResponse:
     return render(request, "studyapp/researcher/stimuli.html", context, status=status)
 
 
+@login_required
+@require_POST
+def study_remove(request: HttpRequest, pk: int, kind: str, item: int) -> HttpResponse:
+    """Remove a system or a control, with its clips, until the first participant starts."""
+    study = _study(request, pk)
+    model = {"systems": System, "controls": ControlSignal}.get(kind)
+    if model is None:
+        raise Http404(f"nothing called {kind} to remove")
+    target = get_object_or_404(model, pk=item, study=study)
+    try:
+        clips = remove(target)
+        messages.success(request, f"Removed {target.name} and its {clips} clip(s).")
+    except RemovalRefused as refusal:
+        messages.error(request, f"{target.name} stays: {refusal}.")
+    return redirect(f"study-{kind}", pk=study.pk)
+
+
 @never_cache
 @login_required
 @require_safe
@@ -209,9 +242,74 @@ def study_monitor_page(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
     context = {
         "study": study, "monitor": study_monitor(study), "entry_link": entry_link(request, study),
-        "parameters": PLATFORM_PARAMETERS[study.platform],
+        "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study),
     }
     return render(request, "studyapp/researcher/monitor.html", context)
+
+
+@never_cache
+@login_required
+@require_safe
+def study_preview(request: HttpRequest, pk: int, index: int = 0) -> HttpResponse:
+    """Page ``index`` of the participant's path as a participant sees it; nothing is recorded."""
+    study = _study(request, pk)
+    pages = preview_pages(study)
+    if not pages:
+        messages.error(request, "The preview needs a finished clip: generate the stimuli first.")
+        return redirect("study-stimuli", pk=study.pk)
+    if index >= len(pages):
+        return redirect("study-preview-page", pk=study.pk, index=0)
+    page = pages[index]
+    following = reverse("study-preview-page", args=[study.pk, index + 1]) if index + 1 < len(pages) else ""
+    preview = {"index": index + 1, "count": len(pages), "name": page.name, "next": following,
+               "back": reverse("study-monitor", args=[study.pk])}
+    return render(request, f"studyapp/participant/{page.template}", {"study": study, "preview": preview, **page.context})
+
+
+@never_cache
+@login_required
+@require_safe
+def study_participants(request: HttpRequest, pk: int) -> HttpResponse:
+    """Who took part, how far they got and what the study's rules suggest doing with their submission."""
+    study = _study(request, pk)
+    names = question_names(study)
+    rows = [(row, [row.answers.get(name, "") for name in names]) for row in participant_rows(study)]
+    return render(request, "studyapp/researcher/participants.html", {"study": study, "rows": rows, "questions": names})
+
+
+@login_required
+def study_questions(request: HttpRequest, pk: int) -> HttpResponse:
+    """Questions before the ratings (screening) and after them; fixed once anyone has started."""
+    study = _study(request, pk)
+    locked = study.participants.exists()
+    form = QuestionForm(instance=Question(study=study))
+    status = 200
+    if request.method == "POST":
+        if locked:
+            messages.error(request, "Participants have started: the questions are fixed.")
+            return redirect("study-questions", pk=study.pk)
+        if request.POST.get("action") == "remove":
+            question = get_object_or_404(Question, pk=request.POST.get("question"), study=study)
+            question.delete()
+            messages.success(request, f"Removed “{question.text}”.")
+            return redirect("study-questions", pk=study.pk)
+        form = QuestionForm(request.POST, instance=Question(study=study))
+        if form.is_valid():
+            messages.success(request, f"Added “{form.save().text}”.")
+            return redirect("study-questions", pk=study.pk)
+        status = 400
+    context = {"study": study, "form": form, "locked": locked, "questions": study.questions.all()}
+    return render(request, "studyapp/researcher/questions.html", context, status=status)
+
+
+@never_cache
+@login_required
+@require_safe
+def study_participants_csv(request: HttpRequest, pk: int) -> HttpResponse:
+    study = _study(request, pk)
+    response = HttpResponse(participants_csv(study), content_type="text/csv")
+    response["Content-Disposition"] = f'attachment; filename="participants-study-{study.pk}.csv"'
+    return response
 
 
 @login_required
@@ -220,8 +318,8 @@ def study_open(request: HttpRequest, pk: int) -> HttpResponse:
     """Open the study to participants, or close it (``open`` = "1" or "0")."""
     study = _study(request, pk)
     want_open = request.POST.get("open") == "1"
-    if want_open and not study.stimuli.filter(status=Stimulus.Status.DONE).exists():
-        messages.error(request, "Generate stimuli first: a study with no finished clip cannot open.")
+    if want_open and (problems := open_problems(study)):
+        messages.error(request, "The study cannot open: " + "; ".join(problems) + ".")
     else:
         study.is_open = want_open
         study.save(update_fields=["is_open"])

@@ -63,6 +63,7 @@ MIDDLEWARE = [
 ]
 
 ROOT_URLCONF = "studyapp.urls"
+CSRF_FAILURE_VIEW = "studyapp.participant_views.csrf_failure"  # a plain page, whatever DEBUG says
 WSGI_APPLICATION = "studyapp.wsgi.application"
 
 TEMPLATES = [

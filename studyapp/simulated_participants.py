@@ -4,7 +4,8 @@ A dry run before a study goes to the crowd, the concurrency test and the ratings
 benchmark all use it. Each participant is an independent cookie-carrying client that
 reads the page it is on, as a browser would, and answers it: consent, instructions,
 practice clips, then a rating per clip, or an answer per side-by-side or pairwise page
-(claiming to have watched every clip to the end).
+(claiming to have watched every clip to the end, and waiting as long as a clip lasts
+where the study locks the rating buttons until then).
 
     python -m studyapp.simulated_participants http://127.0.0.1:8000/p/KEY/ -n 20
 
@@ -29,13 +30,22 @@ from dataclasses import dataclass, field
 
 _FORM = re.compile(r'<form method="post" action="([^"]+)"[^>]*>(.*?)</form>', re.S)
 _HIDDEN = re.compile(r'<input type="hidden" name="([^"]+)"(?: value="([^"]*)")?>')
-_POINT = re.compile(r'<button type="submit" name="value" value="(-?\d+)">')
+_POINT = re.compile(r'<button type="submit" name="value" value="(-?\d+)"( disabled)?>')
 # Side-by-side and pairwise pages: a slider per clip, or the answer buttons and strengths.
 _SLIDER = re.compile(r'<input type="range" form="page-form" id="[^"]+" name="(value-\d+)" min="(-?\d+)" max="(-?\d+)"')
 _ANSWER = re.compile(r'<button type="submit" name="answer" value="(\w+)"')
 _STRENGTH = re.compile(r'<input type="radio" name="strength" value="(\d+)"')
 _PLAY = re.compile(r'data-play="(\d+)"')
 _RATING_STEPS = ("/rate/", "/rate-page/", "/compare/")
+_CLIP_SECONDS = re.compile(r'<video id="clip"[^>]* data-seconds="([0-9.]+)"')
+
+
+def locked_for_s(page: str) -> float:
+    """How long a clip page's rating buttons stay locked: the clip's length where the study
+    locks them until its end (a browser unlocks them then), else nothing."""
+    clip = _CLIP_SECONDS.search(page)
+    locked = any(disabled for _, disabled in _POINT.findall(page))
+    return float(clip.group(1)) if clip and locked else 0.0
 
 
 @dataclass
@@ -86,13 +96,13 @@ class SimulatedParticipant:
             return None
         action, form = html.unescape(match.group(1)), match.group(2)
         data = {name: html.unescape(value or "") for name, value in _HIDDEN.findall(form)}
-        points = [int(p) for p in _POINT.findall(form)]
+        points = [int(point) for point, _ in _POINT.findall(form)]
         url = urllib.parse.urljoin(page_url, action)
         sliders, answers = _SLIDER.findall(body), _ANSWER.findall(form)
         if action.endswith("/consent/"):
             data["agree"] = "yes"
         elif points:
-            time.sleep(self.watch_s)
+            time.sleep(max(self.watch_s, locked_for_s(body)))
             data.update(value=str(self.rng.choice(points)), started_s="0.05", ended_s="0.5",
                         answered_s="0.6", played_until_s="0.45")
         elif sliders or answers:

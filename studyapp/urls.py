@@ -24,6 +24,7 @@ urlpatterns = [
     path("p/<str:key>/now/", participant_views.page, name="participant-page"),
     *(path(f"p/<str:key>/{step.name}/", participant_views.step_form(step), name=f"participant-{step.name}")
       for step in PATH if step.submit),
+    path("p/<str:key>/<path:rest>", participant_views.unknown_page),  # a plain 404, never Django's
 ]
 
 if settings.SERVE_FILES:

@@ -96,8 +96,9 @@ def take_part(browser, live_server, study, pid: str, value_for, early_at: int | 
 @pytest.mark.django_db(transaction=True)
 def test_three_participants_and_the_researchers_export(browser, live_server, clip_video, settings, tmp_path):
     settings.MEDIA_ROOT = tmp_path / "media"
+    # Without the full-play rule, so that an early answer is stored and flagged (as data from other tools are).
     study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, clips_per_participant=4, training_clips=1,
-                       bad_checks=1, natural_checks=1, ratings_per_stimulus=10)
+                       bad_checks=1, natural_checks=1, ratings_per_stimulus=10, require_full_play=False)
     study.owner.is_staff = True  # the login page is the admin's
     study.owner.set_password(PASSWORD)
     study.owner.save()

@@ -157,7 +157,9 @@ def test_a_pairwise_page_shows_two_systems_of_one_control_and_stores_the_answer_
 
 def test_the_design_is_fixed_once_participants_start_and_side_by_side_rates_on_0_to_100():
     study = make_study()
-    form = StudyForm({**StudyForm(instance=study).initial, "design": Study.Design.SIDE_BY_SIDE,
+    shown = StudyForm(instance=study)
+    camera = {name: shown.fields[name].initial for name in shown.camera_fields() if shown.fields[name].initial is not None}
+    form = StudyForm({**shown.initial, **camera, "design": Study.Design.SIDE_BY_SIDE,
                       "scale_min": study.scale_min, "scale_max": study.scale_max}, instance=study)
     assert form.is_valid(), form.errors
     assert (form.cleaned_data["scale_min"], form.cleaned_data["scale_max"]) == (0, 100)

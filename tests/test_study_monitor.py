@@ -40,7 +40,7 @@ def store_ratings(study) -> None:
             if system == "BAD" and value >= study.bad_cutoff():
                 participant.excluded, participant.exclusion_reason = True, "rated a BAD clip high"
         participant.save()
-    Participant.objects.create(study=study, platform_id="p5")  # started, not finished
+    Participant.objects.create(study=study, platform_id="p5", refused_early=2)  # started, refused twice, not finished
 
 
 @pytest.fixture
@@ -90,6 +90,7 @@ def independent_means() -> dict[str, tuple[int, float, float | None]]:
 def test_the_monitor_counts_participants_and_ratings_and_its_means_match_scipy(client, study):
     monitor = study_monitor(study)
     assert (monitor.participants_started, monitor.participants_finished, monitor.participants_excluded) == (5, 4, 1)
+    assert monitor.participants_early == 2  # p4 flagged, p5 refused
     assert (monitor.ratings_collected, monitor.ratings_kept) == (14, 10)
     # 12 clips: MoGlow control-1 has two ratings, several have none.
     assert (monitor.clips, monitor.per_stimulus_min, monitor.per_stimulus_max) == (12, 0, 2)
@@ -107,6 +108,7 @@ def test_the_monitor_counts_participants_and_ratings_and_its_means_match_scipy(c
     moglow = expected["MoGlow"]
     assert f"{moglow[1]:.3f}" in page and f"± {moglow[2]:.3f}" in page and "needs two ratings" in page
     assert f"/p/{study.key}/?PROLIFIC_PID={{{{%PROLIFIC_PID%}}}}" in page
+    assert '<td id="failed-checks">1 (20 %)</td>' in page and '<td id="answered-early">2 (40 %)</td>' in page
 
 
 def test_means_update_as_ratings_arrive(client, study):

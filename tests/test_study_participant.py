@@ -208,8 +208,36 @@ def test_on_a_ten_point_scale_the_thresholds_are_rescaled():
     assert (study.bad_cutoff(), study.natural_cutoff()) == (7.75, 3.25)
 
 
-def test_an_answer_before_the_clip_ends_is_kept_but_flagged():
-    study = make_study()
+def test_an_answer_sooner_than_the_clip_lasts_is_refused_and_counted():
+    study = make_study()  # require_full_play is on by default
+    client = Client()
+    participant = through_practice(client, study)
+    token = on_screen_token(client, study)  # the server has just sent the page: 4 s have not passed
+    response = post(client, study, "rate", assignment=token, value=3, **WATCHED)  # whatever the browser claims
+    assert response.status_code == 409
+    page = response.content.decode()
+    assert "Please watch the clip to its end" in page and "it lasts 4.0 s" in page
+    assert f'href="{reverse("participant-page", args=[study.key])}"' in page  # back to the clip
+    assert Rating.objects.count() == 0
+    assert Participant.objects.get(pk=participant.pk).refused_early == 1
+    assert on_screen_token(client, study) == token  # the same clip, still to rate
+    rate_current(client, study, participant, 3)
+    assert Rating.objects.get().answered_before_end is False
+
+
+def test_the_rating_buttons_are_locked_until_the_end_only_where_the_study_asks():
+    for required in (True, False):
+        study = make_study(require_full_play=required, title=f"full play {required}")
+        client = Client()
+        through_practice(client, study, f"pid-{required}")
+        page = client.get(reverse("participant-page", args=[study.key])).content.decode()
+        buttons = re.findall(r'<button type="submit" name="value"[^>]*>', page)
+        assert len(buttons) == 5 and all(("disabled" in b) == required for b in buttons)
+        assert ("unlock when the clip has played to its end" in page) == required
+
+
+def test_without_the_full_play_rule_an_answer_before_the_clip_ends_is_kept_but_flagged():
+    study = make_study(require_full_play=False)
     client = Client()
     participant = through_practice(client, study)
     token = on_screen_token(client, study)  # the server has just sent the page: 4 s have not passed
@@ -314,13 +342,19 @@ def test_mturk_participants_submit_to_mturk_only():
                            {"assignmentId": "ASSIGNMENT_ID_NOT_AVAILABLE", "hitId": "h"})
     assert "preview" in preview.content.decode() and Participant.objects.count() == 0
     client = Client()
-    client.get(reverse("participant-enter", args=[study.key]),
-               {"workerId": "W1", "assignmentId": "A1", "hitId": "H1", "turkSubmitTo": "https://evil.example.com"})
+    link = {"workerId": "W1", "assignmentId": "A1", "hitId": "H1"}
+    for submit_to in ("https://evil.example.com", "http://www.mturk.com", None):  # nowhere MTurk could take it
+        response = client.get(reverse("participant-enter", args=[study.key]),
+                              {**link, **({"turkSubmitTo": submit_to} if submit_to else {})})
+        assert response.status_code == 400 and "turkSubmitTo" in response.content.decode()
+    assert Participant.objects.count() == 0
+    client.get(reverse("participant-enter", args=[study.key]), {**link, "turkSubmitTo": "https://workersandbox.mturk.com"})
     participant = through_practice(client, study, "W1")
     for _ in range(3):
         rate_current(client, study, participant, 3)
     done = client.get(reverse("participant-page", args=[study.key])).content.decode()
-    assert "evil.example.com" not in done and "C0MPL3TE" in done
+    assert 'action="https://workersandbox.mturk.com/mturk/externalSubmit"' in done
+    assert 'name="assignmentId" value="A1"' in done and "C0MPL3TE" in done
 
 
 def test_the_export_has_one_row_per_rating_with_the_flags():

@@ -27,6 +27,7 @@ from django.utils import timezone
 from safetensors.torch import load_file, save_file
 
 from generation.checkpoint import FORMAT_KEY, load_checkpoint, read_meta
+from generation.render.camera import Camera
 from generation.store import tensor_digest
 from studyapp.celery import app as celery_app
 from studyapp.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
@@ -172,7 +173,9 @@ def test_the_study_form_checks_the_study_and_needs_csrf(client, researcher):
               "label_max": "good", "instructions": "Watch.", "consent_text": "OK?", "clips_per_participant": 12,
               "ratings_per_stimulus": 5, "training_clips": 2, "bad_checks": 1, "natural_checks": 1,
               "bad_threshold": 4, "natural_threshold": 2, "discard_early": "on", "reservation_minutes": 60,
-              "platform": "prolific", "completion_code": "XYZ", "redirect_url": "", "camera": '{"azimuth": 20}',
+              "platform": "prolific", "completion_code": "XYZ", "redirect_url": "",
+              **{f"camera_{name}": value for name, value in {**Camera().to_dict(), "azimuth": 20}.items()
+                 if value is not None},
               "video_width": 320, "video_height": 240, "design": "single", "pages_per_participant": 8,
               "preference_strengths": 0, "instructed_checks": 0, "stop_after_failed_checks": 0}
     refused = client.post("/studies/new/", {**fields, "scale_min": 10, "scale_max": 1})
@@ -183,7 +186,8 @@ def test_the_study_form_checks_the_study_and_needs_csrf(client, researcher):
     saved = client.post("/studies/new/", fields)
     study = Study.objects.get()
     assert saved.status_code == 302 and saved["Location"] == f"/studies/{study.pk}/systems/"
-    assert (study.owner, study.scale_max, study.camera, study.platform) == (researcher, 10, {"azimuth": 20}, "prolific")
+    camera = {**Camera().to_dict(), "azimuth": 20.0}
+    assert (study.owner, study.scale_max, study.camera, study.platform) == (researcher, 10, camera, "prolific")
 
     strict = Client(enforce_csrf_checks=True)
     strict.force_login(researcher)
@@ -193,11 +197,11 @@ def test_the_study_form_checks_the_study_and_needs_csrf(client, researcher):
 
     # Once a participant has started, the instrument is fixed; the rest can still change.
     Participant.objects.create(study=study, platform_id="p1")
-    edited = client.post(f"/studies/{study.pk}/", {**fields, "scale_max": 5, "camera": '{"azimuth": 90}',
+    edited = client.post(f"/studies/{study.pk}/", {**fields, "scale_max": 5, "camera_azimuth": 90,
                                                    "question": "Other?", "ratings_per_stimulus": 8})
     study.refresh_from_db()
     assert edited.status_code == 302
-    assert (study.scale_max, study.camera, study.question, study.ratings_per_stimulus) == (10, {"azimuth": 20},
+    assert (study.scale_max, study.camera, study.question, study.ratings_per_stimulus) == (10, camera,
                                                                                             "How natural?", 8)
 
 

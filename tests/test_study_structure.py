@@ -74,7 +74,9 @@ def path_with_questionnaire(tmp_path, settings, monkeypatch):
 
     questionnaire = Step("questionnaire", "questionnaire.html", pending=lambda p: "age" not in p.platform_data,
                          page=lambda study, participant: {"suggested_age": 42}, submit=answer)
-    monkeypatch.setattr(participant_path, "PATH", (participant_path.PATH[0], questionnaire, *participant_path.PATH[1:]))
+    after_consent = 1 + [step.name for step in participant_path.PATH].index("consent")
+    monkeypatch.setattr(participant_path, "PATH", (*participant_path.PATH[:after_consent], questionnaire,
+                                                   *participant_path.PATH[after_consent:]))
     importlib.reload(studyapp.urls)  # the URLs are made from the path
     clear_url_caches()
     yield

@@ -1,0 +1,31 @@
+"""Whether a study may open to participants, and if not, why.
+
+A study opens only with clips to rate and with what its crowd platform needs to pay the
+participants who finish: Prolific a completion code or URL; MTurk its frame over HTTPS
+(the participant's link brings the submit target, which ``participant_views`` checks on
+entry). The monitor's open button lists the reasons; the open view refuses on them.
+"""
+
+from __future__ import annotations
+
+from django.conf import settings
+
+from studyapp.models import Stimulus, Study, System
+
+
+def open_problems(study: Study) -> list[str]:
+    """What stops ``study`` from opening, in words for the researcher (empty: it may open)."""
+    problems = []
+    rated = study.stimuli.filter(status=Stimulus.Status.DONE).exclude(system__role=System.Role.BAD)
+    if not rated.exists():
+        problems.append("no finished clip to rate: generate the stimuli first")
+    if study.platform == Study.Platform.PROLIFIC and not (study.completion_code or study.redirect_url):
+        problems.append("Prolific pays only participants who bring back its completion code: "
+                        "set the completion code (or the completion URL) in the settings")
+    if study.platform == Study.Platform.MTURK and not settings.HTTPS:
+        problems.append("MTurk shows the study in a frame of its HTTPS site, which needs this server "
+                        "behind HTTPS with HTTPS=1 set")
+    return problems
+
+
+__all__ = ["open_problems"]

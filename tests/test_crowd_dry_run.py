@@ -1,0 +1,18 @@
+"""The dry run's simulated participants follow the full-play rule as a browser does."""
+
+from __future__ import annotations
+
+import pytest
+
+from studyapp.models import Participant, Rating
+from studyapp.simulated_participants import run_participants
+from tests.study_fixtures import make_study
+
+
+@pytest.mark.django_db(transaction=True)
+def test_simulated_participants_wait_for_the_end_of_locked_clips(live_server):
+    study = make_study(clips_per_participant=3, bad_checks=0, natural_checks=0, training_clips=1, clip_seconds=0.5)
+    (outcome,) = run_participants(f"{live_server.url}/p/{study.key}/", count=1)
+    assert outcome.error == "" and outcome.finished and outcome.ratings == 3
+    assert Participant.objects.get().refused_early == 0
+    assert not Rating.objects.filter(answered_before_end=True).exists()
