@@ -17,6 +17,7 @@ broker's queue cannot be listed, nothing is judged lost and the half-hour rule o
 
 from __future__ import annotations
 
+import base64
 import json
 import logging
 import threading
@@ -25,6 +26,7 @@ from pathlib import Path
 
 from celery.signals import worker_ready, worker_shutdown
 from celery.worker import state as worker_state
+from django.conf import settings
 from django.db import close_old_connections
 from django.utils import timezone
 from kombu import Connection
@@ -38,6 +40,24 @@ LOST_AFTER_S = 45.0
 IN_FLIGHT = (Stimulus.Status.QUEUED, Stimulus.Status.RUNNING)
 
 log = logging.getLogger(__name__)
+
+
+# A sampling task carries the task ids its rows will be rendered under (dispatch._messages):
+# while it waits or runs, so do they.
+SAMPLING_TASK = "studyapp.tasks.sample_stimuli"
+
+
+def carried_task_ids(task_id: str, task_name: str, args) -> list[str]:
+    """The task ids a message stands for: its own, and for a sampling task its rows'."""
+    if task_name == SAMPLING_TASK and args:
+        return [task_id, *(row_task_id for _, row_task_id in args[0])]
+    return [task_id]
+
+
+def held_task_ids(requests: dict) -> list[str]:
+    """The task ids a worker holds (``worker_state.requests``), with those they carry."""
+    return [carried for task_id, request in list(requests.items())  # one copy while the worker adds to it
+            for carried in carried_task_ids(task_id, getattr(request, "name", ""), getattr(request, "args", ()))]
 
 
 def touch_held(task_ids: list[str]) -> int:
@@ -65,8 +85,14 @@ def waiting_task_ids(connection: Connection, queue: str) -> set[str] | None:
     waiting = set()
     for payload in payloads:
         try:
-            waiting.add(json.loads(payload)["headers"]["id"])
-        except (ValueError, KeyError, TypeError):
+            message = json.loads(payload)
+            headers = message["headers"]
+            body = message["body"]
+            if message.get("properties", {}).get("body_encoding") == "base64":
+                body = base64.b64decode(body)
+            args = json.loads(body)[0] if headers.get("task") == SAMPLING_TASK else ()
+            waiting.update(carried_task_ids(headers["id"], headers.get("task", ""), args))
+        except (ValueError, KeyError, TypeError, IndexError):
             continue  # not a task message
     return waiting
 
@@ -92,10 +118,13 @@ def release(stimuli: list[Stimulus]) -> list[Stimulus]:
 
 def resend_lost(app) -> int:
     """Find the rows whose task was lost and send them again; how many were sent."""
+    waiting: set[str] = set()
     with app.connection_for_write() as connection:
-        waiting = waiting_task_ids(connection, app.conf.task_default_queue)
-    if waiting is None:
-        return 0
+        for queue in {settings.STUDY_SAMPLE_QUEUE, settings.STUDY_RENDER_QUEUE}:
+            listed = waiting_task_ids(connection, queue)
+            if listed is None:
+                return 0
+            waiting |= listed
     lost = release(lost_stimuli(waiting))
     if lost:
         log.warning("sending again %d stimulus task(s) lost with their worker: %s", len(lost),
@@ -105,7 +134,7 @@ def resend_lost(app) -> int:
 
 def beat(app) -> int:
     """One heartbeat of a worker: touch what it holds, then send again what others lost (how many)."""
-    touch_held(list(worker_state.requests))  # list(): one atomic copy while the worker adds to it
+    touch_held(held_task_ids(worker_state.requests))
     return resend_lost(app)
 
 

@@ -18,14 +18,16 @@ import time
 import uuid
 from datetime import timedelta
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from django.utils import timezone
 
 from studyapp.celery import app as celery_app
 from studyapp.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
-from studyapp.lost_tasks import LOST_AFTER_S, beat, lost_stimuli, resend_lost, waiting_task_ids
-from studyapp.models import Stimulus
+from studyapp.lost_tasks import (LOST_AFTER_S, SAMPLING_TASK, beat, held_task_ids, lost_stimuli, resend_lost,
+                                 waiting_task_ids)
+from studyapp.models import Stimulus, System
 from studyapp.dispatch import queue_stimuli
 from tests.study_fixtures import make_study
 from tests.study_setup import study_files
@@ -45,6 +47,19 @@ def queue(tmp_path) -> Path:
     celery_app.conf.broker_url, celery_app.conf.broker_transport_options = saved
 
 
+def stimuli_of(role: str, controls: int = 3) -> list[Stimulus]:
+    """The stimuli of one system of a study whose systems have their sources: natural clips
+    (each rendered by a task of its own), or a checkpoint (all sampled by one task)."""
+    study = make_study(controls=controls)
+    for system in study.systems.all():
+        if system.role == System.Role.MODEL:
+            system.checkpoint, system.kind = f"{system.name}.safetensors", "moglow"
+        elif system.role == System.Role.NATURAL:
+            system.kind = System.SourceKind.NATURAL
+        system.save(update_fields=["checkpoint", "kind"])
+    return list(study.stimuli.filter(system__name="MoGlow" if role == System.Role.MODEL else "NAT").order_by("pk"))
+
+
 def sent(stimuli: list[Stimulus]) -> list[Stimulus]:
     """The rows queued to the broker, as generating does."""
     Stimulus.objects.filter(pk__in=[s.pk for s in stimuli]).update(status=Stimulus.Status.PENDING)
@@ -58,15 +73,26 @@ def age(stimuli: list[Stimulus], seconds: float) -> None:
 
 @pytest.mark.django_db
 def test_the_broker_lists_the_task_ids_waiting_in_the_queue(queue):
-    rows = sent(list(make_study(controls=2).stimuli.all()[:3]))
+    rows = sent(stimuli_of(System.Role.NATURAL))
     with celery_app.connection_for_write() as connection:
         waiting = waiting_task_ids(connection, celery_app.conf.task_default_queue)
     assert waiting == {row.task_id for row in rows}
 
 
 @pytest.mark.django_db
+def test_a_sampling_task_stands_for_the_rows_it_carries_waiting_and_held(queue):
+    rows = sent(stimuli_of(System.Role.MODEL))
+    [message] = list(queue.iterdir())  # one sampling task for all of the system's rows
+    with celery_app.connection_for_write() as connection:
+        waiting = waiting_task_ids(connection, celery_app.conf.task_default_queue)
+    assert {row.task_id for row in rows} < waiting and len(waiting) == len(rows) + 1
+    request = SimpleNamespace(name=SAMPLING_TASK, args=([(row.pk, row.task_id) for row in rows],))
+    assert set(held_task_ids({"sampling-task": request})) == {"sampling-task", *(row.task_id for row in rows)}
+
+
+@pytest.mark.django_db
 def test_a_row_whose_message_is_gone_and_that_no_worker_touches_is_sent_again(queue):
-    waiting, taken, held = sent(list(make_study(controls=2).stimuli.all()[:3]))
+    waiting, taken, held = sent(stimuli_of(System.Role.NATURAL))
     # A dead worker had taken `taken` from the queue (and its file with it); a live worker holds `held`.
     for message in queue.iterdir():
         if taken.task_id in message.read_text() or held.task_id in message.read_text():
@@ -86,7 +112,7 @@ def test_a_row_whose_message_is_gone_and_that_no_worker_touches_is_sent_again(qu
 
 @pytest.mark.django_db
 def test_a_row_touched_within_the_minute_is_not_judged_lost(queue):
-    [row] = sent(list(make_study(controls=1).stimuli.all()[:1]))
+    [row] = sent(stimuli_of(System.Role.NATURAL, controls=1))
     for message in queue.iterdir():
         message.unlink()
     age([row], LOST_AFTER_S - 10)
