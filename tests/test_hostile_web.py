@@ -269,3 +269,15 @@ def test_the_ratings_export_neutralises_spreadsheet_formulas(client, researcher)
 
     export = client.get(f"/studies/{study.pk}/ratings.csv").content.decode()
     assert "'=HYPERLINK" in export and ",=HYPERLINK" not in export
+
+
+@pytest.mark.django_db
+@pytest.mark.parametrize("command", [["export_controls", "9999", "--out", "{tmp}/bundle"],
+                                     ["add_system", "9999", "Lab-B", "--motion", "{tmp}"],
+                                     ["generate_stimuli", "9999"]])
+def test_study_commands_refuse_bad_input_with_exit_status_2(command, tmp_path):
+    from django.core.management import CommandError, call_command
+
+    with pytest.raises(CommandError, match="no study with id 9999") as refused:
+        call_command(*[word.format(tmp=tmp_path) for word in command])
+    assert refused.value.returncode == 2

@@ -3,11 +3,11 @@
 from pathlib import Path
 
 from django.core.files import File
-from django.core.management.base import BaseCommand, CommandError
+from django.core.management.base import BaseCommand
 
 from studyapp.controls import ControlError, add_control_file, add_held_out_controls, add_label_controls, add_preset_controls
 
-from ._study import study_by_id
+from ._study import InputError, study_by_id
 
 
 class Command(BaseCommand):
@@ -27,8 +27,8 @@ class Command(BaseCommand):
     def handle(self, *args, **options):
         study = study_by_id(options["study_id"])
         if not (options["held_out"] or options["preset"] or options["file"] or options["actions"] or options["styles"]):
-            raise CommandError("nothing to add: give --held-out SECONDS, --preset NAME ..., --file PATH ... "
-                               "or --actions A ... --styles S ...")
+            raise InputError("nothing to add: give --held-out SECONDS, --preset NAME ..., --file PATH ... "
+                             "or --actions A ... --styles S ...")
         added = []
         try:
             if options["held_out"]:
@@ -39,10 +39,10 @@ class Command(BaseCommand):
                 added += add_label_controls(study, options["actions"], options["styles"], options["seconds"])
             for path in options["file"]:
                 if not Path(path).is_file():
-                    raise CommandError(f"{path}: no such file")
+                    raise InputError(f"{path}: no such file")
                 with File(Path(path).open("rb"), name=Path(path).name) as upload:
                     added += add_control_file(study, upload)
         except ControlError as error:
-            raise CommandError(str(error)) from None
+            raise InputError(str(error)) from None
         for control in added:
             self.stdout.write(f"{control.pk} {control}")

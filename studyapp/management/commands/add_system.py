@@ -3,13 +3,13 @@
 from pathlib import Path
 
 from django.core.files import File
-from django.core.management.base import BaseCommand, CommandError
+from django.core.management.base import BaseCommand
 
 from studyapp.models import System
 from studyapp.submissions import add_submitted_system, add_submitted_upload, read_folder
 from studyapp.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
 
-from ._study import study_by_id
+from ._study import InputError, study_by_id
 
 
 class Command(BaseCommand):
@@ -32,13 +32,13 @@ class Command(BaseCommand):
         name, checkpoint, videos, motion = options["name"], options["checkpoint"], options["video"], options["motion"]
         role = options["role"] or (System.Role.BAD if videos else System.Role.MODEL)
         if sum(map(bool, (checkpoint, videos, motion, role == System.Role.NATURAL))) != 1:
-            raise CommandError("give exactly one of: a checkpoint, --motion DIR_OR_ZIP, --video FILE ..., "
-                               "or --role natural")
+            raise InputError("give exactly one of: a checkpoint, --motion DIR_OR_ZIP, --video FILE ..., "
+                             "or --role natural")
         for path in [checkpoint, *videos]:
             if path and not Path(path).is_file():
-                raise CommandError(f"{path}: no such file")
+                raise InputError(f"{path}: no such file")
         if motion and not motion.exists():
-            raise CommandError(f"{motion}: no such folder or file")
+            raise InputError(f"{motion}: no such folder or file")
         try:
             if checkpoint:
                 with File(Path(checkpoint).open("rb"), name=Path(checkpoint).name) as upload:
@@ -58,5 +58,5 @@ class Command(BaseCommand):
             else:
                 system = add_natural_system(study, name)
         except UploadRefused as error:
-            raise CommandError(str(error)) from None
+            raise InputError(str(error)) from None
         self.stdout.write(f"{system.pk} {system}")

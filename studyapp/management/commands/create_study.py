@@ -2,9 +2,11 @@
 
 from django.contrib.auth import get_user_model
 from django.core.exceptions import ValidationError
-from django.core.management.base import BaseCommand, CommandError
+from django.core.management.base import BaseCommand
 
 from studyapp.models import Study
+
+from ._study import InputError
 
 
 def create_study(owner, title: str, **fields) -> Study:
@@ -13,7 +15,7 @@ def create_study(owner, title: str, **fields) -> Study:
     try:
         study.full_clean()
     except ValidationError as error:
-        raise CommandError("; ".join(f"{k}: {' '.join(v)}" for k, v in error.message_dict.items())) from None
+        raise InputError("; ".join(f"{k}: {' '.join(v)}" for k, v in error.message_dict.items())) from None
     study.save()
     return study
 
@@ -38,7 +40,7 @@ class Command(BaseCommand):
     def handle(self, *args, **options):
         owner = get_user_model().objects.filter(username=options["owner"]).first()
         if owner is None:
-            raise CommandError(f"no user named {options['owner']!r} (create one with createsuperuser)")
+            raise InputError(f"no user named {options['owner']!r} (create one with createsuperuser)")
         scale = options["scale"] or ((0, 100) if options["design"] == Study.Design.SIDE_BY_SIDE else (1, 5))
         study = create_study(
             owner, options["title"], design=options["design"], scale_min=scale[0], scale_max=scale[1],

@@ -2,12 +2,12 @@
 
 from pathlib import Path
 
-from django.core.management.base import BaseCommand, CommandError
+from django.core.management.base import BaseCommand
 
 from studyapp.control_export import write_bundle
 from studyapp.controls import ControlError
 
-from ._study import study_by_id
+from ._study import InputError, study_by_id
 
 
 class Command(BaseCommand):
@@ -24,9 +24,9 @@ class Command(BaseCommand):
         study = study_by_id(options["study_id"])
         out: Path = options["out"]
         if out.exists() and (not out.is_dir() or any(out.iterdir())):
-            raise CommandError(f"{out}: give a new or empty folder")
+            raise InputError(f"{out}: give a new or empty folder")
         try:
             written = write_bundle(study, out, options["natural"])
         except (ControlError, ValueError, FileNotFoundError) as error:
-            raise CommandError(str(error)) from None
+            raise InputError(str(error)) from None
         self.stdout.write(f"{len(written)} files in {out}")

@@ -2,12 +2,12 @@
 
 import time
 
-from django.core.management.base import BaseCommand, CommandError
+from django.core.management.base import BaseCommand
 
 from studyapp.dispatch import BrokerUnavailable, generate_stimuli
 from studyapp.stimuli import progress
 
-from ._study import study_by_id
+from ._study import InputError, study_by_id
 
 
 class Command(BaseCommand):
@@ -24,7 +24,7 @@ class Command(BaseCommand):
         try:
             result = generate_stimuli(study, options["seed"])
         except BrokerUnavailable as error:
-            raise CommandError(str(error)) from None
+            raise InputError(str(error)) from None
         self.stdout.write(f"{result.total} stimuli ({result.created} new), {result.queued} queued")
         if not options["wait"]:
             return
@@ -40,8 +40,8 @@ class Command(BaseCommand):
             if counts["queued"] + counts["running"] == 0:
                 break
             if time.monotonic() > deadline:
-                raise CommandError(f"gave up waiting after {options['timeout']:g} s: {line} (is a worker running?)")
+                raise InputError(f"gave up waiting after {options['timeout']:g} s: {line} (is a worker running?)")
             time.sleep(0.5)
         if state["failed"]:
             reasons = "\n".join(f"  {f['system']} / {f['control']}: {f['error']}" for f in state["failed"])
-            raise CommandError(f"{len(state['failed'])} stimuli failed:\n{reasons}")
+            raise InputError(f"{len(state['failed'])} stimuli failed:\n{reasons}")
