@@ -14,7 +14,7 @@ from django.conf import settings
 
 from generation.control import PRESETS
 from generation.render.camera import Camera
-from studyapp.models import Question, Study, System
+from studyapp.models import ControlSignal, Question, Study, System
 
 
 CAMERA_PREFIX = "camera_"
@@ -136,6 +136,25 @@ class CheckpointSystemForm(forms.Form):
     temperature = forms.FloatField(initial=1.0, min_value=0.0001, help_text="sampling temperature")
     checkpoint = forms.FileField(help_text=f"a .safetensors checkpoint of this project, "
                                            f"{_megabytes(settings.MAX_CHECKPOINT_UPLOAD_BYTES)}")
+
+
+class SystemEditForm(forms.Form):
+    """A system's name and, for one sampled from a checkpoint (``sampled``), its temperature."""
+
+    name = forms.CharField(max_length=System._meta.get_field("name").max_length,
+                           help_text="shown to you only; participants never see it")
+    temperature = forms.FloatField(min_value=0.0001, help_text="sampling temperature: a new one deletes the system's "
+                                                               "clips, and generating the stimuli samples them again")
+
+    def __init__(self, *args, sampled: bool = True, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        if not sampled:
+            del self.fields["temperature"]
+
+
+class ControlEditForm(forms.Form):
+    name = forms.CharField(max_length=ControlSignal._meta.get_field("name").max_length,
+                           help_text="its clips stay as they are; to change its path or labels, remove it and add another")
 
 
 class NaturalSystemForm(forms.Form):

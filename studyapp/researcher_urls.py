@@ -10,6 +10,7 @@ urlpatterns = [
     path("<int:pk>/", views.study_edit, name="study-edit"),
     path("<int:pk>/systems/", views.study_systems, name="study-systems"),
     path("<int:pk>/<str:kind>/<int:item>/remove/", views.study_remove, name="study-remove"),
+    path("<int:pk>/<str:kind>/<int:item>/edit/", views.study_item_edit, name="study-item-edit"),
     path("<int:pk>/controls/", views.study_controls, name="study-controls"),
     path("<int:pk>/controls.zip", views.study_controls_download, name="study-controls-download"),
     path("<int:pk>/stimuli/", views.study_stimuli, name="study-stimuli"),

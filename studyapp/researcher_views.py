@@ -25,9 +25,10 @@ from studyapp.control_export import bundle_zip
 from studyapp.controls import (ControlError, add_control_file, add_held_out_controls, add_label_controls,
                                add_preset_controls, control_kind, study_labels)
 from studyapp.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
-from studyapp.forms import (CheckpointSystemForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
+from studyapp.editing import EditRefused, edit_system, rename_control
+from studyapp.forms import (CheckpointSystemForm, ControlEditForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
                             LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, StudyForm,
-                            SubmittedMotionSystemForm, VideoSystemForm)
+                            SubmittedMotionSystemForm, SystemEditForm, VideoSystemForm)
 from studyapp.health import collect_health
 from studyapp.models import NATURAL_NAME, ControlSignal, Question, Stimulus, Study, System
 from studyapp.monitor import ratings_csv, study_monitor
@@ -35,7 +36,7 @@ from studyapp.participant_list import participant_rows, participants_csv, questi
 from studyapp.participant_views import PLATFORM_PARAMETERS
 from studyapp.preview import preview_pages
 from studyapp.readiness import open_problems
-from studyapp.removal import RemovalRefused, remove
+from studyapp.removal import SystemsFixed, remove, require_not_started
 from studyapp.reports import AnalysisInputError, create_report
 from studyapp.stimuli import progress
 from studyapp.submissions import add_submitted_upload
@@ -188,19 +189,62 @@ def study_stimuli(request: HttpRequest, pk: int) -> HttpResponse:
     return render(request, "studyapp/researcher/stimuli.html", context, status=status)
 
 
+def _item(study: Study, kind: str, item: int) -> System | ControlSignal:
+    """The study's system or control ``item`` (``kind`` "systems" or "controls"), or 404."""
+    model = {"systems": System, "controls": ControlSignal}.get(kind)
+    if model is None:
+        raise Http404(f"nothing called {kind} in a study")
+    return get_object_or_404(model, pk=item, study=study)
+
+
+def _save_edit(target: System | ControlSignal, data: dict) -> str:
+    """Apply an edit form's data (``editing``); the message saying what happened."""
+    if isinstance(target, ControlSignal):
+        rename_control(target, data["name"])
+        return f"Saved {target.name}."
+    deleted = edit_system(target, data["name"], data.get("temperature"))
+    resample = f" Its {deleted} clip(s) were deleted: generate the stimuli to sample them at temperature " \
+               f"{target.temperature:g}." if deleted else ""
+    return f"Saved {target.name}.{resample}"
+
+
+@login_required
+def study_item_edit(request: HttpRequest, pk: int, kind: str, item: int) -> HttpResponse:
+    """Edit a system's name and temperature or a control's name, until the first participant starts (409 after)."""
+    study = _study(request, pk)
+    target = _item(study, kind, item)
+    if isinstance(target, System):
+        form = SystemEditForm(request.POST or None, sampled=bool(target.checkpoint),
+                              initial={"name": target.name, "temperature": target.temperature})
+    else:
+        form = ControlEditForm(request.POST or None, initial={"name": target.name})
+    status = 200
+    if request.method == "POST":
+        try:
+            require_not_started(study)  # before the form: once anyone has started, any input gets 409
+            if form.is_valid():
+                messages.success(request, _save_edit(target, form.cleaned_data))
+                return redirect(f"study-{kind}", pk=study.pk)
+            status = 400
+        except EditRefused as error:
+            form.add_error(error.field, str(error))
+            status = 400
+        except SystemsFixed:
+            status = 409
+    context = {"study": study, "form": form, "target": target, "kind": kind, "locked": study.participants.exists()}
+    return render(request, "studyapp/researcher/edit_item.html", context, status=status)
+
+
 @login_required
 @require_POST
 def study_remove(request: HttpRequest, pk: int, kind: str, item: int) -> HttpResponse:
     """Remove a system or a control, with its clips, until the first participant starts."""
     study = _study(request, pk)
-    model = {"systems": System, "controls": ControlSignal}.get(kind)
-    if model is None:
-        raise Http404(f"nothing called {kind} to remove")
-    target = get_object_or_404(model, pk=item, study=study)
+    target = _item(study, kind, item)
     try:
         clips = remove(target)
         messages.success(request, f"Removed {target.name} and its {clips} clip(s).")
-    except RemovalRefused as refusal:
+    except SystemsFixed as refusal:
         messages.error(request, f"{target.name} stays: {refusal}.")
     return redirect(f"study-{kind}", pk=study.pk)
 
