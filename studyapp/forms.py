@@ -144,7 +144,7 @@ class SystemEditForm(forms.Form):
     name = forms.CharField(max_length=System._meta.get_field("name").max_length,
                            help_text="shown to you only; participants never see it")
     temperature = forms.FloatField(min_value=0.0001, help_text="sampling temperature: a new one deletes the system's "
-                                                               "clips, and generating the stimuli samples them again")
+                                                               "clips; generating the stimuli samples them again")
 
     def __init__(self, *args, sampled: bool = True, **kwargs) -> None:
         super().__init__(*args, **kwargs)
@@ -154,7 +154,7 @@ class SystemEditForm(forms.Form):
 
 class ControlEditForm(forms.Form):
     name = forms.CharField(max_length=ControlSignal._meta.get_field("name").max_length,
-                           help_text="its clips stay as they are; to change its path or labels, remove it and add another")
+                           help_text="its clips stay as they are")
 
 
 class NaturalSystemForm(forms.Form):

@@ -310,7 +310,8 @@ def test_the_researchers_pages_fit_a_phone(browser, live_server):
     page.fill("input[name=password]", PASSWORD)
     page.click("input[type=submit]")
     for view, args in (("study-list", []), ("study-monitor", [study.pk]), ("study-participants", [study.pk]),
-                       ("study-edit", [study.pk])):
+                       ("study-edit", [study.pk]),
+                       ("study-item-edit", [study.pk, "systems", study.systems.first().pk])):
         page.goto(f"{live_server.url}{reverse(view, args=args)}")
         assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth"), view
     context.close()

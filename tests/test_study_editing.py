@@ -117,11 +117,13 @@ def test_edits_are_refused_with_409_once_a_participant_has_started(settings, tmp
     Participant.objects.create(study=study, platform_id="first")
     moglow, control = study.systems.get(name="MoGlow"), study.controls.get(name="control-0")
     client = researcher(study)
-    for kind, item, posted in (("systems", moglow, {"name": "X", "temperature": 0.5}), ("controls", control, {"name": "X"})):
+    edits = (("systems", moglow, {"name": "X", "temperature": 0.5}), ("controls", control, {"name": "X"}))
+    for kind, item, posted in edits:
         response = client.post(edit_url(study, kind, item.pk), posted)
         assert response.status_code == 409
-        assert "participants have started this study, so its systems and controls are fixed" in response.content.decode()
-        assert 'name="name"' not in response.content.decode()
+        page = response.content.decode()
+        assert "participants have started this study, so its systems and controls are fixed" in page
+        assert 'name="name"' not in page
     moglow.refresh_from_db()
     control.refresh_from_db()
     assert (moglow.name, moglow.temperature, control.name, study.stimuli.count()) == ("MoGlow", 1.0, "control-0", 4)
