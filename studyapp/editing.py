@@ -62,7 +62,7 @@ def rename_control(control: ControlSignal, name: str) -> None:
     matched by the control's name.
     """
     _check_name(control, name)
-    submitted = [s.name for s in control.study.systems.filter(kind=System.SourceKind.SUBMITTED, checkpoint="")
+    submitted = [s.name for s in control.study.systems.filter(kind=System.SourceKind.SUBMITTED)
                  if control.name in s.metadata.get("controls", [])]
     if submitted:
         raise EditRefused("name", f"{', '.join(submitted)} submitted motion named after {control.name}: "
