@@ -98,7 +98,8 @@ def finish(participant: Participant, values: list[tuple[str, int, bool]], minute
     now = timezone.now()
     for position, (system, value, early) in enumerate(values):
         stimulus = Stimulus.objects.get(study=participant.study, system__name=system, control__name="control-0")
-        assignment = Assignment.objects.create(participant=participant, stimulus=stimulus, position=position)
+        assignment = Assignment.objects.create(participant=participant, stimulus=stimulus, position=position,
+                                               page=position)
         Rating.objects.create(assignment=assignment, value=value, answered_before_end=early)
     Participant.objects.filter(pk=participant.pk).update(started_at=now - timedelta(minutes=minutes), finished_at=now)
 
