@@ -33,6 +33,7 @@ from kombu import Connection
 
 from studyapp.dispatch import queue_stimuli
 from studyapp.models import Stimulus
+from studyapp.tasks import sample_stimuli
 
 HEARTBEAT_S = 10.0
 # Three missed beats and some: a worker that holds a task has touched its row by then.
@@ -44,7 +45,7 @@ log = logging.getLogger(__name__)
 
 # A sampling task carries the task ids its rows will be rendered under (dispatch._messages):
 # while it waits or runs, so do they.
-SAMPLING_TASK = "studyapp.tasks.sample_stimuli"
+SAMPLING_TASK = sample_stimuli.name
 
 
 def carried_task_ids(task_id: str, task_name: str, args) -> list[str]:

@@ -24,7 +24,6 @@ import pytest
 from django.utils import timezone
 
 from studyapp.celery import app as celery_app
-from studyapp.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
 from studyapp.lost_tasks import (LOST_AFTER_S, SAMPLING_TASK, beat, held_task_ids, lost_stimuli, resend_lost,
                                  waiting_task_ids)
 from studyapp.models import Stimulus, System
@@ -32,19 +31,10 @@ from studyapp.dispatch import queue_stimuli
 from tests.study_fixtures import make_study
 from tests.study_setup import study_files
 from tests.test_celery_roundtrip import clean_env
+from tests.test_study_researcher import queue  # noqa: F401 (a fixture: a private filesystem broker)
 from tests.test_study_worker import RESEARCHER, wait_for
 
 REPO = Path(__file__).resolve().parents[1]
-
-
-@pytest.fixture
-def queue(tmp_path) -> Path:
-    """A private filesystem broker; yields the folder each queued message lands in."""
-    saved = celery_app.conf.broker_url, celery_app.conf.broker_transport_options
-    options = filesystem_broker_options(tmp_path / "var")
-    celery_app.conf.broker_url, celery_app.conf.broker_transport_options = FILESYSTEM_BROKER_URL, options
-    yield Path(options["data_folder_out"])
-    celery_app.conf.broker_url, celery_app.conf.broker_transport_options = saved
 
 
 def stimuli_of(role: str, controls: int = 3) -> list[Stimulus]:
