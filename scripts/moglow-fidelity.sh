@@ -3,14 +3,16 @@
 # both Bandai-Namco datasets, from BVH files to the tables, one resumable step after another:
 #   MoGlow (`cpu`), its MG-D ablation, and the RNN and VAE baselines, trained on the same
 #   windows with the same split by take; the held-out natural takes (NAT); samples of every
-#   model for the held-out takes' control and for synthetic controls; `analysis objective`.
+#   model for the held-out takes' control and for synthetic controls, each beside the
+#   held-out natural takes of the motion it asks for (NAT); `analysis objective`.
 #
 #   scripts/moglow-fidelity.sh [OUT]        (default var/fidelity)
 #
 # Read from the environment: DATA (motion folders joined with ':', default both
 # Bandai-Namco folders beside the project), MOGLOW_STEPS (default 40000: many hours on one
 # core; a run stopped part-way continues from its checkpoint with --resume), BASELINE_STEPS
-# (default 2000), THREADS (torch threads, default 1), SAMPLES (per control, default 4).
+# (default 2000), THREADS (torch threads, default 1), SAMPLES (per control, default 4),
+# SYSTEMS (the models to train and compare, default "MoGlow MG-D RNN VAE").
 # Each step's output goes to OUT/logs/NAME.log. Training steps resume; sampling and
 # evaluation are redone every run, so the tables always describe the checkpoints as they are.
 set -euo pipefail
@@ -23,6 +25,12 @@ MOGLOW_STEPS=${MOGLOW_STEPS:-40000}
 BASELINE_STEPS=${BASELINE_STEPS:-2000}
 THREADS=${THREADS:-1}
 SAMPLES=${SAMPLES:-4}
+read -r -a SYSTEMS <<< "${SYSTEMS:-MoGlow MG-D RNN VAE}"
+declare -A KIND=([MoGlow]="moglow cpu $MOGLOW_STEPS 500" [MG-D]="moglow cpu-MG-D $MOGLOW_STEPS 500"
+                 [RNN]="rnn cpu $BASELINE_STEPS 100" [VAE]="vae cpu $BASELINE_STEPS 100")
+for name in "${SYSTEMS[@]}"; do
+    [ -n "${KIND[$name]:-}" ] || { echo "unknown system '$name' in SYSTEMS (MoGlow, MG-D, RNN, VAE)" >&2; exit 2; }
+done
 CONTENTS=walk,run,dash,walk-back,walk-left,walk-right,walk-turn-left,walk-turn-right
 SYNTHETIC=(walk-straight walk-circle sidestep-left walk-backward stand-still)
 MODELS=$OUT/models
@@ -46,14 +54,19 @@ train() {  # train NAME KIND PRESET STEPS EVAL_EVERY: trains, or continues, MODE
         --threads "$THREADS" --out "$MODELS/$name.safetensors" "${resume[@]}"
 }
 
-train MoGlow moglow cpu "$MOGLOW_STEPS" 500
-train MG-D moglow cpu-MG-D "$MOGLOW_STEPS" 500
-train RNN rnn cpu "$BASELINE_STEPS" 100
-train VAE vae cpu "$BASELINE_STEPS" 100
+for name in "${SYSTEMS[@]}"; do
+    train "$name" ${KIND[$name]}
+done
 
-rm -rf "$OUT/held-out" "$OUT/synthetic"
+rm -rf "$OUT/held-out" "$OUT/synthetic" "$OUT/natural"
 run natural $PY -m generation natural "${FOLDERS[@]}" --contents "$CONTENTS" --out "$OUT/held-out/NAT"
-for name in MoGlow MG-D RNN VAE; do
+# Each synthetic control is compared with the held-out takes of the natural motion it asks for.
+declare -A NATURAL_FOR=([walk-straight]=walk [walk-circle]=walk-turn-left [sidestep-left]=walk-left
+                        [walk-backward]=walk-back [stand-still]=walk)
+for content in $(printf '%s\n' "${NATURAL_FOR[@]}" | sort -u); do
+    run "natural-$content" $PY -m generation natural "${FOLDERS[@]}" --contents "$content" --out "$OUT/natural/$content"
+done
+for name in "${SYSTEMS[@]}"; do
     run "sample-$name" $PY -m generation sample "$MODELS/$name.safetensors" -c held-out --data "${FOLDERS[@]}" \
         --n "$SAMPLES" --seed 1 --out "$OUT/held-out/$name"
     for control in "${SYNTHETIC[@]}"; do
@@ -61,13 +74,14 @@ for name in MoGlow MG-D RNN VAE; do
             --n "$SAMPLES" --seed 1 --out "$OUT/synthetic/$control/$name"
     done
 done
-run objective-held-out $PY -m analysis objective "$OUT/held-out" --out "$OUT/tables/held-out"
+# Footsteps from the toes: a walker's heel lifts while its toes stay planted (natural
+# walking's lower heel moves at about 40 cm/s, its lower toe at about 8).
+run objective-held-out $PY -m analysis objective "$OUT/held-out" --foot-kind toe --out "$OUT/tables/held-out"
 for control in "${SYNTHETIC[@]}"; do
-    # NAT's held-out takes stand beside each synthetic control as the reference row.
-    cp -r "$OUT/held-out/NAT" "$OUT/synthetic/$control/NAT"
-    run "objective-$control" $PY -m analysis objective "$OUT/synthetic/$control" --out "$OUT/tables/$control"
+    cp -r "$OUT/natural/${NATURAL_FOR[$control]}" "$OUT/synthetic/$control/NAT"
+    run "objective-$control" $PY -m analysis objective "$OUT/synthetic/$control" --foot-kind toe --out "$OUT/tables/$control"
 done
-for name in MoGlow MG-D RNN VAE; do
+for name in "${SYSTEMS[@]}"; do
     run "evaluate-$name" $PY -m generation evaluate "$MODELS/$name.safetensors" --data "${FOLDERS[@]}"
 done
 echo "tables in $OUT/tables; held-out losses in $OUT/logs/evaluate-*.log"
