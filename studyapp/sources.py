@@ -87,10 +87,16 @@ def _generator(path: str, digest: str, device: str):
     return generator
 
 
+def sampled_folder() -> Path:
+    """Where sampled motion lies, one ``<content key>.npz`` per clip; studies whose clips
+    have the same content key share the file (``removal`` deletes what none refers to)."""
+    return Path(settings.VAR_DIR) / "sampled"
+
+
 def sampled_path(stimulus: Stimulus) -> Path:
     """Where a sampling worker leaves a stimulus's motion for the rendering worker (named by
     its content key, so it is the motion of exactly this clip)."""
-    return Path(settings.VAR_DIR) / "sampled" / f"{stimulus.content_key}.npz"
+    return sampled_folder() / f"{stimulus.content_key}.npz"
 
 
 class CheckpointSource:
@@ -236,4 +242,4 @@ def source_of(system: System) -> MotionSource:
     return source
 
 
-__all__ = ["Clip", "MotionSource", "SOURCES", "commanded_floor", "source_of"]
+__all__ = ["Clip", "MotionSource", "SOURCES", "commanded_floor", "sampled_folder", "sampled_path", "source_of"]
