@@ -188,10 +188,9 @@ class Generator:
         if warmup_seconds is None:
             warmup_seconds = 1.0 if context_frames else 0.0
         warmup = max(int(round(warmup_seconds * self.fps)), context_frames)
-        velocities = np.stack([np.concatenate([np.repeat(c.velocities[:1], warmup, axis=0), c.velocities])
-                               for c in controls])
-        c = torch.as_tensor(self.control_stats.apply(self.control_layout(velocities, self.fps)),
-                            dtype=torch.float32, device=self.device)
+        laid_out = [self.control_layout(np.concatenate([np.repeat(c.velocities[:1], warmup, axis=0), c.velocities]),
+                                        self.fps) for c in controls]
+        c = torch.as_tensor(self.control_stats.apply(np.stack(laid_out)), dtype=torch.float32, device=self.device)
 
         seed_poses = None
         if context_frames:

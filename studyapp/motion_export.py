@@ -13,13 +13,15 @@ natural clip; uploaded videos have no motion and are left out. A clip sampled wi
 another seed than 0 is ``<control id>-seed<seed>.npz``.
 
 The folder is written under a temporary name beside ``out`` and renamed into place, so a
-failure leaves nothing behind.
+failure leaves nothing behind. ``motion_zip`` gives the same files as a zip.
 """
 
 from __future__ import annotations
 
+import io
 import shutil
 import tempfile
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -76,4 +78,16 @@ def write_motion(study: Study, out: Path) -> dict[str, int]:
     return counts
 
 
-__all__ = ["clip_name", "exported_stimuli", "folder_name", "write_motion"]
+def motion_zip(study: Study) -> bytes:
+    """The same folder as a zip, under ``motion-study-<pk>/`` (the monitor's download)."""
+    with tempfile.TemporaryDirectory() as scratch:
+        folder = Path(scratch) / f"motion-study-{study.pk}"
+        write_motion(study, folder)
+        buffer = io.BytesIO()
+        with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+            for path in sorted(folder.rglob("*.npz")):
+                archive.write(path, path.relative_to(folder.parent).as_posix())
+        return buffer.getvalue()
+
+
+__all__ = ["clip_name", "exported_stimuli", "folder_name", "motion_zip", "write_motion"]

@@ -11,12 +11,14 @@ from __future__ import annotations
 import io
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 from django.conf import settings
+from django.contrib.auth.models import User
 from django.core.management import call_command
 from django.core.management.base import CommandError
 
@@ -99,6 +101,17 @@ def test_the_objective_metrics_of_an_exported_study_are_those_of_its_stored_moti
     np.testing.assert_allclose(table[numbers].to_numpy(float), direct[numbers].to_numpy(float), rtol=1e-9,
                                equal_nan=True)
 
+    # The monitor's download holds the same clips.
+    download = client.get(f"/studies/{study.pk}/motion.zip")
+    assert download.status_code == 200 and download["Content-Type"] == "application/zip"
+    with zipfile.ZipFile(io.BytesIO(download.content)) as archive:
+        names = sorted(archive.namelist())
+        assert names == sorted(f"motion-study-{study.pk}/{p.relative_to(out).as_posix()}" for p in out.rglob("*.npz"))
+        for name in names:
+            zipped_clip = load_motion_npz(io.BytesIO(archive.read(name)))
+            exported = load_motion_npz(out / name.split("/", 1)[1])
+            np.testing.assert_array_equal(zipped_clip.positions, exported.positions)
+
 
 @pytest.mark.django_db
 def test_an_export_with_no_clips_into_a_used_folder_or_of_missing_motion_is_refused_and_writes_nothing(tmp_path):
@@ -120,3 +133,16 @@ def test_an_export_with_no_clips_into_a_used_folder_or_of_missing_motion_is_refu
     with pytest.raises(CommandError, match="the motion of BAD for control-0: system 'BAD' has no source"):
         call_command("export_motion", str(study.pk), "--out", str(out))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["used"]  # no folder, no temporary
+
+
+@pytest.mark.django_db
+def test_the_motion_download_is_the_owners_alone(client, researcher):
+    study = make_study(owner_name="researcher")
+    url = f"/studies/{study.pk}/motion.zip"
+    other = new_study(researcher)
+    assert client.get(f"/studies/{other.pk}/motion.zip").status_code == 302  # nothing generated: back to the monitor
+    assert "No motion to download yet" in client.get(f"/studies/{other.pk}/monitor/").content.decode()
+    client.force_login(User.objects.create_user("someone-else"))
+    assert client.get(url).status_code == 404
+    client.logout()
+    assert client.get(url)["Location"].startswith("/login/")
