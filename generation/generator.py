@@ -188,9 +188,11 @@ class Generator:
         if warmup_seconds is None:
             warmup_seconds = 1.0 if context_frames else 0.0
         warmup = max(int(round(warmup_seconds * self.fps)), context_frames)
-        laid_out = [self.control_layout(np.concatenate([np.repeat(c.velocities[:1], warmup, axis=0), c.velocities]),
-                                        self.fps) for c in controls]
-        c = torch.as_tensor(self.control_stats.apply(np.stack(laid_out)), dtype=torch.float32, device=self.device)
+        laid_out = {id(c): self.control_layout(np.concatenate([np.repeat(c.velocities[:1], warmup, axis=0),
+                                                                c.velocities]), self.fps)
+                    for c in controls}  # by identity: ``sample`` passes one control n times
+        c = torch.as_tensor(self.control_stats.apply(np.stack([laid_out[id(c)] for c in controls])),
+                            dtype=torch.float32, device=self.device)
 
         seed_poses = None
         if context_frames:

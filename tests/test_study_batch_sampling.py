@@ -152,3 +152,14 @@ def test_a_missing_checkpoint_fails_every_clip_of_its_system_with_the_reason(cli
     assert run_sampling(stimuli)["sampled"] == 0
     errors = set(Stimulus.objects.filter(study=study).values_list("status", "error"))
     assert len(errors) == 1 and errors.pop()[1].startswith("FileNotFoundError: the checkpoint of MoGlow is missing")
+
+
+@pytest.mark.parametrize("value", ["0", "2.5", "many"])
+def test_a_sample_batch_that_is_not_a_whole_number_of_at_least_one_is_refused(tmp_path, value):
+    from tests.test_settings import run_settings
+
+    refused = run_settings(STUDYAPP_VAR_DIR=str(tmp_path), STUDY_SAMPLE_BATCH=value)
+    message = {"0": "STUDY_SAMPLE_BATCH=0 is not a whole number of at least 1",
+               "2.5": "STUDY_SAMPLE_BATCH=2.5 is not a whole number of at least 1",
+               "many": "STUDY_SAMPLE_BATCH='many' is not a number"}[value]
+    assert refused.returncode != 0 and message in refused.stderr
