@@ -159,7 +159,7 @@ class CheckpointSource:
         else:
             signal = control_from_dict(stimulus.control.control)
             motion = self._loaded(stimulus.system).sample(signal, n=1, seed=stimulus.seed,
-                                                             temperature=stimulus.system.temperature)[0]
+                                                          temperature=stimulus.system.temperature)[0]
             save_motion_npz(motion, sampled)  # the study's motion, for export_motion
         return Clip(motion, commanded_floor(stimulus.control, motion))
 
