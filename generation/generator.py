@@ -10,13 +10,17 @@ into a ``Motion`` placed in the world. Path models (MoGlow and its baselines) fo
 and return joint-angle features, decoded onto the skeleton:
 
     Generator.load("hvrnn-cpu.safetensors").sample(AttributeControl("walk", "happy", 120, 30.0), n=4, seed=1)
+
+Many controls, each with its own seed, in one batch (a study's worker does this):
+``sample_batch(controls, seeds)`` gives each control the motion ``sample(control, n=1,
+seed=its seed)`` gives.
 """
 
 from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import torch
@@ -29,6 +33,7 @@ from .motion.types import Motion, Skeleton
 from .stylegestures import CONTROL_LAYOUT, stylegestures_control
 from .models.attribute import AttributeModel
 from .models.base import MotionModel
+from .models.noise import RowGenerators
 from .models.path import PathModel
 from .models.precision import auto_precision
 
@@ -93,6 +98,21 @@ class Generator:
         self.model.check_precision(precision)
         return precision
 
+    def check_control(self, control: Control) -> None:
+        """Refuse a control this model cannot follow (ValueError naming what is wrong):
+        the wrong kind of control, another frame rate, labels the model does not know."""
+        if self.attributes:
+            if not isinstance(control, AttributeControl):
+                raise ValueError(f"a {self.meta.kind} model is controlled by action and style labels "
+                                 f"(AttributeControl); got {type(control).__name__}")
+            self.model.label_indices(control.action, control.style)
+        elif not isinstance(self.model, PathModel):
+            raise TypeError(f"a {self.meta.kind} model follows neither a path nor labels")
+        elif not isinstance(control, PathControl):
+            raise ValueError(f"a {self.meta.kind} model follows a path; got {type(control).__name__}")
+        if abs(control.fps - self.fps) > 1e-6:
+            raise ValueError(f"control is at {control.fps:g} fps but the model was trained at {self.fps:g} fps")
+
     def sample(
         self,
         control: Control,
@@ -115,25 +135,64 @@ class Generator:
         """
         precision = self.resolve_precision(precision)
         check_request(n, temperature, warmup_seconds)
-        if isinstance(self.model, AttributeModel):
-            return self._sample_attributes(self.model, control, n, seed, temperature)
-        if not isinstance(self.model, PathModel):
-            raise TypeError(f"a {self.meta.kind} model follows neither a path nor labels")
+        self.check_control(control)
+        noise = torch.Generator(device=self.device).manual_seed(seed)
+        return self._generate([control] * n, noise, temperature, warmup_seconds, context, precision)
+
+    def sample_batch(
+        self,
+        controls: Sequence[Control],
+        seeds: Sequence[int],
+        temperature: float = 1.0,
+        precision: str = "auto",
+    ) -> list[Motion]:
+        """One motion per control, the i-th drawn from ``seeds[i]``: each equals
+        ``sample(controls[i], n=1, seed=seeds[i])`` (to float rounding), computed in as
+        few model calls as the controls allow.
+
+        Controls of one length share one call of the model. Controls of different
+        lengths are not padded to one length: each row's noise is drawn in the shape of
+        its own clip, and a padded clip would draw more and so differ from the clip
+        sampled alone. A model that does not take a seed per row (``per_row_seeds``) is
+        called once per control. The caller bounds the batch (the study's workers take
+        STUDY_SAMPLE_BATCH controls at a time).
+        """
+        if len(controls) != len(seeds):
+            raise ValueError(f"one seed per control: {len(controls)} controls, {len(seeds)} seeds")
+        if not controls:
+            return []
+        precision = self.resolve_precision(precision)
+        check_request(len(controls), temperature, None)
+        for control in controls:
+            self.check_control(control)
+        if not self.model.per_row_seeds:
+            return [self.sample(c, 1, s, temperature, precision=precision)[0] for c, s in zip(controls, seeds)]
+        by_length: dict[int, list[int]] = {}
+        for i, control in enumerate(controls):
+            by_length.setdefault(control.n_frames, []).append(i)
+        motions: list[Motion | None] = [None] * len(controls)
+        for rows in by_length.values():
+            noise = RowGenerators([seeds[i] for i in rows], self.device)
+            for i, motion in zip(rows, self._generate([controls[i] for i in rows], noise, temperature, None, None,
+                                                      precision)):
+                motions[i] = motion
+        return motions
+
+    def _generate(self, controls: list[Control], noise: torch.Generator | RowGenerators, temperature: float,
+                  warmup_seconds: float | None, context: np.ndarray | None, precision: str) -> list[Motion]:
+        """One call of the model for checked controls of one length, a row each."""
+        if self.attributes:
+            return self._generate_attributes(controls, noise, temperature)
         model = self.model
-        if not isinstance(control, PathControl):
-            raise ValueError(f"a {self.meta.kind} model follows a path; got {type(control).__name__}")
-        if abs(control.fps - self.fps) > 1e-6:
-            raise ValueError(f"control is at {control.fps:g} fps but the model was trained at {self.fps:g} fps")
-        if n < 1:
-            raise ValueError(f"n must be at least 1, got {n}")
         context_frames = model.context_frames
         if warmup_seconds is None:
             warmup_seconds = 1.0 if context_frames else 0.0
         warmup = max(int(round(warmup_seconds * self.fps)), context_frames)
-        velocities = np.concatenate([np.repeat(control.velocities[:1], warmup, axis=0), control.velocities])
-        c = torch.as_tensor(self.control_stats.apply(self.control_layout(velocities, self.fps)),
+        laid_out = {id(c): self.control_layout(np.concatenate([np.repeat(c.velocities[:1], warmup, axis=0),
+                                                                c.velocities]), self.fps)
+                    for c in controls}  # by identity: ``sample`` passes one control n times
+        c = torch.as_tensor(self.control_stats.apply(np.stack([laid_out[id(c)] for c in controls])),
                             dtype=torch.float32, device=self.device)
-        c = c.expand(n, -1, -1).contiguous()
 
         seed_poses = None
         if context_frames:
@@ -142,30 +201,21 @@ class Generator:
             if np.shape(context) != (context_frames, model.pose_dim):
                 raise ValueError(f"context must have shape ({context_frames}, {model.pose_dim}), got {np.shape(context)}")
             seed_poses = torch.as_tensor(self.pose_stats.apply(context), dtype=torch.float32, device=self.device)
-            seed_poses = seed_poses.expand(n, -1, -1).contiguous()
+            seed_poses = seed_poses.expand(len(controls), -1, -1).contiguous()
 
-        generator = torch.Generator(device=self.device).manual_seed(seed)
         with torch.inference_mode():
-            poses = model.generate(c, seed_poses, temperature, generator, precision)
+            poses = model.generate(c, seed_poses, temperature, noise, precision)
         poses = self.pose_stats.invert(poses[:, warmup:].double().cpu().numpy())
         return [
             Motion(decode_positions(p, control.velocities, self.fps), self.fps, self.skeleton)
-            for p in poses
+            for p, control in zip(poses, controls)
         ]
 
-    def _sample_attributes(self, model: AttributeModel, control: Control, n: int, seed: int,
-                           temperature: float) -> list[Motion]:
-        if not isinstance(control, AttributeControl):
-            raise ValueError(f"a {self.meta.kind} model is controlled by action and style labels "
-                             f"(AttributeControl); got {type(control).__name__}")
-        if abs(control.fps - self.fps) > 1e-6:
-            raise ValueError(f"control is at {control.fps:g} fps but the model was trained at {self.fps:g} fps")
-        if n < 1 or control.frames < 1:
-            raise ValueError(f"n and frames must be at least 1, got n={n}, frames={control.frames}")
-        action, style = model.label_indices(control.action, control.style)
-        labels = [torch.full((n,), index, dtype=torch.long, device=self.device) for index in (action, style)]
-        generator = torch.Generator(device=self.device).manual_seed(seed)
+    def _generate_attributes(self, controls: list[Control], noise: torch.Generator | RowGenerators,
+                             temperature: float) -> list[Motion]:
+        indices = [self.model.label_indices(c.action, c.style) for c in controls]
+        labels = [torch.tensor(column, dtype=torch.long, device=self.device) for column in zip(*indices)]
         with torch.inference_mode():
-            features = model.generate(*labels, control.frames, temperature, generator)
+            features = self.model.generate(*labels, controls[0].frames, temperature, noise)
         features = self.pose_stats.invert(features.double().cpu().numpy())
         return [decode_angles(f, self.skeleton, self.angle_spec, self.fps) for f in features]

@@ -8,6 +8,7 @@ lists other researchers' names); a superuser sees everything.
 from django.contrib import admin
 
 from studyapp.models import Assignment, ControlSignal, Participant, Rating, Stimulus, Study, System
+from studyapp.removal import remove_study
 
 
 class OwnStudiesOnly(admin.ModelAdmin):
@@ -52,6 +53,14 @@ class StudyAdmin(OwnStudiesOnly):
         if not change and not request.user.is_superuser:
             obj.owner = request.user
         super().save_model(request, obj, form, change)
+
+    # A deleted study takes its clips' files along (``removal.remove_study``).
+    def delete_model(self, request, obj):
+        remove_study(obj)
+
+    def delete_queryset(self, request, queryset):
+        for study in queryset:
+            remove_study(study)
 
 
 @admin.register(System)

@@ -4,7 +4,7 @@ participant starts (as ``removal``).
 Nothing that changes where the motion comes from can be edited: another checkpoint,
 other submitted motion or another path is another system or control (remove and add).
 A new temperature changes every sampled clip of the system, so those clips are deleted
-(rows and videos) and generating the stimuli again makes them anew. A new control name
+(rows, videos and sampled motion) and generating the stimuli again makes them anew. A new control name
 changes no clip, but the control's description carries its name and every clip's content
 key digests it, so its clips keep their videos and get their new keys.
 """
@@ -14,7 +14,7 @@ from __future__ import annotations
 from django.db import transaction
 
 from studyapp.models import ControlSignal, Stimulus, System
-from studyapp.removal import delete_videos, require_not_started
+from studyapp.removal import delete_unreferenced_samples, delete_videos, require_not_started
 from studyapp.stimuli import content_key
 
 
@@ -52,6 +52,7 @@ def edit_system(system: System, name: str, temperature: float | None = None) -> 
             system.temperature = temperature
         system.save(update_fields=["name", "temperature"])
     delete_videos(stale)
+    delete_unreferenced_samples()
     return len(stale)
 
 

@@ -32,6 +32,7 @@ from studyapp.forms import (CheckpointSystemForm, ControlEditForm, ControlFileFo
 from studyapp.health import collect_health
 from studyapp.models import NATURAL_NAME, ControlSignal, Question, Stimulus, Study, System
 from studyapp.monitor import ratings_csv, study_monitor
+from studyapp.motion_export import exported_stimuli, motion_zip
 from studyapp.participant_list import participant_rows, participants_csv, question_names
 from studyapp.participant_views import PLATFORM_PARAMETERS
 from studyapp.preview import preview_pages
@@ -379,6 +380,25 @@ def study_export(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
     response = HttpResponse(ratings_csv(study, for_spreadsheets=True), content_type="text/csv")
     response["Content-Disposition"] = f'attachment; filename="ratings-study-{study.pk}.csv"'
+    return response
+
+
+@never_cache
+@login_required
+@require_safe
+def study_motion_download(request: HttpRequest, pk: int) -> HttpResponse:
+    """Every system's motion of the finished clips as a zip, for the objective metrics (``motion_export``)."""
+    study = _study(request, pk)
+    if not exported_stimuli(study):
+        messages.error(request, "No motion to download yet: generate the stimuli first.")
+        return redirect("study-monitor", pk=study.pk)
+    try:
+        data = motion_zip(study)
+    except ValueError as error:
+        messages.error(request, f"No download: {error}")
+        return redirect("study-monitor", pk=study.pk)
+    response = HttpResponse(data, content_type="application/zip")
+    response["Content-Disposition"] = f'attachment; filename="motion-study-{study.pk}.zip"'
     return response
 
 

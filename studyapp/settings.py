@@ -151,6 +151,13 @@ STUDY_RENDER_QUEUE = env_str("STUDY_RENDER_QUEUE", CELERY_TASK_DEFAULT_QUEUE)
 STUDY_DEVICE = env_str("STUDY_DEVICE", "auto")
 if STUDY_DEVICE not in ("auto", "cpu", "cuda"):
     raise ImproperlyConfigured(f"STUDY_DEVICE={STUDY_DEVICE!r} is not one of auto, cpu, cuda")
+# A sampling task samples its system's controls in batches of at most this many clips,
+# one call of the model per batch (per length, where controls differ in length): memory
+# grows with the batch (each row holds its clip's noise, poses and recurrent state).
+_sample_batch = env_float("STUDY_SAMPLE_BATCH", 64)
+if _sample_batch < 1 or _sample_batch != int(_sample_batch):
+    raise ImproperlyConfigured(f"STUDY_SAMPLE_BATCH={_sample_batch:g} is not a whole number of at least 1")
+STUDY_SAMPLE_BATCH = int(_sample_batch)
 
 # Uploaded checkpoints live here, named by content digest; never under MEDIA_ROOT,
 # which is served to the public.

@@ -87,18 +87,27 @@ def _generator(path: str, digest: str, device: str):
     return generator
 
 
+def sampled_folder() -> Path:
+    """Where sampled motion lies, one ``<content key>.npz`` per clip; studies whose clips
+    have the same content key share the file (``removal`` deletes what none refers to)."""
+    return Path(settings.VAR_DIR) / "sampled"
+
+
 def sampled_path(stimulus: Stimulus) -> Path:
     """Where a sampling worker leaves a stimulus's motion for the rendering worker (named by
     its content key, so it is the motion of exactly this clip)."""
-    return Path(settings.VAR_DIR) / "sampled" / f"{stimulus.content_key}.npz"
+    return sampled_folder() / f"{stimulus.content_key}.npz"
 
 
 class CheckpointSource:
     """A model checkpoint of any registered kind, sampled with the stimulus's seed.
 
     With ``sample_ahead``, a worker on STUDY_SAMPLE_QUEUE samples every control of one
-    system in one task, the model loaded once, and leaves the motion at ``sampled_path``;
-    the rendering worker reads it. Where nothing was sampled ahead, ``clip`` samples.
+    system in one task, the model loaded once and the controls sampled together,
+    STUDY_SAMPLE_BATCH at a time (``Generator.sample_batch``: each clip from its own seed,
+    so a clip is the same whichever batch it was sampled in), and leaves the motion at
+    ``sampled_path``; the rendering worker reads it. Where nothing was sampled ahead,
+    ``clip`` samples the one clip and leaves it there too.
     """
 
     samples = True  # dispatch sends its stimuli to the sampling queue first
@@ -109,25 +118,57 @@ class CheckpointSource:
     def identity(self, system: System, control: ControlSignal, seed: int) -> dict:
         return {"source": f"checkpoint:{system.checkpoint_digest}", "seed": seed, "temperature": system.temperature}
 
-    def sample_ahead(self, stimulus: Stimulus) -> None:
-        """Sample the stimulus's motion into ``sampled_path`` (the model stays loaded for the next)."""
-        target = sampled_path(stimulus)
-        if not target.is_file():
-            save_motion_npz(self._sample(stimulus.system, stimulus), target)
+    def sample_ahead(self, system: System, stimuli: list[Stimulus]) -> dict[int, Exception]:
+        """Sample the motion of ``system``'s ``stimuli`` not sampled yet into ``sampled_path``;
+        what went wrong, by stimulus id. A control the model cannot follow fails alone; a
+        failing batch fails its stimuli (the error names the reason) and the next batch
+        is sampled all the same."""
+        todo = [stimulus for stimulus in stimuli if not sampled_path(stimulus).is_file()]
+        if not todo:
+            return {}
+        try:
+            generator = self._loaded(system)
+        except Exception as error:  # a missing or unreadable checkpoint: nothing of the system samples
+            return {stimulus.pk: error for stimulus in todo}
+        failed: dict[int, Exception] = {}
+        checked = []
+        for stimulus in todo:
+            try:
+                signal = control_from_dict(stimulus.control.control)
+                generator.check_control(signal)
+            except ValueError as error:
+                failed[stimulus.pk] = error
+            else:
+                checked.append((stimulus, signal))
+        size = settings.STUDY_SAMPLE_BATCH
+        for batch in (checked[i:i + size] for i in range(0, len(checked), size)):
+            try:
+                motions = generator.sample_batch([signal for _, signal in batch], [s.seed for s, _ in batch],
+                                                 temperature=system.temperature)
+            except Exception as error:  # e.g. out of memory: these clips fail, the next batch may not
+                failed.update((stimulus.pk, error) for stimulus, _ in batch)
+                continue
+            for (stimulus, _), motion in zip(batch, motions):
+                save_motion_npz(motion, sampled_path(stimulus))
+        return failed
 
     def clip(self, stimulus: Stimulus) -> Clip:
         sampled = sampled_path(stimulus)
-        motion = load_motion_npz(sampled) if sampled.is_file() else self._sample(stimulus.system, stimulus)
+        if sampled.is_file():
+            motion = load_motion_npz(sampled)
+        else:
+            signal = control_from_dict(stimulus.control.control)
+            motion = self._loaded(stimulus.system).sample(signal, n=1, seed=stimulus.seed,
+                                                          temperature=stimulus.system.temperature)[0]
+            save_motion_npz(motion, sampled)  # the study's motion, for export_motion
         return Clip(motion, commanded_floor(stimulus.control, motion))
 
     @staticmethod
-    def _sample(system: System, stimulus: Stimulus) -> Motion:
+    def _loaded(system: System):
         path = system.checkpoint_path()
         if path is None or not path.is_file():
             raise FileNotFoundError(f"the checkpoint of {system.name} is missing ({path})")
-        generator = _generator(str(path), system.checkpoint_digest, sampling_device(settings.STUDY_DEVICE))
-        signal = control_from_dict(stimulus.control.control)
-        return generator.sample(signal, n=1, seed=stimulus.seed, temperature=system.temperature)[0]
+        return _generator(str(path), system.checkpoint_digest, sampling_device(settings.STUDY_DEVICE))
 
 
 class NaturalClips:
@@ -201,4 +242,4 @@ def source_of(system: System) -> MotionSource:
     return source
 
 
-__all__ = ["Clip", "MotionSource", "SOURCES", "commanded_floor", "source_of"]
+__all__ = ["Clip", "MotionSource", "SOURCES", "commanded_floor", "sampled_folder", "sampled_path", "source_of"]

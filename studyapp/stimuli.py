@@ -91,20 +91,24 @@ def progress(study: Study) -> dict:
 
 def sample_ahead(sent: list[tuple[int, str]]) -> list[tuple[int, str]]:
     """Sample the motion of the stimuli a sampling task was sent for, as (stimulus id, the
-    task id its render was sent under) pairs; the pairs sampled. A row sent again since
-    (another task id) is left to its later task; a row that fails is marked failed."""
+    task id its render was sent under) pairs, each system's in one call of its source;
+    the pairs sampled. A row sent again since (another task id) is left to its later
+    task; a row that fails is marked failed with the reason, and the others go on."""
     task_ids = dict(sent)
     rows = Stimulus.objects.filter(pk__in=task_ids).select_related("study", "system", "control")
-    ready = []
+    by_system: dict[int, list[Stimulus]] = {}
     for stimulus in rows:
-        if stimulus.task_id != task_ids[stimulus.pk]:
-            continue
-        try:
-            source_of(stimulus.system).sample_ahead(stimulus)
-        except Exception as error:  # the reason is shown on the progress page, where it can be retried
-            finish(stimulus, error=f"{type(error).__name__}: {error}")
-            continue
-        ready.append((stimulus.pk, stimulus.task_id))
+        if stimulus.task_id == task_ids[stimulus.pk]:
+            by_system.setdefault(stimulus.system_id, []).append(stimulus)
+    ready = []
+    for stimuli in by_system.values():
+        failed = source_of(stimuli[0].system).sample_ahead(stimuli[0].system, stimuli)
+        for stimulus in stimuli:
+            error = failed.get(stimulus.pk)
+            if error is not None:  # the reason is shown on the progress page, where it can be retried
+                finish(stimulus, error=f"{type(error).__name__}: {error}")
+            else:
+                ready.append((stimulus.pk, stimulus.task_id))
     return ready
 
 

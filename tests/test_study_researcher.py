@@ -47,7 +47,9 @@ def files(motion_data, tmp_path_factory) -> SimpleNamespace:
 def site(settings, tmp_path, files) -> Path:
     settings.MEDIA_ROOT = tmp_path / "media"
     settings.CHECKPOINT_ROOT = tmp_path / "checkpoints"
-    settings.VAR_DIR = files.root / "var"  # the dataset cache the checkpoints were trained from
+    settings.VAR_DIR = tmp_path / "var"  # sampled motion of this test only
+    settings.VAR_DIR.mkdir(exist_ok=True)
+    (settings.VAR_DIR / "cache").symlink_to(files.root / "var" / "cache")  # the checkpoints' training data
     settings.MOTION_DATA = files.clips
     return tmp_path
 

@@ -27,6 +27,10 @@ class MotionModel(nn.Module):
     # The precisions ``generate`` offers for its matrix products; "float32" (the default)
     # computes in the parameters' own dtype, float32 for every trained model.
     precisions: ClassVar[tuple[str, ...]] = ("float32",)
+    # Whether ``generate`` accepts ``noise.RowGenerators`` (one seed per batch row) for its
+    # generator: true where every draw goes through ``noise.normal`` or nothing is drawn.
+    # Without it, ``Generator.sample_batch`` samples each control alone.
+    per_row_seeds: ClassVar[bool] = False
 
     def __init__(self, config: Any, pose_dim: int, control_dim: int) -> None:
         super().__init__()

@@ -47,6 +47,7 @@ from ..motion.features import ROOT_DIMS
 from .attribute import AttributeModel
 from .initial_state import LabelledInitialState
 from .layers import mlp, random_crop
+from .noise import RowGenerators, normal
 from .losses import (
     QUATERNION_DISTANCES, hierarchical_distance, joint_weights, kl_diagonal_gaussians, masked_mean, matrix_validity,
     quaternion_distance, quaternion_validity,
@@ -111,6 +112,7 @@ class GaussianHead(nn.Module):
 
 class HVRNN(AttributeModel):
     kind = "hvrnn"
+    per_row_seeds = True
     Config = HVRNNConfig
 
     def __init__(self, config: HVRNNConfig, pose_dim: int, control_dim: int) -> None:
@@ -245,7 +247,7 @@ class HVRNN(AttributeModel):
         return matrix_validity(joints.unflatten(-1, (self.joints, 6))).sum(-1)
 
     def initial_state(self, action: torch.Tensor, style: torch.Tensor, temperature: float,
-                      generator: torch.Generator | None = None) -> tuple[list[torch.Tensor], torch.Tensor]:
+                      generator: torch.Generator | RowGenerators | None = None) -> tuple[list[torch.Tensor], torch.Tensor]:
         """h_0 drawn from the Gaussian of each sequence's (action, style) pair, one per GRU
         layer, and each Gaussian's KL from N(0, I) (batch,)."""
         state, kl = self.initial(self.combination(action, style), temperature, generator)
@@ -381,7 +383,7 @@ class HVRNN(AttributeModel):
 
     @torch.no_grad()
     def generate(self, action: torch.Tensor, style: torch.Tensor, frames: int,
-                 temperature: float = 1.0, generator: torch.Generator | None = None) -> torch.Tensor:
+                 temperature: float = 1.0, generator: torch.Generator | RowGenerators | None = None) -> torch.Tensor:
         """Sample word by word from the prior; z and h_0 are scaled by ``temperature``."""
         if frames < 1:
             raise ValueError(f"frames must be at least 1, got {frames}")
@@ -393,7 +395,7 @@ class HVRNN(AttributeModel):
         for _ in range(math.ceil(frames / self.config.word_length)):
             h = state[-1]
             mean, logvar = self.prior(torch.cat([h, a], -1))
-            noise = torch.randn(mean.shape, generator=generator, device=device, dtype=mean.dtype)
+            noise = normal(mean.shape, generator, device=device, dtype=mean.dtype)
             z = mean + temperature * (0.5 * logvar).exp() * noise
             phi_z, word_hat = self.decode_latent(z, h, a)
             out.append(self.normalise(self.decode_word(word_hat))[0])

@@ -13,6 +13,7 @@ import torch
 from torch import nn
 
 from .losses import kl_diagonal_gaussians
+from .noise import RowGenerators, normal
 
 
 class LabelledInitialState(nn.Module):
@@ -24,10 +25,10 @@ class LabelledInitialState(nn.Module):
         self.logvar = nn.Parameter(torch.full((pairs, size), initial_logvar))
 
     def forward(self, pair: torch.Tensor, temperature: float = 1.0,
-                generator: torch.Generator | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+                generator: torch.Generator | RowGenerators | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """A state (batch, size) for each pair index, with σ scaled by ``temperature``, and
         each Gaussian's KL from N(0, I) (batch,)."""
         mean, logvar = self.mean[pair], self.logvar[pair]
-        noise = torch.randn(mean.shape, generator=generator, device=mean.device, dtype=mean.dtype)
+        noise = normal(mean.shape, generator, device=mean.device, dtype=mean.dtype)
         kl = kl_diagonal_gaussians(mean, logvar, torch.zeros_like(mean), torch.zeros_like(logvar))
         return mean + temperature * (0.5 * logvar).exp() * noise, kl

@@ -27,6 +27,7 @@ import torch
 
 from .path import PathModel
 from .flows import Flow, glow_step
+from .noise import RowGenerators, normal
 from .precision import PRECISIONS, available_precisions
 
 
@@ -49,6 +50,7 @@ class MoGlow(PathModel):
     kind = "moglow"
     Config = MoGlowConfig
     precisions = PRECISIONS
+    per_row_seeds = True
 
     def __init__(self, config: MoGlowConfig, pose_dim: int, control_dim: int) -> None:
         super().__init__(config, pose_dim, control_dim)
@@ -97,7 +99,7 @@ class MoGlow(PathModel):
         control: torch.Tensor,
         context: torch.Tensor | None,
         temperature: float = 1.0,
-        generator: torch.Generator | None = None,
+        generator: torch.Generator | RowGenerators | None = None,
         precision: str = "float32",
     ) -> torch.Tensor:
         """Sample poses frame by frame; the noise of all frames is drawn up front.
@@ -124,7 +126,7 @@ class MoGlow(PathModel):
         pose = control.new_empty(batch, frames, self.pose_dim)
         pose[:, :tau] = context.to(parameter)[:, -tau:]
         shape = (batch, frames - tau, self.pose_dim)
-        noise = temperature * torch.randn(shape, generator=generator, dtype=pose.dtype, device=pose.device)
+        noise = temperature * normal(shape, generator, dtype=pose.dtype, device=pose.device)
         # The control part of every c_t is known in advance; c_t is laid out as in conditioning().
         controls = control.unfold(1, tau + 1, 1).transpose(2, 3).flatten(2)  # (batch, T-τ, (τ+1)·control_dim)
         invert = self.flow.frame_inverse(precision)

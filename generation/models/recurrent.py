@@ -25,6 +25,7 @@ from .attribute import AttributeModel
 from .initial_state import LabelledInitialState
 from .layers import random_crop
 from .losses import masked_mean
+from .noise import RowGenerators
 from .rotations import align_quaternions, normalize_quaternion
 
 
@@ -33,6 +34,7 @@ class RecurrentBaseline(AttributeModel):
     ``nn.GRU``, batch first) and define ``run`` and ``frame_error``."""
 
     state_parts: ClassVar[int]  # 2 for an LSTM's (h, c), 1 for a GRU's h
+    per_row_seeds = True  # the initial state is the only draw
 
     def __init__(self, config: Any, pose_dim: int, control_dim: int) -> None:
         super().__init__(config, pose_dim, control_dim)
@@ -60,7 +62,7 @@ class RecurrentBaseline(AttributeModel):
         return torch.cat([raw[..., :ROOT_DIMS], quats.flatten(-2)], -1)
 
     def initial_state(self, action: torch.Tensor, style: torch.Tensor, temperature: float,
-                      generator: torch.Generator | None = None) -> tuple[Any, torch.Tensor]:
+                      generator: torch.Generator | RowGenerators | None = None) -> tuple[Any, torch.Tensor]:
         """The recurrent state drawn from each pair's Gaussian, and its KL from N(0, I) (batch,)."""
         sample, kl = self.initial(self.combination(action, style), temperature, generator)
         layers = sample.unflatten(-1, (self.state_parts, self.config.layers, self.config.hidden))
@@ -94,7 +96,7 @@ class RecurrentBaseline(AttributeModel):
 
     @torch.no_grad()
     def generate(self, action: torch.Tensor, style: torch.Tensor, frames: int,
-                 temperature: float = 1.0, generator: torch.Generator | None = None) -> torch.Tensor:
+                 temperature: float = 1.0, generator: torch.Generator | RowGenerators | None = None) -> torch.Tensor:
         """Frame by frame from a sampled initial state; ``temperature`` scales its spread."""
         if frames < 1:
             raise ValueError(f"frames must be at least 1, got {frames}")

@@ -33,6 +33,7 @@ class RNNBaseline(PathModel):
     """
 
     kind = "rnn"
+    per_row_seeds = True  # it draws nothing
     Config = RNNConfig
     context_frames = 0
 

@@ -55,6 +55,7 @@ class VAEBaseline(PathModel):
     """
 
     kind = "vae"
+    per_row_seeds = True  # it draws nothing
     Config = VAEConfig
     context_frames = 0
 

@@ -14,6 +14,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from generation.models.noise import RowGenerators, normal
 from generation.models.path import PathModel
 
 
@@ -27,6 +28,7 @@ class ToyPathModel(PathModel):
     kind = "toy"
     Config = ToyConfig
     context_frames = 0
+    per_row_seeds = True  # its one draw goes through noise.normal
 
     def __init__(self, config: ToyConfig, pose_dim: int, control_dim: int) -> None:
         super().__init__(config, pose_dim, control_dim)
@@ -47,8 +49,8 @@ class ToyPathModel(PathModel):
 
     @torch.no_grad()
     def generate(self, control: torch.Tensor, context: torch.Tensor | None = None, temperature: float = 1.0,
-                 generator: torch.Generator | None = None, precision: str = "float32") -> torch.Tensor:
+                 generator: torch.Generator | RowGenerators | None = None, precision: str = "float32") -> torch.Tensor:
         self.check_precision(precision)
         mean = self._mean(control.to(self.log_std))
-        noise = torch.randn(mean.shape, generator=generator, device=mean.device, dtype=mean.dtype)
+        noise = normal(mean.shape, generator, device=mean.device, dtype=mean.dtype)
         return mean + temperature * torch.exp(self.log_std) * noise
