@@ -11,7 +11,7 @@ machine's load reaches both. Forms are posted urlencoded, as browsers send them.
 
 *Crowds*: simulated participants (studyapp.simulated_participants: real HTTP, cookies,
 CSRF) take the study at once, in processes of their own (threads within them), against
-the embedded default of ``make demo`` (Django's runserver and SQLite in WAL mode) and the
+the embedded default of ``make demo`` (Django's runserver as ``manage.py serve``, SQLite) and the
 production shape (gunicorn with the threaded workers of compose.yaml, PostgreSQL on
 127.0.0.1), under two loads: *saturation* (every participant answers the moment a page
 arrives: the most ratings per second the setup takes) and *watching* (each spends
@@ -25,9 +25,10 @@ database holds exactly the ratings the server accepted (answered with its redire
 rating whose next page then fails is still counted). Latency targets apply to the
 watching load: at saturation latency is queueing by construction.
 
-    python benchmarks/bench_study.py [--participants 100] [--crowds 500,1000] [--json]
-    python benchmarks/bench_study.py --only server-time --reference-code /tmp/before
-    python benchmarks/bench_study.py --only crowds --crowds 500   # one crowd at a time
+    python benchmarks/bench_study.py [--participants 100] [--crowds 500,1000] [--json]   # everything
+    python benchmarks/bench_study.py --only server-time --reference-code /tmp/before     # the rating step
+    python benchmarks/bench_study.py --only crowd            # 100 at saturation and watching, both setups
+    python benchmarks/bench_study.py --only large --crowds 500   # one large crowd at a time
 
 Needs PostgreSQL's server programs (Debian: postgresql); a throwaway cluster is
 created in a temporary folder and removed afterwards.
@@ -340,8 +341,8 @@ def server_time_rows(rounds: int, reference: Path | None) -> list[dict]:
         for code in codes:
             with tempfile.TemporaryDirectory(prefix="bench-sqlite-") as folder:
                 rows.append(measure_server_time("SQLite", f"sqlite:///{folder}/db.sqlite3", code))
-    with throwaway_postgres() as (url, _):
-        for code in codes:
+    for code in codes:  # a cluster each: the codes' schemas may differ
+        with throwaway_postgres() as (url, _):
             rows.append(measure_server_time("PostgreSQL", url, code))
     return rows
 
@@ -365,6 +366,10 @@ def print_rows(result: dict) -> None:
             print(f"   error ({row['error_count']} participants): {error}")
         for error in row["server_errors"]:
             print(f"   server: {error}")
+    saturated = {row["setup"]: row["ratings_per_s"] for row in result["rows"] if row["load"] == "saturation"}
+    if len(saturated) == 2:
+        print(f"gunicorn + PostgreSQL: {saturated['gunicorn + PostgreSQL'] / saturated['runserver + SQLite']:.2f}x "
+              f"the rating throughput of runserver + SQLite at saturation")
 
 
 def main() -> int:

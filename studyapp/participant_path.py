@@ -190,11 +190,11 @@ def _rating_page(study: Study, participant: Participant) -> dict:
     # next is fetched while it plays, and all of them make the progress.
     clips = list(participant.assignments.order_by("position").values(
         "pk", "token", "shown_at", "expected", "rating", "stimulus__token", "stimulus__duration_s"))
-    clip, *upcoming = [clip for clip in clips if clip["rating"] is None][:2]
+    unrated = [clip for clip in clips if clip["rating"] is None]
+    clip, upcoming = unrated[0], unrated[1:2]
     if clip["shown_at"] is None:  # the first clip, or one after a return: recording a rating marks the next
         Assignment.objects.filter(pk=clip["pk"]).update(shown_at=timezone.now())
-    total = len(clips)
-    done = total - sum(1 for c in clips if c["rating"] is None)
+    total, done = len(clips), len(clips) - len(unrated)
     return clip_page(study, _stimulus(clip), "participant-rate", {"assignment": clip["token"]},
                      f"Clip {done + 1} of {total}", done, total, _stimulus(upcoming[0]) if upcoming else None,
                      instruction(study, [clip["expected"]]))
