@@ -406,29 +406,31 @@ def main() -> int:
     if "crowd" in parts:
         for watch_s in (0.0, args.watch):
             with tempfile.TemporaryDirectory(prefix="bench-sqlite-") as folder:
-                rows.append(measure("runserver + SQLite", f"sqlite:///{folder}/db.sqlite3", "runserver",
-                                    args.participants, watch_s))
+                rows.append({**measure("runserver + SQLite", f"sqlite:///{folder}/db.sqlite3", "runserver",
+                                       args.participants, watch_s), "part": "crowd"})
             with throwaway_postgres() as (url, pid_file):
-                rows.append(measure("gunicorn + PostgreSQL", url, "gunicorn", args.participants, watch_s, pid_file))
+                rows.append({**measure("gunicorn + PostgreSQL", url, "gunicorn", args.participants, watch_s, pid_file),
+                             "part": "crowd"})
     if "large" in parts:
         for participants in [int(n) for n in args.crowds.split(",") if n.strip()]:  # the big loads last, once
             with throwaway_postgres() as (url, pid_file):
-                rows.append(measure("gunicorn + PostgreSQL", url, "gunicorn", participants, args.watch, pid_file))
+                rows.append({**measure("gunicorn + PostgreSQL", url, "gunicorn", participants, args.watch, pid_file),
+                             "part": "large"})
     load = " → ".join(", ".join(f"{x:.1f}" for x in averages) for averages in (load_before, os.getloadavg()))
     result = {"machine": describe_machine(), "load_average": load, "server_time": steps, "rows": rows}
     if args.json:
         print(json.dumps(result, indent=2))
     else:
         print_rows(result)
-    return 0 if targets_met(result, args.watch) else 1
+    return 0 if targets_met(result) else 1
 
 
-def targets_met(result: dict, watch_s: float) -> bool:
+def targets_met(result: dict) -> bool:
     """Print each target of the parts that ran, met or missed; whether all were met.
 
     Every crowd must store exactly what was accepted and serve every participant (the
     embedded default too: it holds a crowd); the time targets: the median rating step
-    on SQLite (this code), and the p95 of 100 watching participants on the production shape.
+    on SQLite (this code), and the p95 of the watching --participants on the production shape.
     """
     checks = []
     ours = [row for row in result["server_time"] if row["setup"] == "SQLite" and row["code"] == "this"]
@@ -439,8 +441,7 @@ def targets_met(result: dict, watch_s: float) -> bool:
     for row in result["rows"]:
         checks.append((f"{row['setup']}, {row['participants']} {row['load']}: no error, every rating stored once",
                        row["exactly_stored"] and not row["error_count"] and row["finished"] == row["participants"]))
-        if row["setup"].startswith("gunicorn") and row["load"] == f"watching {watch_s:g} s" \
-                and row["participants"] <= 100:
+        if row["part"] == "crowd" and row["setup"].startswith("gunicorn") and row["load"] != "saturation":
             checks.append((f"{row['setup']}, {row['participants']} watching: p95 {row['p95_ms']:.0f} ms "
                            f"(target < {TARGET_P95_S * 1000:.0f} ms)", row["p95_ms"] / 1000 < TARGET_P95_S))
     for text, met in checks:
