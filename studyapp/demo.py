@@ -12,8 +12,9 @@
    control) and has the worker sample and render every stimulus;
 7. sets up a side-by-side study beside it (the same systems, controls and clips, rated
    on 0-100 sliders, every system's clip of one control on a page);
-8. opens both studies and serves them with Django's runserver until Ctrl-C, printing the
-   participant links and the researcher's login.
+8. opens both studies and serves them with Django's runserver (``manage.py serve``, whose
+   listen queue holds a crowd) until Ctrl-C, printing the participant links and the
+   researcher's login.
 """
 
 from __future__ import annotations
@@ -274,7 +275,7 @@ def main() -> int:
         study = ensure_study(researcher, models)
         side_by_side = ensure_side_by_side_study(study)
         server = subprocess.Popen(
-            [sys.executable, "manage.py", "runserver", "--noreload", f"127.0.0.1:{port}"],
+            [sys.executable, "manage.py", "serve", "--noreload", f"127.0.0.1:{port}"],
             cwd=REPO, start_new_session=True,
         )
         base = f"http://127.0.0.1:{port}"

@@ -128,6 +128,8 @@ class Study(models.Model):
     video_height = models.PositiveSmallIntegerField(default=480)
     is_open = models.BooleanField(default=False, help_text="accepting participants")
     created = models.DateTimeField(auto_now_add=True)
+    # Participant pages keep the study in memory while this stamp is unchanged (``study_cache``).
+    updated = models.DateTimeField(auto_now=True)
 
     class Meta:
         ordering = ["-created"]
@@ -135,6 +137,12 @@ class Study(models.Model):
 
     def __str__(self) -> str:
         return self.title
+
+    def save(self, *args, **kwargs) -> None:
+        """Save, stamping ``updated`` even when only some fields are saved (``update_fields``)."""
+        if kwargs.get("update_fields") is not None:
+            kwargs["update_fields"] = {*kwargs["update_fields"], "updated"}
+        super().save(*args, **kwargs)
 
     def clean(self) -> None:
         if self.scale_min >= self.scale_max:
@@ -398,7 +406,9 @@ class Assignment(models.Model):
     # keeps clips unique per participant; the single design's plan never repeats one.)
     expected = models.CharField(max_length=10, blank=True)
     token = models.CharField(max_length=32, unique=True, default=new_token, editable=False)
-    shown_at = models.DateTimeField(null=True, blank=True, help_text="when the server first sent its page")
+    shown_at = models.DateTimeField(
+        null=True, blank=True,
+        help_text="when the server first sent its page, or the answer to the clip before it, which leads there")
 
     class Meta:
         ordering = ["participant", "position"]

@@ -95,7 +95,7 @@ def _store_page(study: Study, participant: Participant, page_token: str, answer:
         Rating(assignment=a, value=answer.values.get(a.slot), answer=answer.answer, strength=answer.strength,
                client_started_s=times.started_s, client_ended_s=times.ended_s,
                client_answered_s=times.answered_s, played_until_s=times.played_until_s,
-               answered_before_end=answered_early(a, now, times))
+               answered_before_end=answered_early(a.shown_at, a.stimulus.duration_s, now, times))
         for a in page for times in [answer.times.get(a.slot, ClientTimes())]
     ])
     changes: dict = {"finished_at": now} if len(unrated) == len(page) else {}
@@ -112,7 +112,7 @@ def _store_page(study: Study, participant: Participant, page_token: str, answer:
 
 def _page_exclusion(study: Study, page: list[Assignment], answer: PageAnswer) -> str:
     if study.design == Study.Design.SIDE_BY_SIDE:
-        return next((reason for a in page if (reason := exclusion(study, a.stimulus.system, answer.values[a.slot]))), "")
+        return next((reason for a in page if (reason := exclusion(study, a.stimulus.system.role, answer.values[a.slot]))), "")
     preferred = next((a for a in page if SIDE_OF_SLOT.get(a.slot) == answer.answer), None)
     if preferred is not None and preferred.stimulus.system.role == System.Role.BAD:
         return "preferred a BAD clip"

@@ -26,14 +26,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from urllib.parse import urlencode, urlparse
 
-from django.db.models import Count
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import redirect, render
 from django.utils import timezone
 
 from studyapp.assignment import is_idle, renew_reservations
 from studyapp.instructed_checks import instruction
-from studyapp.models import Participant, Question, Stimulus, Study
+from studyapp.models import Assignment, Participant, Question, Stimulus, Study
 from studyapp.page_steps import client_times, page_context, rate_pairwise, rate_side_by_side
 from studyapp.questionnaires import field_name, questions, read_answers, screened_out
 from studyapp.ratings import RatingRejected, record_rating
@@ -187,17 +186,23 @@ def _practice(request: HttpRequest, study: Study, participant: Participant) -> H
 
 
 def _rating_page(study: Study, participant: Participant) -> dict:
-    # The clip on screen and the next, in one query (the next one is fetched while this plays).
-    assignment, *upcoming = (participant.assignments.filter(rating__isnull=True).select_related("stimulus")
-                             .order_by("position")[:2])
-    if assignment.shown_at is None:
-        assignment.shown_at = timezone.now()
-        assignment.save(update_fields=["shown_at"])
-    counts = participant.assignments.aggregate(total=Count("pk"), done=Count("rating"))
-    total, done = counts["total"], counts["done"]
-    return clip_page(study, assignment.stimulus, "participant-rate", {"assignment": assignment.token},
-                     f"Clip {done + 1} of {total}", done, total, upcoming[0].stimulus if upcoming else None,
-                     instruction(study, [assignment.expected]))
+    # Every clip of the participant in one query: the first unrated one is on screen, the
+    # next is fetched while it plays, and all of them make the progress.
+    clips = list(participant.assignments.order_by("position").values(
+        "pk", "token", "shown_at", "expected", "rating", "stimulus__token", "stimulus__duration_s"))
+    unrated = [clip for clip in clips if clip["rating"] is None]
+    clip, upcoming = unrated[0], unrated[1:2]
+    if clip["shown_at"] is None:  # the first clip, or one after a return: recording a rating marks the next
+        Assignment.objects.filter(pk=clip["pk"]).update(shown_at=timezone.now())
+    total, done = len(clips), len(clips) - len(unrated)
+    return clip_page(study, _stimulus(clip), "participant-rate", {"assignment": clip["token"]},
+                     f"Clip {done + 1} of {total}", done, total, _stimulus(upcoming[0]) if upcoming else None,
+                     instruction(study, [clip["expected"]]))
+
+
+def _stimulus(clip: dict) -> Stimulus:
+    """The stimulus of a clip read with its assignment, as far as its page needs it (address and length)."""
+    return Stimulus(token=clip["stimulus__token"], duration_s=clip["stimulus__duration_s"])
 
 
 def _rate(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:

@@ -14,6 +14,7 @@ from functools import wraps
 
 from django.conf import settings
 from django.db import IntegrityError
+from django.db.models import F
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import redirect, render
 from django.urls import reverse
@@ -24,6 +25,7 @@ from studyapp.assignment import StudyFull, StudyNotReady, enrol, renew_reservati
 from studyapp.models import Participant, Study, new_token
 from studyapp.participant_path import Step, current_step, may_post, message, mturk_submit_url, stage
 from studyapp.ratings import RatingRejected
+from studyapp.study_cache import current_study
 
 # The query parameters each platform adds to the entry link; the first one is the id.
 PLATFORM_PARAMETERS = {
@@ -117,10 +119,17 @@ def plain_pages(view: Callable[..., HttpResponse]) -> Callable[..., HttpResponse
 
 def _participant(request: HttpRequest, key: str) -> tuple[Study, Participant | None]:
     """The study of an entry key (StudyUnavailable if none) and this browser's participant in it, if
-    any: one query for both when there is one, as on every page of the path."""
+    any: one query for both when there is one, as on every page of the path (the study
+    itself from this process's memory while unchanged)."""
     pk = _participant_pk(request, key)
-    participant = Participant.objects.select_related("study").filter(pk=pk, study__key=key).first() if pk else None
-    return (participant.study, participant) if participant else (_study(key), None)
+    try:
+        found = Participant.objects.annotate(study_updated=F("study__updated")).get(pk=pk, study__key=key) if pk else None
+    except Participant.DoesNotExist:
+        found = None
+    if found is None:
+        return _study(key), None
+    found.study = current_study(found.study_id, found.study_updated)
+    return found.study, found
 
 
 def participant_access(step: Step | None = None) -> Callable[[ParticipantView], Callable[..., HttpResponse]]:

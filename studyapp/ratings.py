@@ -52,31 +52,34 @@ class AnsweredTooSoon(RatingRejected):
                          f"your answer came {waited.total_seconds():.1f} s after it was sent.", status=409)
 
 
-def _sooner_than_clip(assignment: Assignment, answered_at: datetime) -> timedelta | None:
-    """How long after the server sent the clip's page the answer came, if that is less than the clip lasts."""
-    if assignment.shown_at is None:
+def _sooner_than_clip(shown_at: datetime | None, clip_seconds: float | None, answered_at: datetime) -> timedelta | None:
+    """How long after the server sent the clip's page (``shown_at``) the answer came, if
+    that is less than the clip lasts."""
+    if shown_at is None:
         return None
-    waited = answered_at - assignment.shown_at
-    return waited if waited < timedelta(seconds=assignment.stimulus.duration_s or 0.0) else None
+    waited = answered_at - shown_at
+    return waited if waited < timedelta(seconds=clip_seconds or 0.0) else None
 
 
-def answered_early(assignment: Assignment, answered_at: datetime, times: ClientTimes) -> bool:
-    """True when the clip cannot have finished playing before the answer.
+def answered_early(shown_at: datetime | None, clip_seconds: float | None, answered_at: datetime,
+                   times: ClientTimes) -> bool:
+    """True when a clip of ``clip_seconds`` shown at ``shown_at`` cannot have finished playing before the answer.
 
     The server's own clock decides when it can (less time passed since it sent the page
     than the clip lasts); otherwise the browser's report of the video's end does.
     """
-    if _sooner_than_clip(assignment, answered_at) is not None:
+    if _sooner_than_clip(shown_at, clip_seconds, answered_at) is not None:
         return True
     if times.ended_s is None:
         return True
     return times.answered_s is not None and times.answered_s < times.ended_s
 
 
-def exclusion(study: Study, system: System, value: int) -> str:
-    if system.role == System.Role.BAD and value >= study.bad_cutoff():
+def exclusion(study: Study, role: str, value: int) -> str:
+    """Why rating a clip of a system of ``role`` with ``value`` excludes the participant ("" if it does not)."""
+    if role == System.Role.BAD and value >= study.bad_cutoff():
         return "rated a BAD clip high"
-    if system.role == System.Role.NATURAL and value < study.natural_cutoff():
+    if role == System.Role.NATURAL and value < study.natural_cutoff():
         return "rated a NAT clip low"
     return ""
 
@@ -104,26 +107,32 @@ def _store_rating(study: Study, participant: Participant, assignment_token: str,
     # The clip on screen is the first unrated one; the second tells whether any is left.
     # Locking their rows orders the participant's own concurrent requests (two tabs, a
     # double click) and no one else's; a race past them ends at the rating's unique
-    # assignment (IntegrityError).
-    unrated = list(participant.assignments.filter(rating__isnull=True).select_related("stimulus__system")
-                   .select_for_update(of=("self",)).order_by("position")[:2])
+    # assignment (IntegrityError). Of the clip's stimulus only its length and system's role are needed.
+    unrated = list(participant.assignments.filter(rating__isnull=True).order_by("position")
+                   .annotate(clip_seconds=F("stimulus__duration_s"), system_role=F("stimulus__system__role"))
+                   .select_for_update(of=("self",))[:2])
     if not unrated:
         raise RatingRejected("this participant has already finished the study", status=409)
     if unrated[0].token != assignment_token:
         raise refusal(participant, assignment_token)
     assignment, now = unrated[0], timezone.now()
-    if study.require_full_play and (waited := _sooner_than_clip(assignment, now)) is not None:
-        raise AnsweredTooSoon(waited, assignment.stimulus.duration_s)
+    if study.require_full_play and (waited := _sooner_than_clip(assignment.shown_at, assignment.clip_seconds,
+                                                                now)) is not None:
+        raise AnsweredTooSoon(waited, assignment.clip_seconds)
     rating = Rating.objects.create(
         assignment=assignment, value=value, client_started_s=times.started_s, client_ended_s=times.ended_s,
         client_answered_s=times.answered_s, played_until_s=times.played_until_s,
-        answered_before_end=answered_early(assignment, now, times))
+        answered_before_end=answered_early(assignment.shown_at, assignment.clip_seconds, now, times))
     changes = {"finished_at": now} if len(unrated) == 1 else {}
     if assignment.expected and not passed(study, [assignment.expected], [value]):
         changes.update(failure_changes(study, participant, now))
+    if "finished_at" not in changes and unrated[1].shown_at is None:
+        # The answer leads straight to the next clip's page: marking it shown in this
+        # transaction spares that page a write of its own (a second commit per rating).
+        Assignment.objects.filter(pk=unrated[1].pk).update(shown_at=now)
     if changes or last_seen_is_stale(participant, now):
         Participant.objects.filter(pk=participant.pk).update(last_seen=now, **changes)
-    reason = "" if assignment.expected else exclusion(study, assignment.stimulus.system, value)
+    reason = "" if assignment.expected else exclusion(study, assignment.system_role, value)
     if reason and not participant.excluded:  # the first reason stays
         Participant.objects.filter(pk=participant.pk, excluded=False).update(excluded=True, exclusion_reason=reason)
     return rating

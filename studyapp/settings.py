@@ -95,6 +95,8 @@ if DATABASES["default"]["ENGINE"] == "django.db.backends.sqlite3":
     # rewriting pages behind a journal with several fsyncs (35 ms each on this machine's
     # disk, which made a crowd's writers time out). synchronous=NORMAL syncs at
     # checkpoints: a crashed server process loses nothing, a power cut the last moments.
+    # The writers of one server process take turns (``sqlite_backend``) rather than poll.
+    DATABASES["default"]["ENGINE"] = "studyapp.sqlite_backend"
     DATABASES["default"].setdefault("OPTIONS", {}).update({
         "transaction_mode": "IMMEDIATE", "timeout": 30,
         "init_command": "PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL;"})

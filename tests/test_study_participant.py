@@ -398,13 +398,28 @@ def test_a_rating_step_costs_a_few_queries(django_assert_max_num_queries):
     participant = through_practice(client, study)
     token = on_screen_token(client, study)
     make_shown_long_ago(participant)
-    # The POST (participant and study, the clip on screen and the next, the rating, with
-    # the transaction's two statements) and the next page (participant and study, its
-    # clip, shown_at, progress).
-    with django_assert_max_num_queries(9):
+    participant.assignments.exclude(token=token).update(shown_at=None)  # the next clip not yet shown
+    # The POST (participant with the study's stamp, the clip on screen and the next, the
+    # rating, the next clip's shown_at, with the transaction's two statements) and the next
+    # page (participant, every clip for the clip and the progress): one commit, no write on the page.
+    with django_assert_max_num_queries(8) as queries:
         response = post(client, study, "rate", assignment=token, value=3, **WATCHED)
-        client.get(response["Location"])
+        page = client.get(response["Location"])
     assert Rating.objects.filter(assignment__token=token).count() == 1
+    statements = [query["sql"].split()[0] for query in queries.captured_queries]
+    assert statements.count("INSERT") + statements.count("UPDATE") == 2 and statements[-2:] == ["SELECT", "SELECT"]
+    on_screen = current_assignment(participant)
+    assert on_screen.shown_at is not None and on_screen.token in page.content.decode()
+
+
+def test_an_edit_of_the_study_reaches_participants_already_on_its_pages():
+    study = make_study()
+    client = Client()
+    through_practice(client, study)
+    assert study.question in client.get(reverse("participant-page", args=[study.key])).content.decode()
+    study.question = "How smooth is the motion?"
+    study.save(update_fields=["question"])
+    assert "How smooth is the motion?" in client.get(reverse("participant-page", args=[study.key])).content.decode()
 
 
 def test_last_seen_is_written_once_a_hundredth_of_the_reservation_and_reservations_make_up_for_it():
