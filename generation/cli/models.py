@@ -23,7 +23,7 @@ from ..motion.root import RootOptions, root_trajectory
 from ..motion.units import UNIT_NAMES, UNITS
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
-from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, up_axis, warn
+from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, warn
 
 
 LOCOMOTION = "walk,run,dash,walk-back,walk-left,walk-right"
@@ -36,7 +36,7 @@ def _dataset_for_training(args: argparse.Namespace, attributes: bool):
         from ..hvrnn.data import load_attribute_data
 
         contents = tuple(args.contents.split(",")) if args.contents else None
-        return load_attribute_data(args.folder, contents, cache_dir=args.cache_dir, scale=args.scale, up=up_axis(args))
+        return load_attribute_data(args.folder, contents, cache_dir=args.cache_dir, **dataset_units(args))
     options = DatasetOptions(contents=_contents(args), reverse=args.reverse, overlap=args.overlap, **dataset_units(args))
     dataset = build_dataset(args.folder, options, cache_dir=args.cache_dir)
     warn(dataset.window_warnings())
