@@ -20,10 +20,10 @@ from analysis import plots
 from analysis.attribute_scores import write_scores
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import ExclusionRules
-from analysis.motion_io import load_motion_sets
+from analysis.motion_io import SystemClips, load_motion_sets
 from analysis.objective import objective_metrics
 from analysis.ratings import read_ratings
-from analysis.report import build_report, write_report
+from analysis.report import build_report, require_single_design, write_report
 from analysis.tables import objective_table, to_markdown, write_table
 from analysis.units import parse_scale, to_centimetres_y_up
 
@@ -68,6 +68,7 @@ def _parser() -> argparse.ArgumentParser:
                                               "found by name)")
     report.add_argument("--foot-kind", choices=("heel", "toe"), default="heel",
                         help="heel for bipeds (default), toe for quadrupeds")
+    _add_unit_arguments(report)
     _add_objective_parser(commands)
     scores = commands.add_parser(
         "hvrnn-scores", help="IS and FID per set and t-SNE maps (HVRNN Table 2, Fig. 4)",
@@ -89,11 +90,26 @@ def _add_objective_parser(commands) -> None:
     objective.add_argument("--natural", default="NAT", help="name of the natural-motion system")
     objective.add_argument("--foot-joints", help="comma-separated foot joint names (default: found by name)")
     objective.add_argument("--foot-kind", choices=("heel", "toe"), default="heel")
-    objective.add_argument("--scale", default="auto",
-                           help="the motion's length unit: auto (from the figures' height), a unit (mm, cm, in, "
-                                "cmu, ft, m) or centimetres per unit (default %(default)s)")
-    objective.add_argument("--up", choices=("auto", "y", "z"), default="auto",
-                           help="the motion's up axis (default %(default)s: the one the figures stand along)")
+    _add_unit_arguments(objective)
+
+
+def _add_unit_arguments(parser: argparse.ArgumentParser) -> None:
+    """The motion's unit and up axis, the same options for every command that reads motion."""
+    group = parser.add_argument_group("units (the motion is read into cm, y up)")
+    group.add_argument("--scale", default="auto", metavar="auto|UNIT|NUMBER",
+                       help="the motion's length unit: auto (from the figures' height; clips in different units "
+                            "are an error naming them), a unit (mm, cm, in, cmu, ft, m) or centimetres per unit "
+                            "(default %(default)s)")
+    group.add_argument("--up", choices=("auto", "y", "z"), default="auto",
+                       help="the motion's up axis (default %(default)s: the one the figures stand along)")
+
+
+def _motion_in_centimetres(args: argparse.Namespace) -> dict[str, SystemClips]:
+    """The --motion clips in cm with y up; prints what they were taken to be."""
+    motion, units = to_centimetres_y_up(load_motion_sets(args.motion), parse_scale(args.scale),
+                                        None if args.up == "auto" else args.up)
+    print(units)
+    return motion
 
 
 @contextmanager
@@ -120,10 +136,7 @@ def staged_output(out: Path) -> Iterator[Path]:
 
 def objective_command(args: argparse.Namespace, out: Path) -> list[str]:
     """Write the objective tables and figure into ``out``; returns the notes."""
-    motion, units = to_centimetres_y_up(load_motion_sets(args.motion), parse_scale(args.scale),
-                                        None if args.up == "auto" else args.up)
-    print(units)
-    table, curves, notes = objective_metrics(motion, _split(args.foot_joints), args.foot_kind)
+    table, curves, notes = objective_metrics(_motion_in_centimetres(args), _split(args.foot_joints), args.foot_kind)
     write_table(table, out / "tables", "objective_metrics")
     write_table(objective_table(table, args.natural), out / "tables", "table3_objective",
                 caption=f"Objective metrics (MoGlow Table 3 layout); marked: closest to {args.natural}.")
@@ -164,7 +177,9 @@ def _run(args: argparse.Namespace) -> int:
                            discard_early=not args.keep_early)
     with staged_output(out) as work:
         ratings = read_ratings(args.ratings)
-        motion = load_motion_sets(args.motion) if args.motion else None
+        if args.motion:
+            require_single_design(ratings)  # before the motion is read: the ratings decide whether it is used
+        motion = _motion_in_centimetres(args) if args.motion else None
         report = build_report(ratings, motion, reference=args.reference, rules=rules,
                               systems=_split(args.systems),
                               compare_attention_checks=args.compare_attention_checks,

@@ -43,6 +43,12 @@ class SystemClips:
     parents: np.ndarray
     offsets: np.ndarray | None
     clips: list[np.ndarray] = field(default_factory=list)
+    sources: list[str] = field(default_factory=list)  # the file of each clip, for messages
+
+    def source(self, k: int) -> str:
+        """Where clip ``k`` came from: its file (``FILE[i]`` in a stack of clips), or its
+        place in the system where the clips were not read from files."""
+        return self.sources[k] if k < len(self.sources) else f"clip {k + 1} of {self.system}"
 
 
 def save_clips(path: str | os.PathLike, positions: np.ndarray, fps: float, names, parents,
@@ -114,3 +120,4 @@ def _add_file(systems: dict[str, SystemClips], file: Path, default_name: str) ->
             f"{file}: fps or skeleton differ from earlier files of system {system!r}"
         )
     entry.clips.extend(positions)
+    entry.sources.extend([str(file)] if len(positions) == 1 else [f"{file}[{k}]" for k in range(len(positions))])

@@ -82,6 +82,15 @@ def _resolve_reference(reference: str | None, compared: set[str], rated: set[str
     return None
 
 
+def require_single_design(ratings: pd.DataFrame) -> None:
+    """Objective metrics join a report of single-design ratings only; motion rated in
+    other designs is measured by ``python -m analysis objective``."""
+    if table_design(ratings) != SINGLE:
+        raise AnalysisInputError(
+            "objective metrics (--motion) are reported with single-design ratings; run "
+            "'python -m analysis objective' on the motion alone")
+
+
 def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = None,
                  reference: str | None = None, rules: ExclusionRules = ExclusionRules(),
                  systems: Sequence[str] | None = None, compare_attention_checks: bool = False,
@@ -105,11 +114,9 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
             raise AnalysisInputError(
                 f"unknown system(s) in the ratings: {', '.join(sorted(unknown))}; expected "
                 f"{', '.join(systems)}")
+    if motion:
+        require_single_design(ratings)
     if table_design(ratings) != SINGLE:
-        if motion:
-            raise AnalysisInputError(
-                "objective metrics (--motion) are reported with single-design ratings; run "
-                "'python -m analysis objective' on the motion alone")
         return build_design_report(ratings, reference, rules, compare_attention_checks)
     flagged = apply_exclusions(ratings, rules)
     notes = exclusion_notes(flagged, rules)

@@ -3,11 +3,13 @@ the metrics are stated in (footstep tolerances in cm/s, bone errors in cm).
 
 Given, or detected from the clips: the up axis is the one along which the figures
 stand tallest, and the unit the one common unit that makes that height a human's
-(joint positions span 1.0-2.1 m from foot to head; at most one unit fits).
+(joint positions span 1.0-2.1 m from foot to head; at most one unit fits), clip by
+clip: clips that different units make human-sized are an error naming them.
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import replace
 
 import numpy as np
@@ -48,13 +50,7 @@ def to_centimetres_y_up(motion: dict[str, SystemClips], scale: float | None = No
     if up is None:
         up = max(UP_AXES, key=lambda axis: _median_height(motion, UP_AXES[axis]))
     if scale is None:
-        height = _median_height(motion, UP_AXES[up])
-        fits = [name for name, factor in UNITS.items() if FIGURE_HEIGHT_CM[0] <= height * factor <= FIGURE_HEIGHT_CM[1]]
-        if len(fits) != 1:
-            raise AnalysisInputError(
-                f"cannot tell the unit of the motion: the figures stand {height:.4g} units tall, which no common "
-                f"unit makes human-sized ({FIGURE_HEIGHT_CM[0]:g}-{FIGURE_HEIGHT_CM[1]:g} cm); give --scale")
-        scale = UNITS[fits[0]]
+        scale = _detect_scale(motion, UP_AXES[up])
     rotation = Z_UP_TO_Y_UP if up == "z" else np.eye(3)
     if scale == 1.0 and up == "y":
         converted = motion
@@ -68,14 +64,47 @@ def to_centimetres_y_up(motion: dict[str, SystemClips], scale: float | None = No
     return converted, f"motion units: {unit}, {up} up ({how})"
 
 
-def _median_height(motion: dict[str, SystemClips], axis: int) -> float:
-    """The median over all frames of the figures' extent along ``axis``. A root joint
-    with a single child is a reference on the floor that stays behind as the figure
-    walks off (as in the Bandai-Namco rig), not part of the figure."""
-    heights = []
+def _detect_scale(motion: dict[str, SystemClips], axis: int) -> float:
+    """The one unit that makes the clips' figures human-sized. Each clip is measured on
+    its own: clips that another unit would make human-sized are an error naming them (a
+    folder mixing units), while a clip that no unit makes human-sized is measured in the
+    others' unit (a crumpled or stretched figure is what the metrics are there to show)."""
+    height, unit = {}, {}
     for system in motion.values():
-        parents = np.asarray(system.parents)
-        root = int(np.flatnonzero(parents < 0)[0])
-        figure = [j for j in range(len(parents)) if not (j == root and (parents == root).sum() == 1)]
-        heights += [np.ptp(clip[:, figure, axis], axis=-1) for clip in system.clips]
-    return float(np.median(np.concatenate(heights)))
+        for k, frames in enumerate(_heights(system, axis)):
+            source = system.source(k)
+            height[source] = float(np.median(frames))
+            fits = [name for name, factor in UNITS.items()
+                    if FIGURE_HEIGHT_CM[0] <= height[source] * factor <= FIGURE_HEIGHT_CM[1]]
+            unit[source] = fits[0] if len(fits) == 1 else None
+    counts = Counter(u for u in unit.values() if u is not None)
+    if not counts:
+        raise AnalysisInputError(
+            f"cannot tell the unit of the motion: the figures stand {np.median(list(height.values())):.4g} units "
+            f"tall, which no common unit makes human-sized ({FIGURE_HEIGHT_CM[0]:g}-{FIGURE_HEIGHT_CM[1]:g} cm); "
+            "give --scale")
+    common, count = counts.most_common(1)[0]
+    outliers = [source for source, u in unit.items() if u not in (None, common)]
+    if outliers:
+        example = next(source for source, u in unit.items() if u == common)
+        listed = ", ".join(f"{s} ({height[s]:.4g} units: {unit[s]})" for s in outliers[:10])
+        more = f" and {len(outliers) - 10} more" if len(outliers) > 10 else ""
+        raise AnalysisInputError(
+            f"the clips mix units: {count} are in {common} (such as {example}, {height[example]:.4g} units tall), "
+            f"but not {listed}{more}; convert them, or give --scale to read them all alike")
+    return UNITS[common]
+
+
+def _median_height(motion: dict[str, SystemClips], axis: int) -> float:
+    """The median over all frames of all clips of the figures' extent along ``axis``."""
+    return float(np.median(np.concatenate([h for system in motion.values() for h in _heights(system, axis)])))
+
+
+def _heights(system: SystemClips, axis: int) -> list[np.ndarray]:
+    """Per clip, the figure's extent along ``axis`` in every frame. A root joint with a
+    single child is a reference on the floor that stays behind as the figure walks off
+    (as in the Bandai-Namco rig), not part of the figure."""
+    parents = np.asarray(system.parents)
+    root = int(np.flatnonzero(parents < 0)[0])
+    figure = [j for j in range(len(parents)) if not (j == root and (parents == root).sum() == 1)]
+    return [np.ptp(clip[:, figure, axis], axis=-1) for clip in system.clips]

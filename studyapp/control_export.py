@@ -7,7 +7,8 @@ The bundle (a folder, or the same files in a zip):
     paths/ID.npz        a path control (see PATH_ARRAYS)
     labels/ID.json      a label control: action, style, frames, fps
     natural/ID.bvh      optionally, the natural clip of a held-out control, placed in the
-                        control's frame: a valid submission for that control
+                        control's frame: a valid submission for that control (centimetres,
+                        y up, as submissions must be; the README and index.json say so)
 
 A control's id is its name where the name is a plain file name, else ``control-<pk>``;
 submitted files are named by it (``studyapp.submissions``).
@@ -41,7 +42,8 @@ MIN_HEIGHT_CM, MAX_HEIGHT_CM = 50.0, 250.0
 PATH_TOLERANCE_CM = 100.0
 
 UNITS = {"forward": "cm/s", "sideways": "cm/s, left positive", "yaw_velocity": "rad/s, counter-clockwise seen from above (left turn) positive",
-         "root_path": "cm, (x, z) on the floor", "root_yaw": "rad, 0 faces +z", "fps": "frames per second"}
+         "root_path": "cm, (x, z) on the floor", "root_yaw": "rad, 0 faces +z", "fps": "frames per second",
+         "natural": "BVH lengths (OFFSET, End Site, position channels) in cm, y up; angles in degrees"}
 AXES = ("y up; the floor is the x-z plane; every path starts at the origin facing +z; forward and sideways "
         "velocities are in the character's root frame at the previous frame")
 
@@ -118,7 +120,8 @@ def _readme(study: Study, kind: str) -> str:
             f"index.json lists every control (id, name, origin, frames, fps, seconds, its file and, when\n"
             f"exported, its natural clip). The controls are in\n{controls}\n\n"
             "natural/ID.bvh (when exported) is the natural motion of a held-out control, in the control's\n"
-            "frame and at its frame rate: an example of a valid submission file.\n\n"
+            "frame and at its frame rate: an example of a valid submission file. Its lengths (OFFSET, End\n"
+            "Site and position channels) are in centimetres with y up: BVH has no field to say so.\n\n"
             + SUBMISSION_RULES.format(min_height=MIN_HEIGHT_CM, max_height=MAX_HEIGHT_CM, sigma=sigma,
                                       tolerance=PATH_TOLERANCE_CM))
 
@@ -160,7 +163,7 @@ def _natural_bvh(study: Study, control: ControlSignal) -> str:
     source = Path(settings.MOTION_DATA) / control.source_clip
     if not source.is_file():
         raise FileNotFoundError(f"the natural clip {source} is missing (MOTION_DATA={settings.MOTION_DATA})")
-    motion = load_body_motion(source, options.fps, control.seconds, options.scale, options.root)
+    motion = load_body_motion(source, options.fps, control.seconds, options.scale, options.root, options.up)
     return bvh_text(motion_to_bvh(natural_in_control_frame(motion, options.root)))
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from generation.motion.bvh import BVH, motion_to_bvh, read_bvh, write_bvh
+from generation.motion.bvh import BVH, motion_to_bvh, read_bvh, scale_lengths, write_bvh
 from generation.motion.kinematics import subtree_motion
 from generation.motion.rotations import matrix_to_quat, quat_to_matrix
 from generation.motion.types import Motion, Skeleton
@@ -102,18 +102,7 @@ def z_up(motion: Motion) -> Motion:
 
 def in_unit(bvh: BVH, centimetres_per_unit: float) -> BVH:
     """The same file with every length written in another unit."""
-    values = bvh.values.copy()
-    column = 0
-    for names in bvh.channels:
-        for name in names:
-            if name.endswith("position"):
-                values[:, column] /= centimetres_per_unit
-            column += 1
-    skeleton = replace(
-        bvh.skeleton, offsets=bvh.skeleton.offsets / centimetres_per_unit,
-        end_sites={j: o / centimetres_per_unit for j, o in bvh.skeleton.end_sites.items()},
-    )
-    return BVH(skeleton, bvh.channels, bvh.frame_time, values)
+    return scale_lengths(bvh, 1.0 / centimetres_per_unit)
 
 
 def write_variants(source: Path, folder: Path) -> dict[str, Path]:

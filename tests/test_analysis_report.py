@@ -152,3 +152,66 @@ def test_latex_tables_use_booktabs_and_escape_text():
     tex = to_latex(table)
     assert r"\toprule" in tex and r"\midrule" in tex and r"\bottomrule" in tex
     assert r"4.17$\pm$0.11$^{**}$" in tex and r"x\&y" in tex and r"50\%" in tex and r"a\_b" in tex
+
+
+def test_motion_in_metres_or_z_up_gives_the_report_of_the_motion_in_centimetres(ratings_file, clip_path, tmp_path,
+                                                                                  capsys):
+    from generation.motion import load_motion
+    from generation.motion.units import Z_UP_TO_Y_UP
+    from tests.rig_variants import write_variants
+
+    walks = dict(zip(SYSTEMS, ("walk_normal_001", "walk_happy_001", "walk_old_001", "walk_angry_001")))
+    noise_cm = {"NAT": 0.0, "MoGlow": 0.3, "LSTM": 3.0, "VAE": 1.0}  # bone-length errors that differ
+    # A vector in cm, y up, as each variant's file has it.
+    as_written = {"cm": lambda v: v, "metres": lambda v: v / 100, "z-up": lambda v: v @ Z_UP_TO_Y_UP}
+    rng = np.random.default_rng(0)
+    for system, walk in walks.items():
+        source = clip_path(walk)
+        files = {"cm": source, **write_variants(source, tmp_path / "rigs" / walk)}
+        noise = rng.normal(0, noise_cm[system], load_motion(source).positions.shape)
+        for variant, convert in as_written.items():
+            raw = load_motion(files[variant])  # as the file has it: no unit or axis conversion
+            (tmp_path / variant / system).mkdir(parents=True)
+            save_clips(tmp_path / variant / system / "clip.npz", raw.positions + convert(noise), raw.fps,
+                       raw.skeleton.names, raw.skeleton.parents, raw.skeleton.offsets)
+    said = {}
+    for variant in ("cm", "metres", "z-up"):
+        assert main(["report", str(ratings_file), "--out", str(tmp_path / f"report-{variant}"),
+                     "--motion", str(tmp_path / variant)]) == 0
+        said[variant] = capsys.readouterr().out
+    assert "motion units: cm, y up (scale detected, up axis detected)" in said["cm"]
+    assert "motion units: m, y up (scale detected" in said["metres"]
+    assert "motion units: cm, z up (scale detected" in said["z-up"]
+    tables = sorted(p.name for p in (tmp_path / "report-cm" / "tables").glob("*.csv"))
+    assert {"table3_objective.csv", "objective_metrics.csv", "correlation.csv"} <= set(tables)
+    for variant in ("metres", "z-up"):
+        for name in tables:
+            expected = pd.read_csv(tmp_path / "report-cm" / "tables" / name)
+            pd.testing.assert_frame_equal(pd.read_csv(tmp_path / f"report-{variant}" / "tables" / name), expected,
+                                          rtol=1e-4, atol=1e-4, obj=f"{variant}: {name}")
+    # Given, the unit is used as it is: metres read as metres give the same again.
+    assert main(["report", str(ratings_file), "--out", str(tmp_path / "given"), "--motion", str(tmp_path / "metres"),
+                 "--scale", "m", "--up", "y"]) == 0
+    assert "motion units: m, y up (scale given, up axis given)" in capsys.readouterr().out
+    pd.testing.assert_frame_equal(pd.read_csv(tmp_path / "given" / "tables" / "objective_metrics.csv"),
+                                  pd.read_csv(tmp_path / "report-cm" / "tables" / "objective_metrics.csv"),
+                                  rtol=1e-4, atol=1e-4)
+
+
+def test_motion_mixing_units_is_refused_naming_the_clips_in_the_other_unit(ratings_file, motion_dir, tmp_path,
+                                                                             capsys):
+    import shutil
+
+    folder = tmp_path / "motion"
+    shutil.copytree(motion_dir, folder)
+    with np.load(folder / "MoGlow" / "clip0.npz") as clip:
+        arrays = dict(clip)
+    save_clips(folder / "MoGlow" / "clip0.npz", arrays["positions"] / 100, float(arrays["fps"]), arrays["names"],
+               arrays["parents"], arrays["offsets"] / 100)
+    out = tmp_path / "report"
+    assert main(["report", str(ratings_file), "--out", str(out), "--motion", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert "the clips mix units: 23 are in cm (such as" in err
+    assert f"but not {folder / 'MoGlow' / 'clip0.npz'} (1." in err and "units: m); convert them, or give --scale" in err
+    assert not out.exists()
+    assert main(["report", str(ratings_file), "--out", str(out), "--motion", str(folder), "--scale", "cm"]) == 0

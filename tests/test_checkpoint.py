@@ -224,6 +224,23 @@ def test_sample_command_writes_npz_bvh_and_video_per_clip(checkpoint, tmp_path, 
         np.testing.assert_allclose(load_motion(out / "turn-0_01.bvh").positions, clip["positions"], atol=1e-4)
 
 
+def test_sample_command_writes_bvh_in_the_unit_asked_for_and_says_which(checkpoint, tmp_path, capsys):
+    from generation.cli import main
+    from generation.motion import load_motion
+    from generation.motion.unit_detection import choose_units
+    from generation.motion.units import Units
+
+    out = tmp_path / "in-metres"
+    assert main(["sample", str(checkpoint), "-c", "walk-straight", "--out", str(out), "--bvh-unit", "m"]) == 0
+    said = capsys.readouterr()
+    assert f"1 clips in {out} (BVH lengths in metres, npz in centimetres; y up)" in said.out
+    assert "note: the model learnt from BVH files in centimetres; --bvh-unit cm writes" in said.err
+    bvh = out / "walk-straight_00.bvh"
+    assert choose_units([bvh]).units == Units(100.0, "y")
+    with np.load(out / "walk-straight_00.npz") as clip:
+        np.testing.assert_allclose(load_motion(bvh, scale=100.0).positions, clip["positions"], atol=1e-4)
+
+
 def test_sample_command_warmup_seconds_changes_what_precedes_the_kept_clip(checkpoint, tmp_path, capsys):
     from generation.cli import main
 

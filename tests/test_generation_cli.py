@@ -91,6 +91,16 @@ def test_commands_read_other_units_and_up_axes_and_say_which(clip_path, tmp_path
     assert exit_.value.code == 2 and "scale must be auto, a unit" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("command", ["info", "build-dataset", "render", "gallery", "train", "natural",
+                                     "hvrnn-classifiers", "hvrnn-denoiser", "hvrnn-eval", "hvrnn-label"])
+def test_every_command_that_reads_bvh_takes_the_unit_and_up_axis(command, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main([command, "--help"])
+    assert exit_.value.code == 0
+    out = capsys.readouterr().out
+    assert "--scale auto|UNIT|NUMBER" in out and "--up {auto,y,z}" in out and "(default auto)" in out
+
+
 def test_build_dataset_refuses_mixed_units_naming_the_outliers(clip_path, tmp_path, capsys):
     from tests.rig_variants import write_variants
 

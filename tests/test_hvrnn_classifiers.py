@@ -109,3 +109,54 @@ def test_labelling_names_the_held_out_clips_well_above_chance_and_ignores_side_f
         assert r["content"] == r["style"] == ""
         for key in ("predicted_action", "predicted_style"):
             assert r[key] == rows[r["clip"]][key]
+
+
+def test_labelling_clips_in_metres_or_z_up_gives_what_the_originals_give_and_mixed_units_are_refused(
+        data, trained, motion_data, tmp_path, capsys):
+    import csv
+    import shutil
+
+    from generation.cli import main
+    from tests.rig_variants import write_variants
+
+    classifiers, _ = trained
+    path = classifiers.save(tmp_path / "classifiers.safetensors", data.dataset.fingerprint, {})
+    folders = {name: tmp_path / name for name in ("original", "metres", "z-up")}
+    for folder in folders.values():
+        folder.mkdir()
+    for clip in data.clips("test")[:3]:
+        source = Path(motion_data) / "data" / f"{clip.name}.bvh"
+        shutil.copy(source, folders["original"])
+        for name, written in write_variants(source, tmp_path / "rigs" / clip.name).items():
+            if name in folders:
+                written.rename(folders[name] / source.name)
+
+    def labels(folder: Path, *extra: str) -> list[dict]:
+        out = tmp_path / f"{folder.name}.csv"
+        assert main(["hvrnn-label", str(folder), "--classifiers", str(path), "--out", str(out),
+                     "--cache-dir", str(tmp_path / "cache"), *extra]) == 0, capsys.readouterr().err
+        with out.open() as f:
+            return list(csv.DictReader(f))
+
+    original = labels(folders["original"])
+    for name, said in (("metres", "motion units: metres (x100 to cm), y up (unit detected"),
+                       ("z-up", "motion units: centimetres, z up (unit detected")):
+        rows = labels(folders[name])
+        assert said in capsys.readouterr().out
+        assert [(r["clip"], r["predicted_action"], r["predicted_style"]) for r in rows] == \
+            [(r["clip"], r["predicted_action"], r["predicted_style"]) for r in original], name
+        for row, expected in zip(rows, original):
+            for kind in ("action", "style"):
+                assert float(row[f"{kind}_probability"]) == pytest.approx(float(expected[f"{kind}_probability"]), abs=2e-4)
+    # Given, the unit and axis are used as they are, and said so.
+    assert labels(folders["z-up"], "--scale", "cm", "--up", "z") == labels(folders["z-up"])
+    assert "motion units: centimetres, z up (scale given; up axis given)" in capsys.readouterr().out
+    assert labels(folders["metres"], "--scale", "m") == labels(folders["metres"])
+    assert "motion units: metres (x100 to cm), y up (scale given; up axis detected" in capsys.readouterr().out
+
+    shutil.copy(folders["metres"] / f"{data.clips('test')[0].name}.bvh", folders["original"] / "in-metres.bvh")
+    assert main(["hvrnn-label", str(folders["original"]), "--classifiers", str(path), "--out",
+                 str(tmp_path / "mixed.csv"), "--cache-dir", str(tmp_path / "cache")]) == 2
+    err = capsys.readouterr().err
+    assert "the files mix units: 3 are in cm" in err and "not in-metres.bvh (1." in err and "units: m)" in err
+    assert not (tmp_path / "mixed.csv").exists()

@@ -168,3 +168,28 @@ def test_position_only_motion_writes_a_bvh_that_reproduces_its_positions(clip_pa
     positions_only = Motion(motion.positions, motion.fps, motion.skeleton)
     again = load_motion(write_bvh(motion_to_bvh(positions_only), tmp_path / "positions.bvh"))
     np.testing.assert_allclose(again.positions, motion.positions, atol=1e-5)
+
+
+@pytest.mark.parametrize("unit", ["m", "in"])
+@pytest.mark.parametrize("kind", ["rotations", "positions only"])
+def test_motion_written_in_another_unit_reads_back_as_the_same_centimetres_with_the_unit_detected(
+        clip_path, tmp_path, unit, kind):
+    from generation.motion import Motion
+    from generation.motion.unit_detection import choose_units
+    from generation.motion.units import UNITS, Units
+
+    motion = load_motion(clip_path("walk_normal_001"))
+    if kind == "positions only":  # as MoGlow and its baselines write it
+        motion = Motion(motion.positions, motion.fps, motion.skeleton)
+    path = write_bvh(motion_to_bvh(motion, unit=unit), tmp_path / f"{unit}.bvh")
+    written = read_bvh(path)
+    np.testing.assert_allclose(written.skeleton.offsets * UNITS[unit], motion.skeleton.offsets, atol=1e-6)
+    units = choose_units([path]).units
+    assert units == Units(UNITS[unit], "y")
+    again = load_motion(path, units.scale, units.up)
+    np.testing.assert_allclose(again.positions, motion.positions, atol=1e-4)
+
+
+def test_an_unknown_bvh_unit_is_refused_naming_the_known_ones(clip_path):
+    with pytest.raises(ValueError, match=r"BVH unit must be one of mm, cm, in, cmu, ft, m, got 'yards'"):
+        motion_to_bvh(load_motion(clip_path("walk_normal_001")), unit="yards")

@@ -32,10 +32,13 @@ def test_export_controls_writes_every_path_with_its_units_and_the_natural_clips_
         client, researcher, site, files, tmp_path):
     study = path_study(client, researcher, files)
     out = tmp_path / "bundle"
-    call_command("export_controls", str(study.pk), "--out", str(out), "--natural", stdout=io.StringIO())
+    said = io.StringIO()
+    call_command("export_controls", str(study.pk), "--out", str(out), "--natural", stdout=said)
+    assert "(natural clips as BVH in centimetres, y up)" in said.getvalue()
 
     index = json.loads((out / "index.json").read_text())
     assert index["kind"] == "path" and "y up" in index["axes"] and index["units"]["forward"] == "cm/s"
+    assert index["units"]["natural"].startswith("BVH lengths (OFFSET, End Site, position channels) in cm, y up")
     assert sorted(c["name"] for c in index["controls"]) == sorted(study.controls.values_list("name", flat=True))
     held_out = [c for c in index["controls"] if c["origin"] == "held-out"]
     assert held_out and all(c["natural"] == f"natural/{c['id']}.bvh" for c in held_out)
@@ -56,6 +59,7 @@ def test_export_controls_writes_every_path_with_its_units_and_the_natural_clips_
         assert np.linalg.norm(root - path, axis=1).max() < PATH_TOLERANCE_CM / 10
     readme = (out / "README.txt").read_text()
     assert "centimetres" in readme and f"{PATH_TOLERANCE_CM:g} cm" in readme and "ID.npz" in readme
+    assert "are in centimetres with y up: BVH has no field to say so" in readme
 
     with pytest.raises(CommandError, match="new or empty folder"):  # never mixes two exports
         call_command("export_controls", str(study.pk), "--out", str(out))

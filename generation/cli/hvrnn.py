@@ -15,6 +15,8 @@ import argparse
 import dataclasses
 import time
 
+from .common import add_unit_arguments, dataset_units
+
 
 def add_commands(commands: argparse._SubParsersAction) -> None:
     """Add the group's commands to the ``generation`` command line's subparsers."""
@@ -51,6 +53,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--threads", type=int, help="CPU threads for torch")
     p.add_argument("--out", "-o", required=True, help="output file (.csv)")
+    add_unit_arguments(p)
     p.set_defaults(run=label_command)
 
 
@@ -68,6 +71,7 @@ def _data_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, help="CPU threads for torch")
+    add_unit_arguments(p)
 
 
 def _load(args: argparse.Namespace):
@@ -77,7 +81,7 @@ def _load(args: argparse.Namespace):
 
     if args.threads:
         torch.set_num_threads(args.threads)
-    return load_attribute_data(args.folder, cache_dir=args.cache_dir)
+    return load_attribute_data(args.folder, cache_dir=args.cache_dir, **dataset_units(args))
 
 
 def classifiers_command(args: argparse.Namespace) -> int:
@@ -153,7 +157,7 @@ def label_command(args: argparse.Namespace) -> int:
     if args.threads:
         torch.set_num_threads(args.threads)
     classifiers = AttributeClassifiers.load(args.classifiers)
-    rows = label_clips(classifiers, build_dataset(args.folder, dataset_options(), cache_dir=args.cache_dir))
+    rows = label_clips(classifiers, build_dataset(args.folder, dataset_options(**dataset_units(args)), cache_dir=args.cache_dir))
     table = io.StringIO()
     writer = csv.DictWriter(table, fieldnames=list(rows[0]))
     writer.writeheader()

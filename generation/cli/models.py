@@ -20,9 +20,10 @@ from ..motion.bvh import motion_to_bvh, write_bvh
 from ..motion.dataset import DatasetOptions, build_dataset, contents_or_all, find_bvh_files, load_body_motion
 from ..motion.npz import save_motion_npz
 from ..motion.root import RootOptions, root_trajectory
+from ..motion.units import UNIT_NAMES, UNITS
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
-from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, up_axis, warn
+from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, warn
 
 
 LOCOMOTION = "walk,run,dash,walk-back,walk-left,walk-right"
@@ -35,7 +36,7 @@ def _dataset_for_training(args: argparse.Namespace, attributes: bool):
         from ..hvrnn.data import load_attribute_data
 
         contents = tuple(args.contents.split(",")) if args.contents else None
-        return load_attribute_data(args.folder, contents, cache_dir=args.cache_dir, scale=args.scale, up=up_axis(args))
+        return load_attribute_data(args.folder, contents, cache_dir=args.cache_dir, **dataset_units(args))
     options = DatasetOptions(contents=_contents(args), reverse=args.reverse, overlap=args.overlap, **dataset_units(args))
     dataset = build_dataset(args.folder, options, cache_dir=args.cache_dir)
     warn(dataset.window_warnings())
@@ -126,10 +127,11 @@ def sample_command(args: argparse.Namespace) -> int:
         for i, motion in enumerate(motions):
             stem = f"{control.name}_{i:02d}"
             save_motion_npz(motion, out / f"{stem}.npz", control=control.velocities, floor_path=path.xz)
-            write_bvh(motion_to_bvh(motion), out / f"{stem}.bvh")
+            write_bvh(motion_to_bvh(motion, unit=args.bvh_unit), out / f"{stem}.bvh")
             if args.render:
                 render_video(motion, out / f"{stem}.mp4", camera=camera_from(args), size=args.size, root_path=path.xz)
-    print(f"{len(controls) * args.n} clips in {out}")
+    print(f"{len(controls) * args.n} clips in {out} ({_written_units(args.bvh_unit)})")
+    _note_training_unit(generator, args.bvh_unit)
     return 0
 
 
@@ -148,11 +150,27 @@ def _sample_attributes(args: argparse.Namespace, generator) -> int:
             stem = f"{control.name}_{i:02d}"
             floor = root_trajectory(motion, RootOptions()).xz
             save_motion_npz(motion, out / f"{stem}.npz", floor_path=floor)
-            write_bvh(motion_to_bvh(motion), out / f"{stem}.bvh")
+            write_bvh(motion_to_bvh(motion, unit=args.bvh_unit), out / f"{stem}.bvh")
             if args.render:
                 render_video(motion, out / f"{stem}.mp4", camera=camera_from(args), size=args.size, root_path=floor)
-    print(f"{len(pairs) * args.n} clips in {out}")
+    print(f"{len(pairs) * args.n} clips in {out} ({_written_units(args.bvh_unit)})")
+    _note_training_unit(generator, args.bvh_unit)
     return 0
+
+
+def _written_units(bvh_unit: str) -> str:
+    # BVH has no field for its unit: the command line is where a user learns it.
+    return f"BVH lengths in {UNIT_NAMES[bvh_unit]}, npz in centimetres; y up"
+
+
+def _note_training_unit(generator, bvh_unit: str) -> None:
+    """Say so when the model learnt from files in another known unit than the BVH is
+    written in: a user comparing the samples with those files needs that unit."""
+    scale = generator.meta.features["dataset_options"].get("scale")
+    trained = next((unit for unit, factor in UNITS.items() if scale is not None and math.isclose(scale, factor)), None)
+    if trained not in (None, bvh_unit):
+        print(f"note: the model learnt from BVH files in {UNIT_NAMES[trained]}; --bvh-unit {trained} writes "
+              "the samples in that unit", file=sys.stderr)
 
 
 def natural_command(args: argparse.Namespace) -> int:
@@ -259,6 +277,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu")
     p.add_argument("--render", action="store_true", help="also render each clip to MP4")
+    p.add_argument("--bvh-unit", choices=tuple(UNITS), default="cm",
+                   help="length unit of the BVH files written (BVH cannot state it; the command prints it); "
+                        "npz files are always in cm (default %(default)s)")
     add_camera_arguments(p)
     p.set_defaults(run=sample_command)
 

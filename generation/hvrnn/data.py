@@ -26,6 +26,7 @@ import hashlib
 import math
 import os
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import torch
@@ -39,12 +40,12 @@ HOLDOUT_FRACTION = 0.2
 PARTS = ("train", "classifier", "model", "validation", "test")
 
 
-def dataset_options(contents: tuple[str, ...] | None = None, seed: int = 0,
-                    scale: float | None = None, up: str | None = None) -> DatasetOptions:
-    """The dataset options of every attribute-controlled model (see the module docstring);
-    the files' unit and up axis are detected unless given."""
+def dataset_options(contents: tuple[str, ...] | None = None, seed: int = 0, **units: Any) -> DatasetOptions:
+    """The dataset options of every attribute-controlled model (see the module docstring).
+    ``units``: the files' ``scale``, ``up`` axis and rig (``root``, ``mirror_pairs``),
+    as the command line's unit arguments give them; unit and up axis are detected unless given."""
     return DatasetOptions(fps=FPS, window_seconds=MAX_FRAMES / FPS, overlap=0.5, mirror=False, reverse=False,
-                          contents=contents, holdout_fraction=HOLDOUT_FRACTION, seed=seed, scale=scale, up=up)
+                          contents=contents, holdout_fraction=HOLDOUT_FRACTION, seed=seed, **units)
 
 
 @dataclass(frozen=True)
@@ -230,7 +231,8 @@ class AttributeData:
 
 def load_attribute_data(folder: str | os.PathLike, contents: tuple[str, ...] | None = None,
                         cache_dir: str | os.PathLike | None = None, progress: bool = True, seed: int = 0,
-                        scale: float | None = None, up: str | None = None) -> AttributeData:
-    """Build (or reuse from the cache) the angle dataset of a BVH folder with labels."""
-    dataset = build_dataset(folder, dataset_options(contents, seed, scale, up), cache_dir=cache_dir, progress=progress)
+                        **units: Any) -> AttributeData:
+    """Build (or reuse from the cache) the angle dataset of a BVH folder with labels
+    (``units`` as in ``dataset_options``)."""
+    dataset = build_dataset(folder, dataset_options(contents, seed, **units), cache_dir=cache_dir, progress=progress)
     return AttributeData.from_dataset(dataset, seed)

@@ -6,6 +6,10 @@ End Sites, tabs or spaces, and any frame rate. Errors name the file and the line
 Convention for position channels: a joint's animated position channels replace its
 OFFSET on the axes they cover (as most exporters, including the Bandai-Namco data, write
 the offset itself into non-root position channels).
+
+Units: the format states none. Files are read in their own unit and converted by the
+caller's scale (``units``); motion is written in centimetres unless another unit is
+asked for (``motion_to_bvh(..., unit=)``), and the writer says which unit it used.
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ from ..files import write_atomic
 from .kinematics import forward_kinematics
 from .rotations import euler_to_matrix, matrix_to_euler, matrix_to_quat, quat_to_matrix
 from .types import Motion, Skeleton
-from .units import Z_UP_TO_Y_UP, Units
+from .units import UNITS, Z_UP_TO_Y_UP, Units
 
 POSITION_AXIS = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
 ROTATION_AXIS = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
@@ -401,8 +405,22 @@ def write_bvh(bvh: BVH, path: str | os.PathLike) -> Path:
     return path
 
 
-def motion_to_bvh(motion: Motion, rotation_order: str = "ZXY") -> BVH:
-    """A BVH for any motion.
+def scale_lengths(bvh: BVH, factor: float) -> BVH:
+    """The same motion with every length (OFFSETs, End Sites, position channels)
+    multiplied by ``factor``: the file in another unit. Angles are unchanged."""
+    values = bvh.values.copy()
+    for names, columns in zip(bvh.channels, bvh.channel_columns()):
+        for name, column in zip(names, columns):
+            if name in POSITION_AXIS:
+                values[:, column] *= factor
+    skeleton = Skeleton(bvh.skeleton.names, bvh.skeleton.parents, bvh.skeleton.offsets * factor,
+                        {j: o * factor for j, o in bvh.skeleton.end_sites.items()})
+    return BVH(skeleton, bvh.channels, bvh.frame_time, values)
+
+
+def motion_to_bvh(motion: Motion, rotation_order: str = "ZXY", unit: str = "cm") -> BVH:
+    """A BVH for any motion, its lengths in ``unit`` (a key of ``units.UNITS``; the
+    motion itself is in centimetres).
 
     With joint rotations, every joint gets rotation channels in ``rotation_order`` and
     joints whose translation is animated also get position channels. A position-only
@@ -410,6 +428,13 @@ def motion_to_bvh(motion: Motion, rotation_order: str = "ZXY") -> BVH:
     translation from its parent with identity rotations, which reproduces the positions
     exactly in any BVH reader.
     """
+    if unit not in UNITS:
+        raise ValueError(f"BVH unit must be one of {', '.join(UNITS)}, got {unit!r}")
+    bvh = _motion_to_bvh_cm(motion, rotation_order)
+    return bvh if unit == "cm" else scale_lengths(bvh, 1.0 / UNITS[unit])
+
+
+def _motion_to_bvh_cm(motion: Motion, rotation_order: str) -> BVH:
     offsets = motion.skeleton.offsets
     channels, columns = [], []
     if motion.rotations is None:

@@ -448,11 +448,10 @@ def build_dataset(
             folders = ", ".join(str(f) for f in motion_folders(folder))
             raise ValueError(f"no clips in {folders} have content in {list(options.contents)}")
     detect_up_axis = options.up is None
-    if options.scale is None or options.up is None:
-        choice = choose_units(files, options.scale, options.up, options.root)
-        options = dataclasses.replace(options, scale=choice.units.scale, up=choice.units.up)
-        if progress:
-            print(choice.description)
+    choice = choose_units(files, options.scale, options.up, options.root)  # reads no file where both are given
+    options = dataclasses.replace(options, scale=choice.units.scale, up=choice.units.up)
+    if progress:
+        print(choice.description)
     key = fingerprint(files, options)
     cached = cache / f"dataset-{cache_key(key, files)[:20]}.npz"
     if cached.is_file():

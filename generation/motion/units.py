@@ -24,6 +24,8 @@ from .types import Motion, Skeleton
 # Centimetres per file unit. "cmu" is the CMU motion-capture database's unit (the ASF
 # length 0.45 of an inch: 5.64 cm), in which its BVH conversions are written.
 UNITS = {"mm": 0.1, "cm": 1.0, "in": 2.54, "cmu": 2.54 / 0.45, "ft": 30.48, "m": 100.0}
+UNIT_NAMES = {"mm": "millimetres", "cm": "centimetres", "in": "inches", "cmu": "CMU units", "ft": "feet",
+              "m": "metres"}
 HUMAN_SIZE_CM = (120.0, 210.0)  # ``skeleton_size`` of an adult, 1.4-2.1 m tall
 UP_AXES = ("y", "z")
 # Rotates a z-up world into the project's y-up one: (x, y, z) -> (x, z, -y).
@@ -50,11 +52,9 @@ class Units:
 
 def unit_name(scale: float) -> str:
     """'metres (x100 to cm)' for a known unit's scale, else the bare factor."""
-    names = {"mm": "millimetres", "cm": "centimetres", "in": "inches", "cmu": "CMU units",
-             "ft": "feet", "m": "metres"}
     for key, factor in UNITS.items():
         if math.isclose(scale, factor, rel_tol=1e-9):
-            return names[key] if key == "cm" else f"{names[key]} (x{factor:g} to cm)"
+            return UNIT_NAMES[key] if key == "cm" else f"{UNIT_NAMES[key]} (x{factor:g} to cm)"
     return f"x{scale:g} to cm"
 
 

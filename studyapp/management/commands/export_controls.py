@@ -29,4 +29,5 @@ class Command(BaseCommand):
             written = write_bundle(study, out, options["natural"])
         except (ControlError, ValueError, FileNotFoundError) as error:
             raise InputError(str(error)) from None
-        self.stdout.write(f"{len(written)} files in {out}")
+        natural = " (natural clips as BVH in centimetres, y up)" if options["natural"] else ""
+        self.stdout.write(f"{len(written)} files in {out}{natural}")
