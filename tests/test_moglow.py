@@ -4,6 +4,7 @@ dropout acts in training only, and the model learns from the real locomotion dat
 
 from __future__ import annotations
 
+import copy
 import math
 from pathlib import Path
 
@@ -152,6 +153,58 @@ def test_generation_inverts_the_flow_on_the_seeded_noise(precision):
         # inverts to within a few hundredths of a noise standard deviation, but not
         # exactly, so the lower-precision path did run.
         assert 1e-6 < error < 0.02
+
+
+def float32_model(seed: int = 0) -> MoGlow:
+    """A float32 MoGlow with two LSTM layers of 64 units and every parameter moved off its
+    initial value: the dtype and shapes sampling's fast path (prepared products, buffers
+    written in place) is built for."""
+    torch.manual_seed(seed)
+    model = MoGlow(MoGlowConfig(steps=3, tau=3, lstm_hidden=64, dropout=0.0), pose_dim=DIM, control_dim=2)
+    return perturbed(model, seed=seed, spread=0.1).float().eval()
+
+
+@pytest.mark.parametrize(("precision", "bound"), [("float32", 1e-5), ("bfloat16", 0.02)])
+def test_the_sampling_fast_path_inverts_the_plain_flow_of_a_float32_model(precision, bound):
+    """Sampling runs the coupling networks frame by frame with its own LSTM arithmetic; the
+    plain flow (nn.LSTM over the whole sequence) must map its samples back to the noise:
+    to float32 rounding, and in bfloat16 within the bound of the test above."""
+    model = float32_model()
+    _, control = motion(batch=5, frames=20)
+    control = control.float()
+    pose = model.generate(control, None, temperature=0.8, generator=torch.Generator().manual_seed(3), precision=precision)
+    with torch.no_grad():
+        z, _ = model.flow(pose[:, 3:], model.conditioning(pose, control))
+    noise = 0.8 * torch.randn(5, 17, DIM, generator=torch.Generator().manual_seed(3))
+    error = (z - noise).abs().max().item()
+    assert error < bound
+    assert precision == "float32" or error > 1e-5  # the lower precision did run
+
+
+@pytest.mark.parametrize("precision", ["float32", "bfloat16"])
+def test_sampling_sees_parameters_changed_since_the_last_sample(precision):
+    """The products sampling prepares are kept between samples: a training step or a
+    loaded state must replace them."""
+    model, other = float32_model(seed=0), float32_model(seed=1)
+    _, control = motion(frames=10)
+    control = control.float()
+    sample = lambda m: m.generate(control, None, generator=torch.Generator().manual_seed(0), precision=precision)  # noqa: E731
+    before = sample(model)
+    model.load_state_dict(other.state_dict())
+    assert torch.equal(sample(model), sample(other))
+    assert not torch.allclose(sample(model), before)
+    with torch.no_grad():
+        next(model.flow.transforms[2].lstm.parameters()).mul_(1.5)  # as an optimiser step does, in place
+    assert not torch.equal(sample(model), sample(other))
+
+
+def test_a_model_that_has_sampled_can_still_be_copied():
+    model = float32_model()
+    _, control = motion(frames=8)
+    model.generate(control.float(), None, precision="bfloat16")
+    copied = copy.deepcopy(model)
+    assert torch.equal(copied.generate(control.float(), None, generator=torch.Generator().manual_seed(0)),
+                       model.generate(control.float(), None, generator=torch.Generator().manual_seed(0)))
 
 
 def test_an_unknown_precision_is_refused():

@@ -18,14 +18,19 @@ coupling, the LSTM cell state) stays in the parameters' dtype. Call it under
 
 from __future__ import annotations
 
+import weakref
 from typing import Callable
 
 import torch
 from torch import nn
 
-from .precision import input_dtype, matrix_product
+from .precision import MatrixProduct, input_dtype, matrix_product
 
 FrameInverse = Callable[[torch.Tensor, torch.Tensor | None], torch.Tensor]
+# AffineCoupling._sampling_products' prepared weights, outside the modules so that copying
+# or saving a module never meets them (oneDNN's reordered tensors cannot be copied).
+_PREPARED_PRODUCTS: weakref.WeakKeyDictionary[nn.Module, dict[str, tuple[list, list[MatrixProduct]]]] = (
+    weakref.WeakKeyDictionary())
 
 
 class ActNorm(nn.Module):
@@ -168,44 +173,77 @@ class AffineCoupling(nn.Module):
         ] + [(self.out.weight, self.out.bias)]
 
     def frame_inverse(self, precision: str = "float32") -> FrameInverse:
-        return _CouplingFrameInverse(self, precision)
+        return _CouplingFrameInverse(self, self._sampling_products(precision), precision)
+
+    def _sampling_products(self, precision: str) -> list[MatrixProduct]:
+        """``frame_products()`` prepared for ``precision``, kept while the parameters stay
+        the same tensors, unchanged: casting and reordering the weights costs as much as
+        several frames at batch 1, and a study's worker samples one model many times. The
+        price is a prepared copy of the weights beside the parameters for each precision
+        used (half their size in bfloat16)."""
+        prepare = lambda: [matrix_product(w, b, precision) for w, b in self.frame_products()]  # noqa: E731
+        if any(p.is_inference() for p in self.parameters()):  # no version counter tells of a change
+            return prepare()
+        key = [(p.data_ptr(), p._version) for p in self.parameters()]
+        prepared = _PREPARED_PRODUCTS.setdefault(self, {})
+        if precision not in prepared or prepared[precision][0] != key:
+            prepared[precision] = (key, prepare())
+        return prepared[precision][1]
 
 
 class _CouplingFrameInverse:
-    """One frame of ``AffineCoupling.inverse``, carrying the LSTM state between calls.
+    """One frame of ``AffineCoupling.inverse``, carrying the LSTM state between calls:
+    sampling's fast path, ``nn.LSTM``'s arithmetic arranged for speed.
 
-    Each LSTM layer is one matrix product of (input, h) with [W_ih W_hh], concatenated
-    once per sampling run: fewer and larger products, and fewer elementwise calls, than
-    ``torch.lstm_cell`` or ``nn.LSTM`` make, which is where sampling spends its time.
-    The products run in ``precision`` (their inputs and the hidden state are kept in its
-    input dtype); gates, cell state, scale and shift are computed in the parameters' dtype.
+    Each LSTM layer is one matrix product of (input, h) with [W_ih W_hh], prepared once
+    (``AffineCoupling._sampling_products``): fewer and larger products, and fewer
+    elementwise calls, than ``torch.lstm_cell`` or ``nn.LSTM`` make, which is where sampling
+    spends its time. The products run in ``precision`` (their inputs and the hidden state
+    are kept in its input dtype); gates, cell state, scale and shift are computed in the
+    parameters' dtype. Around the products, at batch 64, fresh tensors, casts and
+    concatenations cost a quarter of the time, so each layer's input is a buffer written
+    in place, (x_b, context, h_0) and (h_0, h_1), the new hidden state goes straight into
+    it, and the gates and cell state live in buffers too: a frame allocates no large
+    tensor and concatenates nothing large.
     """
 
-    def __init__(self, coupling: AffineCoupling, precision: str = "float32") -> None:
+    def __init__(self, coupling: AffineCoupling, products: list[MatrixProduct], precision: str) -> None:
+        *self.layers, self.out = products
         self.dtype = input_dtype(precision, coupling.out.weight.dtype)
         self.split, self.scale_terms = coupling.split, (coupling.scale_offset, coupling.scale_floor)
-        *self.layers, self.out = [matrix_product(weight, bias, precision) for weight, bias in coupling.frame_products()]
         self.hidden_size = coupling.lstm.hidden_size
-        self.state: list[tuple[torch.Tensor, torch.Tensor]] | None = None
+        self.inputs: list[torch.Tensor] = []  # allocated at the first frame, when the batch is known
+
+    def _allocate(self, y: torch.Tensor, context: torch.Tensor | None) -> None:
+        batch, size = y.shape[0], self.hidden_size
+        first = self.split + (0 if context is None else context.shape[1]) + size
+        self.inputs = [y.new_zeros(batch, first, dtype=self.dtype)]
+        self.inputs += [y.new_zeros(batch, 2 * size, dtype=self.dtype) for _ in self.layers[1:]]
+        self.cells = [y.new_zeros(batch, size) for _ in self.layers]
+        self.gates, self.sigmoids = y.new_empty(batch, 4 * size), y.new_empty(batch, 4 * size)
+        self.tanhs = y.new_empty(batch, size)
 
     def __call__(self, y: torch.Tensor, context: torch.Tensor | None) -> torch.Tensor:
         x_b, y_a = y[:, : self.split], y[:, self.split :]
-        if self.state is None:
-            zeros = y.new_zeros(y.shape[0], self.hidden_size)
-            self.state = [(zeros.to(self.dtype), zeros)] * len(self.layers)
-        # The context arrives in the products' input dtype (cast once per frame by Flow).
-        size, inputs = self.hidden_size, [x_b.to(self.dtype), context]
+        if not self.inputs:
+            self._allocate(y, context)
+        size, inputs = self.hidden_size, self.inputs
+        inputs[0][:, : self.split] = x_b
+        if context is not None:  # in the products' input dtype already (cast once per frame by Flow)
+            inputs[0][:, self.split : -size] = context
         for k, product in enumerate(self.layers):
-            hidden, cell = self.state[k]
-            gates = product(torch.cat([*inputs, hidden], dim=1)).to(y.dtype)
+            gates = product(inputs[k])
+            if gates.dtype != y.dtype:
+                gates = self.gates.copy_(gates)
             # nn.LSTM's gate order is (input, forget, cell, output); one sigmoid serves three.
-            sigmoids = torch.sigmoid(gates)
-            cell_input = torch.tanh(gates[:, 2 * size : 3 * size])
-            cell = torch.addcmul(sigmoids[:, size : 2 * size] * cell, sigmoids[:, :size], cell_input)
-            hidden = (sigmoids[:, 3 * size :] * torch.tanh(cell)).to(self.dtype)
-            self.state[k] = (hidden, cell)
-            inputs = [hidden]
-        h, shift = self.out(inputs[0]).to(y.dtype).chunk(2, dim=1)
+            sigmoids = torch.sigmoid(gates, out=self.sigmoids)
+            cell_input = torch.tanh(gates[:, 2 * size : 3 * size], out=self.tanhs)
+            cell = self.cells[k].mul_(sigmoids[:, size : 2 * size]).addcmul_(sigmoids[:, :size], cell_input)
+            hidden = inputs[k][:, -size:]  # where layer k reads it at the next frame
+            torch.mul(sigmoids[:, 3 * size :], torch.tanh(cell, out=self.tanhs), out=hidden)
+            if k + 1 < len(inputs):
+                inputs[k + 1][:, :size] = hidden
+        h, shift = self.out(inputs[-1][:, -size:]).to(y.dtype).chunk(2, dim=1)
         return torch.cat([x_b, y_a / coupling_scale(h, *self.scale_terms) - shift], dim=1)
 
 

