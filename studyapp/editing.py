@@ -14,7 +14,7 @@ from __future__ import annotations
 from django.db import transaction
 
 from studyapp.models import ControlSignal, Stimulus, System
-from studyapp.removal import delete_unreferenced_samples, delete_videos, require_not_started
+from studyapp.removal import delete_files, require_not_started
 from studyapp.stimuli import content_key
 
 
@@ -51,8 +51,7 @@ def edit_system(system: System, name: str, temperature: float | None = None) -> 
         if resample:
             system.temperature = temperature
         system.save(update_fields=["name", "temperature"])
-    delete_videos(stale)
-    delete_unreferenced_samples()
+    delete_files(stale)
     return len(stale)
 
 

@@ -29,11 +29,12 @@ def require_not_started(study: Study) -> None:
         raise SystemsFixed("participants have started this study: its systems and controls are fixed")
 
 
-def delete_videos(stimuli: list[Stimulus]) -> None:
-    """Delete the stimuli's video files; call after the rows' deletion commits, so a failed
-    delete leaves the files in place."""
+def delete_files(stimuli: list[Stimulus]) -> None:
+    """Delete the stimuli's video files and the sampled motion no stimulus refers to any
+    more; call after the rows' deletion commits, so a failed delete leaves the files in place."""
     for stimulus in stimuli:
         stimulus.video_path().unlink(missing_ok=True)
+    delete_unreferenced_samples()
 
 
 def delete_unreferenced_samples() -> int:
@@ -62,8 +63,7 @@ def remove(item: System | ControlSignal) -> int:
         require_not_started(item.study)
         stimuli = list(Stimulus.objects.filter(**{"system" if isinstance(item, System) else "control": item}))
         item.delete()  # its stimuli go with it (CASCADE)
-    delete_videos(stimuli)
-    delete_unreferenced_samples()
+    delete_files(stimuli)
     return len(stimuli)
 
 
@@ -73,10 +73,9 @@ def remove_study(study: Study) -> int:
     with transaction.atomic():
         stimuli = list(study.stimuli.all())
         study.delete()
-    delete_videos(stimuli)
-    delete_unreferenced_samples()
+    delete_files(stimuli)
     return len(stimuli)
 
 
-__all__ = ["SystemsFixed", "delete_unreferenced_samples", "delete_videos", "remove", "remove_study",
+__all__ = ["SystemsFixed", "delete_files", "delete_unreferenced_samples", "remove", "remove_study",
            "require_not_started"]
