@@ -14,9 +14,12 @@
     submits.forEach((button) => { button.disabled = !ready; });
     note.hidden = ready;
   };
+  // Paused at once, not only on the "play" event (queued after play() returns), so that two
+  // clips never play together, not even for a moment.
+  const pauseOthers = (video) => videos.forEach((other) => { if (other !== video) other.pause(); });
   videos.forEach((video) => {
     const slot = video.dataset.slot;
-    video.addEventListener("play", () => videos.forEach((other) => { if (other !== video) other.pause(); }));
+    video.addEventListener("play", () => pauseOthers(video));  // started some other way (native controls)
     video.addEventListener("playing", () => { if (!field(`started_s-${slot}`).value) field(`started_s-${slot}`).value = now(); });
     video.addEventListener("ended", () => {
       if (!field(`ended_s-${slot}`).value) field(`ended_s-${slot}`).value = now();
@@ -24,6 +27,7 @@
       update();
     });
     document.querySelector(`button[data-play="${slot}"]`).addEventListener("click", () => {
+      pauseOthers(video);
       video.currentTime = 0;
       video.play();
     });
