@@ -186,6 +186,49 @@ def _training_config(path: Path, knobs: dict) -> TrainingConfig:
         raise CheckpointError(f"{path}: the training knobs do not build a training configuration ({error})") from None
 
 
+def split_overrides(kind: str, overrides: dict) -> tuple[dict, dict]:
+    """``overrides`` as (model configuration fields, training knobs); an unknown name is refused."""
+    model_fields = {f.name for f in dataclasses.fields(model_class(kind).Config)}
+    knobs = {f.name for f in dataclasses.fields(TrainingConfig)}
+    unknown = sorted(set(overrides) - model_fields - knobs)
+    if unknown:
+        raise ValueError(f"{kind} has no setting {', '.join(unknown)} (model: {', '.join(sorted(model_fields))}; "
+                         f"training: {', '.join(sorted(knobs))})")
+    fields = {f.name: f for f in (*dataclasses.fields(model_class(kind).Config), *dataclasses.fields(TrainingConfig))}
+    checked = {name: _of_field_type(fields[name], value) for name, value in overrides.items()}
+    return ({k: v for k, v in checked.items() if k in model_fields},
+            {k: v for k, v in checked.items() if k in knobs})
+
+
+_SCALAR_TYPES = {"float": float, "int": int, "bool": bool, "str": str}
+
+
+def _of_field_type(field: dataclasses.Field, value):
+    """``value`` as ``field``'s declared type (an int where a float is declared is taken; a
+    JSON list becomes a tuple); a value of another type is refused with the field's name."""
+    wanted = _SCALAR_TYPES.get(field.type if isinstance(field.type, str) else getattr(field.type, "__name__", ""))
+    if wanted is None:
+        return tuple(value) if isinstance(value, list) else value
+    if wanted is float and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if type(value) is not wanted:
+        raise ValueError(f"setting {field.name} must be {wanted.__name__}, not {value!r}")
+    return value
+
+
+def _with_changed_config(path: Path, model: MotionModel, changes: dict) -> MotionModel:
+    """The model rebuilt with ``changes`` to its configuration and its trained weights;
+    refused where the weights no longer fit (a change to the architecture)."""
+    config = dataclasses.replace(model.config, **changes)
+    changed = type(model)(config, model.pose_dim, model.control_dim)
+    try:
+        changed.load_state_dict(model.state_dict())
+    except RuntimeError:
+        raise CheckpointError(f"{path}: cannot change {', '.join(changes)} when resuming: "
+                              "the trained weights no longer fit the model") from None
+    return changed.to(next(model.parameters()).device)
+
+
 def best_path(out: Path) -> Path:
     """Where the checkpoint with the lowest validation loss so far is kept."""
     return out.with_name(out.name.removesuffix(".safetensors") + ".best.safetensors")
@@ -205,7 +248,8 @@ def train(
 
     ``dataset`` is a ``MotionDataset`` (path models) or an ``AttributeData`` (attribute
     models). ``overrides`` replaces fields of the preset's model configuration or training
-    knobs (``TrainingConfig``); resuming takes both from the checkpoint.
+    knobs (``TrainingConfig``); resuming takes both from the checkpoint, and applies
+    ``overrides`` from the checkpoint's step on (recorded under ``metrics["changes"]``).
     ``out`` always holds the latest state (and its optimiser, for resuming);
     ``NAME.best.safetensors`` beside it the state with the lowest validation loss.
     """
@@ -215,23 +259,26 @@ def train(
     data = training_data(cls, dataset, options.device)
     train_data, val_data = data.train, data.validation
 
+    model_changes, knob_changes = split_overrides(kind, overrides or {})
     history: list[dict] = []
     if resume and out.exists():
         model, meta = load_checkpoint(out, options.device)
         if meta.data_fingerprint != data.fingerprint:
             raise CheckpointError(f"{out}: trained on other data (fingerprint {meta.data_fingerprint[:12]}, "
                                   f"this dataset {data.fingerprint[:12]}); cannot resume")
-        model.train()
         start, history = meta.step, meta.metrics.get("history", [])
-        training = _training_config(out, meta.training)
+        changes = meta.metrics.get("changes", [])
+        if model_changes:
+            model = _with_changed_config(out, model, model_changes)
+        model.train()
+        training = _training_config(out, {**meta.training, **knob_changes})
+        if model_changes or knob_changes:  # the checkpoint says what changed from which step on
+            changes = changes + [{"step": start, **model_changes, **knob_changes}]
     else:
-        knobs = {f.name for f in dataclasses.fields(TrainingConfig)}
-        changes = overrides or {}
-        config = cls.Config(**{**resolve_preset(kind, preset_name).model, **data.labels,
-                               **{k: v for k, v in changes.items() if k not in knobs}})
+        config = cls.Config(**{**resolve_preset(kind, preset_name).model, **data.labels, **model_changes})
         model = cls(config, data.pose_dim, data.control_dim).to(options.device)
-        training = TrainingConfig(**{**training_knobs(kind, preset_name), **{k: v for k, v in changes.items() if k in knobs}})
-        start = 0
+        training = TrainingConfig(**{**training_knobs(kind, preset_name), **knob_changes})
+        start, changes = 0, []
     model.prepare(dataset)
     if isinstance(model, HVRNN) and model.config.classifier_weight > 0:
         load_loss_classifiers(model, training.classifiers)
@@ -265,7 +312,8 @@ def train(
             history.append({"step": done, "train_loss": float(np.mean(recent)), "val_loss": val, "seconds": round(seconds, 1)})
             recent = []
             bar.set_postfix(train=f"{history[-1]['train_loss']:.3f}", val=f"{val:.3f}")
-            meta = checkpoint_meta(model, training, data, done, {"val_loss": val, "history": history})
+            metrics = {"val_loss": val, "history": history, **({"changes": changes} if changes else {})}
+            meta = checkpoint_meta(model, training, data, done, metrics)
             save_checkpoint(out, model, meta, optimizer)
             # Small baselines overfit the few training takes early: keep the best as well.
             if val <= min(h["val_loss"] for h in history):

@@ -82,6 +82,61 @@ def test_resuming_continues_from_the_saved_step(checkpoint, dataset, tiny_preset
     assert meta.step == 30 and [h["step"] for h in meta.metrics["history"]] == [10, 20, 30]
 
 
+def _copy_with_optimiser(checkpoint: Path, to: Path) -> Path:
+    to.write_bytes(checkpoint.read_bytes())
+    to.with_name(to.name.replace(".safetensors", ".optim.safetensors")).write_bytes(
+        Path(str(checkpoint).replace(".safetensors", ".optim.safetensors")).read_bytes())
+    return to
+
+
+def test_resuming_with_a_changed_setting_continues_the_run_under_it_and_records_from_which_step(
+        checkpoint, dataset, tiny_preset, tmp_path):
+    copy = _copy_with_optimiser(checkpoint, tmp_path / "changed.safetensors")
+    meta = train("moglow", tiny_preset, dataset, copy, TrainOptions(steps=30, eval_every=10), resume=True,
+                 progress=False, overrides={"dropout": 0.7, "learning_rate": 1e-3})
+    assert meta.step == 30 and meta.metrics["history"][:2] == read_meta(checkpoint).metrics["history"]
+    assert meta.hyperparameters["dropout"] == 0.7 and meta.training["learning_rate"] == 1e-3
+    assert meta.metrics["changes"] == [{"step": 20, "dropout": 0.7, "learning_rate": 1e-3}]
+    resumed = train("moglow", tiny_preset, dataset, copy, TrainOptions(steps=40, eval_every=10), resume=True, progress=False)
+    assert resumed.hyperparameters["dropout"] == 0.7 and resumed.metrics["changes"] == meta.metrics["changes"]
+
+
+def test_resuming_with_a_change_to_the_architecture_is_refused_naming_the_setting(checkpoint, dataset, tiny_preset, tmp_path):
+    copy = _copy_with_optimiser(checkpoint, tmp_path / "wider.safetensors")
+    untouched = copy.read_bytes()
+    with pytest.raises(CheckpointError, match="cannot change lstm_hidden when resuming"):
+        train("moglow", tiny_preset, dataset, copy, TrainOptions(steps=30, eval_every=10), resume=True,
+              progress=False, overrides={"lstm_hidden": 32})
+    assert copy.read_bytes() == untouched
+
+
+@pytest.mark.parametrize(("setting", "message"), [
+    ("nope=1", "moglow has no setting nope (model: dropout, lstm_hidden,"),
+    ("dropout=high", "setting dropout must be float, not 'high'"),
+    ("batch_size=1.5", "setting batch_size must be int, not 1.5"),
+])
+def test_train_command_refuses_a_setting_it_cannot_use_before_training(clips_folder, tmp_path, capsys, setting, message):
+    from generation.cli import main
+
+    out = tmp_path / "model.safetensors"
+    assert main(["train", str(clips_folder), "--out", str(out), "--steps", "1", "--cache-dir", str(tmp_path / "cache"),
+                 "--set", setting]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_train_command_takes_settings_for_the_model_and_the_training(clips_folder, tiny_preset, tmp_path, capsys):
+    from generation.cli import main
+
+    out = tmp_path / "model.safetensors"
+    assert main(["train", str(clips_folder), "--preset", tiny_preset, "--out", str(out), "--steps", "2",
+                 "--eval-every", "2", "--cache-dir", str(tmp_path / "cache"), "--set", "dropout=0.95",
+                 "--set", "batch_size=4"]) == 0, capsys.readouterr().err
+    meta = read_meta(out)
+    assert meta.hyperparameters["dropout"] == 0.95 and meta.training["batch_size"] == 4
+    assert "changes" not in meta.metrics  # settings of a new run are its configuration, not changes
+
+
 def test_the_model_configuration_and_the_training_knobs_are_recorded_apart(checkpoint):
     meta = read_meta(checkpoint)
     assert meta.training == {"learning_rate": 3e-3, "grad_clip": 100.0, "batch_size": 8, "warmup_steps": 0, "classifiers": ""}

@@ -8,6 +8,7 @@ that need them, so that ``--help`` starts quickly.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import sys
@@ -81,11 +82,23 @@ def train_command(args: argparse.Namespace) -> int:
     options = TrainOptions(steps=args.steps, eval_every=args.eval_every, seed=args.seed, device=args.device)
     overrides = {name: value for name, value in (("classifiers", args.classifiers),
                                                  ("rotation_output", args.rotation_output)) if value}
+    overrides.update(args.settings)
     meta = train(args.model, args.preset, dataset, args.out, options, resume=args.resume, overrides=overrides or None)
     last = meta.metrics["history"][-1]
     print(f"{args.out}: step {meta.step}, held-out loss {last['val_loss']:.4f}, "
           f"training loss {last['train_loss']:.4f}, {last['seconds']:.0f} s of training")
     return 0
+
+
+def _setting(text: str) -> tuple[str, object]:
+    """NAME=VALUE, the value read as JSON where it is JSON (numbers, true/false), else as text."""
+    name, equals, value = text.partition("=")
+    if not equals or not name.strip():
+        raise argparse.ArgumentTypeError(f"'{text}' is not NAME=VALUE")
+    try:
+        return name.strip(), json.loads(value)
+    except json.JSONDecodeError:
+        return name.strip(), value
 
 
 def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
@@ -239,6 +252,10 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--steps", type=int, default=4000, help="total training steps (default %(default)s)")
     p.add_argument("--eval-every", type=int, default=250, help="steps between validation and checkpoint (default %(default)s)")
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint at --out")
+    p.add_argument("--set", action="append", type=_setting, default=[], metavar="NAME=VALUE", dest="settings",
+                   help="replace one field of the preset's model configuration (e.g. dropout=0.7) or training "
+                        "knobs (learning_rate, warmup_steps, grad_clip, batch_size); repeatable. With --resume "
+                        "it applies from the checkpoint's step on, and the checkpoint records the change")
     p.add_argument("--contents", help="content labels to train on (default: locomotion for path models, all for "
                                       "attribute models; every clip where the clips have no labels)")
     p.add_argument("--reverse", action="store_true", help="path models: also train on the training takes played backwards "
