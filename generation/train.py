@@ -268,6 +268,9 @@ def train(
                                   f"this dataset {data.fingerprint[:12]}); cannot resume")
         start, history = meta.step, meta.metrics.get("history", [])
         changes = meta.metrics.get("changes", [])
+        # A setting the checkpoint already has is no change (a resumed script repeats its --set).
+        model_changes = {k: v for k, v in model_changes.items() if meta.hyperparameters.get(k) != v}
+        knob_changes = {k: v for k, v in knob_changes.items() if meta.training.get(k) != v}
         if model_changes:
             model = _with_changed_config(out, model, model_changes)
         model.train()

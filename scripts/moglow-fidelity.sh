@@ -12,7 +12,10 @@
 # Bandai-Namco folders beside the project), MOGLOW_STEPS (default 40000: many hours on one
 # core; a run stopped part-way continues from its checkpoint with --resume), BASELINE_STEPS
 # (default 2000), THREADS (torch threads, default 1), SAMPLES (per control, default 4),
-# SYSTEMS (the models to train and compare, default "MoGlow MG-D RNN VAE").
+# SYSTEMS (the models to train and compare, default "MoGlow MG-D RNN VAE"), MGD_BRANCH
+# (default 13000: MG-D is MoGlow's state at that step continued without data dropout, so
+# the two differ only in what they learnt after it; 0 trains MG-D from scratch, as the
+# paper did).
 # Each step's output goes to OUT/logs/NAME.log. Training steps resume; sampling and
 # evaluation are redone every run, so the tables always describe the checkpoints as they are.
 set -euo pipefail
@@ -25,6 +28,7 @@ MOGLOW_STEPS=${MOGLOW_STEPS:-40000}
 BASELINE_STEPS=${BASELINE_STEPS:-2000}
 THREADS=${THREADS:-1}
 SAMPLES=${SAMPLES:-4}
+MGD_BRANCH=${MGD_BRANCH:-13000}
 read -r -a SYSTEMS <<< "${SYSTEMS:-MoGlow MG-D RNN VAE}"
 declare -A KIND=([MoGlow]="moglow cpu $MOGLOW_STEPS 500" [MG-D]="moglow cpu-MG-D $MOGLOW_STEPS 500"
                  [RNN]="rnn cpu $BASELINE_STEPS 100" [VAE]="vae cpu $BASELINE_STEPS 100")
@@ -44,16 +48,43 @@ run() {  # run NAME COMMAND...: COMMAND's output into OUT/logs/NAME.log
     echo "$(date +%T) $name done in $((SECONDS - start)) s"
 }
 
-train() {  # train NAME KIND PRESET STEPS EVAL_EVERY: trains, or continues, MODELS/NAME.safetensors
+train() {  # train NAME KIND PRESET STEPS EVAL_EVERY [OPTION...]: trains, or continues, MODELS/NAME.safetensors
     local name=$1 kind=$2 preset=$3 steps=$4 every=$5 resume=()
+    shift 5
     [ -e "$MODELS/$name.safetensors" ] && resume=(--resume)
     # Sec. 4.2 of the paper: mirroring and time reversal; 75 % window overlap because the
     # dataset-2 takes are short (about 5 s).
     run "train-$name" $PY -m generation train "${FOLDERS[@]}" --model "$kind" --preset "$preset" \
         --contents "$CONTENTS" --reverse --overlap 0.75 --steps "$steps" --eval-every "$every" \
-        --threads "$THREADS" --out "$MODELS/$name.safetensors" "${resume[@]}"
+        --threads "$THREADS" --out "$MODELS/$name.safetensors" "${resume[@]}" "$@"
 }
 
+copy_checkpoint() {  # copy_checkpoint FROM TO: a checkpoint and its optimiser state (both without .safetensors)
+    cp "$1.safetensors" "$2.safetensors"
+    cp "$1.optim.safetensors" "$2.optim.safetensors"
+}
+
+branch_mg_d() {  # MG-D starts as MoGlow's state at step MGD_BRANCH (kept as MoGlow-stepN)
+    local kept=$MODELS/MoGlow-step$MGD_BRANCH
+    [ -e "$MODELS/MG-D.safetensors" ] && return
+    if [ ! -e "$kept.safetensors" ]; then
+        train MoGlow moglow cpu "$MGD_BRANCH" 500
+        local step
+        step=$($PY -c "import sys; from generation.checkpoint import read_meta; print(read_meta(sys.argv[1]).step)" "$MODELS/MoGlow.safetensors")
+        if [ "$step" != "$MGD_BRANCH" ]; then
+            echo "MoGlow is at step $step, past MGD_BRANCH=$MGD_BRANCH, and its state there was not kept;" \
+                 "set MGD_BRANCH to 0 (MG-D from scratch) or remove $MODELS/MoGlow.safetensors" >&2
+            exit 2
+        fi
+        copy_checkpoint "$MODELS/MoGlow" "$kept"
+    fi
+    copy_checkpoint "$kept" "$MODELS/MG-D"
+}
+
+if [[ " ${SYSTEMS[*]} " == *" MG-D "* ]] && (( MGD_BRANCH > 0 )); then
+    branch_mg_d
+    KIND[MG-D]="moglow cpu $MOGLOW_STEPS 500 --set dropout=0"
+fi
 for name in "${SYSTEMS[@]}"; do
     train "$name" ${KIND[$name]}
 done

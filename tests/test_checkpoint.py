@@ -97,7 +97,8 @@ def test_resuming_with_a_changed_setting_continues_the_run_under_it_and_records_
     assert meta.step == 30 and meta.metrics["history"][:2] == read_meta(checkpoint).metrics["history"]
     assert meta.hyperparameters["dropout"] == 0.7 and meta.training["learning_rate"] == 1e-3
     assert meta.metrics["changes"] == [{"step": 20, "dropout": 0.7, "learning_rate": 1e-3}]
-    resumed = train("moglow", tiny_preset, dataset, copy, TrainOptions(steps=40, eval_every=10), resume=True, progress=False)
+    resumed = train("moglow", tiny_preset, dataset, copy, TrainOptions(steps=40, eval_every=10), resume=True, progress=False,
+                    overrides={"dropout": 0.7})  # as a script resumed with the same --set: no new change
     assert resumed.hyperparameters["dropout"] == 0.7 and resumed.metrics["changes"] == meta.metrics["changes"]
 
 
