@@ -188,14 +188,13 @@ def _training_config(path: Path, knobs: dict) -> TrainingConfig:
 
 def split_overrides(kind: str, overrides: dict) -> tuple[dict, dict]:
     """``overrides`` as (model configuration fields, training knobs); an unknown name is refused."""
-    model_fields = {f.name for f in dataclasses.fields(model_class(kind).Config)}
-    knobs = {f.name for f in dataclasses.fields(TrainingConfig)}
-    unknown = sorted(set(overrides) - model_fields - knobs)
+    model_fields = {f.name: f for f in dataclasses.fields(model_class(kind).Config)}
+    knobs = {f.name: f for f in dataclasses.fields(TrainingConfig)}
+    unknown = sorted(set(overrides) - set(model_fields) - set(knobs))
     if unknown:
         raise ValueError(f"{kind} has no setting {', '.join(unknown)} (model: {', '.join(sorted(model_fields))}; "
                          f"training: {', '.join(sorted(knobs))})")
-    fields = {f.name: f for f in (*dataclasses.fields(model_class(kind).Config), *dataclasses.fields(TrainingConfig))}
-    checked = {name: _of_field_type(fields[name], value) for name, value in overrides.items()}
+    checked = {name: _of_field_type({**model_fields, **knobs}[name], value) for name, value in overrides.items()}
     return ({k: v for k, v in checked.items() if k in model_fields},
             {k: v for k, v in checked.items() if k in knobs})
 
