@@ -53,6 +53,13 @@ class TrainingConfig:
     warmup_steps: int = 0  # of the Noam schedule; 0 keeps the learning rate constant
     classifiers: str = ""  # HVRNN's classifier loss: the attribute classifiers' file
 
+    def __post_init__(self) -> None:
+        for name in ("learning_rate", "grad_clip", "batch_size"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, not {getattr(self, name)}")
+        if self.warmup_steps < 0:
+            raise ValueError(f"warmup_steps must be 0 or more, not {self.warmup_steps}")
+
 
 @dataclass(frozen=True)
 class TrainOptions:
@@ -182,7 +189,7 @@ def load_loss_classifiers(model: HVRNN, path: str) -> None:
 def _training_config(path: Path, knobs: dict) -> TrainingConfig:
     try:
         return TrainingConfig(**knobs)
-    except TypeError as error:
+    except (TypeError, ValueError) as error:
         raise CheckpointError(f"{path}: the training knobs do not build a training configuration ({error})") from None
 
 

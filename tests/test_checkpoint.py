@@ -115,6 +115,8 @@ def test_resuming_with_a_change_to_the_architecture_is_refused_naming_the_settin
     ("nope=1", "moglow has no setting nope (model: dropout, lstm_hidden,"),
     ("dropout=high", "setting dropout must be float, not 'high'"),
     ("batch_size=1.5", "setting batch_size must be int, not 1.5"),
+    ("batch_size=0", "batch_size must be positive, not 0"),
+    ("steps=0", "steps must be at least 1, not 0"),
 ])
 def test_train_command_refuses_a_setting_it_cannot_use_before_training(clips_folder, tmp_path, capsys, setting, message):
     from generation.cli import main

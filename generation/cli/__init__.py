@@ -38,6 +38,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     try:
         return args.run(args)
-    except (BVHError, ValueError, OSError) as error:  # CheckpointError is a ValueError; OSError: a folder for a file
+    # CheckpointError is a ValueError; OSError: a folder for a file; FloatingPointError: training diverged
+    except (BVHError, ValueError, OSError, FloatingPointError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

@@ -54,8 +54,9 @@ class MoGlow(PathModel):
 
     def __init__(self, config: MoGlowConfig, pose_dim: int, control_dim: int) -> None:
         super().__init__(config, pose_dim, control_dim)
-        if config.tau < 1:
-            raise ValueError(f"tau must be at least 1, not {config.tau}")
+        for name in ("steps", "tau", "lstm_hidden", "lstm_layers"):
+            if getattr(config, name) < 1:
+                raise ValueError(f"{name} must be at least 1, not {getattr(config, name)}")
         if not 0.0 <= config.dropout <= 1.0:
             raise ValueError(f"dropout must lie in [0, 1], not {config.dropout}")
         if not config.scale_floor > 0.0:
