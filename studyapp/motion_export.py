@@ -19,13 +19,13 @@ failure leaves nothing behind. ``motion_zip`` gives the same files as a zip.
 from __future__ import annotations
 
 import io
-import shutil
 import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from generation.files import atomic_folder
 from generation.motion.npz import save_motion_npz
 from studyapp.control_export import SAFE_ID, control_id
 from studyapp.models import Stimulus, Study, System
@@ -56,10 +56,8 @@ def write_motion(study: Study, out: Path) -> dict[str, int]:
     out = Path(out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise ValueError(f"{out}: give a new or empty folder")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}-"))
-    try:
-        counts: dict[str, int] = {}
+    counts: dict[str, int] = {}
+    with atomic_folder(out) as work:
         for stimulus in exported_stimuli(study):
             system = stimulus.system.export_name
             try:
@@ -68,13 +66,6 @@ def write_motion(study: Study, out: Path) -> dict[str, int]:
                 raise ValueError(f"the motion of {stimulus.system.name} for {stimulus.control.name}: {error}") from None
             save_motion_npz(motion, work / folder_name(stimulus.system) / clip_name(stimulus), system=np.array(system))
             counts[system] = counts.get(system, 0) + 1
-        work.chmod(0o755)
-        if out.exists():
-            out.rmdir()
-        work.rename(out)
-    except BaseException:
-        shutil.rmtree(work, ignore_errors=True)
-        raise
     return counts
 
 

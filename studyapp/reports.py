@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import hashlib
 import re
-import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,6 +24,7 @@ from analysis.design_report import DesignReport
 from analysis.errors import AnalysisInputError
 from analysis.ratings import read_ratings
 from analysis.report import Report, build_report, summary_text, write_report
+from generation.files import atomic_folder
 
 REPORTS_FOLDER = "reports"
 RATINGS_NAME = "ratings.csv"
@@ -68,9 +67,7 @@ def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, o
     final = report_folder(media_root, digest)
     if final.is_dir():
         return digest
-    final.parent.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(dir=final.parent, prefix=".building-"))
-    try:
+    with atomic_folder(final) as work:
         (work / RATINGS_NAME).write_bytes(ratings_csv)
         (work / REFERENCE_NAME).write_text(reference or "")
         (work / OWNER_NAME).write_text(str(owner_id))
@@ -79,11 +76,6 @@ def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, o
         except AnalysisInputError as error:  # say "the upload", not where the server keeps it
             raise AnalysisInputError(str(error).replace(str(work / RATINGS_NAME), "the uploaded file")) from None
         write_report(report, work)
-        work.chmod(0o755)
-        work.rename(final)
-    except BaseException:
-        shutil.rmtree(work, ignore_errors=True)
-        raise
     return digest
 
 
