@@ -5,9 +5,8 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := .venv
 BIN := $(VENV)/bin
 INSTALLED := $(VENV)/.installed
-# Real motion capture to work on; any folder of BVH files will do.
-MOTION_DATA ?= $(abspath ../shared/data/bandai-namco-1)
-export MOTION_DATA
+# The motion capture: the demo and the study app read $MOTION_DATA (by default both
+# Bandai-Namco folders, studyapp/settings.py), the tests ../shared/data (tests/conftest.py).
 
 .PHONY: demo test bench tour install clean
 

@@ -23,15 +23,14 @@ import zipfile
 from pathlib import Path
 
 import numpy as np
-from django.conf import settings
 
 from generation.control import PathControl, control_from_dict
 from generation.motion.bvh import bvh_text, motion_to_bvh
-from generation.motion.dataset import load_body_motion
 from generation.motion.root import root_trajectory, to_root_frame
 from generation.motion.types import Motion
 from studyapp.controls import training_options
 from studyapp.models import ControlSignal, Study
+from studyapp.natural import natural_motion
 
 SAFE_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")
 
@@ -160,10 +159,7 @@ def bundle_files(study: Study, natural: bool = False) -> dict[str, bytes]:
 
 def _natural_bvh(study: Study, control: ControlSignal) -> str:
     options = training_options(study)
-    source = Path(settings.MOTION_DATA) / control.source_clip
-    if not source.is_file():
-        raise FileNotFoundError(f"the natural clip {source} is missing (MOTION_DATA={settings.MOTION_DATA})")
-    motion = load_body_motion(source, options.fps, control.seconds, options.scale, options.root, options.up)
+    motion = natural_motion(control.source_clip, control.seconds, options)
     return bvh_text(motion_to_bvh(natural_in_control_frame(motion, options.root)))
 
 

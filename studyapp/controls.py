@@ -29,6 +29,7 @@ from generation.control import (AttributeControl, Control, held_out_attributes, 
                                 preset_path)
 from generation.motion.dataset import DatasetOptions, build_dataset, find_bvh_files
 from studyapp.models import ControlSignal, Study
+from studyapp.natural import data_folders, source_name
 
 CONTROL_FILE_SUFFIXES = (".json", ".yaml", ".yml")
 MAX_CONTROL_FILE_BYTES = 1_000_000
@@ -105,17 +106,18 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
     if not seconds > 0:
         raise ControlError(f"seconds must be positive, got {seconds}")
     options = training_options(study)
-    folder = Path(settings.MOTION_DATA)
+    where = settings.MOTION_DATA
     try:
-        dataset = build_dataset(folder, options, cache_dir=Path(settings.VAR_DIR) / "cache", progress=False)
+        folders = data_folders()
+        dataset = build_dataset(folders, options, cache_dir=Path(settings.VAR_DIR) / "cache", progress=False)
     except (FileNotFoundError, ValueError) as error:
-        raise ControlError(f"cannot read the motion data at {folder} (MOTION_DATA): {error}") from None
+        raise ControlError(f"cannot read the motion data at {where} (MOTION_DATA): {error}") from None
     trained_on = {s.metadata.get("data_fingerprint") for s in study.systems.exclude(checkpoint="")}
     if dataset.fingerprint not in trained_on:
-        raise ControlError(f"the motion data at {folder} (MOTION_DATA) is not the data the checkpoints were trained on "
+        raise ControlError(f"the motion data at {where} (MOTION_DATA) is not the data the checkpoints were trained on "
                            f"(fingerprint {dataset.fingerprint[:12]}, checkpoints {', '.join(sorted(f[:12] for f in trained_on))}); "
                            "its held-out clips could have been training clips")
-    files = {path.stem: path for path in find_bvh_files(folder)}
+    files = {path.stem: path for path in find_bvh_files(folders)}
     contents = {clip.name: clip.content for clip in dataset.select("test", augmented=False)}
     if control_kind(study) == "path":
         held_out = held_out_paths(dataset, seconds)
@@ -124,7 +126,7 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
         held_out = [c for c in held_out_attributes(dataset, seconds) if c.action in actions and c.style in styles]
     result = []
     for control in _spread(held_out, contents, count):
-        source = str(files[control.name].relative_to(folder))
+        source = source_name(files[control.name], folders)
         named = dataclasses.replace(control, name=f"{control.name}-{seconds:g}s")
         result.append(_save(study, named, ControlSignal.Origin.HELD_OUT, source))
     return result

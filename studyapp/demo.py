@@ -2,10 +2,11 @@
 
 1. migrates the SQLite database under var/, collects the static files and makes sure a
    researcher account exists;
-2. builds the MoGlow locomotion dataset from $MOTION_DATA (cached after the first run);
-3. uses the project's own ``cpu`` MoGlow (models/moglow-cpu.safetensors, an hour of
-   training) and trains the ``cpu`` RNN and VAE and an early MoGlow for the BAD clips
-   (minutes), unless var/models/ has them already;
+2. builds the MoGlow locomotion dataset from $MOTION_DATA (by default the locomotion of
+   both Bandai-Namco folders, 1.6 hours; about half a minute, cached after the first run);
+3. uses the project's own ``cpu`` MoGlow (models/moglow-cpu.safetensors, trained on that
+   data for hours) and trains the ``cpu`` RNN and VAE and an early MoGlow for the BAD
+   clips on the same data and split (minutes), unless var/models/ has them already;
 4. starts one local Celery worker on the serverless filesystem broker;
 5. has the worker render a gallery of natural clips (one per content label);
 6. sets up the demo study (MoGlow, RNN, VAE, NAT and BAD; held-out and synthetic
@@ -31,8 +32,11 @@ from pathlib import Path
 import django
 
 REPO = Path(__file__).resolve().parents[1]
-DEFAULT_DATA = REPO.parent / "shared" / "data" / "bandai-namco-1"
-LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right")
+# The data the committed MoGlow learnt from, prepared as it was (README, "Training on
+# both datasets"): the locomotion of both Bandai-Namco folders, windows overlapping by
+# three quarters, mirrored and reversed.
+LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right", "walk-turn-left", "walk-turn-right")
+DATASET = {"contents": LOCOMOTION, "overlap": 0.75, "mirror": True, "reverse": True}
 DEMO_STUDY = "Demo: naturalness of generated locomotion"
 SIDE_BY_SIDE_STUDY = "Demo: naturalness of generated locomotion, side by side"
 SIDE_BY_SIDE_INSTRUCTIONS = (
@@ -41,9 +45,9 @@ SIDE_BY_SIDE_INSTRUCTIONS = (
     "(completely natural). Compare them with each other: the videos on one page follow the same path.")
 # (system name, model kind, training steps, role, checkpoint). The baselines train in
 # minutes and keep the state with the lowest validation loss ("best"); MoGlow's is the
-# project's own hour of training (README, "Trained on the real data"), committed under
-# COMMITTED_MODELS and trained again by the demo only if that file is missing. The BAD
-# system is MoGlow stopped after a few steps, whose motion is visibly broken.
+# project's own training, committed under COMMITTED_MODELS and trained again by the demo
+# (4,000 steps, about an hour) only if that file is missing or learnt from other data.
+# The BAD system is MoGlow stopped after a few steps, whose motion is visibly broken.
 DEMO_MODELS = (("MoGlow", "moglow", 4000, "model", "committed"), ("RNN", "rnn", 400, "model", "best"),
                ("VAE", "vae", 1000, "model", "best"), ("BAD", "moglow", 15, "bad", "last"))
 COMMITTED_MODELS = REPO / "models"
@@ -55,9 +59,10 @@ def say(text: str) -> None:
     print(f"[demo] {text}", flush=True)
 
 
-def motion_folder() -> Path | None:
-    folder = Path(os.environ.get("MOTION_DATA", DEFAULT_DATA))
-    return folder if folder.is_dir() else None
+def missing_folders(data: str) -> list[Path]:
+    from generation.motion.dataset import motion_folders
+
+    return [folder for folder in motion_folders(data) if not folder.is_dir()]
 
 
 def start_worker() -> subprocess.Popen:
@@ -93,30 +98,45 @@ def render_gallery(data: Path, media_root: Path) -> int:
     return len(entries)
 
 
-def model_path(models: Path, kind: str, steps: int, which: str) -> Path:
+def committed_model(kind: str, fingerprint: str) -> Path | None:
+    """The project's committed checkpoint of ``kind``, if it is there and learnt from the
+    data of this ``fingerprint`` (held-out controls of other data could be its training clips)."""
+    from generation.checkpoint import read_meta
+
+    path = COMMITTED_MODELS / f"{kind}-cpu.safetensors"
+    if not path.is_file():
+        return None
+    if read_meta(path).data_fingerprint != fingerprint:
+        say(f"{path.relative_to(REPO)} learnt from other data than $MOTION_DATA's (the locomotion of both "
+            "Bandai-Namco folders); the demo trains its own")
+        return None
+    return path
+
+
+def model_path(models: Path, kind: str, steps: int, which: str, fingerprint: str) -> Path:
     """A demo model's checkpoint: the project's committed one where ``which`` asks for it
-    and it is there, else the last or best state of the demo's own training run."""
-    committed = COMMITTED_MODELS / f"{kind}-cpu.safetensors"
-    if which == "committed" and committed.is_file():
-        return committed
-    return models / f"{kind}-cpu-{steps}steps{'.best' if which == 'best' else ''}.safetensors"
+    and it fits the data, else the last or best state of the demo's own training run."""
+    committed = committed_model(kind, fingerprint) if which == "committed" else None
+    return committed or models / f"{kind}-cpu-{steps}steps{'.best' if which == 'best' else ''}.safetensors"
 
 
-def ensure_models(dataset, models: Path) -> None:
-    """Train whichever of the demo's checkpoints is missing (minutes each on 2 cores; the
-    MoGlow, should its committed file be missing, about an hour)."""
+def ensure_models(dataset, models: Path) -> dict[str, Path]:
+    """Each demo system's checkpoint, trained where missing (minutes each on 2 cores; the
+    MoGlow, should its committed file be missing or not fit the data, about an hour)."""
     from generation.train import TrainOptions, train
 
+    checkpoints = {}
     for name, kind, steps, _, which in DEMO_MODELS:
-        path = model_path(models, kind, steps, which)
+        path = checkpoints[name] = model_path(models, kind, steps, which, dataset.fingerprint)
         if path.exists():
             continue
-        say(f"training {name} ({kind}, cpu preset, {steps} steps): once, kept in {models}")
+        say(f"training {name} ({kind}, cpu preset, {steps} steps) on the demo's data: once, kept in {models}")
         last = path.with_name(path.name.replace(".best", ""))
         train(kind, "cpu", dataset, last, TrainOptions(steps=steps, eval_every=min(steps, 250)))
+    return checkpoints
 
 
-def ensure_study(owner, models: Path):
+def ensure_study(owner, checkpoints: dict[str, Path]):
     """The demo study with its systems and controls, created once; its stimuli generated by the worker."""
     from django.core.management import CommandError, call_command
     from django.db import transaction
@@ -126,7 +146,7 @@ def ensure_study(owner, models: Path):
     study = Study.objects.filter(owner=owner, title=DEMO_STUDY).first()
     if study is None:
         with transaction.atomic():  # all or nothing, so a failed first run is simply repeated
-            study = _create_study(owner, models)
+            study = _create_study(owner, checkpoints)
     say("the worker samples and renders every stimulus (the first time only)")
     try:
         call_command("generate_stimuli", study.pk, wait=True)
@@ -139,7 +159,7 @@ def ensure_study(owner, models: Path):
     return study
 
 
-def _create_study(owner, models: Path):
+def _create_study(owner, checkpoints: dict[str, Path]):
     from django.core.files import File
 
     from studyapp.controls import add_held_out_controls, add_preset_controls
@@ -148,8 +168,8 @@ def _create_study(owner, models: Path):
 
     study = Study.objects.create(owner=owner, title=DEMO_STUDY, clips_per_participant=12, ratings_per_stimulus=10,
                                  training_clips=3, completion_code="DEMO-DONE")
-    for name, kind, steps, role, which in DEMO_MODELS:
-        path = model_path(models, kind, steps, which)
+    for name, _, _, role, _ in DEMO_MODELS:
+        path = checkpoints[name]
         with path.open("rb") as stream:
             add_checkpoint_system(study, name, File(stream, name=path.name), role=role)
     add_natural_system(study)
@@ -242,11 +262,12 @@ def main() -> int:
     from studyapp.celery import app
     from studyapp.participant_views import PLATFORM_PARAMETERS
 
-    data = motion_folder()
-    if data is None:
-        say("no motion data found. Get the Bandai-Namco Research Motion Dataset 1 from GitHub "
-            "(BandaiNamcoResearchInc/Bandai-Namco-Research-Motiondataset) or use any folder of "
-            "BVH files, then run:  MOTION_DATA=/path/to/folder make demo")
+    data = settings.MOTION_DATA
+    missing = missing_folders(data)
+    if missing:
+        say(f"no motion data at {', '.join(map(str, missing))}. Get the Bandai-Namco Research Motion Datasets 1 "
+            "and 2 from GitHub (BandaiNamcoResearchInc/Bandai-Namco-Research-Motiondataset) or use any folder of "
+            "BVH files, then run:  MOTION_DATA=/path/to/folder make demo  (several folders joined with ':')")
         return 1
     port = int(os.environ.get("DEMO_PORT", "8000"))
     if not port_is_free(port):
@@ -259,11 +280,11 @@ def main() -> int:
     call_command("collectstatic", interactive=False, verbosity=0)
     researcher, password = ensure_researcher(Path(settings.VAR_DIR))
     say(f"building the locomotion dataset from {data}")
-    dataset = build_dataset(data, DatasetOptions(contents=LOCOMOTION))
+    dataset = build_dataset(data, DatasetOptions(**DATASET))
     say(f"dataset {dataset.fingerprint[:12]}: {len(dataset.select('train', augmented=False))} training takes, "
         f"{len(dataset.select('test'))} held out, {len(dataset.windows('train')['pose'])} training windows")
     models = Path(settings.VAR_DIR) / "models"
-    ensure_models(dataset, models)
+    checkpoints = ensure_models(dataset, models)
 
     worker = server = None
     try:
@@ -272,7 +293,7 @@ def main() -> int:
         wait_for_worker(app)
         count = render_gallery(data, Path(settings.MEDIA_ROOT))
         say(f"{count} natural clips rendered into {Path(settings.MEDIA_ROOT) / 'gallery'}")
-        study = ensure_study(researcher, models)
+        study = ensure_study(researcher, checkpoints)
         side_by_side = ensure_side_by_side_study(study)
         server = subprocess.Popen(
             [sys.executable, "manage.py", "serve", "--noreload", f"127.0.0.1:{port}"],

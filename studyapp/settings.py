@@ -5,6 +5,7 @@ Every value has an embedded default that runs with no servers (see `embedded.py`
 from the demo to production.
 """
 
+import os
 from pathlib import Path
 
 import dj_database_url
@@ -164,8 +165,11 @@ STUDY_SAMPLE_BATCH = int(_sample_batch)
 # Uploaded checkpoints live here, named by content digest; never under MEDIA_ROOT,
 # which is served to the public.
 CHECKPOINT_ROOT = Path(env_str("CHECKPOINT_ROOT", str(VAR_DIR / "checkpoints")))
-# The motion capture that held-out controls and natural (NAT) clips are read from.
-MOTION_DATA = Path(env_str("MOTION_DATA", str(BASE_DIR.parent / "shared" / "data" / "bandai-namco-1")))
+# The motion capture that held-out controls and natural (NAT) clips are read from: one
+# folder of BVH files, or several joined with ":" (by default both Bandai-Namco folders,
+# the data the committed MoGlow was trained on).
+MOTION_DATA = env_str("MOTION_DATA", os.pathsep.join(
+    str(BASE_DIR.parent / "shared" / "data" / name) for name in ("bandai-namco-1", "bandai-namco-2-locomotion")))
 # The paper-sized MoGlow is about 300 MB in float32.
 MAX_CHECKPOINT_UPLOAD_BYTES = int(env_float("MAX_CHECKPOINT_UPLOAD_MB", 500) * 1_000_000)
 MAX_VIDEO_UPLOAD_BYTES = int(env_float("MAX_VIDEO_UPLOAD_MB", 50) * 1_000_000)

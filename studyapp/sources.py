@@ -24,12 +24,12 @@ import numpy as np
 from django.conf import settings
 
 from generation.control import PathControl, control_from_dict
-from generation.motion.dataset import load_body_motion
 from generation.motion.npz import load_motion_npz, save_motion_npz
 from generation.motion.root import root_trajectory
 from generation.motion.types import Motion
 from studyapp.controls import training_options
 from studyapp.models import ControlSignal, Stimulus, System
+from studyapp.natural import natural_motion
 from studyapp.submissions import read_stored_motion
 
 logger = logging.getLogger(__name__)
@@ -185,10 +185,7 @@ class NaturalClips:
     def clip(self, stimulus: Stimulus) -> Clip:
         control = stimulus.control
         options = training_options(stimulus.study)
-        source = Path(settings.MOTION_DATA) / control.source_clip
-        if not source.is_file():
-            raise FileNotFoundError(f"the natural clip {source} is missing (MOTION_DATA={settings.MOTION_DATA})")
-        motion = load_body_motion(source, options.fps, control.seconds, options.scale, options.root, options.up)
+        motion = natural_motion(control.source_clip, control.seconds, options)
         return Clip(motion, root_trajectory(motion, options.root).xz)
 
 

@@ -111,6 +111,7 @@ def test_several_folders_pool_their_clips_and_labels(small_folder, tmp_path):
     files = find_bvh_files([small_folder, other])
     assert files[-1].name == "lab-2_take.bvh" and len(files) == len(CLIPS) + 1
     assert find_bvh_files(f"{small_folder}{os.pathsep}{other}") == files
+    assert find_bvh_files([f"{small_folder}{os.pathsep}{other}"]) == files  # as `train "$MOTION_DATA"` passes it
     dataset = build_dataset([small_folder, other], DatasetOptions(holdout_fraction=0.0, validation_fraction=0.0),
                             cache_dir=tmp_path / "cache", progress=False)
     assert {(c.name, c.content, c.style) for c in dataset.clips if c.name == "lab-2_take"} == {("lab-2_take", "run", "calm")}

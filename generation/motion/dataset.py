@@ -266,11 +266,11 @@ class MotionDataset:
 
 
 def motion_folders(folders: str | os.PathLike | Sequence[str | os.PathLike]) -> list[Path]:
-    """One folder, or several (a sequence, or one string joined with ``os.pathsep`` as
-    in ``MOTION_DATA=/data/a:/data/b``), as a list of paths."""
+    """One folder, or several (a sequence, or strings joined with ``os.pathsep`` as in
+    ``MOTION_DATA=/data/a:/data/b``, also as a command-line argument), as a list of paths."""
     if isinstance(folders, (str, os.PathLike)):
-        folders = [part for part in str(folders).split(os.pathsep) if part]
-    result = [Path(folder) for folder in folders]
+        folders = [folders]
+    result = [Path(part) for folder in folders for part in str(folder).split(os.pathsep) if part]
     if not result:
         raise FileNotFoundError("no motion folder given")
     return result

@@ -1,0 +1,44 @@
+"""The motion capture behind held-out controls and NAT clips: ``settings.MOTION_DATA``,
+one folder of BVH files or several joined with ``:`` (pooled, as ``train`` pools them).
+
+A held-out control names its take by the path inside the folder that holds it
+(``data/dataset-2_walk_active_001.bvh``), so a study made on one folder still finds its
+clips when more folders are added beside it: take names differ across pooled folders.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from django.conf import settings
+
+from generation.motion.dataset import DatasetOptions, load_body_motion, motion_folders
+from generation.motion.types import Motion
+
+
+def data_folders() -> list[Path]:
+    """The folders of ``MOTION_DATA``."""
+    return motion_folders(settings.MOTION_DATA)
+
+
+def source_name(path: Path, folders: list[Path]) -> str:
+    """``path`` relative to whichever of ``folders`` holds it."""
+    for folder in folders:
+        if path.is_relative_to(folder):
+            return str(path.relative_to(folder))
+    raise ValueError(f"{path} is in none of the motion folders {', '.join(map(str, folders))}")
+
+
+def natural_clip(source: str) -> Path:
+    """The BVH file a held-out control was cut from."""
+    folders = data_folders()
+    for folder in folders:
+        if (folder / source).is_file():
+            return folder / source
+    raise FileNotFoundError(f"the natural clip {source} is in none of the motion folders "
+                            f"{', '.join(map(str, folders))} (MOTION_DATA)")
+
+
+def natural_motion(source: str, seconds: float, options: DatasetOptions) -> Motion:
+    """The first ``seconds`` of a held-out take, read as the models' training data was."""
+    return load_body_motion(natural_clip(source), options.fps, seconds, options.scale, options.root, options.up)
