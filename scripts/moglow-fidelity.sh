@@ -27,6 +27,7 @@ IFS=: read -r -a FOLDERS <<< "$DATA"
 MOGLOW_STEPS=${MOGLOW_STEPS:-40000}
 BASELINE_STEPS=${BASELINE_STEPS:-2000}
 THREADS=${THREADS:-1}
+export OMP_NUM_THREADS=$THREADS  # sampling and evaluation too: a thread more than the free cores stalls them all
 SAMPLES=${SAMPLES:-4}
 MGD_BRANCH=${MGD_BRANCH:-13000}
 read -r -a SYSTEMS <<< "${SYSTEMS:-MoGlow MG-D RNN VAE}"
