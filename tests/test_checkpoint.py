@@ -173,7 +173,8 @@ def test_a_header_with_training_knobs_among_the_hyperparameters_is_read_and_resu
 def test_the_committed_checkpoint_still_reads_loads_and_samples():
     path = Path(__file__).resolve().parent.parent / "models" / "moglow-cpu.safetensors"
     meta = read_meta(path)
-    assert meta.training == {"learning_rate": 3e-3, "warmup_steps": 100, "grad_clip": 100.0, "batch_size": 32}
+    assert meta.training == {"learning_rate": 3e-3, "warmup_steps": 100, "grad_clip": 100.0, "batch_size": 32,
+                             "classifiers": ""}
     assert "learning_rate" not in meta.hyperparameters and meta.hyperparameters["lstm_hidden"] == 128
     control = preset_path("walk-straight")
     motion = Generator.load(path).sample(control, seed=0)[0]

@@ -355,8 +355,10 @@ def test_bfloat16_samples_stay_close_to_float32_samples_of_the_same_seed(trained
 
 def test_int8_samples_of_the_committed_checkpoint_miss_the_bound_bfloat16_meets():
     """Why "auto" never picks int8: on the trained MoGlow ``cpu`` checkpoint, int8 moves a
-    joint by over a twentieth of what a change of seed does (each product's input is
-    rounded to 8 bits against a scale set by its largest element); bfloat16 stays within it."""
+    joint by over a tenth of what a change of seed does (each product's input is rounded
+    to 8 bits against a scale set by its largest element); bfloat16 stays within it. (The
+    committed model learnt from 1.5 hours of motion is sharper than the one of 11 minutes
+    was: a change of seed moves a joint less, and the bound was a twentieth then.)"""
     from generation.control import preset_path
     from generation.generator import Generator
 
@@ -364,5 +366,5 @@ def test_int8_samples_of_the_committed_checkpoint_miss_the_bound_bfloat16_meets(
     control = preset_path("walk-circle", generator.fps)
     bfloat16, other_seed = joint_distances(generator, control, "bfloat16")
     int8, _ = joint_distances(generator, control, "int8")
-    assert bfloat16 < min(1.0, other_seed / 20)
-    assert int8 > other_seed / 20
+    assert bfloat16 < min(1.0, other_seed / 10)
+    assert int8 > other_seed / 10
