@@ -3,7 +3,7 @@
 1. migrates the SQLite database under var/, collects the static files and makes sure a
    researcher account exists;
 2. builds the MoGlow locomotion dataset from $MOTION_DATA (by default the locomotion of
-   both Bandai-Namco folders, 1.6 hours; about half a minute, cached after the first run);
+   both Bandai-Namco folders, 1.5 hours; about half a minute, cached after the first run);
 3. uses the project's own ``cpu`` MoGlow (models/moglow-cpu.safetensors, trained on that
    data for hours) and trains the ``cpu`` RNN and VAE and an early MoGlow for the BAD
    clips on the same data and split (minutes), unless var/models/ has them already;
@@ -32,8 +32,8 @@ from pathlib import Path
 import django
 
 REPO = Path(__file__).resolve().parents[1]
-# The data the committed MoGlow learnt from, prepared as it was (README, "Training on
-# both datasets"): the locomotion of both Bandai-Namco folders, windows overlapping by
+# The data the committed MoGlow learnt from, prepared as it was (README, "Trained on the
+# real data"): the locomotion of both Bandai-Namco folders, windows overlapping by
 # three quarters, mirrored and reversed.
 LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right", "walk-turn-left", "walk-turn-right")
 DATASET = {"contents": LOCOMOTION, "overlap": 0.75, "mirror": True, "reverse": True}
@@ -79,7 +79,7 @@ def wait_for_worker(app, timeout: float = 60.0) -> None:
     raise RuntimeError("the Celery worker did not answer within a minute; see its log above")
 
 
-def render_gallery(data: Path, media_root: Path) -> int:
+def render_gallery(data: str, media_root: Path) -> int:
     from tqdm import tqdm
 
     from generation.gallery import GalleryOptions, choose_clips, write_index
@@ -107,8 +107,8 @@ def committed_model(kind: str, fingerprint: str) -> Path | None:
     if not path.is_file():
         return None
     if read_meta(path).data_fingerprint != fingerprint:
-        say(f"{path.relative_to(REPO)} learnt from other data than $MOTION_DATA's (the locomotion of both "
-            "Bandai-Namco folders); the demo trains its own")
+        say(f"{path.relative_to(REPO)} learnt from other data (the locomotion of both Bandai-Namco folders) "
+            "than $MOTION_DATA holds; the demo trains its own (about an hour)")
         return None
     return path
 
