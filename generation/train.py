@@ -201,7 +201,8 @@ def split_overrides(kind: str, overrides: dict) -> tuple[dict, dict]:
     if unknown:
         raise ValueError(f"{kind} has no setting {', '.join(unknown)} (model: {', '.join(sorted(model_fields))}; "
                          f"training: {', '.join(sorted(knobs))})")
-    checked = {name: _of_field_type({**model_fields, **knobs}[name], value) for name, value in overrides.items()}
+    fields = {**model_fields, **knobs}
+    checked = {name: _of_field_type(fields[name], value) for name, value in overrides.items()}
     return ({k: v for k, v in checked.items() if k in model_fields},
             {k: v for k, v in checked.items() if k in knobs})
 

@@ -59,12 +59,6 @@ def say(text: str) -> None:
     print(f"[demo] {text}", flush=True)
 
 
-def missing_folders(data: str) -> list[Path]:
-    from generation.motion.dataset import motion_folders
-
-    return [folder for folder in motion_folders(data) if not folder.is_dir()]
-
-
 def start_worker() -> subprocess.Popen:
     command = [sys.executable, "-m", "celery", "-A", "studyapp", "worker", "--pool=solo",
                "--loglevel=warning", "--hostname=demo@%h"]
@@ -260,10 +254,11 @@ def main() -> int:
 
     from generation.motion.dataset import DatasetOptions, build_dataset
     from studyapp.celery import app
+    from studyapp.natural import data_folders
     from studyapp.participant_views import PLATFORM_PARAMETERS
 
     data = settings.MOTION_DATA
-    missing = missing_folders(data)
+    missing = [folder for folder in data_folders() if not folder.is_dir()]
     if missing:
         say(f"no motion data at {', '.join(map(str, missing))}. Get the Bandai-Namco Research Motion Datasets 1 "
             "and 2 from GitHub (BandaiNamcoResearchInc/Bandai-Namco-Research-Motiondataset) or use any folder of "

@@ -7,11 +7,12 @@ from pathlib import Path
 
 import pytest
 
+from generation.motion.dataset import motion_folders
+
 REPO = Path(__file__).resolve().parents[1]
 # MOTION_DATA may name several folders joined with ":" (as the demo reads it); the tests
 # are written on the first, Bandai-Namco dataset 1.
-MOTION_DATA = Path(os.environ.get("MOTION_DATA", str(REPO.parent / "shared" / "data" / "bandai-namco-1"))
-                   .split(os.pathsep)[0]).resolve()
+MOTION_DATA = motion_folders(os.environ.get("MOTION_DATA", REPO.parent / "shared" / "data" / "bandai-namco-1"))[0].resolve()
 MOTION_DATA_2 = Path(os.environ.get(
     "MOTION_DATA_2", REPO.parent / "shared" / "data" / "bandai-namco-2-locomotion")).resolve()
 
