@@ -8,14 +8,21 @@
 #
 #   scripts/moglow-fidelity.sh [OUT]        (default var/fidelity)
 #
-# Read from the environment: DATA (motion folders joined with ':', default both
-# Bandai-Namco folders beside the project), MOGLOW_STEPS (default 40000: many hours on one
-# core; a run stopped part-way continues from its checkpoint with --resume), BASELINE_STEPS
-# (default 2000), THREADS (torch threads, default 1), SAMPLES (per control, default 4),
-# SYSTEMS (the models to train and compare, default "MoGlow MG-D RNN VAE"), MGD_BRANCH
-# (default 13000: MG-D is MoGlow's state at that step continued without data dropout, so
-# the two differ only in what they learnt after it; 0 trains MG-D from scratch, as the
-# paper did).
+# Read from the environment:
+#   DATA            motion folders joined with ':' (default both Bandai-Namco folders beside
+#                   the project)
+#   MOGLOW_STEPS    default 40000: many hours on one core; a run stopped part-way continues
+#                   from its checkpoint with --resume
+#   BASELINE_STEPS  default 2000
+#   MGD_STEPS, RNN_STEPS, VAE_STEPS
+#                   where one model stops instead (defaults MOGLOW_STEPS, BASELINE_STEPS,
+#                   BASELINE_STEPS)
+#   THREADS         torch threads, default 1
+#   SAMPLES         per control, default 4
+#   SYSTEMS         the models to train and compare, default "MoGlow MG-D RNN VAE"
+#   MGD_BRANCH      default 13000: MG-D is MoGlow's state at that step continued without data
+#                   dropout, so the two differ only in what they learnt after it; 0 trains
+#                   MG-D from scratch, as the paper did
 # Each step's output goes to OUT/logs/NAME.log. Training steps resume; sampling and
 # evaluation are redone every run, so the tables always describe the checkpoints as they are.
 set -euo pipefail
@@ -26,16 +33,22 @@ DATA=${DATA:-$(realpath ../shared/data/bandai-namco-1):$(realpath ../shared/data
 IFS=: read -r -a FOLDERS <<< "$DATA"
 MOGLOW_STEPS=${MOGLOW_STEPS:-40000}
 BASELINE_STEPS=${BASELINE_STEPS:-2000}
+MGD_STEPS=${MGD_STEPS:-$MOGLOW_STEPS}
+RNN_STEPS=${RNN_STEPS:-$BASELINE_STEPS}
+VAE_STEPS=${VAE_STEPS:-$BASELINE_STEPS}
 THREADS=${THREADS:-1}
 export OMP_NUM_THREADS=$THREADS  # sampling and evaluation too: a thread more than the free cores stalls them all
 SAMPLES=${SAMPLES:-4}
 MGD_BRANCH=${MGD_BRANCH:-13000}
 read -r -a SYSTEMS <<< "${SYSTEMS:-MoGlow MG-D RNN VAE}"
-declare -A KIND=([MoGlow]="moglow cpu $MOGLOW_STEPS 500" [MG-D]="moglow cpu-MG-D $MOGLOW_STEPS 500"
-                 [RNN]="rnn cpu $BASELINE_STEPS 100" [VAE]="vae cpu $BASELINE_STEPS 100")
+declare -A KIND=([MoGlow]="moglow cpu $MOGLOW_STEPS 500" [MG-D]="moglow cpu-MG-D $MGD_STEPS 500"
+                 [RNN]="rnn cpu $RNN_STEPS 100" [VAE]="vae cpu $VAE_STEPS 100")
 for name in "${SYSTEMS[@]}"; do
     [ -n "${KIND[$name]:-}" ] || { echo "unknown system '$name' in SYSTEMS (MoGlow, MG-D, RNN, VAE)" >&2; exit 2; }
 done
+if (( MGD_BRANCH > 0 && MGD_STEPS <= MGD_BRANCH )) && [[ " ${SYSTEMS[*]} " == *" MG-D "* ]]; then
+    echo "MGD_STEPS=$MGD_STEPS must be past MGD_BRANCH=$MGD_BRANCH, where MG-D leaves MoGlow's run" >&2; exit 2
+fi
 CONTENTS=walk,run,dash,walk-back,walk-left,walk-right,walk-turn-left,walk-turn-right
 SYNTHETIC=(walk-straight walk-circle sidestep-left walk-backward stand-still)
 MODELS=$OUT/models
@@ -45,7 +58,10 @@ run() {  # run NAME COMMAND...: COMMAND's output into OUT/logs/NAME.log
     local name=$1; shift
     echo "$(date +%T) $name ..."
     local start=$SECONDS
-    "$@" > "$OUT/logs/$name.log" 2>&1 || { echo "$name failed; see $OUT/logs/$name.log"; exit 1; }
+    local status=0
+    "$@" > "$OUT/logs/$name.log" 2>&1 || status=$?
+    # The step's own exit status goes on: 2 when the data or a setting was refused.
+    (( status == 0 )) || { echo "$name failed; see $OUT/logs/$name.log" >&2; exit "$status"; }
     echo "$(date +%T) $name done in $((SECONDS - start)) s"
 }
 
@@ -84,7 +100,7 @@ branch_mg_d() {  # MG-D starts as MoGlow's state at step MGD_BRANCH (kept as MoG
 
 if [[ " ${SYSTEMS[*]} " == *" MG-D "* ]] && (( MGD_BRANCH > 0 )); then
     branch_mg_d
-    KIND[MG-D]="moglow cpu $MOGLOW_STEPS 500 --set dropout=0"
+    KIND[MG-D]="moglow cpu $MGD_STEPS 500 --set dropout=0"
 fi
 for name in "${SYSTEMS[@]}"; do
     train "$name" ${KIND[$name]}

@@ -1,0 +1,35 @@
+"""scripts/moglow-fidelity.sh refuses settings it cannot honour before it trains or writes anything."""
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "moglow-fidelity.sh"
+
+
+def run_script(out: Path, **settings: str) -> subprocess.CompletedProcess:
+    return subprocess.run(["bash", str(SCRIPT), str(out)], env={**os.environ, **settings},
+                          capture_output=True, text=True, timeout=60)
+
+
+@pytest.mark.parametrize("settings, message", [
+    ({"SYSTEMS": "MoGlow MG-X"}, "unknown system 'MG-X' in SYSTEMS"),
+    ({"MOGLOW_STEPS": "20000", "MGD_STEPS": "9000"}, "MGD_STEPS=9000 must be past MGD_BRANCH=13000"),
+])
+def test_refused_settings_exit_2_and_create_nothing(tmp_path, settings, message):
+    out = tmp_path / "fidelity"
+    result = run_script(out, **settings)
+    assert result.returncode == 2, result.stderr
+    assert message in result.stderr
+    assert not out.exists()
+
+
+def test_a_refused_step_passes_its_exit_status_on_and_names_its_log(tmp_path):
+    """MGD_STEPS short of MOGLOW_STEPS is accepted; the first step then refuses the missing folder."""
+    out, missing = tmp_path / "fidelity", tmp_path / "no-such-folder"
+    result = run_script(out, MOGLOW_STEPS="20000", MGD_STEPS="18500", DATA=str(missing), SYSTEMS="MG-D")
+    assert result.returncode == 2
+    log = out / "logs" / "train-MoGlow.log"
+    assert f"train-MoGlow failed; see {log}" in result.stderr
+    assert f"motion folder {missing} does not exist" in log.read_text()
