@@ -223,6 +223,29 @@ def test_generated_frames_do_not_depend_on_later_control():
     assert not torch.allclose(first[:, 7], second[:, 7])
 
 
+def test_teacher_forcing_on_the_models_own_sample_gives_that_sample_back():
+    model = tiny_model()
+    _, control = motion(frames=12)
+    sample = lambda **given: model.generate(control, None, 0.7, torch.Generator().manual_seed(4), **given)  # noqa: E731
+    free = sample()
+    assert torch.allclose(sample(true_past=free), free, atol=1e-10)
+
+
+def test_teacher_forced_frames_follow_the_true_past_before_them_and_nothing_after():
+    model = tiny_model()
+    true_past, control = motion(frames=12)
+    forced = lambda past: model.generate(control, None, 0.0, true_past=past)  # noqa: E731
+    reference = forced(true_past)
+    later, earlier = true_past.clone(), true_past.clone()
+    later[:, 7:] += 1.0
+    earlier[:, 6] += 1.0
+    assert torch.equal(forced(later)[:, :8], reference[:, :8])  # frame 7 sees the true past up to frame 6
+    assert not torch.allclose(forced(earlier)[:, 7], reference[:, 7])
+    assert torch.equal(reference[:, :2], true_past[:, :2])
+    with pytest.raises(ValueError, match=r"true_past must have shape \(2, 12, 5\), not \(2, 11, 5\)"):
+        forced(true_past[:, :11])
+
+
 def test_sampling_is_reproducible_under_a_seed():
     model = tiny_model()
     _, control = motion(frames=10)

@@ -8,6 +8,7 @@
   sample CHECKPOINT     generate motion for control signals or labels (npz, BVH, optional MP4)
   natural FOLDER        export held-out natural clips the same way (the NAT system)
   evaluate CHECKPOINT   held-out loss (MoGlow: negative log-likelihood per frame)
+  sliding CHECKPOINT    where a MoGlow's foot sliding arises, on held-out takes
   import-stylegestures CHECKPOINT
                         a checkpoint of the authors' MoGlow code as a project checkpoint
   hvrnn-classifiers, hvrnn-denoiser, hvrnn-eval FOLDER

@@ -1,5 +1,6 @@
 """Commands on models and the systems of a study: ``train``, ``sample``, ``natural``
-(held-out natural clips exported like samples) and ``evaluate``.
+(held-out natural clips exported like samples), ``evaluate`` and ``sliding`` (where a
+MoGlow's foot sliding arises).
 
 Modules that import torch (train, generator, checkpoint) are imported by the commands
 that need them, so that ``--help`` starts quickly.
@@ -234,6 +235,43 @@ def evaluate_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def sliding_command(args: argparse.Namespace) -> int:
+    from analysis.footsteps import choose_foot_joints
+
+    from ..generator import Generator
+    from ..motion.features import decode_positions
+    from ..sliding import sliding_ladder
+
+    generator = Generator.load(args.checkpoint)
+    meta = generator.meta
+    if meta.kind != "moglow" or meta.features.get("control_layout"):
+        raise ValueError(f"{args.checkpoint} is not a MoGlow of this project ({meta.kind}"
+                         f"{', imported' if meta.features.get('control_layout') else ''}): the measurement predicts "
+                         "each frame from a true past, which needs MoGlow's conditioning on past poses")
+    folder = args.data or os.environ.get("MOTION_DATA")
+    if not folder:
+        raise ValueError("the measurement needs the motion folder: --data FOLDER or $MOTION_DATA")
+    dataset = build_dataset(folder, DatasetOptions.from_dict(meta.features["dataset_options"]), cache_dir=args.cache_dir)
+    if dataset.fingerprint != meta.data_fingerprint:
+        print("warning: this data differs from the data the model was trained on", file=sys.stderr)
+    contents = tuple(c.strip() for c in args.contents.split(","))
+    clips = [c for c in dataset.select("test", augmented=False) if c.content in contents][: args.takes]
+    if not clips:
+        raise ValueError(f"no held-out take of {', '.join(contents)} in the data")
+    frames = int(round(args.seconds * generator.fps))
+    takes = [(arrays["pose"][:frames].astype("float64"), arrays["control"][:frames].astype("float64"))
+             for arrays in map(dataset.clip_arrays, clips)]
+    skeleton = generator.skeleton
+    feet = choose_foot_joints(skeleton.names, skeleton.parents,
+                              [decode_positions(pose, control, generator.fps) for pose, control in takes], "toe")
+    table = sliding_ladder(generator, takes, feet, args.samples, args.seed)
+    print(f"lower-foot speed ({', '.join(skeleton.names[i] for i in feet)}) of {len(takes)} held-out "
+          f"{'/'.join(contents)} take(s), {args.seconds:g} s at most, on their own control:")
+    for row in table.itertuples():
+        print(f"  {row.condition:<22} {row.lower_foot_speed:6.1f} cm/s  ({row.clips} clips)")
+    return 0
+
+
 def add_commands(commands: argparse._SubParsersAction) -> None:
     """Add the group's commands to the ``generation`` command line's subparsers."""
     p = commands.add_parser("train", help="train a model on a BVH folder",
@@ -321,3 +359,19 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu")
     p.set_defaults(run=evaluate_command)
+
+    p = commands.add_parser("sliding", help="where a MoGlow's foot sliding arises, on held-out takes",
+                            description="The weight-bearing foot's speed on held-out takes of CONTENTS, on each "
+                                        "take's own control: the take itself; each frame predicted one frame "
+                                        "ahead of the take's true past at temperature 0; free-running samples "
+                                        "from the take's first poses at temperature 0 and 1 "
+                                        "(generation/sliding.py).")
+    p.add_argument("checkpoint", help="a MoGlow checkpoint")
+    p.add_argument("--data", nargs="+", help="motion folder(s) the model learnt from (default $MOTION_DATA)")
+    p.add_argument("--contents", default="walk", help="content labels of the takes (default %(default)s)")
+    p.add_argument("--takes", type=int, default=12, help="how many held-out takes, at most (default %(default)s)")
+    p.add_argument("--seconds", type=float, default=6.0, help="of each take, at most (default %(default)s)")
+    p.add_argument("--samples", type=int, default=8, help="free-running samples per take at T=1 (default %(default)s)")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--cache-dir", help="dataset cache folder")
+    p.set_defaults(run=sliding_command)

@@ -102,6 +102,7 @@ class MoGlow(PathModel):
         temperature: float = 1.0,
         generator: torch.Generator | RowGenerators | None = None,
         precision: str = "float32",
+        true_past: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """Sample poses frame by frame; the noise of all frames is drawn up front.
 
@@ -111,6 +112,12 @@ class MoGlow(PathModel):
         multiply in that precision (``generation.models.precision``); the flow's
         arithmetic stays in float32, and the result stays close to the float32 sample of
         the same seed.
+
+        With ``true_past`` (batch, T, pose_dim; standardised, like ``context``) every c_t
+        holds its poses x_{t-τ}..x_{t-1} instead of the frames generated so far (teacher
+        forcing): frame t is then a prediction one frame ahead of a true past, and its
+        first τ frames are the context. The couplings' LSTM state still follows the
+        generated frames, as in sampling.
         """
         self.check_precision(precision)
         batch, frames, _ = control.shape
@@ -122,6 +129,11 @@ class MoGlow(PathModel):
             raise ValueError(f"precision {precision} is not available on {parameter.device} "
                              f"(there: {', '.join(available_precisions(parameter.device))})")
         control = control.to(parameter)
+        if true_past is not None:
+            if true_past.shape != (batch, frames, self.pose_dim):
+                raise ValueError(f"true_past must have shape {(batch, frames, self.pose_dim)}, not {tuple(true_past.shape)}")
+            true_past = true_past.to(parameter)
+            context = true_past[:, :tau]
         if context is None:
             context = control.new_zeros(batch, tau, self.pose_dim)  # the mean pose, standardised
         pose = control.new_empty(batch, frames, self.pose_dim)
@@ -131,7 +143,8 @@ class MoGlow(PathModel):
         # The control part of every c_t is known in advance; c_t is laid out as in conditioning().
         controls = control.unfold(1, tau + 1, 1).transpose(2, 3).flatten(2)  # (batch, T-τ, (τ+1)·control_dim)
         invert = self.flow.frame_inverse(precision)
+        past = pose if true_past is None else true_past
         for t in range(tau, frames):
-            conditioning = torch.cat([pose[:, t - tau : t].flatten(1), controls[:, t - tau]], dim=-1)
+            conditioning = torch.cat([past[:, t - tau : t].flatten(1), controls[:, t - tau]], dim=-1)
             pose[:, t] = invert(noise[:, t - tau], conditioning)
         return pose

@@ -1,0 +1,47 @@
+"""`generation sliding`: where a MoGlow's foot sliding arises, on held-out takes."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+
+from analysis.smoothness import lower_foot_speed
+from generation.cli import main
+from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
+from tests.test_checkpoint import checkpoint, clips_folder, dataset, monkeypatch_module, tiny_preset  # noqa: F401
+
+CONTENTS = "walk,walk-back,run,walk-left"
+
+
+def speeds(output: str) -> dict[str, float]:
+    return {m[1].strip(): float(m[2]) for m in re.finditer(r"^  (\S.*?)\s+([\d.]+) cm/s", output, re.M)}
+
+
+def test_sliding_measures_four_versions_of_each_take_and_the_take_as_its_bvh_moves(checkpoint, clips_folder,  # noqa: F811
+                                                                                  tmp_path, capsys):
+    args = ["sliding", str(checkpoint), "--data", str(clips_folder), "--contents", CONTENTS, "--seconds", "3",
+            "--samples", "2", "--cache-dir", str(tmp_path / "cache")]
+    assert main(args) == 0, capsys.readouterr().err
+    output = capsys.readouterr().out
+    measured = speeds(output)
+    assert list(measured) == ["natural", "one frame ahead, T=0", "free-running, T=0", "free-running, T=1"]
+    assert all(math.isfinite(v) and v > 0 for v in measured.values())
+
+    # The natural row, computed independently: the held-out takes' own BVH, at the model's
+    # frame rate, from frame τ on (the tiny preset's τ is 3), at the toes.
+    held_out = build_dataset(clips_folder, DatasetOptions(holdout_fraction=0.2), cache_dir=tmp_path / "cache",
+                             progress=False).select("test", augmented=False)
+    held_out = [c for c in held_out if c.content in CONTENTS.split(",")]
+    assert f"of {len(held_out)} held-out" in output and len(held_out) >= 1
+    motions = [load_body_motion(clips_folder / f"{c.name}.bvh", 20.0, 3.0) for c in held_out]
+    toes = [i for i, name in enumerate(motions[0].skeleton.names) if name.startswith("Toes")]
+    expected = lower_foot_speed([m.positions[3:] for m in motions], 20.0, toes)
+    assert np.isclose(measured["natural"], round(expected, 1), atol=0.051)
+
+
+def test_sliding_without_data_is_refused_with_exit_2(checkpoint, monkeypatch, capsys):  # noqa: F811
+    monkeypatch.delenv("MOTION_DATA", raising=False)
+    assert main(["sliding", str(checkpoint)]) == 2
+    assert "the measurement needs the motion folder: --data FOLDER or $MOTION_DATA" in capsys.readouterr().err
