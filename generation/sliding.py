@@ -36,6 +36,10 @@ def sliding_ladder(generator: Generator, takes: Sequence[tuple[np.ndarray, np.nd
     """One row per condition (``CONDITIONS``): columns condition, lower_foot_speed (cm/s),
     clips. ``takes`` are (pose, control) feature arrays of held-out takes, each longer
     than τ frames; the free-running T=1 condition draws ``samples`` per take."""
+    if samples < 1:
+        raise ValueError(f"samples must be at least 1, not {samples}")
+    if not takes:
+        raise ValueError("no held-out takes to measure")
     tau, fps = generator.model.context_frames, generator.fps
     clips: dict[str, list[np.ndarray]] = {condition: [] for condition in CONDITIONS}
     for pose, control in takes:

@@ -6,6 +6,7 @@ import math
 import re
 
 import numpy as np
+import pytest
 
 from analysis.smoothness import lower_foot_speed
 from generation.cli import main
@@ -41,7 +42,13 @@ def test_sliding_measures_four_versions_of_each_take_and_the_take_as_its_bvh_mov
     assert np.isclose(measured["natural"], round(expected, 1), atol=0.051)
 
 
-def test_sliding_without_data_is_refused_with_exit_2(checkpoint, monkeypatch, capsys):  # noqa: F811
+@pytest.mark.parametrize(("given", "message"), [
+    ([], "the measurement needs the motion folder: --data FOLDER or $MOTION_DATA"),
+    (["--takes", "0"], "--takes and --samples must be at least 1 and --seconds positive, not 0, 8 and 6"),
+    (["--samples", "0"], "--takes and --samples must be at least 1 and --seconds positive, not 12, 0 and 6"),
+])
+def test_sliding_without_data_or_with_nothing_to_measure_is_refused_with_exit_2(checkpoint, monkeypatch, capsys,  # noqa: F811
+                                                                                given, message):
     monkeypatch.delenv("MOTION_DATA", raising=False)
-    assert main(["sliding", str(checkpoint)]) == 2
-    assert "the measurement needs the motion folder: --data FOLDER or $MOTION_DATA" in capsys.readouterr().err
+    assert main(["sliding", str(checkpoint), *given]) == 2
+    assert message in capsys.readouterr().err

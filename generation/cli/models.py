@@ -248,6 +248,9 @@ def sliding_command(args: argparse.Namespace) -> int:
         raise ValueError(f"{args.checkpoint} is not a MoGlow of this project ({meta.kind}"
                          f"{', imported' if meta.features.get('control_layout') else ''}): the measurement predicts "
                          "each frame from a true past, which needs MoGlow's conditioning on past poses")
+    if args.takes < 1 or args.samples < 1 or args.seconds <= 0:
+        raise ValueError(f"--takes and --samples must be at least 1 and --seconds positive, not {args.takes}, "
+                         f"{args.samples} and {args.seconds:g}")
     folder = args.data or os.environ.get("MOTION_DATA")
     if not folder:
         raise ValueError("the measurement needs the motion folder: --data FOLDER or $MOTION_DATA")
