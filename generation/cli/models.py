@@ -375,6 +375,6 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--takes", type=int, default=12, help="how many held-out takes, at most (default %(default)s)")
     p.add_argument("--seconds", type=float, default=6.0, help="of each take, at most (default %(default)s)")
     p.add_argument("--samples", type=int, default=8, help="free-running samples per take at T=1 (default %(default)s)")
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--seed", type=int, default=1, help="of the free-running samples (default %(default)s)")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.set_defaults(run=sliding_command)
