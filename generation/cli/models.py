@@ -240,7 +240,7 @@ def sliding_command(args: argparse.Namespace) -> int:
 
     from ..generator import Generator
     from ..motion.features import decode_positions
-    from ..sliding import sliding_ladder
+    from ..sliding import SETTLE_SECONDS, sliding_ladder
 
     generator = Generator.load(args.checkpoint)
     meta = generator.meta
@@ -269,9 +269,9 @@ def sliding_command(args: argparse.Namespace) -> int:
                               [decode_positions(pose, control, generator.fps) for pose, control in takes], "toe")
     table = sliding_ladder(generator, takes, feet, args.samples, args.seed)
     print(f"lower-foot speed ({', '.join(skeleton.names[i] for i in feet)}) of {len(takes)} held-out "
-          f"{'/'.join(contents)} take(s), {args.seconds:g} s at most, on their own control:")
+          f"{'/'.join(contents)} take(s) on their own control, from {SETTLE_SECONDS:g} s to {args.seconds:g} s at most:")
     for row in table.itertuples():
-        print(f"  {row.condition:<22} {row.lower_foot_speed:6.1f} cm/s  ({row.clips} clips)")
+        print(f"  {row.condition:<28} {row.lower_foot_speed:6.1f} cm/s  ({row.clips} clips)")
     return 0
 
 
@@ -365,16 +365,17 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
 
     p = commands.add_parser("sliding", help="where a MoGlow's foot sliding arises, on held-out takes",
                             description="The weight-bearing foot's speed on held-out takes of CONTENTS, on each "
-                                        "take's own control: the take itself; each frame predicted one frame "
-                                        "ahead of the take's true past at temperature 0; free-running samples "
-                                        "from the take's first poses at temperature 0 and 1 "
-                                        "(generation/sliding.py).")
+                                        "take's own control, from 1 s in: the take itself; each frame predicted "
+                                        "one frame ahead of the take's true past at temperature 0; free-running "
+                                        "samples from the take's first poses at temperature 0 and 1, from the "
+                                        "mean pose (as the authors' code samples), and from the mean pose after "
+                                        "sample's warm-up (generation/sliding.py).")
     p.add_argument("checkpoint", help="a MoGlow checkpoint")
     p.add_argument("--data", nargs="+", help="motion folder(s) the model learnt from (default $MOTION_DATA)")
     p.add_argument("--contents", default="walk", help="content labels of the takes (default %(default)s)")
     p.add_argument("--takes", type=int, default=12, help="how many held-out takes, at most (default %(default)s)")
     p.add_argument("--seconds", type=float, default=6.0, help="of each take, at most (default %(default)s)")
-    p.add_argument("--samples", type=int, default=8, help="free-running samples per take at T=1 (default %(default)s)")
+    p.add_argument("--samples", type=int, default=8, help="samples per take at T=1 (default %(default)s)")
     p.add_argument("--seed", type=int, default=1, help="of the free-running samples (default %(default)s)")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.set_defaults(run=sliding_command)
