@@ -263,11 +263,11 @@ def main() -> int:
         say(f"no motion data at {', '.join(map(str, missing))}. Get the Bandai-Namco Research Motion Datasets 1 "
             "and 2 from GitHub (BandaiNamcoResearchInc/Bandai-Namco-Research-Motiondataset) or use any folder of "
             "BVH files, then run:  MOTION_DATA=/path/to/folder make demo  (several folders joined with ':')")
-        return 1
+        return 2
     port = int(os.environ.get("DEMO_PORT", "8000"))
     if not port_is_free(port):
         say(f"port {port} is in use; choose another with DEMO_PORT=8001 make demo")
-        return 1
+        return 2
 
     say(f"database: {settings.DATABASES['default']['NAME']}")
     call_command("migrate", verbosity=0)
