@@ -49,6 +49,9 @@ class PathControl:
     velocities: np.ndarray
     fps: float
     name: str = ""
+    # The control just before the clip, where there is one (a held-out take's first
+    # second): sampling warms up on it instead of holding the first frame.
+    lead_in: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         v = np.asarray(self.velocities, dtype=np.float64)
@@ -58,6 +61,12 @@ class PathControl:
             raise ValueError("path control contains NaN or infinity")
         _check_length(len(v), self.fps)
         object.__setattr__(self, "velocities", v)
+        if self.lead_in is not None:
+            lead = np.asarray(self.lead_in, dtype=np.float64)
+            if lead.ndim != 2 or lead.shape[1] != 3 or len(lead) < 1 or not np.isfinite(lead).all():
+                raise ValueError(f"a path control's lead-in needs finite values of shape (frames >= 1, 3), got {lead.shape}")
+            _check_length(len(lead), self.fps)
+            object.__setattr__(self, "lead_in", lead)
 
     @property
     def n_frames(self) -> int:
@@ -68,7 +77,18 @@ class PathControl:
         return integrate(self.velocities, self.fps)
 
     def to_dict(self) -> dict:
-        return {"type": "path", "name": self.name, "fps": self.fps, "velocities": self.velocities.round(4).tolist()}
+        data = {"type": "path", "name": self.name, "fps": self.fps, "velocities": self.velocities.round(4).tolist()}
+        if self.lead_in is not None:
+            data["lead_in"] = self.lead_in.round(4).tolist()
+        return data
+
+    def warmup(self, frames: int) -> np.ndarray:
+        """The ``frames`` of control that sampling runs on before the clip: the end of the
+        lead-in where there is one (its first frame held before it if it is shorter),
+        else the clip's first frame held."""
+        source = self.velocities[:1] if self.lead_in is None else self.lead_in
+        lead = source[-frames:] if frames > 0 else source[:0]
+        return np.concatenate([np.repeat(source[:1], frames - len(lead), axis=0), lead])
 
 
 @dataclass(frozen=True)
@@ -122,7 +142,9 @@ def _frames_of(seconds: float | None, fps: float) -> int | None:
 def control_from_dict(data: dict) -> Control:
     """Inverse of ``to_dict`` for either kind."""
     if data.get("type") == "path":
-        return PathControl(np.asarray(data["velocities"]), data["fps"], data.get("name", ""))
+        lead_in = data.get("lead_in")
+        return PathControl(np.asarray(data["velocities"]), data["fps"], data.get("name", ""),
+                           None if lead_in is None else np.asarray(lead_in))
     if data.get("type") == "attributes":
         return AttributeControl(data["action"], data["style"], int(data["frames"]), data["fps"], data.get("name", ""))
     raise ValueError(f"unknown control type {data.get('type')!r}; expected 'path' or 'attributes'")
@@ -237,18 +259,30 @@ def load_control_file(path: str | Path, fps: float = 20.0) -> list[PathControl]:
     return controls
 
 
-def held_out_paths(dataset, seconds: float | None = None) -> list[PathControl]:
-    """The control of each held-out natural clip of a dataset (cut to ``seconds``)."""
+def held_out_paths(dataset, seconds: float | None = None, lead_in_seconds: float = 0.0) -> list[PathControl]:
+    """The control of each held-out natural clip of a dataset (cut to ``seconds``).
+
+    With ``lead_in_seconds`` each clip starts that far into its take, and the take's
+    control before it is the clip's lead-in: sampling then warms up on the take's own
+    start, as the MoGlow authors' code samples a test take from its first frame.
+    """
     fps = dataset.options.fps
     frames = _frames_of(seconds, fps)
+    lead = lead_in_frames(lead_in_seconds, fps)
     result = []
     for clip in dataset.select("test"):
-        control = dataset.clip_arrays(clip)["control"].astype(np.float64)
-        if seconds is not None:
-            control = control[:frames]
+        take = dataset.clip_arrays(clip)["control"].astype(np.float64)
+        control = take[lead:] if frames is None else take[lead:lead + frames]
         if len(control) >= 2:
-            result.append(PathControl(control, fps, clip.name))
+            result.append(PathControl(control, fps, clip.name, take[:lead] if lead else None))
     return result
+
+
+def lead_in_frames(seconds: float, fps: float) -> int:
+    """A lead-in of ``seconds`` (0 for none) as a number of frames, refusing what no take lasts."""
+    if not (math.isfinite(seconds) and 0 <= seconds <= MAX_PATH_SECONDS):
+        raise ValueError(f"the lead-in must be 0 or more seconds and at most {MAX_PATH_SECONDS:g}, got {seconds}")
+    return int(round(seconds * fps))
 
 
 def held_out_attributes(dataset, seconds: float | None = None) -> list[AttributeControl]:

@@ -126,8 +126,8 @@ class Generator:
         """``n`` motions following ``control``; the same seed gives the same motions.
 
         ``warmup_seconds`` of motion are generated before the kept part and discarded
-        (default: 1 s for autoregressive models, as in MoGlow, else 0), holding the
-        first control frame. ``context`` (context_frames, 3 × joints, in the root frame,
+        (default: 1 s for autoregressive models, as in MoGlow, else 0), on the end of the
+        control's lead-in where it has one, else holding its first frame. ``context`` (context_frames, 3 × joints, in the root frame,
         cm) seeds autoregressive models; by default they start from the mean pose.
         Attribute models take an ``AttributeControl`` and neither of those two.
         ``precision`` is "auto" or one the model offers (``model.precisions``); see
@@ -188,8 +188,7 @@ class Generator:
         if warmup_seconds is None:
             warmup_seconds = 1.0 if context_frames else 0.0
         warmup = max(int(round(warmup_seconds * self.fps)), context_frames)
-        laid_out = {id(c): self.control_layout(np.concatenate([np.repeat(c.velocities[:1], warmup, axis=0),
-                                                                c.velocities]), self.fps)
+        laid_out = {id(c): self.control_layout(np.concatenate([c.warmup(warmup), c.velocities]), self.fps)
                     for c in controls}  # by identity: ``sample`` passes one control n times
         c = torch.as_tensor(self.control_stats.apply(np.stack([laid_out[id(c)] for c in controls])),
                             dtype=torch.float32, device=self.device)

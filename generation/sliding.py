@@ -10,7 +10,8 @@ frames (from ``SETTLE_SECONDS`` on), each version a step further from the take:
   measured from the take's previous frame: what one prediction adds;
 * free-running from the take's first τ poses, at T=0 and T=1: what compounding the
   predictions and drawing the noise add;
-* from the mean pose, T=1, as the authors' code samples a test take's control;
+* from the mean pose, T=1, as the authors' code samples a test take's control (and
+  ``sample -c held-out --lead-in``, its warm-up running on the take's own start);
 * from the mean pose after a warm-up that holds the first control frame, T=1, as
   ``Generator.sample`` (and so ``sample`` and the fidelity tables) does.
 """

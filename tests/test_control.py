@@ -86,3 +86,36 @@ def test_held_out_control_comes_from_held_out_natural_clips(motion_data, tmp_pat
     assert {c.name for c in controls} == {c.name for c in dataset.select("test")}
     assert all(c.n_frames <= 80 for c in controls)
     assert all(c.velocities[:, 0].mean() < -30 for c in controls)  # walking backwards
+
+
+def test_a_lead_in_is_the_warm_up_and_without_one_the_first_frame_is_held():
+    velocities = np.arange(30.0).reshape(10, 3)
+    plain = PathControl(velocities, 20.0)
+    assert np.array_equal(plain.warmup(4), np.repeat(velocities[:1], 4, axis=0))
+    lead = np.arange(100.0, 115.0).reshape(5, 3)
+    led = PathControl(velocities, 20.0, lead_in=lead)
+    assert np.array_equal(led.warmup(3), lead[-3:])  # the end of a longer lead-in
+    assert np.array_equal(led.warmup(7), np.concatenate([lead[:1], lead[:1], lead]))  # a shorter one, its start held
+    assert led.warmup(0).shape == (0, 3)
+
+
+def test_a_lead_in_round_trips_and_a_control_without_one_keeps_its_dict():
+    control = PathControl(np.ones((4, 3)), 20.0, "take", lead_in=np.zeros((2, 3)))
+    again = control_from_dict(json.loads(json.dumps(control.to_dict())))
+    assert np.array_equal(again.lead_in, control.lead_in)
+    assert "lead_in" not in PathControl(np.ones((4, 3)), 20.0).to_dict()  # digests of existing stimuli unchanged
+    with pytest.raises(ValueError, match="lead-in needs finite values of shape"):
+        PathControl(np.ones((4, 3)), 20.0, lead_in=np.full((2, 3), np.nan))
+
+
+def test_held_out_control_with_a_lead_in_starts_that_far_into_each_take(motion_data, tmp_path):
+    from generation.motion.dataset import DatasetOptions, build_dataset
+
+    dataset = build_dataset(motion_data, DatasetOptions(contents=("walk-back",)), cache_dir=tmp_path, progress=False)
+    plain, led = held_out_paths(dataset, seconds=None), held_out_paths(dataset, seconds=2, lead_in_seconds=1)
+    assert [c.name for c in led] == [c.name for c in plain]
+    for whole, control in zip(plain, led):
+        assert np.array_equal(control.lead_in, whole.velocities[:20])
+        assert np.array_equal(control.velocities, whole.velocities[20:60])
+    with pytest.raises(ValueError, match="the lead-in must be 0 or more seconds"):
+        held_out_paths(dataset, seconds=2, lead_in_seconds=-1)

@@ -17,11 +17,12 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from ..control import PRESETS, held_out_paths, load_control_file, preset_path
+from ..control import PRESETS, held_out_paths, lead_in_frames, load_control_file, preset_path
 from ..motion.bvh import motion_to_bvh, write_bvh
 from ..motion.dataset import DatasetOptions, build_dataset, contents_or_all, find_bvh_files, load_body_motion
 from ..motion.npz import save_motion_npz
 from ..motion.root import RootOptions, root_trajectory
+from ..motion.types import Motion
 from ..motion.units import UNIT_NAMES, UNITS
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
@@ -110,7 +111,7 @@ def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
             if not folder:
                 raise ValueError("held-out control needs the motion folder: --data FOLDER or $MOTION_DATA")
             dataset = build_dataset(folder, DatasetOptions.from_dict(dataset_options), cache_dir=args.cache_dir)
-            controls += held_out_paths(dataset, args.seconds)
+            controls += held_out_paths(dataset, args.seconds, args.lead_in)
         elif name in PRESETS:
             controls.append(preset_path(name, fps))
         else:
@@ -195,13 +196,22 @@ def natural_command(args: argparse.Namespace) -> int:
     clips = dataset.select(args.split, augmented=False)
     files = {p.stem: p for p in find_bvh_files(args.folder)}
     out = Path(args.out)
+    if not (math.isfinite(args.seconds) and args.seconds > 0):
+        raise ValueError(f"--seconds must be a positive number, not {args.seconds}")
+    lead, frames = lead_in_frames(args.lead_in, options.fps), int(round(args.seconds * options.fps))
+    written = 0
     for clip in tqdm(clips, desc="natural clips", unit="clip", disable=len(clips) < 2):
-        motion = load_body_motion(files[clip.name], options.fps, args.seconds, options.scale, options.root, options.up)
+        take = load_body_motion(files[clip.name], options.fps, None, options.scale, options.root, options.up)
+        motion = Motion(take.positions[lead:lead + frames], take.fps, take.skeleton)
+        if motion.n_frames < 2:  # as held-out control skips it
+            continue
         save_motion_npz(motion, out / f"{clip.name}.npz")
+        written += 1
         if args.render:
             floor = root_trajectory(motion, options.root).xz
             render_video(motion, out / f"{clip.name}.mp4", camera=camera_from(args), size=args.size, root_path=floor)
-    print(f"{len(clips)} natural {args.split} clips in {out}")
+    skipped = f" ({len(clips) - written} shorter than the lead-in left out)" if written < len(clips) else ""
+    print(f"{written} natural {args.split} clips in {out}{skipped}")
     return 0
 
 
@@ -332,6 +342,11 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
                         "from float32's samples (default %(default)s)")
     p.add_argument("--seconds", type=float, default=4.0, help="length of held-out control or of attribute-controlled clips (default %(default)s)")
     p.add_argument("--data", nargs="+", help="motion folder(s) for held-out control (default $MOTION_DATA)")
+    p.add_argument("--lead-in", type=float, default=0.0, metavar="SECONDS",
+                   help="held-out control starts SECONDS into each take, and the warm-up runs on the take's own "
+                        "control before it, as the MoGlow authors' code samples a test take from its start "
+                        "(default %(default)s: the control starts with the take, and the warm-up holds its first "
+                        "frame); export NAT with the same `natural --lead-in`")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu")
     p.add_argument("--render", action="store_true", help="also render each clip to MP4")
@@ -350,6 +365,9 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--split", choices=("test", "train"), default="test", help="which takes (default: held-out)")
     p.add_argument("--contents", help="content labels (default: locomotion; every clip where the clips have no labels)")
     p.add_argument("--seconds", type=float, default=4.0, help="length of each clip (default %(default)s)")
+    p.add_argument("--lead-in", type=float, default=0.0, metavar="SECONDS",
+                   help="each clip starts SECONDS into its take, as `sample -c held-out --lead-in` samples it "
+                        "(default %(default)s)")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--render", action="store_true", help="also render each clip to MP4")
     add_camera_arguments(p)
