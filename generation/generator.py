@@ -127,8 +127,9 @@ class Generator:
 
         ``warmup_seconds`` of motion are generated before the kept part and discarded
         (default: 1 s for autoregressive models, as in MoGlow, else 0), on the end of the
-        control's lead-in where it has one, else holding its first frame. ``context`` (context_frames, 3 × joints, in the root frame,
-        cm) seeds autoregressive models; by default they start from the mean pose.
+        control's lead-in where it has one, else holding its first frame. ``context``
+        (context_frames, 3 × joints, in the root frame, cm) seeds autoregressive models;
+        by default they start from the mean pose.
         Attribute models take an ``AttributeControl`` and neither of those two.
         ``precision`` is "auto" or one the model offers (``model.precisions``); see
         ``resolve_precision``.

@@ -13,7 +13,7 @@ frames (from ``SETTLE_SECONDS`` on), each version a step further from the take:
 * from the mean pose, T=1, as the authors' code samples a test take's control (and
   ``sample -c held-out --lead-in``, its warm-up running on the take's own start);
 * from the mean pose after a warm-up that holds the first control frame, T=1, as
-  ``Generator.sample`` (and so ``sample`` and the fidelity tables) does.
+  ``Generator.sample`` does for a control without a lead-in (studies' held-out controls).
 """
 
 from __future__ import annotations
