@@ -44,3 +44,16 @@ def test_natural_and_held_out_samples_with_the_same_lead_in_cover_the_same_frame
         assert sampled[name].n_frames == motion.n_frames
     options = DatasetOptions.from_dict(Generator.load(checkpoint).meta.features["dataset_options"])
     assert len(natural) == len(build_dataset(clips_folder, options, cache_dir=cache, progress=False).select("test"))
+
+
+def test_a_lead_in_longer_than_every_take_is_refused_and_writes_nothing(checkpoint, clips_folder, tmp_path,  # noqa: F811
+                                                                       capsys):
+    cache = str(tmp_path / "cache")
+    assert main(["natural", str(clips_folder), "--out", str(tmp_path / "NAT"), "--lead-in", "500",
+                 "--cache-dir", cache]) == 2
+    assert main(["sample", str(checkpoint), "-c", "held-out", "--data", str(clips_folder), "--lead-in", "500",
+                 "--out", str(tmp_path / "MoGlow"), "--cache-dir", cache]) == 2
+    errors = capsys.readouterr().err
+    assert "no test take is longer than the lead-in of 500 s" in errors
+    assert "no held-out take is longer than the lead-in of 500 s" in errors
+    assert not (tmp_path / "NAT").exists() and not (tmp_path / "MoGlow").exists()

@@ -111,7 +111,10 @@ def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
             if not folder:
                 raise ValueError("held-out control needs the motion folder: --data FOLDER or $MOTION_DATA")
             dataset = build_dataset(folder, DatasetOptions.from_dict(dataset_options), cache_dir=args.cache_dir)
-            controls += held_out_paths(dataset, args.seconds, args.lead_in)
+            held_out = held_out_paths(dataset, args.seconds, args.lead_in)
+            if not held_out:
+                raise ValueError(f"no held-out take is longer than the lead-in of {args.lead_in:g} s")
+            controls += held_out
         elif name in PRESETS:
             controls.append(preset_path(name, fps))
         else:
@@ -202,14 +205,16 @@ def natural_command(args: argparse.Namespace) -> int:
     written = 0
     for clip in tqdm(clips, desc="natural clips", unit="clip", disable=len(clips) < 2):
         take = load_body_motion(files[clip.name], options.fps, None, options.scale, options.root, options.up)
-        motion = Motion(take.positions[lead:lead + frames], take.fps, take.skeleton)
-        if motion.n_frames < 2:  # as held-out control skips it
+        if take.n_frames < lead + 2:  # as held-out control leaves it out
             continue
+        motion = Motion(take.positions[lead:lead + frames], take.fps, take.skeleton)
         save_motion_npz(motion, out / f"{clip.name}.npz")
         written += 1
         if args.render:
             floor = root_trajectory(motion, options.root).xz
             render_video(motion, out / f"{clip.name}.mp4", camera=camera_from(args), size=args.size, root_path=floor)
+    if clips and not written:
+        raise ValueError(f"no {args.split} take is longer than the lead-in of {args.lead_in:g} s")
     skipped = f" ({len(clips) - written} shorter than the lead-in left out)" if written < len(clips) else ""
     print(f"{written} natural {args.split} clips in {out}{skipped}")
     return 0
