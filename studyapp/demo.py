@@ -119,14 +119,19 @@ def ensure_models(dataset, models: Path) -> dict[str, Path]:
     MoGlow, should its committed file be missing or not fit the data, about an hour)."""
     from generation.train import TrainOptions, train
 
+    from generation.checkpoint import read_meta
+
     checkpoints = {}
     for name, kind, steps, _, which in DEMO_MODELS:
         path = checkpoints[name] = model_path(models, kind, steps, which, dataset.fingerprint)
-        if path.exists():
-            continue
-        say(f"training {name} ({kind}, cpu preset, {steps} steps) on the demo's data: once, kept in {models}")
         last = path.with_name(path.name.replace(".best", ""))
-        train(kind, "cpu", dataset, last, TrainOptions(steps=steps, eval_every=min(steps, 250)))
+        if path.parent == COMMITTED_MODELS or (path.exists() and read_meta(last).step >= steps):
+            continue
+        # A run stopped part-way (Ctrl-C) goes on from its last checkpoint instead of being taken as trained.
+        resume = last.exists()
+        say(f"{'continuing' if resume else 'training'} {name} ({kind}, cpu preset, {steps} steps) on the demo's "
+            f"data: once, kept in {models}")
+        train(kind, "cpu", dataset, last, TrainOptions(steps=steps, eval_every=min(steps, 250)), resume=resume)
     return checkpoints
 
 
@@ -274,12 +279,15 @@ def main() -> int:
     # The app serves the collected files itself: runserver does not, with DEBUG off.
     call_command("collectstatic", interactive=False, verbosity=0)
     researcher, password = ensure_researcher(Path(settings.VAR_DIR))
-    say(f"building the locomotion dataset from {data}")
-    dataset = build_dataset(data, DatasetOptions(**DATASET))
-    say(f"dataset {dataset.fingerprint[:12]}: {len(dataset.select('train', augmented=False))} training takes, "
-        f"{len(dataset.select('test'))} held out, {len(dataset.windows('train')['pose'])} training windows")
-    models = Path(settings.VAR_DIR) / "models"
-    checkpoints = ensure_models(dataset, models)
+    try:
+        say(f"building the locomotion dataset from {data}")
+        dataset = build_dataset(data, DatasetOptions(**DATASET))
+        say(f"dataset {dataset.fingerprint[:12]}: {len(dataset.select('train', augmented=False))} training takes, "
+            f"{len(dataset.select('test'))} held out, {len(dataset.windows('train')['pose'])} training windows")
+        checkpoints = ensure_models(dataset, Path(settings.VAR_DIR) / "models")
+    except KeyboardInterrupt:
+        say("stopped; make demo goes on from here")
+        return 130
 
     worker = server = None
     try:

@@ -21,3 +21,26 @@ def test_a_committed_model_of_other_data_is_not_used(tmp_path):
     assert demo.committed_model("moglow", "0" * 64) is None
     assert demo.model_path(tmp_path, "moglow", 4000, "committed", "0" * 64) == tmp_path / "moglow-cpu-4000steps.safetensors"
     assert demo.model_path(tmp_path, "rnn", 400, "best", "0" * 64) == tmp_path / "rnn-cpu-400steps.best.safetensors"
+
+
+def test_a_demo_model_whose_training_was_stopped_part_way_is_trained_on_not_used(motion_data, tmp_path, monkeypatch):
+    from generation.train import TrainOptions, train
+
+    clips = tmp_path / "clips"
+    clips.mkdir()
+    for name in ("walk_normal_001", "walk_happy_001", "walk-back_normal_001", "run_normal_001", "walk-left_old_001",
+                 "walk_old_002"):
+        for suffix in (".bvh", ".json"):
+            (clips / f"dataset-1_{name}{suffix}").symlink_to(motion_data / "data" / f"dataset-1_{name}{suffix}")
+    (clips / "cfg").symlink_to(motion_data / "cfg")
+    dataset = build_dataset(clips, DatasetOptions(holdout_fraction=0.2), cache_dir=tmp_path / "cache", progress=False)
+    monkeypatch.setattr(demo, "DEMO_MODELS", (("VAE", "vae", 4, "model", "best"),))
+    models = tmp_path / "models"
+    stopped = models / "vae-cpu-4steps.safetensors"
+    train("vae", "cpu", dataset, stopped, TrainOptions(steps=2, eval_every=2), progress=False)  # as if Ctrl-C came then
+    assert (models / "vae-cpu-4steps.best.safetensors").exists() and read_meta(stopped).step == 2
+
+    checkpoints = demo.ensure_models(dataset, models)
+    assert checkpoints["VAE"] == models / "vae-cpu-4steps.best.safetensors"
+    assert read_meta(stopped).step == 4
+    assert demo.ensure_models(dataset, models) == checkpoints and read_meta(stopped).step == 4  # done: left alone
