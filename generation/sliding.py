@@ -59,15 +59,13 @@ def sliding_ladder(generator: Generator, takes: Sequence[tuple[np.ndarray, np.nd
         # Each predicted frame after the take's own previous frame: a two-frame clip per frame.
         clips["one frame ahead, T=0"] += [np.stack([world[t - 1], predicted[t]]) for t in range(settle, len(pose))]
 
-        def free_running(condition: str, temperature: float, context: torch.Tensor | None) -> None:
+        for condition, temperature, context in (("from the take's poses, T=0", 0.0, past[:, :tau]),
+                                                ("from the take's poses, T=1", 1.0, past[:, :tau]),
+                                                ("from the mean pose, T=1", 1.0, None)):
             n = samples if temperature > 0 else 1
-            context = None if context is None else context.expand(n, -1, -1)
-            sampled = model.generate(control_in.expand(n, -1, -1), context, temperature, torch.Generator().manual_seed(seed))
+            sampled = model.generate(control_in.expand(n, -1, -1), None if context is None else context.expand(n, -1, -1),
+                                     temperature, torch.Generator().manual_seed(seed))
             clips[condition] += [_positions(generator, s, control)[settle:] for s in sampled]
-
-        free_running("from the take's poses, T=0", 0.0, past[:, :tau])
-        free_running("from the take's poses, T=1", 1.0, past[:, :tau])
-        free_running("from the mean pose, T=1", 1.0, None)
         warmed = generator.sample(PathControl(control, fps), n=samples, seed=seed, precision="float32")
         clips["mean pose + warm-up, T=1"] += [motion.positions[settle:] for motion in warmed]
     counts = {c: len(takes) * (samples if c.endswith("T=1") else 1) for c in CONDITIONS}

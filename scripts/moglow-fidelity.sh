@@ -46,7 +46,8 @@ declare -A KIND=([MoGlow]="moglow cpu $MOGLOW_STEPS 500" [MG-D]="moglow cpu-MG-D
 for name in "${SYSTEMS[@]}"; do
     [ -n "${KIND[$name]:-}" ] || { echo "unknown system '$name' in SYSTEMS (MoGlow, MG-D, RNN, VAE)" >&2; exit 2; }
 done
-if (( MGD_BRANCH > 0 && MGD_STEPS <= MGD_BRANCH )) && [[ " ${SYSTEMS[*]} " == *" MG-D "* ]]; then
+MGD_WANTED=$([[ " ${SYSTEMS[*]} " == *" MG-D "* ]] && echo 1 || echo 0)
+if (( MGD_WANTED && MGD_BRANCH > 0 && MGD_STEPS <= MGD_BRANCH )); then
     echo "MGD_STEPS=$MGD_STEPS must be past MGD_BRANCH=$MGD_BRANCH, where MG-D leaves MoGlow's run" >&2; exit 2
 fi
 CONTENTS=walk,run,dash,walk-back,walk-left,walk-right,walk-turn-left,walk-turn-right
@@ -98,7 +99,7 @@ branch_mg_d() {  # MG-D starts as MoGlow's state at step MGD_BRANCH (kept as MoG
     copy_checkpoint "$kept" "$MODELS/MG-D"
 }
 
-if [[ " ${SYSTEMS[*]} " == *" MG-D "* ]] && (( MGD_BRANCH > 0 )); then
+if (( MGD_WANTED && MGD_BRANCH > 0 )); then
     branch_mg_d
     KIND[MG-D]="moglow cpu $MGD_STEPS 500 --set dropout=0"
 fi

@@ -117,9 +117,8 @@ def model_path(models: Path, kind: str, steps: int, which: str, fingerprint: str
 def ensure_models(dataset, models: Path) -> dict[str, Path]:
     """Each demo system's checkpoint, trained where missing (minutes each on 2 cores; the
     MoGlow, should its committed file be missing or not fit the data, about an hour)."""
-    from generation.train import TrainOptions, train
-
     from generation.checkpoint import read_meta
+    from generation.train import TrainOptions, train
 
     checkpoints = {}
     for name, kind, steps, _, which in DEMO_MODELS:

@@ -6,6 +6,7 @@ from __future__ import annotations
 from generation.checkpoint import read_meta
 from generation.motion.dataset import DatasetOptions, build_dataset, motion_folders
 from studyapp import demo
+from tests.test_checkpoint import clips_folder, dataset  # noqa: F401
 
 
 def test_the_committed_moglow_learnt_from_the_demos_default_data_prepared_the_demos_way(motion_data, motion_data_2,
@@ -23,17 +24,10 @@ def test_a_committed_model_of_other_data_is_not_used(tmp_path):
     assert demo.model_path(tmp_path, "rnn", 400, "best", "0" * 64) == tmp_path / "rnn-cpu-400steps.best.safetensors"
 
 
-def test_a_demo_model_whose_training_was_stopped_part_way_is_trained_on_not_used(motion_data, tmp_path, monkeypatch):
+def test_a_demo_model_whose_training_was_stopped_part_way_is_trained_on_not_used(dataset, tmp_path,  # noqa: F811
+                                                                                 monkeypatch):
     from generation.train import TrainOptions, train
 
-    clips = tmp_path / "clips"
-    clips.mkdir()
-    for name in ("walk_normal_001", "walk_happy_001", "walk-back_normal_001", "run_normal_001", "walk-left_old_001",
-                 "walk_old_002"):
-        for suffix in (".bvh", ".json"):
-            (clips / f"dataset-1_{name}{suffix}").symlink_to(motion_data / "data" / f"dataset-1_{name}{suffix}")
-    (clips / "cfg").symlink_to(motion_data / "cfg")
-    dataset = build_dataset(clips, DatasetOptions(holdout_fraction=0.2), cache_dir=tmp_path / "cache", progress=False)
     monkeypatch.setattr(demo, "DEMO_MODELS", (("VAE", "vae", 4, "model", "best"),))
     models = tmp_path / "models"
     stopped = models / "vae-cpu-4steps.safetensors"
