@@ -54,7 +54,10 @@ PATH_ARRAYS = """\
   root_path     (frames, 2) cm: the path integrated from the velocities, (x, z) on the floor
   root_yaw      (frames,) rad: the facing along it (0 = +z)
   fps           scalar: frames per second
-  frames        scalar: number of frames"""
+  frames        scalar: number of frames
+  lead_in       (lead, 3) float64, only in a held-out control that starts part-way into its
+                take: the take's velocities before the clip, as above, for a model to warm
+                up on; the motion submitted covers the `frames` after it"""
 
 SUBMISSION_RULES = """\
 A submission is one file per control, named by the control's id (the "id" of index.json):
@@ -106,8 +109,9 @@ def _path_npz(control: PathControl) -> bytes:
     path = control.path()
     buffer = io.BytesIO()
     v = control.velocities
+    lead_in = {} if control.lead_in is None else {"lead_in": control.lead_in}
     np.savez(buffer, velocities=v, forward=v[:, 0], sideways=v[:, 1], yaw_velocity=v[:, 2], root_path=path.xz,
-             root_yaw=path.yaw, fps=np.float64(control.fps), frames=np.int64(control.n_frames))
+             root_yaw=path.yaw, fps=np.float64(control.fps), frames=np.int64(control.n_frames), **lead_in)
     return buffer.getvalue()
 
 
@@ -116,8 +120,9 @@ def _readme(study: Study, kind: str) -> str:
     controls = ("paths/ID.npz, one per path control, with these arrays:\n" + PATH_ARRAYS if kind == "path" else
                 "labels/ID.json, one per label control: action, style, frames, fps")
     return (f"Controls of the study \"{study.title}\"\n\nUnits and axes: {AXES}.\n\n"
-            f"index.json lists every control (id, name, origin, frames, fps, seconds, its file and, when\n"
-            f"exported, its natural clip). The controls are in\n{controls}\n\n"
+            f"index.json lists every control (id, name, origin, frames, fps, seconds, its file, the seconds\n"
+            f"of its take before it (lead_in_seconds) where it has a lead-in and, when exported, its\n"
+            f"natural clip). The controls are in\n{controls}\n\n"
             "natural/ID.bvh (when exported) is the natural motion of a held-out control, in the control's\n"
             "frame and at its frame rate: an example of a valid submission file. Its lengths (OFFSET, End\n"
             "Site and position channels) are in centimetres with y up: BVH has no field to say so.\n\n"
@@ -138,6 +143,8 @@ def bundle_files(study: Study, natural: bool = False) -> dict[str, bytes]:
         ident = control_id(control)
         entry = {"id": ident, "name": control.name, "origin": control.origin, "frames": signal.n_frames,
                  "fps": signal.fps, "seconds": control.seconds}
+        if control.lead_in_seconds:
+            entry["lead_in_seconds"] = control.lead_in_seconds
         if isinstance(signal, PathControl):
             kinds.add("path")
             entry["file"] = f"paths/{ident}.npz"
@@ -159,7 +166,7 @@ def bundle_files(study: Study, natural: bool = False) -> dict[str, bytes]:
 
 def _natural_bvh(study: Study, control: ControlSignal) -> str:
     options = training_options(study)
-    motion = natural_motion(control.source_clip, control.seconds, options)
+    motion = natural_motion(control, options)
     return bvh_text(motion_to_bvh(natural_in_control_frame(motion, options.root)))
 
 

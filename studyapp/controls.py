@@ -25,8 +25,8 @@ from pathlib import Path
 from django.conf import settings
 from django.core.files import File
 
-from generation.control import (AttributeControl, Control, held_out_attributes, held_out_paths, load_control_file,
-                                preset_path)
+from generation.control import (AttributeControl, Control, held_out_attributes, held_out_paths, lead_in_frames,
+                                load_control_file, preset_path)
 from generation.motion.dataset import DatasetOptions, build_dataset, find_bvh_files
 from studyapp.models import ControlSignal, Study
 from studyapp.natural import data_folders, source_name
@@ -101,11 +101,24 @@ def _spread(controls: list[Control], contents: dict[str, str | None], count: int
     return interleaved[:count] if count else interleaved
 
 
-def add_held_out_controls(study: Study, seconds: float, count: int | None = None) -> list[ControlSignal]:
-    """Controls of the held-out clips of ``settings.MOTION_DATA`` cut to ``seconds`` (``count`` of them, or all)."""
+def add_held_out_controls(study: Study, seconds: float, count: int | None = None,
+                          lead_in: float = 0.0) -> list[ControlSignal]:
+    """Controls of the held-out clips of ``settings.MOTION_DATA`` cut to ``seconds`` (``count`` of them, or all).
+
+    With a ``lead_in`` (path controls only) each clip starts that many seconds into its
+    take, the models warm up on the take's control before it, and NAT shows the same
+    frames: the MoGlow authors sample a test take from its first frame, and a walk's first
+    second is often slower than the rest of it.
+    """
     if not seconds > 0:
         raise ControlError(f"seconds must be positive, got {seconds}")
+    if lead_in and control_kind(study) != "path":
+        raise ControlError("a lead-in is the path before the clip: this study's models are controlled by labels")
     options = training_options(study)
+    try:
+        lead_in_frames(lead_in, options.fps)  # refused before the data is read
+    except ValueError as error:
+        raise ControlError(str(error)) from None
     where = settings.MOTION_DATA
     try:
         folders = data_folders()
@@ -120,14 +133,17 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
     files = {path.stem: path for path in find_bvh_files(folders)}
     contents = {clip.name: clip.content for clip in dataset.select("test", augmented=False)}
     if control_kind(study) == "path":
-        held_out = held_out_paths(dataset, seconds)
+        held_out = held_out_paths(dataset, seconds, lead_in)
+        if not held_out:
+            raise ControlError(f"no held-out take of {where} (MOTION_DATA) is longer than the lead-in of {lead_in:g} s")
     else:  # only what every model of the study can be asked for
         actions, styles = study_labels(study)
         held_out = [c for c in held_out_attributes(dataset, seconds) if c.action in actions and c.style in styles]
     result = []
     for control in _spread(held_out, contents, count):
         source = source_name(files[control.name], folders)
-        named = dataclasses.replace(control, name=f"{control.name}-{seconds:g}s")
+        cut = f"{lead_in:g}s+{seconds:g}s" if lead_in else f"{seconds:g}s"
+        named = dataclasses.replace(control, name=f"{control.name}-{cut}")
         result.append(_save(study, named, ControlSignal.Origin.HELD_OUT, source))
     return result
 

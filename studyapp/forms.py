@@ -196,6 +196,14 @@ class HeldOutControlsForm(forms.Form):
     seconds = forms.FloatField(initial=4.0, min_value=0.5, max_value=60.0, help_text="each clip is cut to this")
     count = forms.IntegerField(required=False, min_value=1, initial=6,
                                help_text="how many held-out clips, spread over their content labels (empty: all)")
+    lead_in = forms.FloatField(required=False, initial=1.0, min_value=0.0, max_value=60.0, label="Lead-in",
+                               help_text="seconds of each take before its clip, which path-controlled models warm up "
+                                         "on and NAT leaves out; 0 or empty starts at the take's first frame")
+
+    def __init__(self, *args, paths: bool = True, **kwargs):
+        super().__init__(*args, **kwargs)
+        if not paths:  # a label-controlled model has no path to warm up on
+            del self.fields["lead_in"]
 
 
 class PresetControlsForm(forms.Form):

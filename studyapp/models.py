@@ -245,6 +245,11 @@ class ControlSignal(models.Model):
     def __str__(self) -> str:
         return f"{self.name} ({self.origin})"
 
+    @property
+    def lead_in_seconds(self) -> float:
+        """How far into its take a held-out control starts: the length of its lead-in (0 without one)."""
+        return len(self.control.get("lead_in", [])) / self.control["fps"]
+
 
 class Stimulus(models.Model):
     """One clip: a system's motion for a control signal, rendered with the study's camera.

@@ -14,6 +14,7 @@ from django.conf import settings
 
 from generation.motion.dataset import DatasetOptions, load_body_motion, motion_folders
 from generation.motion.types import Motion
+from studyapp.models import ControlSignal
 
 
 def data_folders() -> list[Path]:
@@ -39,6 +40,9 @@ def natural_clip(source: str) -> Path:
                             f"{', '.join(map(str, folders))} (MOTION_DATA)")
 
 
-def natural_motion(source: str, seconds: float, options: DatasetOptions) -> Motion:
-    """The first ``seconds`` of a held-out take, read as the models' training data was."""
-    return load_body_motion(natural_clip(source), options.fps, seconds, options.scale, options.root, options.up)
+def natural_motion(control: ControlSignal, options: DatasetOptions) -> Motion:
+    """The frames of its held-out take that a held-out control was cut from, read as the
+    models' training data was: the take's first ``control.seconds``, or the seconds after
+    the control's lead-in where it has one."""
+    return load_body_motion(natural_clip(control.source_clip), options.fps, control.seconds, options.scale,
+                            options.root, options.up, start=control.lead_in_seconds)

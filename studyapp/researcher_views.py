@@ -133,14 +133,14 @@ def study_controls(request: HttpRequest, pk: int) -> HttpResponse:
     except ControlError as error:
         messages.error(request, str(error))
         kind = "path"
-    forms: dict = {"held_out": HeldOutControlsForm}
+    forms: dict = {"held_out": partial(HeldOutControlsForm, paths=kind == "path")}
     if kind == "path":
         forms.update(presets=PresetControlsForm, file=ControlFileForm)
     else:
         forms["labels"] = partial(LabelControlsForm, labels=study_labels(study))
     actions = {
         "held_out": lambda data: "{} held-out control(s).".format(
-            len(add_held_out_controls(study, data["seconds"], data["count"]))),
+            len(add_held_out_controls(study, data["seconds"], data["count"], data.get("lead_in") or 0.0))),
         "presets": lambda data: f"{len(add_preset_controls(study, data['presets']))} synthetic control(s).",
         "file": lambda data: f"{len(add_control_file(study, data['description']))} control(s) from the file.",
         "labels": lambda data: "{} label control(s).".format(

@@ -185,7 +185,7 @@ class NaturalClips:
     def clip(self, stimulus: Stimulus) -> Clip:
         control = stimulus.control
         options = training_options(stimulus.study)
-        motion = natural_motion(control.source_clip, control.seconds, options)
+        motion = natural_motion(control, options)
         return Clip(motion, root_trajectory(motion, options.root).xz)
 
 

@@ -4,6 +4,7 @@ authors' code samples a test take, and NAT is cut to the same frames."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from generation.cli import main
@@ -57,3 +58,12 @@ def test_a_lead_in_longer_than_every_take_is_refused_and_writes_nothing(checkpoi
     assert "no test take is longer than the lead-in of 500 s" in errors
     assert "no held-out take is longer than the lead-in of 500 s" in errors
     assert not (tmp_path / "NAT").exists() and not (tmp_path / "MoGlow").exists()
+
+
+def test_a_take_read_from_a_start_is_the_take_from_that_frame_and_a_start_past_its_end_names_the_file(clips_folder):  # noqa: F811
+    path = next(clips_folder.glob("*.bvh"))
+    take = load_body_motion(path, 20.0)
+    np.testing.assert_array_equal(load_body_motion(path, 20.0, 2.0, start=1.0).positions, take.positions[20:60])
+    np.testing.assert_array_equal(load_body_motion(path, 20.0, start=1.0).positions, take.positions[20:])
+    with pytest.raises(ValueError, match=f"{path}: the take lasts {take.n_frames} frames at 20 fps"):
+        load_body_motion(path, 20.0, start=take.n_frames / 20.0)

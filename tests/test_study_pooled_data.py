@@ -60,10 +60,10 @@ def test_held_out_controls_come_from_every_pooled_folder_and_nat_reads_each_from
 
     options = training_options(study)
     folders = [Path(f) for f in data.split(os.pathsep)]
-    for source in sources:  # each read from the one folder that holds it, as training read it
-        (held,) = [folder / source for folder in folders if (folder / source).is_file()]
+    for control in ControlSignal.objects.all():  # each read from the one folder that holds it, as training read it
+        (held,) = [folder / control.source_clip for folder in folders if (folder / control.source_clip).is_file()]
         expected = load_body_motion(held, options.fps, 2.0, options.scale, options.root, options.up)
-        np.testing.assert_array_equal(natural_motion(source, 2.0, options).positions, expected.positions)
+        np.testing.assert_array_equal(natural_motion(control, options).positions, expected.positions)
 
     plan_stimuli(study)
     for stimulus in Stimulus.objects.filter(system__role="natural"):
@@ -76,4 +76,4 @@ def test_a_missing_natural_clip_names_every_folder_it_was_looked_for_in(settings
     settings.MOTION_DATA = f"{tmp_path / 'a'}{os.pathsep}{tmp_path / 'b'}"
     with pytest.raises(FileNotFoundError, match=f"data/gone.bvh is in none of the motion folders {tmp_path / 'a'}, "
                                                 f"{tmp_path / 'b'} \\(MOTION_DATA\\)"):
-        natural_motion("data/gone.bvh", 2.0, DatasetOptions())
+        natural_motion(ControlSignal(source_clip="data/gone.bvh", seconds=2.0, control={"fps": 20.0}), DatasetOptions())

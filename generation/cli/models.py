@@ -22,7 +22,6 @@ from ..motion.bvh import motion_to_bvh, write_bvh
 from ..motion.dataset import DatasetOptions, build_dataset, contents_or_all, find_bvh_files, load_body_motion
 from ..motion.npz import save_motion_npz
 from ..motion.root import RootOptions, root_trajectory
-from ..motion.types import Motion
 from ..motion.units import UNIT_NAMES, UNITS
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
@@ -201,13 +200,13 @@ def natural_command(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if not (math.isfinite(args.seconds) and args.seconds > 0):
         raise ValueError(f"--seconds must be a positive number, not {args.seconds}")
-    lead, frames = lead_in_frames(args.lead_in, options.fps), int(round(args.seconds * options.fps))
+    lead = lead_in_frames(args.lead_in, options.fps)
     written = 0
     for clip in tqdm(clips, desc="natural clips", unit="clip", disable=len(clips) < 2):
-        take = load_body_motion(files[clip.name], options.fps, None, options.scale, options.root, options.up)
-        if take.n_frames < lead + 2:  # as held-out control leaves it out
+        if clip.stop - clip.start < lead + 2:  # as held-out control leaves it out
             continue
-        motion = Motion(take.positions[lead:lead + frames], take.fps, take.skeleton)
+        motion = load_body_motion(files[clip.name], options.fps, args.seconds, options.scale, options.root,
+                                  options.up, start=args.lead_in)
         save_motion_npz(motion, out / f"{clip.name}.npz")
         written += 1
         if args.render:

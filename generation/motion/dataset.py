@@ -513,16 +513,22 @@ def _naming(path: Path) -> Iterator[None]:
 
 
 def load_body_motion(path: str | os.PathLike, fps: float, seconds: float | None = None,
-                     scale: float = 1.0, root: RootOptions = RootOptions(), up: str = "y") -> Motion:
+                     scale: float = 1.0, root: RootOptions = RootOptions(), up: str = "y",
+                     start: float = 0.0) -> Motion:
     """A BVH clip as the models see it: in centimetres with y up (from the file's unit
     ``scale`` and ``up`` axis), resampled to ``fps``, reduced to the body (the hips and
-    below), and cut to its first ``seconds`` (positions only) when given."""
+    below), and cut (positions only) to the ``seconds`` after ``start`` seconds into the
+    take when given. Frames are counted as ``round(seconds * fps)``, as controls count them."""
     motion = resample(load_motion(path, scale, up), fps)
     motion = subtree_motion(motion, hips_index(motion.skeleton, root.hips))
-    if seconds is None:
+    if seconds is None and not start:
         return motion
-    keep = min(motion.n_frames, int(round(seconds * fps)))
-    return Motion(motion.positions[:keep], motion.fps, motion.skeleton)
+    first = int(round(start * fps))
+    if first >= motion.n_frames:
+        raise ValueError(f"{path}: the take lasts {motion.n_frames} frames at {fps:g} fps and so ends "
+                         f"before {start:g} s into it")
+    last = motion.n_frames if seconds is None else first + int(round(seconds * fps))
+    return Motion(motion.positions[first:last], motion.fps, motion.skeleton)
 
 
 def _augmented(motion: Motion, options: DatasetOptions, train: bool):

@@ -18,6 +18,9 @@ class Command(BaseCommand):
         parser.add_argument("study_id", type=int)
         parser.add_argument("--held-out", type=float, metavar="SECONDS", help="held-out controls cut to SECONDS")
         parser.add_argument("--count", type=int, help="how many held-out controls (default: all)")
+        parser.add_argument("--lead-in", type=float, default=0.0, metavar="SECONDS",
+                            help="start each held-out clip SECONDS into its take; path-controlled models warm up on "
+                                 "the take's control before it and NAT shows the same frames (default 0: the take's start)")
         parser.add_argument("--preset", nargs="+", default=[], help="names from generation.control.PRESETS")
         parser.add_argument("--file", nargs="+", default=[], help="JSON or YAML path descriptions")
         parser.add_argument("--actions", nargs="+", default=[], help="label controls: these actions ...")
@@ -32,7 +35,7 @@ class Command(BaseCommand):
         added = []
         try:
             if options["held_out"]:
-                added += add_held_out_controls(study, options["held_out"], options["count"])
+                added += add_held_out_controls(study, options["held_out"], options["count"], options["lead_in"])
             if options["preset"]:
                 added += add_preset_controls(study, options["preset"])
             if options["actions"] or options["styles"]:
