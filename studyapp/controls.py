@@ -116,7 +116,7 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
         raise ControlError("a lead-in is the path before the clip: this study's models are controlled by labels")
     options = training_options(study)
     try:
-        lead_in_frames(lead_in, options.fps)  # refused before the data is read
+        lead = lead_in_frames(lead_in, options.fps) / options.fps  # refused before the data is read
     except ValueError as error:
         raise ControlError(str(error)) from None
     where = settings.MOTION_DATA
@@ -133,16 +133,16 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
     files = {path.stem: path for path in find_bvh_files(folders)}
     contents = {clip.name: clip.content for clip in dataset.select("test", augmented=False)}
     if control_kind(study) == "path":
-        held_out = held_out_paths(dataset, seconds, lead_in)
-        if not held_out:
-            raise ControlError(f"no held-out take of {where} (MOTION_DATA) is longer than the lead-in of {lead_in:g} s")
+        held_out = held_out_paths(dataset, seconds, lead)
+        if lead and not held_out:
+            raise ControlError(f"no held-out take of {where} (MOTION_DATA) is longer than the lead-in of {lead:g} s")
     else:  # only what every model of the study can be asked for
         actions, styles = study_labels(study)
         held_out = [c for c in held_out_attributes(dataset, seconds) if c.action in actions and c.style in styles]
     result = []
     for control in _spread(held_out, contents, count):
         source = source_name(files[control.name], folders)
-        cut = f"{lead_in:g}s+{seconds:g}s" if lead_in else f"{seconds:g}s"
+        cut = f"{lead:g}s+{seconds:g}s" if lead else f"{seconds:g}s"
         named = dataclasses.replace(control, name=f"{control.name}-{cut}")
         result.append(_save(study, named, ControlSignal.Origin.HELD_OUT, source))
     return result
