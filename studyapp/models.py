@@ -248,7 +248,7 @@ class ControlSignal(models.Model):
     @property
     def lead_in_seconds(self) -> float:
         """How far into its take a held-out control starts: the length of its lead-in (0 without one)."""
-        return len(self.control.get("lead_in", [])) / self.control["fps"]
+        return len(self.control["lead_in"]) / self.control["fps"] if "lead_in" in self.control else 0.0
 
 
 class Stimulus(models.Model):
