@@ -31,16 +31,19 @@ def path_study(client, researcher, files):
     return study
 
 
+def post_held_out(client, study, seconds: str, lead_in: str = ""):
+    return client.post(f"/studies/{study.pk}/controls/",
+                       {"action": "held_out", "seconds": seconds, "count": "", "lead_in": lead_in})
+
+
 @pytest.mark.django_db
 def test_a_lead_in_control_is_its_take_after_the_lead_in_for_the_models_and_for_nat(client, researcher, site, files):
     study = path_study(client, researcher, files)
-    response = client.post(f"/studies/{study.pk}/controls/",
-                           {"action": "held_out", "seconds": "2", "count": "", "lead_in": "1"})
-    assert response.status_code == 302
+    assert post_held_out(client, study, "2", lead_in="1").status_code == 302
     led = list(study.controls.filter(origin="held-out").order_by("name"))
     assert led and all(c.name.endswith("-1s+2s") and c.lead_in_seconds == 1.0 for c in led)
     assert "<td>1.00</td>" in client.get(f"/studies/{study.pk}/controls/").content.decode()  # the From (s) column
-    client.post(f"/studies/{study.pk}/controls/", {"action": "held_out", "seconds": "3", "count": ""})
+    post_held_out(client, study, "3")
     options = training_options(study)
     for control in led:  # the same take cut from its start, 3 s long: the lead-in and the clip, in order
         plain = study.controls.get(source_clip=control.source_clip, name__endswith="-3s")
@@ -64,8 +67,7 @@ def test_a_lead_in_control_is_its_take_after_the_lead_in_for_the_models_and_for_
 @pytest.mark.django_db
 def test_a_lead_in_longer_than_every_held_out_take_is_refused_and_adds_nothing(client, researcher, site, files):
     study = path_study(client, researcher, files)
-    response = client.post(f"/studies/{study.pk}/controls/",
-                           {"action": "held_out", "seconds": "2", "count": "", "lead_in": "59"})
+    response = post_held_out(client, study, "2", lead_in="59")
     assert response.status_code == 400
     assert "is longer than the lead-in of 59 s" in response.content.decode()
     assert not study.controls.exists()
