@@ -13,7 +13,8 @@ from django.core.management import call_command
 
 from generation.motion.bvh import load_motion
 from generation.motion.npz import load_motion_npz
-from studyapp.controls import ControlError, add_held_out_controls, training_options
+from generation.control import PathControl
+from studyapp.controls import ControlError, _spread, add_held_out_controls, training_options
 from studyapp.models import ControlSignal, Stimulus, System
 from studyapp.natural import natural_motion
 from studyapp.sources import sampled_path
@@ -105,3 +106,16 @@ def test_exported_lead_in_controls_carry_their_lead_in_and_natural_clips_of_the_
         natural = load_motion(tmp_path / "bundle" / entry["natural"])
         assert natural.n_frames == natural_motion(control, options).n_frames == entry["frames"]
     assert "lead_in" in (tmp_path / "bundle" / "README.txt").read_text()
+
+
+def test_a_count_of_held_out_controls_takes_the_clips_that_fill_the_length_first_then_the_longest():
+    # A lead-in shortens every clip by its length: a short take would give a clip of a second or two.
+    def take(name: str, frames: int) -> PathControl:
+        return PathControl(np.zeros((frames, 3)), FPS, name)
+
+    takes = [take("walk-short", 30), take("walk-long", 90), take("walk-full", 80), take("run-short", 20),
+             take("run-shorter", 10)]
+    contents = {c.name: c.name.split("-")[0] for c in takes}
+    names = [c.name for c in _spread(takes, contents, 3, frames=80)]
+    assert names == ["walk-long", "run-short", "walk-full"]
+    assert sorted(c.name for c in _spread(takes, contents, None, frames=80)) == sorted(contents)
