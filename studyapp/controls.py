@@ -115,7 +115,8 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
     """
     if not seconds > 0:
         raise ControlError(f"seconds must be positive, got {seconds}")
-    if lead_in and control_kind(study) != "path":
+    kind = control_kind(study)
+    if lead_in and kind != "path":
         raise ControlError("a lead-in is the path before the clip: this study's models are controlled by labels")
     options = training_options(study)
     try:
@@ -135,7 +136,7 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
                            "its held-out clips could have been training clips")
     files = {path.stem: path for path in find_bvh_files(folders)}
     contents = {clip.name: clip.content for clip in dataset.select("test", augmented=False)}
-    if control_kind(study) == "path":
+    if kind == "path":
         held_out = held_out_paths(dataset, seconds, lead)
         if lead and not held_out:
             raise ControlError(f"no held-out take of {where} (MOTION_DATA) is longer than the lead-in of {lead:g} s")
