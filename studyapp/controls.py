@@ -92,13 +92,12 @@ def _save(study: Study, control: Control, origin: str, source_clip: str = "") ->
                                         source_clip=source_clip, seconds=control.n_frames / control.fps)
 
 
-def _spread(controls: list[Control], contents: dict[str, str | None], count: int | None,
-            frames: int) -> list[Control]:
+def _spread(controls: list[Control], contents: dict[str, str | None], count: int | None) -> list[Control]:
     """``count`` controls taking each content label in turn, so a short list still varies;
-    the takes that fill the clip's ``frames`` come first (and so do their labels), then the
-    longest, so that a count gives whole clips where the data has them."""
+    the longest come first (and so do their labels). The controls are already cut to the
+    clip's length, so a count gives whole clips where the data has them."""
     by_content: dict[str | None, list[Control]] = {}
-    for control in sorted(controls, key=lambda c: -min(c.n_frames, frames)):  # stable: dataset order otherwise
+    for control in sorted(controls, key=lambda c: -c.n_frames):  # stable: dataset order among equals
         by_content.setdefault(contents[control.name], []).append(control)
     interleaved = [c for group in zip_longest(*by_content.values()) for c in group if c is not None]
     return interleaved[:count] if count else interleaved
@@ -144,7 +143,7 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
         actions, styles = study_labels(study)
         held_out = [c for c in held_out_attributes(dataset, seconds) if c.action in actions and c.style in styles]
     result = []
-    for control in _spread(held_out, contents, count, int(round(seconds * options.fps))):
+    for control in _spread(held_out, contents, count):
         source = source_name(files[control.name], folders)
         cut = f"{lead:g}s+{seconds:g}s" if lead else f"{seconds:g}s"
         named = dataclasses.replace(control, name=f"{control.name}-{cut}")
