@@ -60,7 +60,8 @@ def page_context(study: Study, participant: Participant) -> dict:
                                                left=Count("page", distinct=True, filter=Q(rating__isnull=True)))
     total, done = counts["total"], counts["total"] - counts["left"]
     return {
-        "clips": [{"slot": a.slot, "label": clip_label(a.slot), "video_url": a.stimulus.video_url} for a in page],
+        "clips": [{"slot": a.slot, "label": clip_label(a.slot), "video_url": a.stimulus.video_url,
+                   "seconds": a.stimulus.duration_s or 0.0} for a in page],
         "form": {"page": page[0].token}, "heading": f"Page {done + 1} of {total}", "done": done, "total": total,
         "percent": round(100 * done / total) if total else 100,
         "instruction": instruction(study, [a.expected for a in page]),

@@ -38,6 +38,7 @@ _STRENGTH = re.compile(r'<input type="radio" name="strength" value="(\d+)"')
 _PLAY = re.compile(r'data-play="(\d+)"')
 _RATING_STEPS = ("/rate/", "/rate-page/", "/compare/")
 _CLIP_SECONDS = re.compile(r'<video id="clip"[^>]* data-seconds="([0-9.]+)"')
+_PAGE_CLIP_SECONDS = re.compile(r'<video data-slot="\w+"[^>]* data-seconds="([0-9.]+)"')
 
 
 def locked_for_s(page: str) -> float:
@@ -46,6 +47,13 @@ def locked_for_s(page: str) -> float:
     clip = _CLIP_SECONDS.search(page)
     locked = any(disabled for _, disabled in _POINT.findall(page))
     return float(clip.group(1)) if clip and locked else 0.0
+
+
+def longest_clip_s(page: str) -> float:
+    """How long the longest clip of a side-by-side or pairwise page plays: the least time a
+    participant who plays every clip to its end spends on the page (the server counts an
+    answer sent sooner as given before the end)."""
+    return max((float(seconds) for seconds in _PAGE_CLIP_SECONDS.findall(page)), default=0.0)
 
 
 @dataclass
@@ -106,7 +114,7 @@ class SimulatedParticipant:
             data.update(value=str(self.rng.choice(points)), started_s="0.05", ended_s="0.5",
                         answered_s="0.6", played_until_s="0.45")
         elif sliders or answers:
-            time.sleep(self.watch_s)
+            time.sleep(max(self.watch_s, longest_clip_s(body)))
             data.update(self._page_answer(body, sliders, answers, _STRENGTH.findall(form)))
         if action.endswith(_RATING_STEPS):
             start = time.perf_counter()

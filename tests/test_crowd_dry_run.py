@@ -1,10 +1,10 @@
-"""The dry run's simulated participants follow the full-play rule as a browser does."""
+"""The dry run's simulated participants follow the full-play rule as a browser does, on every design."""
 
 from __future__ import annotations
 
 import pytest
 
-from studyapp.models import Participant, Rating
+from studyapp.models import Participant, Rating, Study
 from studyapp.simulated_participants import run_participants
 from tests.study_fixtures import make_study
 
@@ -16,3 +16,13 @@ def test_simulated_participants_wait_for_the_end_of_locked_clips(live_server):
     assert outcome.error == "" and outcome.finished and outcome.ratings == 3
     assert Participant.objects.get().refused_early == 0
     assert not Rating.objects.filter(answered_before_end=True).exists()
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("design", [Study.Design.SIDE_BY_SIDE, Study.Design.PAIRWISE])
+def test_simulated_participants_play_every_clip_of_a_page_to_its_end(live_server, design):
+    study = make_study(design=design, controls=2, pages_per_participant=2, bad_checks=0, training_clips=0,
+                       clip_seconds=0.5, scale_min=0, scale_max=100, bad_threshold=6.0, natural_threshold=0.0)
+    (outcome,) = run_participants(f"{live_server.url}/p/{study.key}/", count=1)
+    assert outcome.error == "" and outcome.finished and outcome.ratings == 2
+    assert Rating.objects.exists() and not Rating.objects.filter(answered_before_end=True).exists()

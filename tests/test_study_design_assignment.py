@@ -112,6 +112,7 @@ def test_simultaneous_participants_never_pass_a_page_target_and_lose_no_answer(l
     finished = [o for o in outcomes if o.finished]
     assert len(finished) == expected and sum(o.ratings for o in outcomes) == expected * pages
     assert all("The study is full" in o.final_page for o in outcomes if not o.finished)
+    assert not Rating.objects.filter(answered_before_end=True).exists()
     assert set(page_loads(study, an_hour_ago()).values()) == {target}
     clips_per_page = 3 if design == Study.Design.SIDE_BY_SIDE else 2
     assert Rating.objects.count() == expected * pages * clips_per_page
