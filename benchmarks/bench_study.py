@@ -62,7 +62,7 @@ CODE = Path(os.environ.get("BENCH_STUDY_CODE", REPO))
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(CODE))
 from benchmarks.machine import describe_machine  # noqa: E402
-from studyapp.simulated_participants import Outcome, locked_for_s, percentile, run_participants  # noqa: E402
+from studyapp.simulated_participants import Outcome, longest_clip_s, percentile, run_participants  # noqa: E402
 
 TARGET_STEP_MS = 10.0  # server time of one rating step (POST and next page), median
 TARGET_P95_S = 0.1  # a watching participant should not notice the wait for the next clip
@@ -174,7 +174,7 @@ def server_time(participants: int = 10) -> str:
             if not action.endswith("/rate/"):
                 page = client.post(action, urlencode(data), content_type=URLENCODED, follow=True).content.decode()
                 continue
-            time.sleep(locked_for_s(page))  # the clip plays before the buttons unlock (not timed)
+            time.sleep(longest_clip_s(page))  # the clip plays before the buttons unlock (not timed)
             # The first step of each participant counts queries (capturing slows it down).
             capture = CaptureQueriesContext(connection) if steps == 0 else contextlib.nullcontext()
             with capture as captured:

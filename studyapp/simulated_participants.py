@@ -4,8 +4,8 @@ A dry run before a study goes to the crowd, the concurrency test and the ratings
 benchmark all use it. Each participant is an independent cookie-carrying client that
 reads the page it is on, as a browser would, and answers it: consent, instructions,
 practice clips, then a rating per clip, or an answer per side-by-side or pairwise page
-(claiming to have watched every clip to the end, and waiting as long as a clip lasts
-where the study locks the rating buttons until then).
+(claiming to have watched every clip to its end, and so answering no sooner than the
+longest clip on the page lasts).
 
     python -m studyapp.simulated_participants http://127.0.0.1:8000/p/KEY/ -n 20
 
@@ -37,23 +37,13 @@ _ANSWER = re.compile(r'<button type="submit" name="answer" value="(\w+)"')
 _STRENGTH = re.compile(r'<input type="radio" name="strength" value="(\d+)"')
 _PLAY = re.compile(r'data-play="(\d+)"')
 _RATING_STEPS = ("/rate/", "/rate-page/", "/compare/")
-_CLIP_SECONDS = re.compile(r'<video id="clip"[^>]* data-seconds="([0-9.]+)"')
-_PAGE_CLIP_SECONDS = re.compile(r'<video data-slot="\w+"[^>]* data-seconds="([0-9.]+)"')
-
-
-def locked_for_s(page: str) -> float:
-    """How long a clip page's rating buttons stay locked: the clip's length where the study
-    locks them until its end (a browser unlocks them then), else nothing."""
-    clip = _CLIP_SECONDS.search(page)
-    locked = any(disabled for _, disabled in _POINT.findall(page))
-    return float(clip.group(1)) if clip and locked else 0.0
+_CLIP_SECONDS = re.compile(r'<video [^>]*data-seconds="([0-9.]+)"')
 
 
 def longest_clip_s(page: str) -> float:
-    """How long the longest clip of a side-by-side or pairwise page plays: the least time a
-    participant who plays every clip to its end spends on the page (the server counts an
-    answer sent sooner as given before the end)."""
-    return max((float(seconds) for seconds in _PAGE_CLIP_SECONDS.findall(page)), default=0.0)
+    """How long the longest clip on a page plays: the least time after the page was shown
+    before the server takes an answer as given after the end of every clip on it."""
+    return max((float(seconds) for seconds in _CLIP_SECONDS.findall(page)), default=0.0)
 
 
 @dataclass
@@ -86,7 +76,7 @@ class SimulatedParticipant:
         self.outcome = Outcome(platform_id)
         self.rng = rng or random.Random(platform_id)
         self.timeout_s = timeout_s
-        self.watch_s = watch_s  # time spent on each clip's page before answering, as a person watches it
+        self.watch_s = watch_s  # least time spent on each rating page before answering, as a person watches it
         cookies = urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar())
         self.opener = urllib.request.build_opener(cookies)
         self.rating_opener = urllib.request.build_opener(cookies, _KeepRedirects)
@@ -110,7 +100,7 @@ class SimulatedParticipant:
         if action.endswith("/consent/"):
             data["agree"] = "yes"
         elif points:
-            time.sleep(max(self.watch_s, locked_for_s(body)))
+            time.sleep(max(self.watch_s, longest_clip_s(body)))
             data.update(value=str(self.rng.choice(points)), started_s="0.05", ended_s="0.5",
                         answered_s="0.6", played_until_s="0.45")
         elif sliders or answers:
@@ -168,7 +158,7 @@ class SimulatedParticipant:
 def run_participants(entry_url: str, count: int, concurrency: int | None = None,
                      id_parameter: str = "PROLIFIC_PID", prefix: str = "sim", watch_s: float = 0.0) -> list[Outcome]:
     """``count`` participants, ``concurrency`` at a time (default: all at once), each
-    spending ``watch_s`` on every clip's page before answering."""
+    spending at least ``watch_s`` on every rating page before answering."""
     participants = [SimulatedParticipant(entry_url, f"{prefix}-{i:05d}", id_parameter, watch_s=watch_s)
                     for i in range(count)]
     with ThreadPoolExecutor(max_workers=concurrency or count) as pool:
@@ -193,7 +183,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="query parameter carrying the id: PROLIFIC_PID, workerId or pid (default %(default)s)")
     parser.add_argument("--prefix", default="sim", help="platform ids are PREFIX-00000, ... (default %(default)s)")
     parser.add_argument("--watch", type=float, default=0.0,
-                        help="seconds on each clip's page before answering (default %(default)s: answer at once)")
+                        help="least seconds on each rating page before answering; a page is answered no sooner "
+                             "than its longest clip lasts either way (default %(default)s)")
     args = parser.parse_args(argv)
     start = time.perf_counter()
     outcomes = run_participants(args.entry_url, args.participants, args.concurrency, args.id_parameter, args.prefix,

@@ -10,8 +10,10 @@ from tests.study_fixtures import make_study
 
 
 @pytest.mark.django_db(transaction=True)
-def test_simulated_participants_wait_for_the_end_of_locked_clips(live_server):
-    study = make_study(clips_per_participant=3, bad_checks=0, natural_checks=0, training_clips=1, clip_seconds=0.5)
+@pytest.mark.parametrize("locked", [True, False])
+def test_simulated_participants_play_every_clip_to_its_end_locked_or_not(live_server, locked):
+    study = make_study(clips_per_participant=3, bad_checks=0, natural_checks=0, training_clips=1, clip_seconds=0.5,
+                       require_full_play=locked)
     (outcome,) = run_participants(f"{live_server.url}/p/{study.key}/", count=1)
     assert outcome.error == "" and outcome.finished and outcome.ratings == 3
     assert Participant.objects.get().refused_early == 0
