@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 _FORM = re.compile(r'<form method="post" action="([^"]+)"[^>]*>(.*?)</form>', re.S)
 _HIDDEN = re.compile(r'<input type="hidden" name="([^"]+)"(?: value="([^"]*)")?>')
-_POINT = re.compile(r'<button type="submit" name="value" value="(-?\d+)"( disabled)?>')
+_POINT = re.compile(r'<button type="submit" name="value" value="(-?\d+)"(?: disabled)?>')
 # Side-by-side and pairwise pages: a slider per clip, or the answer buttons and strengths.
 _SLIDER = re.compile(r'<input type="range" form="page-form" id="[^"]+" name="(value-\d+)" min="(-?\d+)" max="(-?\d+)"')
 _ANSWER = re.compile(r'<button type="submit" name="answer" value="(\w+)"')
@@ -94,7 +94,7 @@ class SimulatedParticipant:
             return None
         action, form = html.unescape(match.group(1)), match.group(2)
         data = {name: html.unescape(value or "") for name, value in _HIDDEN.findall(form)}
-        points = [int(point) for point, _ in _POINT.findall(form)]
+        points = [int(point) for point in _POINT.findall(form)]
         url = urllib.parse.urljoin(page_url, action)
         sliders, answers = _SLIDER.findall(body), _ANSWER.findall(form)
         if action.endswith("/consent/"):
