@@ -186,6 +186,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="least seconds on each rating page before answering; a page is answered no sooner "
                              "than its longest clip lasts either way (default %(default)s)")
     args = parser.parse_args(argv)
+    if args.participants < 1 or (args.concurrency is not None and args.concurrency < 1):
+        parser.error("--participants and --concurrency must be at least 1")
+    if not 0.0 <= args.watch < float("inf"):  # also refuses nan
+        parser.error(f"--watch must be a finite number of seconds, 0 or more, not {args.watch}")
     start = time.perf_counter()
     outcomes = run_participants(args.entry_url, args.participants, args.concurrency, args.id_parameter, args.prefix,
                                 args.watch)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from studyapp.models import Participant, Rating, Study
-from studyapp.simulated_participants import run_participants
+from studyapp.simulated_participants import main, run_participants
 from tests.study_fixtures import make_study
 
 
@@ -28,3 +28,10 @@ def test_simulated_participants_play_every_clip_of_a_page_to_its_end(live_server
     (outcome,) = run_participants(f"{live_server.url}/p/{study.key}/", count=1)
     assert outcome.error == "" and outcome.finished and outcome.ratings == 2
     assert Rating.objects.exists() and not Rating.objects.filter(answered_before_end=True).exists()
+
+
+@pytest.mark.parametrize("arguments", [["-n", "0"], ["--concurrency", "-1"], ["--watch", "-5"], ["--watch", "nan"]])
+def test_the_dry_run_refuses_a_count_or_watch_time_that_makes_no_sense_with_one_line(capsys, arguments):
+    with pytest.raises(SystemExit) as exit_:
+        main(["http://127.0.0.1:9/p/KEY/", *arguments])
+    assert exit_.value.code == 2 and "Traceback" not in capsys.readouterr().err
