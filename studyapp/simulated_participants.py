@@ -99,13 +99,13 @@ class SimulatedParticipant:
         sliders, answers = _SLIDER.findall(body), _ANSWER.findall(form)
         if action.endswith("/consent/"):
             data["agree"] = "yes"
-        elif points:
+        elif points or sliders or answers:  # a rating page: every clip on it played to its end first
             time.sleep(max(self.watch_s, longest_clip_s(body)))
-            data.update(value=str(self.rng.choice(points)), started_s="0.05", ended_s="0.5",
-                        answered_s="0.6", played_until_s="0.45")
-        elif sliders or answers:
-            time.sleep(max(self.watch_s, longest_clip_s(body)))
-            data.update(self._page_answer(body, sliders, answers, _STRENGTH.findall(form)))
+            if points:
+                data.update(value=str(self.rng.choice(points)), started_s="0.05", ended_s="0.5",
+                            answered_s="0.6", played_until_s="0.45")
+            else:
+                data.update(self._page_answer(body, sliders, answers, _STRENGTH.findall(form)))
         if action.endswith(_RATING_STEPS):
             start = time.perf_counter()
             next_page = self._rate(url, data)
