@@ -20,9 +20,9 @@
 #   THREADS         torch threads, default 1
 #   SAMPLES         per control, default 4
 #   SYSTEMS         the models to train and compare, default "MoGlow MG-D RNN VAE"
-#   MGD_BRANCH      default 13000: MG-D is MoGlow's state at that step continued without data
-#                   dropout, so the two differ only in what they learnt after it; 0 trains
-#                   MG-D from scratch, as the paper did
+#   MGD_BRANCH      default 0: MG-D is trained from scratch without data dropout, as the paper
+#                   did; a step N > 0 continues MoGlow's state at step N without data dropout
+#                   instead, so the two differ only in what they learnt after it
 # Each step's output goes to OUT/logs/NAME.log. Training steps resume; sampling and
 # evaluation are redone every run, so the tables always describe the checkpoints as they are.
 set -euo pipefail
@@ -39,7 +39,7 @@ VAE_STEPS=${VAE_STEPS:-$BASELINE_STEPS}
 THREADS=${THREADS:-1}
 export OMP_NUM_THREADS=$THREADS  # sampling and evaluation too: a thread more than the free cores stalls them all
 SAMPLES=${SAMPLES:-4}
-MGD_BRANCH=${MGD_BRANCH:-13000}
+MGD_BRANCH=${MGD_BRANCH:-0}
 read -r -a SYSTEMS <<< "${SYSTEMS:-MoGlow MG-D RNN VAE}"
 declare -A KIND=([MoGlow]="moglow cpu $MOGLOW_STEPS 500" [MG-D]="moglow cpu-MG-D $MGD_STEPS 500"
                  [RNN]="rnn cpu $RNN_STEPS 100" [VAE]="vae cpu $VAE_STEPS 100")

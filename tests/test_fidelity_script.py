@@ -15,7 +15,8 @@ def run_script(out: Path, **settings: str) -> subprocess.CompletedProcess:
 
 @pytest.mark.parametrize("settings, message", [
     ({"SYSTEMS": "MoGlow MG-X"}, "unknown system 'MG-X' in SYSTEMS"),
-    ({"MOGLOW_STEPS": "20000", "MGD_STEPS": "9000"}, "MGD_STEPS=9000 must be past MGD_BRANCH=13000"),
+    ({"MOGLOW_STEPS": "20000", "MGD_STEPS": "9000", "MGD_BRANCH": "13000"},
+     "MGD_STEPS=9000 must be past MGD_BRANCH=13000"),
 ])
 def test_refused_settings_exit_2_and_create_nothing(tmp_path, settings, message):
     out = tmp_path / "fidelity"
@@ -25,11 +26,16 @@ def test_refused_settings_exit_2_and_create_nothing(tmp_path, settings, message)
     assert not out.exists()
 
 
-def test_a_refused_step_passes_its_exit_status_on_and_names_its_log(tmp_path):
+@pytest.mark.parametrize("branch, first_step", [
+    ({}, "train-MG-D"),                         # the default: MG-D from scratch, nothing before it
+    ({"MGD_BRANCH": "13000"}, "train-MoGlow"),  # branched: MoGlow's run to the branch step first
+])
+def test_a_refused_step_passes_its_exit_status_on_and_names_its_log(tmp_path, branch, first_step):
     """MGD_STEPS short of MOGLOW_STEPS is accepted; the first step then refuses the missing folder."""
     out, missing = tmp_path / "fidelity", tmp_path / "no-such-folder"
-    result = run_script(out, MOGLOW_STEPS="20000", MGD_STEPS="18500", DATA=str(missing), SYSTEMS="MG-D")
+    result = run_script(out, MOGLOW_STEPS="20000", MGD_STEPS="18500", DATA=str(missing), SYSTEMS="MG-D",
+                        **branch)
     assert result.returncode == 2
-    log = out / "logs" / "train-MoGlow.log"
-    assert f"train-MoGlow failed; see {log}" in result.stderr
+    log = out / "logs" / f"{first_step}.log"
+    assert f"{first_step} failed; see {log}" in result.stderr
     assert f"motion folder {missing} does not exist" in log.read_text()
