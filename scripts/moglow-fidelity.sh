@@ -41,6 +41,11 @@ export OMP_NUM_THREADS=$THREADS  # sampling and evaluation too: a thread more th
 SAMPLES=${SAMPLES:-4}
 MGD_BRANCH=${MGD_BRANCH:-0}
 read -r -a SYSTEMS <<< "${SYSTEMS:-MoGlow MG-D RNN VAE}"
+# Checked before anything runs: a bad SAMPLES would otherwise surface only after hours of training.
+for setting in MOGLOW_STEPS BASELINE_STEPS MGD_STEPS RNN_STEPS VAE_STEPS MGD_BRANCH THREADS SAMPLES; do
+    [[ ${!setting} =~ ^(0|[1-9][0-9]*)$ ]] || { echo "$setting must be a whole number, got '${!setting}'" >&2; exit 2; }
+done
+(( THREADS >= 1 && SAMPLES >= 1 )) || { echo "THREADS and SAMPLES must be at least 1" >&2; exit 2; }
 declare -A KIND=([MoGlow]="moglow cpu $MOGLOW_STEPS 500" [MG-D]="moglow cpu-MG-D $MGD_STEPS 500"
                  [RNN]="rnn cpu $RNN_STEPS 100" [VAE]="vae cpu $VAE_STEPS 100")
 for name in "${SYSTEMS[@]}"; do

@@ -1,5 +1,6 @@
 """scripts/moglow-fidelity.sh refuses settings it cannot honour before it trains or writes anything."""
 import os
+import signal
 import subprocess
 from pathlib import Path
 
@@ -9,14 +10,30 @@ SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "moglow-fidelity.sh"
 
 
 def run_script(out: Path, **settings: str) -> subprocess.CompletedProcess:
-    return subprocess.run(["bash", str(SCRIPT), str(out)], env={**os.environ, **settings},
-                          capture_output=True, text=True, timeout=60)
+    """The script's result; on a timeout its whole process group is killed, so a script that
+    wrongly started training leaves no training behind."""
+    process = subprocess.Popen(["bash", str(SCRIPT), str(out)], env={**os.environ, **settings},
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True)
+    try:
+        stdout, stderr = process.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.communicate()
+        raise
+    return subprocess.CompletedProcess(process.args, process.returncode, stdout, stderr)
 
 
 @pytest.mark.parametrize("settings, message", [
     ({"SYSTEMS": "MoGlow MG-X"}, "unknown system 'MG-X' in SYSTEMS"),
     ({"MOGLOW_STEPS": "20000", "MGD_STEPS": "9000", "MGD_BRANCH": "13000"},
      "MGD_STEPS=9000 must be past MGD_BRANCH=13000"),
+    ({"MGD_BRANCH": "abc"}, "MGD_BRANCH must be a whole number, got 'abc'"),
+    ({"MGD_BRANCH": "-5"}, "MGD_BRANCH must be a whole number, got '-5'"),
+    ({"SAMPLES": "x"}, "SAMPLES must be a whole number, got 'x'"),
+    ({"MOGLOW_STEPS": "1e3"}, "MOGLOW_STEPS must be a whole number, got '1e3'"),
+    ({"RNN_STEPS": "08"}, "RNN_STEPS must be a whole number, got '08'"),
+    ({"THREADS": "0"}, "THREADS and SAMPLES must be at least 1"),
 ])
 def test_refused_settings_exit_2_and_create_nothing(tmp_path, settings, message):
     out = tmp_path / "fidelity"
