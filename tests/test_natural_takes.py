@@ -14,6 +14,7 @@ from generation.control import held_out_paths, take_paths
 from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
 from generation.motion.npz import load_motion_npz
 from generation.motion.takes import natural_takes
+from tests.study_setup import link_clips
 
 NAMES = ["walk_normal_001", "walk_normal_002", "walk_happy_001", "walk_happy_002", "walk_old_001", "walk_tired_001",
          "run_normal_001", "run_happy_001", "dash_normal_001", "dash_happy_001"]
@@ -21,12 +22,7 @@ NAMES = ["walk_normal_001", "walk_normal_002", "walk_happy_001", "walk_happy_002
 
 @pytest.fixture(scope="module")
 def labelled_folder(motion_data, tmp_path_factory):
-    folder = tmp_path_factory.mktemp("labelled")
-    for name in NAMES:
-        for suffix in (".bvh", ".json"):
-            (folder / f"dataset-1_{name}{suffix}").symlink_to(motion_data / "data" / f"dataset-1_{name}{suffix}")
-    (folder / "cfg").symlink_to(motion_data / "cfg")
-    return folder
+    return link_clips(motion_data, tmp_path_factory.mktemp("labelled"), NAMES)
 
 
 @pytest.mark.parametrize("options", [DatasetOptions(contents=("walk", "run")),
