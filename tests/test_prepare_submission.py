@@ -17,7 +17,12 @@ from generation.motion.bvh import load_motion, motion_to_bvh, write_bvh
 from generation.motion.rotations import matrix_to_quat, quat_to_matrix, yaw_matrix
 from generation.motion.takes import natural_takes
 from generation.motion.types import Motion
-from generation.submission import PATH_TOLERANCE_CM, match_files, prepare_submission, submission_zip
+from generation.submission import PATH_TOLERANCE_CM, match_files, prepare_submission
+from studyapp.control_export import PATH_TOLERANCE_CM as STUDY_TOLERANCE
+from studyapp.control_export import bundle_zip, control_id, natural_in_control_frame
+from studyapp.controls import training_options
+from studyapp.natural import natural_clip, natural_motion
+from studyapp.submissions import check_submission, read_zip
 from tests.rig_variants import in_unit, z_up
 from tests.test_real_rigs import CMU, CMU_METRES
 from tests.test_study_researcher import files, new_study, researcher, site, upload_checkpoint  # noqa: F401 (fixtures)
@@ -117,19 +122,12 @@ def bundle_of(controls, folder):
 
 
 def test_the_tolerance_is_the_studys():
-    from studyapp.control_export import PATH_TOLERANCE_CM as STUDY_TOLERANCE
-
     assert PATH_TOLERANCE_CM == STUDY_TOLERANCE
 
 
 @pytest.mark.django_db
 def test_a_raw_bvh_submission_in_metres_z_up_starting_anywhere_is_accepted_as_the_same_motion_in_centimetres(
         client, researcher, site, files, tmp_path, capsys):  # noqa: F811
-    from studyapp.control_export import bundle_zip, control_id, natural_in_control_frame
-    from studyapp.controls import training_options
-    from studyapp.natural import natural_clip, natural_motion
-    from studyapp.submissions import check_submission, read_zip
-
     study = new_study(researcher)
     upload_checkpoint(client, study, files.good.read_bytes())
     client.post(f"/studies/{study.pk}/controls/", {"action": "held_out", "seconds": "2", "count": ""})
