@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -260,21 +261,28 @@ def load_control_file(path: str | Path, fps: float = 20.0) -> list[PathControl]:
 
 
 def held_out_paths(dataset, seconds: float | None = None, lead_in_seconds: float = 0.0) -> list[PathControl]:
-    """The control of each held-out natural clip of a dataset (cut to ``seconds``).
+    """The control of each held-out natural clip of a dataset (``take_paths``)."""
+    takes = [(clip.name, dataset.clip_arrays(clip)["control"]) for clip in dataset.select("test")]
+    return take_paths(takes, dataset.options.fps, seconds, lead_in_seconds)
+
+
+def take_paths(takes: Iterable[tuple[str, np.ndarray]], fps: float, seconds: float | None = None,
+               lead_in_seconds: float = 0.0) -> list[PathControl]:
+    """The control of each natural take, given as (name, per-frame control), cut to
+    ``seconds``; takes too short for two frames are left out.
 
     With ``lead_in_seconds`` each clip starts that far into its take, and the take's
     control before it is the clip's lead-in: sampling then warms up on the take's own
     start, as the MoGlow authors' code samples a test take from its first frame.
     """
-    fps = dataset.options.fps
     frames = _frames_of(seconds, fps)
     lead = lead_in_frames(lead_in_seconds, fps)
     result = []
-    for clip in dataset.select("test"):
-        take = dataset.clip_arrays(clip)["control"].astype(np.float64)
-        control = take[lead:] if frames is None else take[lead:lead + frames]
-        if len(control) >= 2:
-            result.append(PathControl(control, fps, clip.name, take[:lead] if lead else None))
+    for name, control in takes:
+        take = np.asarray(control, dtype=np.float64)
+        clip = take[lead:] if frames is None else take[lead:lead + frames]
+        if len(clip) >= 2:
+            result.append(PathControl(clip, fps, name, take[:lead] if lead else None))
     return result
 
 
@@ -286,15 +294,18 @@ def lead_in_frames(seconds: float, fps: float) -> int:
 
 
 def held_out_attributes(dataset, seconds: float | None = None) -> list[AttributeControl]:
-    """The action and style labels of each labelled held-out natural clip, for as long as
-    the clip lasts (or ``seconds``, if shorter): what a label-controlled model is asked
-    to do where the clip shows what a person did."""
-    fps = dataset.options.fps
+    """The action and style labels of each labelled held-out natural clip of a dataset
+    (``take_attributes``)."""
+    takes = [(clip.name, clip.content, clip.style, clip.stop - clip.start)
+             for clip in dataset.select("test", augmented=False)]
+    return take_attributes(takes, dataset.options.fps, seconds)
+
+
+def take_attributes(takes: Iterable[tuple[str, str | None, str | None, int]], fps: float,
+                    seconds: float | None = None) -> list[AttributeControl]:
+    """The action and style labels of each labelled natural take, given as (name, content,
+    style, frames), for as long as the take lasts (or ``seconds``, if shorter): what a
+    label-controlled model is asked to do where the take shows what a person did."""
     longest = _frames_of(seconds, fps)
-    result = []
-    for clip in dataset.select("test", augmented=False):
-        if clip.content is None or clip.style is None:
-            continue
-        frames = clip.stop - clip.start if longest is None else min(clip.stop - clip.start, longest)
-        result.append(AttributeControl(clip.content, clip.style, frames, fps, clip.name))
-    return result
+    return [AttributeControl(content, style, frames if longest is None else min(frames, longest), fps, name)
+            for name, content, style, frames in takes if content is not None and style is not None]

@@ -17,11 +17,12 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from ..control import PRESETS, held_out_paths, lead_in_frames, load_control_file, preset_path
+from ..control import PRESETS, lead_in_frames, load_control_file, preset_path, take_paths
 from ..motion.bvh import motion_to_bvh, write_bvh
-from ..motion.dataset import DatasetOptions, build_dataset, contents_or_all, find_bvh_files, load_body_motion
+from ..motion.dataset import DatasetOptions, build_dataset, contents_or_all
 from ..motion.npz import save_motion_npz
 from ..motion.root import RootOptions, root_trajectory
+from ..motion.takes import natural_takes
 from ..motion.units import UNIT_NAMES, UNITS
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
@@ -63,8 +64,7 @@ def train_command(args: argparse.Namespace) -> int:
 
     if args.device.startswith("cuda") and not torch.cuda.is_available():
         raise ValueError("--device cuda asked for, but torch sees no CUDA device (is a CUDA build of torch installed?)")
-    if args.threads:
-        torch.set_num_threads(args.threads)
+    _use_threads(args)
     attributes = model_kind(args.model).control == LABELS
     for option in ("classifiers", "denoiser"):
         if getattr(args, option) and not attributes:
@@ -102,15 +102,18 @@ def _setting(text: str) -> tuple[str, object]:
         return name.strip(), value
 
 
-def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
+def _controls(args: argparse.Namespace, dataset_options: dict):
+    if args.takes and "held-out" not in args.control:
+        raise ValueError("--takes names the takes of held-out control: add -c held-out")
+    fps = dataset_options["fps"]
     controls = []
     for name in args.control:
         if name == "held-out":
             folder = args.data or os.environ.get("MOTION_DATA")
             if not folder:
                 raise ValueError("held-out control needs the motion folder: --data FOLDER or $MOTION_DATA")
-            dataset = build_dataset(folder, DatasetOptions.from_dict(dataset_options), cache_dir=args.cache_dir)
-            held_out = held_out_paths(dataset, args.seconds, args.lead_in)
+            takes, _ = natural_takes(folder, DatasetOptions.from_dict(dataset_options), args.takes, progress=True)
+            held_out = take_paths([(take.name, take.control) for take in takes], fps, args.seconds, args.lead_in)
             if not held_out:
                 raise ValueError(f"no held-out take is longer than the lead-in of {args.lead_in:g} s")
             controls += held_out
@@ -121,16 +124,42 @@ def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
     return controls
 
 
+def _use_threads(args: argparse.Namespace) -> None:
+    """torch's CPU threads, where --threads gives them."""
+    import torch
+
+    if args.threads:
+        torch.set_num_threads(args.threads)
+
+
+def _thread_count(text: str) -> int:
+    try:
+        count = int(text)
+    except ValueError:
+        count = 0
+    if count < 1:
+        raise argparse.ArgumentTypeError(f"threads must be a whole number of at least 1, got {text!r}")
+    return count
+
+
+def _take_names(text: str) -> list[str]:
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError("name at least one take (file names, comma-separated)")
+    return names
+
+
 def sample_command(args: argparse.Namespace) -> int:
     from ..generator import Generator
     from ..models.precision import cpu_has_bfloat16_units
 
+    _use_threads(args)
     generator = Generator.load(args.checkpoint, args.device)
     if generator.attributes:
         return _sample_attributes(args, generator)
     if args.action or args.style:
         raise ValueError(f"--action and --style are for attribute-controlled models; {args.checkpoint} follows a path (--control)")
-    controls = _controls(args, generator.fps, generator.meta.features["dataset_options"])
+    controls = _controls(args, generator.meta.features["dataset_options"])
     precision = generator.resolve_precision(args.precision)
     print(f"sampling in {precision}" + (" (--precision auto)" if args.precision == "auto" else ""), file=sys.stderr)
     if precision == "bfloat16" and generator.device.type == "cpu" and not cpu_has_bfloat16_units():
@@ -191,31 +220,34 @@ def _note_training_unit(generator, bvh_unit: str) -> None:
 
 
 def natural_command(args: argparse.Namespace) -> int:
-    dataset = build_dataset(args.folder, DatasetOptions(contents=_contents(args), **dataset_units(args)),
-                            cache_dir=args.cache_dir)
-    warn(dataset.window_warnings())
-    options = dataset.options  # with the units as detected
-    clips = dataset.select(args.split, augmented=False)
-    files = {p.stem: p for p in find_bvh_files(args.folder)}
-    out = Path(args.out)
     if not (math.isfinite(args.seconds) and args.seconds > 0):
         raise ValueError(f"--seconds must be a positive number, not {args.seconds}")
+    options = DatasetOptions(contents=None if args.takes else _contents(args), holdout_fraction=args.holdout,
+                             seed=args.seed, **dataset_units(args))
+    takes, options = natural_takes(args.folder, options, args.takes, args.split, progress=True)
     lead = lead_in_frames(args.lead_in, options.fps)
-    written = 0
-    for clip in tqdm(clips, desc="natural clips", unit="clip", disable=len(clips) < 2):
-        if clip.stop - clip.start < lead + 2:  # as held-out control leaves it out
+    frames = int(round(args.seconds * options.fps))
+    out = Path(args.out)
+    written, short = 0, []
+    for take in tqdm(takes, desc="natural clips", unit="clip", disable=len(takes) < 2):
+        if take.motion.n_frames < lead + 2:  # as held-out control leaves it out
             continue
-        motion = load_body_motion(files[clip.name], options.fps, args.seconds, options.scale, options.root,
-                                  options.up, start=args.lead_in)
-        save_motion_npz(motion, out / f"{clip.name}.npz")
+        motion = take.clip(args.seconds, args.lead_in)
+        if motion.n_frames < frames:
+            short.append(take.name)
+        save_motion_npz(motion, out / f"{take.name}.npz")
         written += 1
         if args.render:
             floor = root_trajectory(motion, options.root).xz
-            render_video(motion, out / f"{clip.name}.mp4", camera=camera_from(args), size=args.size, root_path=floor)
-    if clips and not written:
-        raise ValueError(f"no {args.split} take is longer than the lead-in of {args.lead_in:g} s")
-    skipped = f" ({len(clips) - written} shorter than the lead-in left out)" if written < len(clips) else ""
-    print(f"{written} natural {args.split} clips in {out}{skipped}")
+            render_video(motion, out / f"{take.name}.mp4", camera=camera_from(args), size=args.size, root_path=floor)
+    which = "named" if args.takes else args.split
+    if not written:
+        raise ValueError(f"no {which} take is longer than the lead-in of {args.lead_in:g} s")
+    if short:
+        warn([f"{len(short)} take(s) end before {args.lead_in + args.seconds:g} s, so their clips are shorter: "
+              + ", ".join(short[:10]) + (f" and {len(short) - 10} more" if len(short) > 10 else "")])
+    skipped = f" ({len(takes) - written} shorter than the lead-in left out)" if written < len(takes) else ""
+    print(f"{written} natural {which} clips in {out}{skipped}")
     return 0
 
 
@@ -319,7 +351,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
                    "windows; short takes give more windows with more overlap (default %(default)s)")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu", help="cpu or cuda (default %(default)s)")
-    p.add_argument("--threads", type=int, help="CPU threads for torch")
+    p.add_argument("--threads", type=_thread_count, help="CPU threads for torch (default: torch's own choice)")
     p.add_argument("--seed", type=int, default=0)
     add_unit_arguments(p)
     p.set_defaults(run=train_command)
@@ -346,13 +378,16 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
                         "from float32's samples (default %(default)s)")
     p.add_argument("--seconds", type=float, default=4.0, help="length of held-out control or of attribute-controlled clips (default %(default)s)")
     p.add_argument("--data", nargs="+", help="motion folder(s) for held-out control (default $MOTION_DATA)")
+    p.add_argument("--takes", type=_take_names, metavar="NAME,...",
+                   help="held-out control from these takes of the folder (file names without .bvh), instead of "
+                        "the takes the training's seeded split holds out")
     p.add_argument("--lead-in", type=float, default=0.0, metavar="SECONDS",
                    help="held-out control starts SECONDS into each take, and the warm-up runs on the take's own "
                         "control before it, as the MoGlow authors' code samples a test take from its start "
                         "(default %(default)s: the control starts with the take, and the warm-up holds its first "
                         "frame); export NAT with the same `natural --lead-in`")
-    p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu")
+    p.add_argument("--threads", type=_thread_count, help="CPU threads for torch (default: torch's own choice)")
     p.add_argument("--render", action="store_true", help="also render each clip to MP4")
     p.add_argument("--bvh-unit", choices=tuple(UNITS), default="cm",
                    help="length unit of the BVH files written (BVH cannot state it; the command prints it); "
@@ -361,18 +396,26 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.set_defaults(run=sample_command)
 
     p = commands.add_parser("natural", help="export natural clips (held-out takes by default) like samples",
-                            description="Write the natural clips of a dataset split as npz (and optionally MP4), "
-                                        "processed exactly as the models' training data: the NAT system of a study "
-                                        "or of the objective metrics.")
+                            description="Write natural clips of FOLDER as npz (and optionally MP4), read exactly as "
+                                        "the models' training data is: the NAT system of a study or of the objective "
+                                        "metrics. The takes are those the seeded split that training makes of the "
+                                        "folder holds out (no model needs to have been trained on it), or the takes "
+                                        "named with --takes.")
     p.add_argument("folder", nargs="+", help="folder of .bvh files; several are pooled (clip names must differ)")
     p.add_argument("--out", "-o", required=True, help="output folder")
     p.add_argument("--split", choices=("test", "train"), default="test", help="which takes (default: held-out)")
+    p.add_argument("--takes", type=_take_names, metavar="NAME,...",
+                   help="these takes (file names without .bvh, comma-separated) instead of a split's, whatever "
+                        "their content")
     p.add_argument("--contents", help="content labels (default: locomotion; every clip where the clips have no labels)")
+    p.add_argument("--holdout", type=float, default=0.1,
+                   help="fraction of each content's takes the split holds out, as build-dataset's (default "
+                        "%(default)s, as train's)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the split, as build-dataset's (default %(default)s)")
     p.add_argument("--seconds", type=float, default=4.0, help="length of each clip (default %(default)s)")
     p.add_argument("--lead-in", type=float, default=0.0, metavar="SECONDS",
                    help="each clip starts SECONDS into its take, as `sample -c held-out --lead-in` samples it "
                         "(default %(default)s)")
-    p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--render", action="store_true", help="also render each clip to MP4")
     add_camera_arguments(p)
     add_unit_arguments(p)

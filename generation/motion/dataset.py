@@ -428,6 +428,40 @@ def default_cache_dir() -> Path:
     return Path(os.environ.get("MOTION_CACHE_DIR", Path(os.environ.get("STUDYAPP_VAR_DIR", "var")) / "cache"))
 
 
+def choose_files(folder: str | os.PathLike | Sequence[str | os.PathLike], contents: tuple[str, ...] | None
+                 ) -> tuple[list[Path], dict[Path, tuple[str | None, str | None]]]:
+    """The BVH files of ``folder`` (or several, pooled) whose content is one of
+    ``contents`` (all where None), and every file's (content, style) labels."""
+    files = find_bvh_files(folder)
+    labels = {f: read_labels(f) for f in files}
+    if contents is not None:
+        files = [f for f in files if any(content_matches(labels[f][0], c) for c in contents)]
+        if not files:
+            folders = ", ".join(str(f) for f in motion_folders(folder))
+            raise ValueError(f"no clips in {folders} have content in {list(contents)}")
+    return files, labels
+
+
+def with_units(files: list[Path], options: DatasetOptions, progress: bool = False) -> DatasetOptions:
+    """``options`` with the unit and up axis it leaves open (None) detected from
+    ``files``; the choice is printed when ``progress`` is on."""
+    choice = choose_units(files, options.scale, options.up, options.root)  # reads no file where both are given
+    if progress:
+        print(choice.description)
+    return dataclasses.replace(options, scale=choice.units.scale, up=choice.units.up)
+
+
+def take_splits(files: list[Path], labels: dict[Path, tuple[str | None, str | None]],
+                options: DatasetOptions) -> dict[str, str]:
+    """The split ("train", "validation" or "test") of each file's take: a seeded
+    fraction of each content's takes held out for testing, then of the others for
+    validation (``split_takes``)."""
+    takes = [(take_of(f.stem), labels[f][0]) for f in files]
+    held_out = split_takes(takes, options.holdout_fraction, options.seed)
+    validation = split_takes([t for t in takes if t[0] not in held_out], options.validation_fraction, options.seed + 1)
+    return {take: "test" if take in held_out else "validation" if take in validation else "train" for take, _ in takes}
+
+
 def build_dataset(
     folder: str | os.PathLike | Sequence[str | os.PathLike],
     options: DatasetOptions = DatasetOptions(),
@@ -440,26 +474,15 @@ def build_dataset(
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     if cache.exists() and not cache.is_dir():
         raise ValueError(f"the cache folder {cache} is a file; name a folder (or none, for {default_cache_dir()})")
-    files = find_bvh_files(folder)
-    labels = {f: read_labels(f) for f in files}
-    if options.contents is not None:
-        files = [f for f in files if any(content_matches(labels[f][0], c) for c in options.contents)]
-        if not files:
-            folders = ", ".join(str(f) for f in motion_folders(folder))
-            raise ValueError(f"no clips in {folders} have content in {list(options.contents)}")
+    files, labels = choose_files(folder, options.contents)
     detect_up_axis = options.up is None
-    choice = choose_units(files, options.scale, options.up, options.root)  # reads no file where both are given
-    options = dataclasses.replace(options, scale=choice.units.scale, up=choice.units.up)
-    if progress:
-        print(choice.description)
+    options = with_units(files, options, progress)
     key = fingerprint(files, options)
     cached = cache / f"dataset-{cache_key(key, files)[:20]}.npz"
     if cached.is_file():
         return MotionDataset.load(cached)
 
-    takes = [(take_of(f.stem), labels[f][0]) for f in files]
-    held_out = split_takes(takes, options.holdout_fraction, options.seed)
-    validation = split_takes([t for t in takes if t[0] not in held_out], options.validation_fraction, options.seed + 1)
+    splits = take_splits(files, labels, options)
     skeleton = spec = None
     clips, parts = [], {"pose": [], "control": [], "angles": []}
     rows, other_up = 0, []
@@ -474,8 +497,7 @@ def build_dataset(
                 raise ValueError(f"{path}: its skeleton differs from the first file's; one dataset needs one skeleton")
             if detect_up_axis and detect_up(body) != "y":
                 other_up.append(path.name)
-            take = take_of(path.stem)
-            split = "test" if take in held_out else "validation" if take in validation else "train"
+            split = splits[take_of(path.stem)]
             for augmentation, motion in _augmented(body, options, split == "train"):
                 encoded = encode_positions(motion, options.root)
                 angles = encode_angles(motion, spec).values if motion.rotations is not None else np.full((motion.n_frames, spec.size), np.nan)
@@ -518,14 +540,23 @@ def load_body_motion(path: str | os.PathLike, fps: float, seconds: float | None 
     """A BVH clip as the models see it: in centimetres with y up (from the file's unit
     ``scale`` and ``up`` axis), resampled to ``fps``, reduced to the body (the hips and
     below), and cut (positions only) to the ``seconds`` after ``start`` seconds into the
-    take when given. Frames are counted as ``round(seconds * fps)``, as controls count them."""
+    take when given (``cut_motion``)."""
     motion = resample(load_motion(path, scale, up), fps)
     motion = subtree_motion(motion, hips_index(motion.skeleton, root.hips))
+    return cut_motion(motion, seconds, start, path)
+
+
+def cut_motion(motion: Motion, seconds: float | None = None, start: float = 0.0,
+               source: str | os.PathLike = "the take") -> Motion:
+    """The positions of the ``seconds`` after ``start`` seconds into a take (the whole
+    take where neither is given). Frames are counted as ``round(seconds * fps)``, as
+    controls count them; ``source`` names the take in the error for a start past its end."""
     if seconds is None and not start:
         return motion
+    fps = motion.fps
     first = int(round(start * fps))
     if first >= motion.n_frames:
-        raise ValueError(f"{path}: the take lasts {motion.n_frames} frames at {fps:g} fps and so ends "
+        raise ValueError(f"{source}: the take lasts {motion.n_frames} frames at {fps:g} fps and so ends "
                          f"before {start:g} s into it")
     last = motion.n_frames if seconds is None else first + int(round(seconds * fps))
     return Motion(motion.positions[first:last], motion.fps, motion.skeleton)
