@@ -23,6 +23,27 @@ def test_render_writes_a_video_and_sheet(clip_path, tmp_path):
     assert target.stat().st_size > 10_000 and target.with_suffix(".png").is_file()
 
 
+def test_render_draws_a_control_under_a_take_cut_to_its_length_and_refuses_a_longer_control(clip_path, tmp_path,
+                                                                                           capsys):
+    from PIL import Image
+
+    from generation.render import Style
+
+    target = tmp_path / "walk.mp4"
+    assert main(["render", str(clip_path("walk_normal_001")), "-o", str(target), "--sheet", "--size", "320x240",
+                 "--draw-control", "walk-circle"]) == 0
+    sheet = np.asarray(Image.open(target.with_suffix(".png")).convert("RGB")).astype(int)
+    for colour in (Style().control_past, Style().control_future):
+        assert (np.abs(sheet - np.array(colour)).sum(axis=-1) < 20).sum() > 100  # the circle is drawn
+    long_walk = tmp_path / "long.yaml"
+    long_walk.write_text("segments:\n  - {type: straight, speed: 100, seconds: 10}\n")
+    assert main(["render", str(clip_path("walk_normal_001")), "-o", str(tmp_path / "long.mp4"),
+                 "--draw-control", str(long_walk)]) == 2
+    assert "walk_normal_001.bvh: the take lasts 130 frames at 20 fps, shorter than the 200 of the control" \
+        in capsys.readouterr().err
+    assert not (tmp_path / "long.mp4").exists()
+
+
 def test_malformed_bvh_is_named_with_its_line_and_leaves_no_output(clip_path, tmp_path, capsys):
     lines = clip_path("walk_normal_001").read_text().splitlines()
     lines[200] = lines[200].rstrip().rsplit(" ", 1)[0]  # a frame row one value short
