@@ -272,6 +272,14 @@ def in_control_frame(motion: Motion, root: RootOptions = RootOptions()) -> Motio
     return Motion(positions, motion.fps, motion.skeleton)
 
 
+def following_arrays(motion: Motion, asked: RootTrajectory, root: RootOptions = RootOptions()) -> dict[str, np.ndarray]:
+    """The arrays beside a clip that ``analysis``'s control-adherence metrics read
+    (analysis/motion_io.py): the path and facing the clip was asked to follow
+    (``asked``, in the clip's floor coordinates) and where its root went and faced."""
+    went = root_trajectory(motion, root)
+    return {"control_path": asked.xz, "control_yaw": asked.yaw, "root_path": went.xz, "root_yaw": went.yaw}
+
+
 def held_out_paths(dataset, seconds: float | None = None, lead_in_seconds: float = 0.0) -> list[PathControl]:
     """The control of each held-out natural clip of a dataset (cut to ``seconds``).
 

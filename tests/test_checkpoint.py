@@ -12,7 +12,7 @@ import torch
 
 from generation import registry
 from generation.checkpoint import CheckpointError, load_checkpoint, read_meta, save_checkpoint
-from generation.control import preset_path
+from generation.control import load_control_file, preset_path
 from generation.generator import Generator
 from generation.motion.dataset import DatasetOptions, build_dataset
 from generation.train import TrainOptions, train
@@ -281,6 +281,10 @@ def test_sample_command_writes_npz_bvh_and_video_per_clip(checkpoint, tmp_path, 
     with np.load(out / "turn-0_01.npz") as clip:
         assert clip["positions"].shape == (40, 21, 3) and float(clip["fps"]) == 20.0
         np.testing.assert_allclose(load_motion(out / "turn-0_01.bvh").positions, clip["positions"], atol=1e-4)
+        asked = load_control_file(control_file)[0].path()  # what the control adherence compares the root with
+        np.testing.assert_allclose(clip["control_path"], asked.xz)
+        np.testing.assert_allclose(clip["control_yaw"], asked.yaw)
+        assert clip["root_path"].shape == (40, 2) and clip["root_yaw"].shape == (40,)
 
 
 def test_sample_draws_each_clips_own_control_or_the_control_shown_and_refuses_one_of_another_length(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from generation.cli import main
@@ -96,6 +97,10 @@ def test_natural_clips_export_feeds_the_objective_metrics(motion_data, tmp_path,
     table = (tmp_path / "objective" / "tables" / "objective_metrics.csv").read_text()
     assert table.startswith("system,n_clips,v_tol_95,steps_per_s")
     assert "NAT" in table and (tmp_path / "objective" / "figures" / "footstep_curves.png").is_file()
+    # each take carries its own control, placed where it starts: it follows it all but exactly
+    adherence = pd.read_csv(tmp_path / "objective" / "tables" / "control_adherence.csv").iloc[0]
+    assert adherence["n_clips"] == len(clips)
+    assert adherence["position_error_mean"] < 1.0 and adherence["heading_error_mean"] < 1.0
 
 
 def test_commands_read_other_units_and_up_axes_and_say_which(clip_path, tmp_path, capsys):

@@ -17,11 +17,11 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from ..control import PRESETS, held_out_paths, lead_in_frames, load_control_file, preset_path
+from ..control import PRESETS, following_arrays, held_out_paths, lead_in_frames, load_control_file, preset_path
 from ..motion.bvh import motion_to_bvh, write_bvh
 from ..motion.dataset import DatasetOptions, build_dataset, contents_or_all, find_bvh_files, load_body_motion
 from ..motion.npz import save_motion_npz
-from ..motion.root import RootOptions, root_trajectory
+from ..motion.root import RootOptions, integrate, root_trajectory
 from ..motion.units import UNIT_NAMES, UNITS
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
@@ -152,7 +152,8 @@ def sample_command(args: argparse.Namespace) -> int:
         path = control.path()
         for i, motion in enumerate(motions):
             stem = f"{control.name}_{i:02d}"
-            save_motion_npz(motion, out / f"{stem}.npz", control=control.velocities, floor_path=path.xz)
+            save_motion_npz(motion, out / f"{stem}.npz", control=control.velocities, floor_path=path.xz,
+                            **following_arrays(motion, path, dataset_options.root))
             write_bvh(motion_to_bvh(motion, unit=args.bvh_unit), out / f"{stem}.bvh")
             if args.draw_control:  # the figure's own path over the control's
                 drawn = shown or control
@@ -221,7 +222,10 @@ def natural_command(args: argparse.Namespace) -> int:
             continue
         motion = load_body_motion(files[clip.name], options.fps, args.seconds, options.scale, options.root,
                                   options.up, start=args.lead_in)
-        save_motion_npz(motion, out / f"{clip.name}.npz")
+        control = dataset.clip_arrays(clip)["control"][lead:lead + motion.n_frames].astype("float64")
+        start = root_trajectory(motion, options.root)  # the take's control, from where the clip starts
+        asked = integrate(control, options.fps, start.xz[0], start.yaw[0])
+        save_motion_npz(motion, out / f"{clip.name}.npz", **following_arrays(motion, asked, options.root))
         written += 1
         if args.render:
             floor = root_trajectory(motion, options.root).xz
