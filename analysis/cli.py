@@ -46,8 +46,10 @@ def _parser() -> argparse.ArgumentParser:
                     "control class, and write tables (CSV, Markdown, LaTeX, JSON), figures "
                     "(PNG, SVG) and summary.md. With --motion, add the objective metrics. "
                     "Side-by-side tables (design column) get Wilcoxon signed-rank tests with "
-                    "Holm correction, pairwise tables sign tests and a Bradley-Terry scale; "
-                    "every design gets the ratings needed for 80 %% power per pair.")
+                    "Holm correction, pairwise tables sign tests and a Bradley-Terry scale, "
+                    "appropriateness tables the share preferring the matched clip, the mean "
+                    "appropriateness score and tests between systems; every design but "
+                    "appropriateness gets the ratings needed for 80 %% power per pair.")
     report.add_argument("ratings", help="ratings CSV file")
     report.add_argument("--out", required=True, help="folder to write the report into")
     report.add_argument("--reference", help="system to mark significant differences from "

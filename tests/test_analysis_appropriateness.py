@@ -151,3 +151,23 @@ def test_both_figures_are_written_as_png_and_svg(simulated, tmp_path):
     assert sorted(p.name for p in written) == ["appropriateness_scores.png", "appropriateness_scores.svg",
                                                "matched_preference.png", "matched_preference.svg"]
     assert "share preferring the matched clip" in (tmp_path / "matched_preference.svg").read_text()
+
+
+def test_the_report_command_writes_an_appropriateness_report(tmp_path, capsys):
+    from analysis.cli import main
+
+    table = simulate_appropriateness({"NAT": 0.9, "MoGlow": 0.75, "RNN": 0.55}, n_participants=40,
+                                     inattentive_share=0.15, seed=5)
+    table.to_csv(tmp_path / "ratings.csv", index=False)
+    out = tmp_path / "report"
+    assert main(["report", str(tmp_path / "ratings.csv"), "--out", str(out)]) == 0, capsys.readouterr().err
+    for name in ("matched_preference", "appropriateness_scores", "score_pairs", "side_bias", "exclusions"):
+        assert (out / "tables" / f"{name}.csv").is_file(), name
+    for name in ("matched_preference", "appropriateness_scores"):
+        assert (out / "figures" / f"{name}.png").is_file() and (out / "figures" / f"{name}.svg").is_file()
+    shares = pd.read_csv(out / "tables" / "matched_preference.csv")
+    assert set(shares["system"]) == {"NAT", "MoGlow", "RNN"}  # the BAD pages are checks, not compared
+    summary = (out / "summary.md").read_text()
+    assert "who preferred the mismatched clip of any BAD page" in summary
+    assert "preferred the mismatched clip of a BAD page" in summary  # some inattentive ones were caught
+    assert "the mean appropriateness scores (-2 to +2, [95 % bootstrap CI over participants]) were NAT" in summary
