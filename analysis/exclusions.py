@@ -15,7 +15,9 @@ Pairwise designs (`analysis.designs`) have no ratings to threshold. There rule 1
 a participant who prefers the attention-check clip on any page that shows one (a BAD
 versus NAT page in the studies this project runs) is excluded; "no preference" there
 does not exclude. Rule 2 discards a page, both its rows, when either clip was answered
-before it finished playing.
+before it finished playing. Appropriateness pages (one system's matched and mismatched
+clips) are attention checks when their system is BAD: natural motion against a path it
+obviously does not follow. Preferring the mismatched clip on one excludes.
 
 Nothing is deleted. Each rating gets ``excluded_participant``, ``discarded_early``,
 ``kept`` and ``exclusion_reason``; a rating that breaks both rules is counted under the
@@ -29,7 +31,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
-from analysis.designs import PAGE, PAIRWISE, table_design
+from analysis.designs import APPROPRIATENESS, PAGE, PREFERENCE_DESIGNS, table_design
 from analysis.errors import AnalysisInputError
 
 REFERENCE_SCALE = (1, 5)
@@ -66,9 +68,10 @@ def apply_exclusions(ratings: pd.DataFrame, rules: ExclusionRules = ExclusionRul
     ``"rated a NAT clip low"`` and ``"answered before clip end"`` (with the configured
     system names); a participant who failed both attention rules is attributed to the
     BAD rule. Pairwise tables get the preference rule instead (reason ``"preferred a
-    BAD clip"``).
+    BAD clip"``), appropriateness tables theirs (``"preferred the mismatched clip of a
+    BAD page"``).
     """
-    if table_design(ratings) == PAIRWISE:
+    if table_design(ratings) in PREFERENCE_DESIGNS:
         return _apply_preference_exclusions(ratings, rules)
     df = ratings.copy()
     failed_bad = (df["system"] == rules.attention_system) & (
@@ -98,6 +101,9 @@ def apply_exclusions(ratings: pd.DataFrame, rules: ExclusionRules = ExclusionRul
 def _apply_preference_exclusions(ratings: pd.DataFrame, rules: ExclusionRules) -> pd.DataFrame:
     df = ratings.copy()
     preferred_bad = (df["system"] == rules.attention_system) & (df["answer"] == df["side"])
+    appropriateness = table_design(ratings) == APPROPRIATENESS
+    if appropriateness:  # both clips of a check page are BAD's: the wrong one is the mismatched
+        preferred_bad &= ~df["matched"]
     df["excluded_participant"] = df["participant"].isin(set(df.loc[preferred_bad, "participant"]))
     if rules.discard_early and "answered_before_end" in df.columns:
         early_page = df.groupby(list(PAGE), sort=False)["answered_before_end"].transform("any")
@@ -106,7 +112,8 @@ def _apply_preference_exclusions(ratings: pd.DataFrame, rules: ExclusionRules) -
         df["discarded_early"] = False
     df["kept"] = ~(df["excluded_participant"] | df["discarded_early"])
     reason = pd.Series("", index=df.index, dtype=object)
-    reason[df["excluded_participant"]] = f"preferred a {rules.attention_system} clip"
+    reason[df["excluded_participant"]] = (f"preferred the mismatched clip of a {rules.attention_system} page"
+                                          if appropriateness else f"preferred a {rules.attention_system} clip")
     reason[df["discarded_early"]] = "answered before clip end"
     df["exclusion_reason"] = reason
     return df
@@ -138,7 +145,7 @@ def exclusion_notes(flagged: pd.DataFrame, rules: ExclusionRules = ExclusionRule
                 f"The web app's discarded_early flag disagrees with the recomputed rule on "
                 f"{differ} rating(s); the recomputed flags were used."
             )
-    ruled = ((rules.attention_system,) if table_design(flagged) == PAIRWISE
+    ruled = ((rules.attention_system,) if table_design(flagged) in PREFERENCE_DESIGNS
              else (rules.attention_system, rules.natural_system))
     for system in ruled:
         if not (flagged["system"] == system).any():

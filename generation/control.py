@@ -19,7 +19,8 @@ import numpy as np
 import yaml
 from scipy.ndimage import gaussian_filter1d
 
-from .motion.root import RootTrajectory, integrate
+from .motion.root import RootOptions, RootTrajectory, integrate, root_trajectory, to_root_frame
+from .motion.types import Motion
 
 # Seconds of Gaussian smoothing between segments, so speeds change as a person's do.
 TRANSITION_SIGMA = 0.25
@@ -258,6 +259,26 @@ def load_control_file(path: str | Path, fps: float = 20.0) -> list[PathControl]:
         except (ValueError, TypeError, AttributeError) as error:
             raise ValueError(f"{path}: path {i}: {error}") from None
     return controls
+
+
+def in_control_frame(motion: Motion, root: RootOptions = RootOptions()) -> Motion:
+    """``motion`` moved on the floor so that its root starts at the origin facing +z, where
+    every control's path starts: a natural take then walks along its own control's
+    path, and any clip can be drawn over any control's path (``render_video``'s
+    ``control_path``). Generated motion starts there already."""
+    start = root_trajectory(motion, root)
+    positions = motion.positions.copy()
+    floor = to_root_frame(positions[..., [0, 2]] - start.xz[0], start.yaw[0])
+    positions[..., 0], positions[..., 2] = floor[..., 0], floor[..., 1]
+    return Motion(positions, motion.fps, motion.skeleton)
+
+
+def following_arrays(motion: Motion, asked: RootTrajectory, root: RootOptions = RootOptions()) -> dict[str, np.ndarray]:
+    """The arrays beside a clip that ``analysis``'s control-adherence metrics read
+    (analysis/motion_io.py): the path and facing the clip was asked to follow
+    (``asked``, in the clip's floor coordinates) and where its root went and faced."""
+    went = root_trajectory(motion, root)
+    return {"control_path": asked.xz, "control_yaw": asked.yaw, "root_path": went.xz, "root_yaw": went.yaw}
 
 
 def held_out_paths(dataset, seconds: float | None = None, lead_in_seconds: float = 0.0) -> list[PathControl]:

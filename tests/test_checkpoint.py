@@ -12,7 +12,7 @@ import torch
 
 from generation import registry
 from generation.checkpoint import CheckpointError, load_checkpoint, read_meta, save_checkpoint
-from generation.control import preset_path
+from generation.control import load_control_file, preset_path
 from generation.generator import Generator
 from generation.motion.dataset import DatasetOptions, build_dataset
 from generation.train import TrainOptions, train
@@ -281,6 +281,31 @@ def test_sample_command_writes_npz_bvh_and_video_per_clip(checkpoint, tmp_path, 
     with np.load(out / "turn-0_01.npz") as clip:
         assert clip["positions"].shape == (40, 21, 3) and float(clip["fps"]) == 20.0
         np.testing.assert_allclose(load_motion(out / "turn-0_01.bvh").positions, clip["positions"], atol=1e-4)
+        asked = load_control_file(control_file)[0].path()  # what the control adherence compares the root with
+        np.testing.assert_allclose(clip["control_path"], asked.xz)
+        np.testing.assert_allclose(clip["control_yaw"], asked.yaw)
+        assert clip["root_path"].shape == (40, 2) and clip["root_yaw"].shape == (40,)
+
+
+def test_sample_draws_each_clips_own_control_or_the_control_shown_and_refuses_one_of_another_length(
+        checkpoint, tmp_path, monkeypatch, capsys):
+    from generation.cli import main, models
+
+    drawn = []
+    monkeypatch.setattr(models, "render_video", lambda motion, path, **kwargs: drawn.append(kwargs))
+    assert main(["sample", str(checkpoint), "-c", "walk-straight", "--out", str(tmp_path / "own"),
+                 "--draw-control"]) == 0
+    assert main(["sample", str(checkpoint), "-c", "walk-straight", "--out", str(tmp_path / "shown"),
+                 "--draw-control", "walk-circle"]) == 0
+    for kwargs, shown in zip(drawn, ("walk-straight", "walk-circle")):
+        np.testing.assert_allclose(kwargs["control_path"], preset_path(shown).path().xz)
+    assert not np.allclose(drawn[0]["root_path"], drawn[0]["control_path"])  # the figure's own path, drawn over it
+    short = tmp_path / "short.yaml"
+    short.write_text("segments:\n  - {type: straight, speed: 100, seconds: 2}\n")
+    assert main(["sample", str(checkpoint), "-c", "walk-straight", "--out", str(tmp_path / "x"),
+                 "--draw-control", str(short)]) == 2
+    assert f"--draw-control {short} lasts 40 frames, the control walk-straight 80" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
 
 
 def test_sample_command_writes_bvh_in_the_unit_asked_for_and_says_which(checkpoint, tmp_path, capsys):

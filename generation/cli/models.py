@@ -17,19 +17,20 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from ..control import PRESETS, lead_in_frames, load_control_file, preset_path, take_paths
+from ..control import PRESETS, following_arrays, lead_in_frames, load_control_file, preset_path, take_paths
 from ..motion.bvh import motion_to_bvh, write_bvh
 from ..motion.dataset import DatasetOptions, build_dataset, contents_or_all
 from ..motion.npz import save_motion_npz
-from ..motion.root import RootOptions, root_trajectory
+from ..motion.root import RootOptions, integrate, root_trajectory
 from ..motion.takes import natural_takes
 from ..motion.units import UNIT_NAMES, UNITS
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
-from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, warn
+from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, shown_control, warn
 
 
 LOCOMOTION = "walk,run,dash,walk-back,walk-left,walk-right"
+OWN_CONTROL = "own"  # --draw-control without a value: each clip's own control
 
 
 def _dataset_for_training(args: argparse.Namespace, attributes: bool):
@@ -156,10 +157,18 @@ def sample_command(args: argparse.Namespace) -> int:
     _use_threads(args)
     generator = Generator.load(args.checkpoint, args.device)
     if generator.attributes:
+        if args.draw_control:
+            raise ValueError(f"--draw-control draws a path; {args.checkpoint} follows action and style labels")
         return _sample_attributes(args, generator)
     if args.action or args.style:
         raise ValueError(f"--action and --style are for attribute-controlled models; {args.checkpoint} follows a path (--control)")
+    dataset_options = DatasetOptions.from_dict(generator.meta.features["dataset_options"])
     controls = _controls(args, generator.meta.features["dataset_options"])
+    shown = None if args.draw_control in (None, OWN_CONTROL) else shown_control(args.draw_control, generator.fps)
+    for control in controls if shown is not None else ():
+        if control.n_frames != shown.n_frames:
+            raise ValueError(f"--draw-control {args.draw_control} lasts {shown.n_frames} frames, the control "
+                             f"{control.name} {control.n_frames}: a clip is drawn over a control of its own length")
     precision = generator.resolve_precision(args.precision)
     print(f"sampling in {precision}" + (" (--precision auto)" if args.precision == "auto" else ""), file=sys.stderr)
     if precision == "bfloat16" and generator.device.type == "cpu" and not cpu_has_bfloat16_units():
@@ -172,9 +181,15 @@ def sample_command(args: argparse.Namespace) -> int:
         path = control.path()
         for i, motion in enumerate(motions):
             stem = f"{control.name}_{i:02d}"
-            save_motion_npz(motion, out / f"{stem}.npz", control=control.velocities, floor_path=path.xz)
+            save_motion_npz(motion, out / f"{stem}.npz", control=control.velocities, floor_path=path.xz,
+                            **following_arrays(motion, path, dataset_options.root))
             write_bvh(motion_to_bvh(motion, unit=args.bvh_unit), out / f"{stem}.bvh")
-            if args.render:
+            if args.draw_control:  # the figure's own path over the control's
+                drawn = shown or control
+                render_video(motion, out / f"{stem}.mp4", camera=camera_from(args), size=args.size,
+                             root_path=root_trajectory(motion, dataset_options.root).xz,
+                             control_path=drawn.path().xz)
+            elif args.render:
                 render_video(motion, out / f"{stem}.mp4", camera=camera_from(args), size=args.size, root_path=path.xz)
     print(f"{len(controls) * args.n} clips in {out} ({_written_units(args.bvh_unit)})")
     _note_training_unit(generator, args.bvh_unit)
@@ -235,7 +250,10 @@ def natural_command(args: argparse.Namespace) -> int:
         motion = take.clip(args.seconds, args.lead_in)
         if motion.n_frames < frames:
             short.append(take.name)
-        save_motion_npz(motion, out / f"{take.name}.npz")
+        control = take.control[lead:lead + motion.n_frames]
+        start = root_trajectory(motion, options.root)  # the take's control, from where the clip starts
+        asked = integrate(control, options.fps, start.xz[0], start.yaw[0])
+        save_motion_npz(motion, out / f"{take.name}.npz", **following_arrays(motion, asked, options.root))
         written += 1
         if args.render:
             floor = root_trajectory(motion, options.root).xz
@@ -389,6 +407,12 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--device", default="cpu")
     p.add_argument("--threads", type=_thread_count, help="CPU threads for torch (default: torch's own choice)")
     p.add_argument("--render", action="store_true", help="also render each clip to MP4")
+    p.add_argument("--draw-control", nargs="?", const=OWN_CONTROL, metavar="CONTROL",
+                   help="render each clip (implies --render) with a control's path drawn on the floor and the "
+                        "camera following that path, the figure's own path over it: without a value each "
+                        "clip's own control; with a preset name or a JSON or YAML file describing one path, "
+                        "that path under every clip, as an appropriateness study shows a clip sampled for "
+                        "another control (it must last as many frames as the clips)")
     p.add_argument("--bvh-unit", choices=tuple(UNITS), default="cm",
                    help="length unit of the BVH files written (BVH cannot state it; the command prints it); "
                         "npz files are always in cm (default %(default)s)")
