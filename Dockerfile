@@ -32,4 +32,4 @@ ENV MEDIA_ROOT=/data/media \
     STUDYAPP_VAR_DIR=/data/var
 
 EXPOSE 8000
-CMD ["gunicorn", "studyapp.wsgi", "--bind", "0.0.0.0:8000", "--access-logfile", "-"]
+CMD ["gunicorn", "studyapp.server.wsgi", "--bind", "0.0.0.0:8000", "--access-logfile", "-"]

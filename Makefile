@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 INSTALLED := $(VENV)/.installed
 # The motion capture: the demo and the study app read $MOTION_DATA (by default both
-# Bandai-Namco folders, studyapp/settings.py), the tests ../shared/data (tests/conftest.py).
+# Bandai-Namco folders, studyapp/server/settings.py), the tests ../shared/data (tests/conftest.py).
 
 .PHONY: demo test bench tour install clean
 
@@ -27,7 +27,7 @@ test: $(INSTALLED)
 	$(BIN)/python -m pytest
 
 demo: $(INSTALLED)
-	$(BIN)/python -m studyapp.demo
+	$(BIN)/python -m studyapp.server.demo
 
 # The screenshots of docs/running-a-study.md, taken again by the tests' browser.
 tour: $(INSTALLED)

@@ -9,7 +9,7 @@ the code before a change: ``git archive REV | tar -x -C DIR``) that code's ratin
 timed in the same run, round by round alternating with this one's, so that a shared
 machine's load reaches both. Forms are posted urlencoded, as browsers send them.
 
-*Crowds*: simulated participants (studyapp.simulated_participants: real HTTP, cookies,
+*Crowds*: simulated participants (studyapp.participants.simulated: real HTTP, cookies,
 CSRF) take the study at once, in processes of their own (threads within them), against
 the embedded default of ``make demo`` (Django's runserver as ``manage.py serve``, SQLite) and the
 production shape (gunicorn with the threaded workers of compose.yaml, PostgreSQL on
@@ -62,7 +62,10 @@ CODE = Path(os.environ.get("BENCH_STUDY_CODE", REPO))
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(CODE))
 from benchmarks.machine import describe_machine  # noqa: E402
-from studyapp.simulated_participants import Outcome, longest_clip_s, percentile, run_participants  # noqa: E402
+try:
+    from studyapp.participants.simulated import Outcome, longest_clip_s, percentile, run_participants  # noqa: E402
+except ImportError:  # a reference checkout from before the study app was split into subpackages
+    from studyapp.simulated_participants import Outcome, longest_clip_s, percentile, run_participants  # noqa: E402
 
 TARGET_STEP_MS = 10.0  # server time of one rating step (POST and next page), median
 TARGET_P95_S = 0.1  # a watching participant should not notice the wait for the next clip
@@ -288,12 +291,12 @@ def crowd(entry_url: str, participants: int, watch_s: float) -> tuple[list[Outco
 
 def measure(name: str, database_url: str, server: str, participants: int, watch_s: float,
             postmaster_pid: Path | None = None) -> dict:
-    env = {**os.environ, "DATABASE_URL": database_url, "DJANGO_SETTINGS_MODULE": "studyapp.settings",
+    env = {**os.environ, "DATABASE_URL": database_url, "DJANGO_SETTINGS_MODULE": "studyapp.server.settings",
            "DEBUG": "false", "SECRET_KEY": "benchmark-only-secret-key-" + "x" * 40, "ALLOWED_HOSTS": "127.0.0.1"}
     key = django_step(env, "--setup", str(participants))
     port = free_port()
     if server == "gunicorn":
-        command = [sys.executable, "-m", "gunicorn", "studyapp.wsgi", "--bind", f"127.0.0.1:{port}", *GUNICORN]
+        command = [sys.executable, "-m", "gunicorn", "studyapp.server.wsgi", "--bind", f"127.0.0.1:{port}", *GUNICORN]
     else:
         command = [sys.executable, "manage.py", "serve", "--noreload", f"127.0.0.1:{port}"]  # make demo's runserver
     database_pid = int(postmaster_pid.read_text().split()[0]) if postmaster_pid else None
@@ -325,8 +328,17 @@ def measure(name: str, database_url: str, server: str, participants: int, watch_
     }
 
 
+def settings_module(code: Path) -> str | None:
+    """The Django settings module of a checkout (None: not a checkout of the project); a
+    reference checkout may come from before the study app was split into subpackages."""
+    for module in ("studyapp.server.settings", "studyapp.settings"):
+        if (code / module.replace(".", "/")).with_suffix(".py").is_file():
+            return module
+    return None
+
+
 def measure_server_time(name: str, database_url: str, code: Path = REPO) -> dict:
-    env = {**os.environ, "DATABASE_URL": database_url, "DJANGO_SETTINGS_MODULE": "studyapp.settings",
+    env = {**os.environ, "DATABASE_URL": database_url, "DJANGO_SETTINGS_MODULE": settings_module(code),
            "DEBUG": "false", "SECRET_KEY": "benchmark-only-secret-key-" + "x" * 40, "ALLOWED_HOSTS": "127.0.0.1"}
     return {"setup": name, "code": "reference" if code != REPO else "this", **json.loads(django_step(env, "--server-time",
                                                                                                     code=code))}
@@ -395,8 +407,8 @@ def main() -> int:
     if args.setup is not None or args.count or args.server_time:
         print(setup_study(args.setup) if args.setup is not None else count_ratings() if args.count else server_time())
         return 0
-    if args.reference_code and not (args.reference_code / "studyapp" / "settings.py").is_file():
-        parser.error(f"--reference-code {args.reference_code}: no studyapp/settings.py there (a checkout of the project?)")
+    if args.reference_code and settings_module(args.reference_code) is None:
+        parser.error(f"--reference-code {args.reference_code}: no study app settings there (a checkout of the project?)")
 
     parts = set(args.only or PARTS)
     load_before = os.getloadavg()

@@ -8,7 +8,7 @@ lists other researchers' names); a superuser sees everything.
 from django.contrib import admin
 
 from studyapp.models import Assignment, ControlSignal, Participant, Rating, Stimulus, Study, System
-from studyapp.removal import remove_study
+from studyapp.researchers.removal import remove_study
 
 
 class OwnStudiesOnly(admin.ModelAdmin):

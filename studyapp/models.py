@@ -185,7 +185,7 @@ class System(models.Model):
         BAD = "bad", "attention check (BAD)"
 
     class SourceKind(models.TextChoices):
-        """Where the motion comes from (``studyapp.sources``); apart from checkpoints, the ``kind`` field."""
+        """Where the motion comes from (``studyapp.stimuli.sources``); apart from checkpoints, the ``kind`` field."""
         CHECKPOINT = "checkpoint", "model checkpoint"
         NATURAL = "natural", "natural clips"
         SUBMITTED = "submitted", "submitted motion"

@@ -10,7 +10,7 @@ from celery import shared_task
 from django.conf import settings
 
 from generation.gallery import GalleryOptions, render_clip
-from studyapp import stimuli
+from studyapp.stimuli import clips
 
 
 @shared_task(bind=True)
@@ -41,15 +41,15 @@ def generate_stimulus(self, stimulus_id: int) -> dict:
     Idempotent: a stimulus already done with its video in place is left alone, and so is
     one that was sent again since this message (the later task renders it).
     """
-    stimulus = stimuli.claim(stimulus_id, self.request.id)
+    stimulus = clips.claim(stimulus_id, self.request.id)
     if stimulus is None:
         return {"stimulus": stimulus_id, "status": "nothing to do"}
     try:
-        duration = stimuli.render_stimulus(stimulus)
+        duration = clips.render_stimulus(stimulus)
     except Exception as error:  # the reason is shown on the progress page, where it can be retried
-        stimuli.finish(stimulus, error=f"{type(error).__name__}: {error}")
+        clips.finish(stimulus, error=f"{type(error).__name__}: {error}")
         return {"stimulus": stimulus_id, "status": "failed", "attempt": stimulus.attempts}
-    stimuli.finish(stimulus, duration_s=duration)
+    clips.finish(stimulus, duration_s=duration)
     return {"stimulus": stimulus_id, "status": "done", "attempt": stimulus.attempts}
 
 
@@ -57,7 +57,7 @@ def generate_stimulus(self, stimulus_id: int) -> dict:
 def sample_stimuli(self, sent: list[tuple[int, str]]) -> dict:
     """Sample every stimulus of one system (on STUDY_SAMPLE_QUEUE), then send each to be
     rendered (on STUDY_RENDER_QUEUE) under the task id the row was given."""
-    ready = stimuli.sample_ahead([(int(pk), task_id) for pk, task_id in sent])
+    ready = clips.sample_ahead([(int(pk), task_id) for pk, task_id in sent])
     for stimulus_id, task_id in ready:
         generate_stimulus.apply_async((stimulus_id,), task_id=task_id, queue=settings.STUDY_RENDER_QUEUE)
     return {"sampled": len(ready), "of": len(sent), "hostname": self.request.hostname}

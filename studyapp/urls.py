@@ -5,21 +5,23 @@ from django.contrib import admin
 from django.contrib.auth import views as auth_views
 from django.urls import include, path
 
-from studyapp import participant_views, views
-from studyapp.participant_path import PATH
+from studyapp.participants import views as participant_views
+from studyapp.participants.path import PATH
+from studyapp.researchers import site_views
+from studyapp.server import views as server_views
 
 urlpatterns = [
-    path("", views.gallery, name="gallery"),
-    path("health/", views.health_page, name="health"),
-    path("health.json", views.health_json, name="health-json"),
-    path("analysis/", views.analysis_upload, name="analysis"),
-    path("analysis/<str:digest>/", views.analysis_report, name="analysis-report"),
+    path("", site_views.gallery, name="gallery"),
+    path("health/", server_views.health_page, name="health"),
+    path("health.json", server_views.health_json, name="health-json"),
+    path("analysis/", site_views.analysis_upload, name="analysis"),
+    path("analysis/<str:digest>/", site_views.analysis_report, name="analysis-report"),
     path("admin/", admin.site.urls),
     path("login/", auth_views.LoginView.as_view(), name="login"),
     path("logout/", auth_views.LogoutView.as_view(), name="logout"),
-    path("studies/", include("studyapp.researcher_urls")),
+    path("studies/", include("studyapp.researchers.urls")),
     # Participants: the entry link, the one page they are on, and its steps' forms as
-    # participant_path.PATH declares them (/p/KEY/consent/, /p/KEY/rate/, ...).
+    # participants.path.PATH declares them (/p/KEY/consent/, /p/KEY/rate/, ...).
     path("p/<str:key>/", participant_views.enter, name="participant-enter"),
     path("p/<str:key>/now/", participant_views.page, name="participant-page"),
     *(path(f"p/<str:key>/{step.name}/", participant_views.step_form(step), name=f"participant-{step.name}")
@@ -29,6 +31,6 @@ urlpatterns = [
 
 if settings.SERVE_FILES:
     urlpatterns += [
-        path(f"{settings.MEDIA_URL.lstrip('/')}<path:path>", views.media_file, name="media"),
-        path(f"{settings.STATIC_URL.lstrip('/')}<path:path>", views.static_file, name="static"),
+        path(f"{settings.MEDIA_URL.lstrip('/')}<path:path>", server_views.media_file, name="media"),
+        path(f"{settings.STATIC_URL.lstrip('/')}<path:path>", server_views.static_file, name="static"),
     ]

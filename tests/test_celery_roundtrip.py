@@ -28,8 +28,8 @@ CLIENT = """
 import json, sys, time
 import django
 django.setup()
-from studyapp.celery import app
-from studyapp.health import collect_health
+from studyapp.server.celery import app
+from studyapp.server.health import collect_health
 from studyapp.tasks import ping
 
 queue, node = sys.argv[1], sys.argv[2]
@@ -45,7 +45,7 @@ print(json.dumps({"result": result, "health": report}))
 
 def clean_env(**overrides: str) -> dict[str, str]:
     env = {k: v for k, v in os.environ.items() if k not in {"DATABASE_URL", "CELERY_BROKER_URL", "CELERY_RESULT_BACKEND"}}
-    env["DJANGO_SETTINGS_MODULE"] = "studyapp.settings"
+    env["DJANGO_SETTINGS_MODULE"] = "studyapp.server.settings"
     env.update(overrides)
     return env
 

@@ -26,7 +26,7 @@ def test_web_and_worker_run_the_app_against_postgres_and_redis() -> None:
     services = load_compose()["services"]
     web, worker = services["web"], services["worker"]
 
-    assert web["command"][:2] == ["gunicorn", "studyapp.wsgi"]
+    assert web["command"][:2] == ["gunicorn", "studyapp.server.wsgi"]
     assert worker["command"][:4] == ["celery", "-A", "studyapp", "worker"]
     for service in (web, worker):
         environment = service["environment"]

@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 from django.urls import reverse
 
+from studyapp.designs.ratings import current_assignment
 from studyapp.models import Participant, Question, Rating, Stimulus
-from studyapp.ratings import current_assignment
 from tests.study_fixtures import make_study
 from tests.test_study_browser import CLIP_SECONDS, PASSWORD, browser, clip_video, wait_for_clip_end  # noqa: F401 (fixtures)
 

@@ -10,9 +10,9 @@ import pytest
 from django.test import Client
 from django.urls import reverse
 
-from studyapp import participant_views
+from studyapp.designs.ratings import current_assignment
 from studyapp.models import Participant, Stimulus
-from studyapp.ratings import current_assignment
+from studyapp.participants import views as participant_views
 from tests.study_fixtures import make_study
 from tests.test_study_participant import enter, make_shown_long_ago, post, rate_current, through_practice
 
@@ -44,7 +44,7 @@ def test_unknown_links_closed_studies_and_server_errors_get_plain_pages_even_und
         raise RuntimeError("the database went away")
 
     monkeypatch.setattr(participant_views, "renew_reservations", broken)
-    with caplog.at_level(logging.ERROR, logger="studyapp.participant_views"):
+    with caplog.at_level(logging.ERROR, logger="studyapp.participants.views"):
         plain(client.get(reverse("participant-page", args=[study.key])), 500, "Something went wrong")
     assert "the database went away" in caplog.text  # the traceback goes to the log, not to the participant
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from generation.checkpoint import read_meta
 from generation.motion.dataset import DatasetOptions, build_dataset, motion_folders
-from studyapp import demo
+from studyapp.server import demo
 from tests.test_checkpoint import clips_folder, dataset  # noqa: F401
 
 

@@ -5,7 +5,7 @@ import time
 
 import pytest
 
-from studyapp.celery import app as celery_app
+from studyapp.server.celery import app as celery_app
 
 
 @pytest.fixture

@@ -1,6 +1,6 @@
 """Stimuli whose task died with a whole worker are found and sent again within a minute.
 
-The quick tests drive ``studyapp.lost_tasks`` against a private filesystem broker; the
+The quick tests drive ``studyapp.stimuli.lost_tasks`` against a private filesystem broker; the
 slow one kills a real worker's whole process group mid-render (taking its prefetched
 messages with it, as the filesystem broker never redelivers) and has a second worker
 send them again and finish every clip, leaving no partial file.
@@ -23,11 +23,11 @@ from types import SimpleNamespace
 import pytest
 from django.utils import timezone
 
-from studyapp.celery import app as celery_app
-from studyapp.lost_tasks import (LOST_AFTER_S, SAMPLING_TASK, beat, held_task_ids, lost_stimuli, resend_lost,
-                                 waiting_task_ids)
 from studyapp.models import Stimulus, System
-from studyapp.dispatch import queue_stimuli
+from studyapp.server.celery import app as celery_app
+from studyapp.stimuli.dispatch import queue_stimuli
+from studyapp.stimuli.lost_tasks import (LOST_AFTER_S, SAMPLING_TASK, beat, held_task_ids, lost_stimuli, resend_lost,
+                                 waiting_task_ids)
 from tests.study_fixtures import make_study
 from tests.study_setup import study_files
 from tests.test_celery_roundtrip import clean_env
@@ -89,7 +89,7 @@ def test_a_row_whose_message_is_gone_and_that_no_worker_touches_is_sent_again(qu
             message.unlink()
     age([waiting, taken, held], LOST_AFTER_S + 5)
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr("studyapp.lost_tasks.worker_state.requests", {held.task_id: object()})
+        patch.setattr("studyapp.stimuli.lost_tasks.worker_state.requests", {held.task_id: object()})
         beat(celery_app)  # this worker's beat: touches `held`, then sends what was lost
 
     after = {s.pk: s for s in Stimulus.objects.filter(pk__in=[waiting.pk, taken.pk, held.pk])}

@@ -29,7 +29,7 @@ DEPLOYMENT_VARIABLES = {"DATABASE_URL", "CELERY_BROKER_URL", "CELERY_RESULT_BACK
 
 def run_settings(**env: str) -> subprocess.CompletedProcess:
     environment = {k: v for k, v in os.environ.items() if k not in DEPLOYMENT_VARIABLES}
-    environment.update(DJANGO_SETTINGS_MODULE="studyapp.settings", **env)
+    environment.update(DJANGO_SETTINGS_MODULE="studyapp.server.settings", **env)
     return subprocess.run([sys.executable, "-c", SHOW_SETTINGS], cwd=REPO_ROOT, env=environment,
                           capture_output=True, text=True, timeout=30)
 
@@ -37,7 +37,7 @@ def run_settings(**env: str) -> subprocess.CompletedProcess:
 def test_defaults_need_no_server_and_live_under_the_var_dir(tmp_path: Path) -> None:
     shown = json.loads(run_settings(STUDYAPP_VAR_DIR=str(tmp_path)).stdout)
 
-    assert shown["database"] == f"studyapp.sqlite_backend {tmp_path / 'db.sqlite3'}"  # Django's, writers in turn
+    assert shown["database"] == f"studyapp.server.sqlite_backend {tmp_path / 'db.sqlite3'}"  # Django's, writers in turn
     assert shown["broker"].startswith("filesystem://")
     assert shown["broker_options"]["data_folder_in"] == str(tmp_path / "broker" / "queue")
     assert shown["results"] == f"file://{tmp_path / 'celery-results'}"
@@ -71,7 +71,7 @@ SHOW_SECRET_KEY = "from django.conf import settings; print(settings.SECRET_KEY)"
 
 def test_without_a_secret_key_one_is_made_once_under_the_var_dir_and_kept(tmp_path: Path) -> None:
     environment = {k: v for k, v in os.environ.items() if k not in DEPLOYMENT_VARIABLES}
-    environment.update(DJANGO_SETTINGS_MODULE="studyapp.settings", STUDYAPP_VAR_DIR=str(tmp_path))
+    environment.update(DJANGO_SETTINGS_MODULE="studyapp.server.settings", STUDYAPP_VAR_DIR=str(tmp_path))
     keys = [subprocess.run([sys.executable, "-c", SHOW_SECRET_KEY], cwd=REPO_ROOT, env=environment,
                            capture_output=True, text=True, timeout=30, check=True).stdout.strip() for _ in range(2)]
 
@@ -104,7 +104,7 @@ print(Client(raise_request_exception=False).get("/failing/").status_code)
 
 def test_with_debug_off_a_server_error_is_logged_to_stderr(tmp_path: Path) -> None:
     environment = {k: v for k, v in os.environ.items() if k not in DEPLOYMENT_VARIABLES}
-    environment.update(DJANGO_SETTINGS_MODULE="studyapp.settings", STUDYAPP_VAR_DIR=str(tmp_path), DEBUG="0",
+    environment.update(DJANGO_SETTINGS_MODULE="studyapp.server.settings", STUDYAPP_VAR_DIR=str(tmp_path), DEBUG="0",
                        SECRET_KEY="s3cret-for-the-log-test", ALLOWED_HOSTS="testserver")
     completed = subprocess.run([sys.executable, "-c", FAILING_REQUEST], cwd=REPO_ROOT, env=environment,
                                capture_output=True, text=True, timeout=60)
@@ -131,7 +131,7 @@ for url in ("/failing/", "/no/such/page/", "/media/stimuli/no-such-clip.mp4"):
 
 def test_the_embedded_defaults_answer_errors_with_the_studys_plain_pages(tmp_path: Path) -> None:
     environment = {k: v for k, v in os.environ.items() if k not in DEPLOYMENT_VARIABLES}
-    environment.update(DJANGO_SETTINGS_MODULE="studyapp.settings", STUDYAPP_VAR_DIR=str(tmp_path),
+    environment.update(DJANGO_SETTINGS_MODULE="studyapp.server.settings", STUDYAPP_VAR_DIR=str(tmp_path),
                        ALLOWED_HOSTS="testserver")
     completed = subprocess.run([sys.executable, "-c", ERROR_PAGES], cwd=REPO_ROOT, env=environment,
                                capture_output=True, text=True, timeout=60)

@@ -14,10 +14,10 @@ from generation.control import AttributeControl, control_from_dict, held_out_pat
 from generation.generator import Generator
 from generation.models.moglow import MoGlow
 from generation.motion.npz import load_motion_npz
-from studyapp.dispatch import queue_stimuli
 from studyapp.models import ControlSignal, Stimulus, Study
-from studyapp.sources import sampled_path
-from studyapp.stimuli import plan_stimuli
+from studyapp.stimuli.clips import plan_stimuli
+from studyapp.stimuli.dispatch import queue_stimuli
+from studyapp.stimuli.sources import sampled_path
 from studyapp.tasks import sample_stimuli
 from tests.test_study_researcher import (files, new_study, queue, researcher, site,  # noqa: F401 (fixtures)
                                          upload_checkpoint)

@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 from django.urls import reverse
 
+from studyapp.designs.ratings import current_assignment
 from studyapp.models import Participant, Rating, System
-from studyapp.ratings import current_assignment
 from tests.study_fixtures import make_study, render_clip_video
 
 CLIP_SECONDS = 1.0

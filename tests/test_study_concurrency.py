@@ -10,8 +10,8 @@ import pytest
 from django.db import connection, transaction
 
 from studyapp.models import Participant, Rating, Stimulus, Study, System
-from studyapp.sqlite_backend.base import DatabaseWrapper
-from studyapp.simulated_participants import run_participants
+from studyapp.participants.simulated import run_participants
+from studyapp.server.sqlite_backend.base import DatabaseWrapper
 from tests.study_fixtures import make_study
 
 

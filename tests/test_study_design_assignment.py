@@ -10,10 +10,10 @@ from datetime import timedelta
 import pytest
 from django.utils import timezone
 
-from studyapp.assignment import StudyFull, enrol
+from studyapp.designs.page_assignment import page_loads
 from studyapp.models import Assignment, Participant, Rating, Stimulus, Study, System
-from studyapp.page_assignment import page_loads
-from studyapp.simulated_participants import run_participants
+from studyapp.participants.assignment import StudyFull, enrol
+from studyapp.participants.simulated import run_participants
 from tests.study_fixtures import make_study
 
 
@@ -120,7 +120,7 @@ def test_simultaneous_participants_never_pass_a_page_target_and_lose_no_answer(l
 
 @pytest.mark.django_db
 def test_an_idle_participant_back_after_their_page_was_filled_by_others_loses_only_that_page():
-    from studyapp.assignment import renew_reservations
+    from studyapp.participants.assignment import renew_reservations
 
     study = make_study(design=Study.Design.SIDE_BY_SIDE, scale_min=0, scale_max=100, controls=2,
                        pages_per_participant=2, ratings_per_stimulus=1, bad_checks=0, reservation_minutes=30)

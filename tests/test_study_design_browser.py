@@ -14,9 +14,9 @@ import io
 import pytest
 
 from analysis.ratings import read_ratings
+from studyapp.designs.page_ratings import current_page
 from studyapp.models import Participant, Rating, Study, System
-from studyapp.monitor import ratings_csv
-from studyapp.page_ratings import current_page
+from studyapp.researchers.monitor import ratings_csv
 from tests.study_fixtures import make_study
 from tests.test_study_browser import browser, clip_video  # noqa: F401 (fixtures)
 

@@ -11,11 +11,11 @@ from django.test import Client
 from django.utils import timezone
 
 from analysis.ratings import read_ratings
+from studyapp.designs.page_assignment import page_loads
+from studyapp.designs.page_ratings import current_page
+from studyapp.designs.ratings import current_assignment
 from studyapp.models import Participant, Rating, Study, System
-from studyapp.monitor import ratings_csv
-from studyapp.page_assignment import page_loads
-from studyapp.page_ratings import current_page
-from studyapp.ratings import current_assignment
+from studyapp.researchers.monitor import ratings_csv
 from tests.study_fixtures import make_study
 from tests.test_study_designs import PAIRWISE, SIDE_BY_SIDE, compare, page_html, rate_page, through_practice
 from tests.test_study_participant import post, rate_current
@@ -134,7 +134,7 @@ def test_a_session_ends_politely_after_the_studys_number_of_failed_instructed_ch
 @pytest.mark.parametrize("settings", [SIDE_BY_SIDE, PAIRWISE])
 def test_the_analysis_recomputes_the_apps_flags_of_each_design_and_agrees(settings):
     from analysis.exclusions import apply_exclusions, exclusion_notes
-    from studyapp.monitor import exclusion_rules
+    from studyapp.researchers.monitor import exclusion_rules
 
     study = make_study(**{**settings, "bad_checks": 1, "instructed_checks": 1})
     side_by_side = study.design == Study.Design.SIDE_BY_SIDE

@@ -11,10 +11,10 @@ from django.test import Client
 from django.urls import reverse
 
 from analysis.ratings import read_ratings
-from studyapp.forms import StudyForm
+from studyapp.designs.page_ratings import current_page
 from studyapp.models import Participant, Rating, Study, System
-from studyapp.monitor import ratings_csv
-from studyapp.page_ratings import current_page
+from studyapp.researchers.forms import StudyForm
+from studyapp.researchers.monitor import ratings_csv
 from tests.study_fixtures import make_study
 from tests.test_study_participant import enter, make_shown_long_ago, post
 
@@ -181,7 +181,7 @@ def answer_everything(study: Study, pids: list[str], value_of=None) -> None:
 
 
 def test_the_monitor_summarises_each_design_with_the_analysis_functions():
-    from studyapp.monitor import study_monitor
+    from studyapp.researchers.monitor import study_monitor
 
     sbs = make_study(**SIDE_BY_SIDE, bad_checks=0, ratings_per_stimulus=10)
     by_system = {"MoGlow": 60, "RNN": 40, "NAT": 90}
@@ -204,8 +204,8 @@ def test_the_monitor_summarises_each_design_with_the_analysis_functions():
 
 
 def test_the_demo_opens_a_side_by_side_study_on_the_single_studys_clips(settings, tmp_path):
-    from studyapp.assignment import enrol
-    from studyapp.demo import ensure_side_by_side_study
+    from studyapp.participants.assignment import enrol
+    from studyapp.server.demo import ensure_side_by_side_study
 
     settings.MEDIA_ROOT = tmp_path / "media"
     video = tmp_path / "clip.mp4"

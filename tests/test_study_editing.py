@@ -9,7 +9,7 @@ from django.test import Client
 from django.urls import reverse
 
 from studyapp.models import Participant, Study, System
-from studyapp.stimuli import content_key
+from studyapp.stimuli.clips import content_key
 from tests.study_fixtures import make_study
 
 pytestmark = pytest.mark.django_db

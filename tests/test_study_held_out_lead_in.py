@@ -14,11 +14,11 @@ from django.core.management import call_command
 from generation.motion.bvh import load_motion
 from generation.motion.npz import load_motion_npz
 from generation.control import PathControl
-from studyapp.controls import ControlError, _spread, add_held_out_controls, training_options
 from studyapp.models import ControlSignal, Stimulus, System
-from studyapp.natural import natural_motion
-from studyapp.sources import sampled_path
-from studyapp.stimuli import plan_stimuli
+from studyapp.stimuli.clips import plan_stimuli
+from studyapp.stimuli.controls import ControlError, _spread, add_held_out_controls, training_options
+from studyapp.stimuli.natural import natural_motion
+from studyapp.stimuli.sources import sampled_path
 from studyapp.tasks import generate_stimulus
 from tests.test_study_researcher import files, new_study, researcher, site, upload_checkpoint  # noqa: F401 (fixtures)
 

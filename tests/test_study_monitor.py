@@ -14,9 +14,9 @@ import pytest
 from django.utils import timezone
 from scipy import stats
 
+from studyapp.designs.ratings import EXPORT_COLUMNS
 from studyapp.models import Assignment, Participant, Rating, Stimulus
-from studyapp.monitor import study_monitor
-from studyapp.ratings import EXPORT_COLUMNS
+from studyapp.researchers.monitor import study_monitor
 from tests.study_fixtures import make_study
 
 # participant -> ratings as (system, control index, value, answered before the clip ended)

@@ -27,9 +27,9 @@ from analysis.objective import objective_metrics
 from generation.motion.dataset import load_body_motion
 from generation.motion.npz import load_motion_npz
 from generation.motion.types import Motion
-from studyapp.controls import training_options
 from studyapp.models import Stimulus, Study
-from studyapp.sources import sampled_path
+from studyapp.stimuli.controls import training_options
+from studyapp.stimuli.sources import sampled_path
 from studyapp.tasks import sample_stimuli
 from tests.test_study_researcher import (files, new_study, queue, researcher, run_task, site,  # noqa: F401 (fixtures)
                                          upload_checkpoint)

@@ -24,13 +24,13 @@ from generation.generator import Generator
 from generation.motion.bvh import bvh_text, motion_to_bvh
 from generation.motion.dataset import DatasetOptions, build_dataset
 from generation.train import TrainOptions, train
-from studyapp.control_export import control_id
-from studyapp.controls import add_held_out_controls
+from studyapp.designs.ratings import current_assignment
 from studyapp.models import Participant, Stimulus, Study, System
-from studyapp.ratings import current_assignment
-from studyapp.stimuli import plan_stimuli, render_stimulus
-from studyapp.submissions import add_submitted_system
-from studyapp.systems import add_checkpoint_system, add_natural_system, add_video_system
+from studyapp.stimuli.clips import plan_stimuli, render_stimulus
+from studyapp.stimuli.control_export import control_id
+from studyapp.stimuli.controls import add_held_out_controls
+from studyapp.stimuli.submissions import add_submitted_system
+from studyapp.stimuli.systems import add_checkpoint_system, add_natural_system, add_video_system
 from tests.study_setup import study_files
 from tests.test_model_plugin import plugin_dir  # noqa: F401 (fixture)
 from tests.test_study_browser import browser, wait_for_clip_end  # noqa: F401 (fixture)

@@ -12,9 +12,9 @@ from django.test import Client
 from django.urls import reverse
 from django.utils import timezone
 
-from studyapp.assignment import StudyFull, enrol, stimulus_loads
+from studyapp.designs.ratings import ClientTimes, current_assignment, ratings_rows
 from studyapp.models import Assignment, Participant, Rating, Stimulus, Study, System
-from studyapp.ratings import ClientTimes, current_assignment, ratings_rows
+from studyapp.participants.assignment import StudyFull, enrol, stimulus_loads
 from tests.study_fixtures import make_study
 
 pytestmark = pytest.mark.django_db
@@ -375,7 +375,7 @@ def test_the_export_has_one_row_per_rating_with_the_flags():
 
 
 def test_participants_finish_while_the_task_queue_is_down():
-    from studyapp.celery import app
+    from studyapp.server.celery import app
 
     study = make_study(clips_per_participant=3, bad_checks=1, natural_checks=1)
     dead_broker = "redis://127.0.0.1:1/0"  # nothing listens on port 1

@@ -13,10 +13,10 @@ from django.contrib.auth.models import User
 from django.core.files.uploadedfile import SimpleUploadedFile
 
 from generation.motion.dataset import DatasetOptions, load_body_motion
-from studyapp.controls import training_options
 from studyapp.models import ControlSignal, Stimulus, Study
-from studyapp.natural import natural_motion
-from studyapp.stimuli import plan_stimuli
+from studyapp.stimuli.clips import plan_stimuli
+from studyapp.stimuli.controls import training_options
+from studyapp.stimuli.natural import natural_motion
 from studyapp.tasks import generate_stimulus
 from tests.study_setup import link_clips, train_tiny_moglow
 

@@ -108,7 +108,7 @@ def test_the_queues_default_to_the_one_queue_and_an_unknown_device_is_refused(tm
 def test_auto_samples_on_the_cpu_where_no_gpu_is_present():
     import torch
 
-    from studyapp.sources import sampling_device
+    from studyapp.stimuli.sources import sampling_device
 
     assert sampling_device("auto") == ("cuda" if torch.cuda.is_available() else "cpu")
     assert sampling_device("cpu") == "cpu"

@@ -29,11 +29,11 @@ from safetensors.torch import load_file, save_file
 from generation.checkpoint import FORMAT_KEY, load_checkpoint, read_meta
 from generation.render.camera import Camera
 from generation.store import tensor_digest
-from studyapp.celery import app as celery_app
-from studyapp.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
 from studyapp.models import ControlSignal, Participant, Stimulus, Study, System
-from studyapp.dispatch import STALE_TASK_MINUTES, queue_stimuli
-from studyapp.stimuli import plan_stimuli
+from studyapp.server.celery import app as celery_app
+from studyapp.server.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
+from studyapp.stimuli.clips import plan_stimuli
+from studyapp.stimuli.dispatch import STALE_TASK_MINUTES, queue_stimuli
 from studyapp.tasks import generate_stimulus
 from tests.study_setup import CLIPS, link_clips, study_files
 

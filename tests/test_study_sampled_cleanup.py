@@ -14,10 +14,10 @@ import pytest
 from django.contrib.auth.models import User
 from django.urls import reverse
 
-from studyapp.editing import edit_system
 from studyapp.models import Stimulus, Study
-from studyapp.removal import delete_unreferenced_samples, remove
-from studyapp.sources import sampled_folder, sampled_path
+from studyapp.researchers.editing import edit_system
+from studyapp.researchers.removal import delete_unreferenced_samples, remove
+from studyapp.stimuli.sources import sampled_folder, sampled_path
 from tests.study_fixtures import make_study
 
 pytestmark = pytest.mark.django_db

@@ -1,4 +1,4 @@
-"""Every kind of system yields motion through one source interface (``studyapp.sources``).
+"""Every kind of system yields motion through one source interface (``studyapp.stimuli.sources``).
 
 The stimuli and the tasks ask a system's source which controls it has motion for and
 what that motion is; no code there branches on a system's role or kind.
@@ -12,11 +12,11 @@ from pathlib import Path
 import pytest
 from django.core.files.uploadedfile import SimpleUploadedFile
 
-from studyapp.dispatch import queue_stimuli
 from studyapp.models import Stimulus, System
-from studyapp.sources import SOURCES, CheckpointSource, NaturalClips, UploadedVideos, source_of
-from studyapp.stimuli import plan_stimuli
-from studyapp.systems import add_video_system
+from studyapp.stimuli.clips import plan_stimuli
+from studyapp.stimuli.dispatch import queue_stimuli
+from studyapp.stimuli.sources import SOURCES, CheckpointSource, NaturalClips, UploadedVideos, source_of
+from studyapp.stimuli.systems import add_video_system
 from tests.test_study_researcher import (files, new_study, queue, researcher, run_task, site,  # noqa: F401 (fixtures)
                                          upload_checkpoint)
 
@@ -35,7 +35,7 @@ def comparisons_of_roles_and_kinds(module: Path) -> list[str]:
 
 
 def test_the_stimuli_and_the_tasks_never_branch_on_a_systems_role_or_kind():
-    assert comparisons_of_roles_and_kinds(REPO / "studyapp" / "stimuli.py") == []
+    assert comparisons_of_roles_and_kinds(REPO / "studyapp" / "stimuli" / "clips.py") == []
     assert comparisons_of_roles_and_kinds(REPO / "studyapp" / "tasks.py") == []
 
 

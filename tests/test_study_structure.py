@@ -12,19 +12,23 @@ from django.shortcuts import redirect
 from django.test import Client
 from django.urls import clear_url_caches, reverse
 
-import studyapp.urls
-from studyapp import participant_path
 from studyapp.models import Participant
-from studyapp.participant_path import Step, stage
+from studyapp.participants import path as participant_path
+from studyapp.participants.path import Step, stage
+import studyapp.urls
 from tests.study_fixtures import make_study
 
 STUDYAPP = Path(__file__).resolve().parents[1] / "studyapp"
-QUEUE_MODULES = ("celery", "kombu", "studyapp.celery", "studyapp.tasks", "studyapp.dispatch", "studyapp.health")
+QUEUE_MODULES = ("celery", "kombu", "studyapp.server.celery", "studyapp.tasks", "studyapp.stimuli.dispatch", "studyapp.server.health")
+
+
+def _source(module: str) -> Path:
+    return STUDYAPP / f"{module.removeprefix('studyapp.').replace('.', '/')}.py"
 
 
 def _imports(module: str) -> set[str]:
     """Every module ``module`` imports, at any level of its code (function bodies included)."""
-    tree = ast.parse((STUDYAPP / f"{module.removeprefix('studyapp.').replace('.', '/')}.py").read_text())
+    tree = ast.parse(_source(module).read_text())
     names = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
@@ -43,12 +47,12 @@ def _studyapp_closure(module: str) -> dict[str, set[str]]:
         if name in seen:
             continue
         seen[name] = _imports(name)
-        todo += [i for i in seen[name] if i.startswith("studyapp.") and (STUDYAPP / f"{i[9:]}.py").is_file()]
+        todo += [i for i in seen[name] if i.startswith("studyapp.") and _source(i).is_file()]
     return seen
 
 
 def test_stimulus_logic_reaches_no_task_queue_module():
-    closure = _studyapp_closure("studyapp.stimuli")
+    closure = _studyapp_closure("studyapp.stimuli.clips")
     assert "studyapp.models" in closure  # the walk follows studyapp's own imports
     reached = {name: sorted(i for i in imports if i.split(".")[0] in ("celery", "kombu") or i in QUEUE_MODULES)
                for name, imports in closure.items()}

@@ -23,10 +23,10 @@ from generation.generator import Generator
 from generation.motion.bvh import bvh_text, load_motion, motion_to_bvh
 from generation.motion.npz import load_motion_npz, save_motion_npz
 from generation.motion.types import Motion, Skeleton
-from studyapp.control_export import control_id
-from studyapp.dispatch import queue_stimuli
 from studyapp.models import Stimulus, Study, System
-from studyapp.stimuli import plan_stimuli
+from studyapp.stimuli.clips import plan_stimuli
+from studyapp.stimuli.control_export import control_id
+from studyapp.stimuli.dispatch import queue_stimuli
 from tests.test_study_researcher import (files, new_study, queue, researcher, run_task, site,  # noqa: F401 (fixtures)
                                          upload_checkpoint)
 

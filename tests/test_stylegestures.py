@@ -170,7 +170,7 @@ def test_hparams_that_do_not_fit_the_tensors_name_the_tensor(tmp_path, reference
 
 
 def test_checkpoints_saved_before_the_scale_options_load_as_before_and_keep_their_preset():
-    from studyapp.systems import preset_name
+    from studyapp.stimuli.systems import preset_name
 
     meta = read_meta(REPO / "models" / "moglow-cpu.safetensors")
     older = {k: v for k, v in meta.hyperparameters.items() if k not in ("scale_offset", "scale_floor")}

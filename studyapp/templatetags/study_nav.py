@@ -3,7 +3,7 @@
 from django import template
 
 from studyapp.models import Study
-from studyapp.study_steps import study_steps as steps_of
+from studyapp.researchers.checklist import study_steps as steps_of
 
 register = template.Library()
 

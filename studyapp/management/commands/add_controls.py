@@ -5,7 +5,7 @@ from pathlib import Path
 from django.core.files import File
 from django.core.management.base import BaseCommand
 
-from studyapp.controls import ControlError, add_control_file, add_held_out_controls, add_label_controls, add_preset_controls
+from studyapp.stimuli.controls import ControlError, add_control_file, add_held_out_controls, add_label_controls, add_preset_controls
 
 from ._study import InputError, study_by_id
 

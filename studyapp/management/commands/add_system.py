@@ -6,8 +6,8 @@ from django.core.files import File
 from django.core.management.base import BaseCommand
 
 from studyapp.models import System
-from studyapp.submissions import add_submitted_system, add_submitted_upload, read_folder
-from studyapp.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
+from studyapp.stimuli.submissions import add_submitted_system, add_submitted_upload, read_folder
+from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
 
 from ._study import InputError, study_by_id
 

@@ -4,8 +4,8 @@ from pathlib import Path
 
 from django.core.management.base import BaseCommand
 
-from studyapp.control_export import write_bundle
-from studyapp.controls import ControlError
+from studyapp.stimuli.control_export import write_bundle
+from studyapp.stimuli.controls import ControlError
 
 from ._study import InputError, study_by_id
 

@@ -5,7 +5,7 @@ from pathlib import Path
 
 from django.core.management.base import BaseCommand
 
-from studyapp.motion_export import exported_stimuli, write_motion
+from studyapp.stimuli.motion_export import exported_stimuli, write_motion
 
 from ._study import InputError, study_by_id
 

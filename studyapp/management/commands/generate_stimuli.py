@@ -4,8 +4,8 @@ import time
 
 from django.core.management.base import BaseCommand
 
-from studyapp.dispatch import BrokerUnavailable, generate_stimuli
-from studyapp.stimuli import progress
+from studyapp.stimuli.clips import progress
+from studyapp.stimuli.dispatch import BrokerUnavailable, generate_stimuli
 
 from ._study import InputError, study_by_id
 

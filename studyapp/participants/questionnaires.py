@@ -1,0 +1,60 @@
+"""The study's questions before the ratings (screening) and after them (demographics,
+comments): reading a participant's answers from a form and judging the screening ones.
+
+Answers are kept on the participant by question name (``Participant.answers``) and go
+out with the participant list.
+"""
+
+from __future__ import annotations
+
+from django.http import QueryDict
+
+from studyapp.designs.ratings import RatingRejected
+from studyapp.models import Question, Study
+
+MAX_ANSWER_LENGTH = 2000
+
+
+def questions(study: Study, part: str) -> list[Question]:
+    return list(study.questions.filter(part=part))
+
+
+def field_name(question: Question) -> str:
+    """The form field of a question."""
+    return f"q-{question.name}"
+
+
+def _answer(question: Question, text: str) -> str | float:
+    if question.kind == Question.Kind.CHOICE:
+        if text not in question.choice_list:
+            raise RatingRejected(f"“{question.text}”: please choose one of the answers")
+        return text
+    if question.kind == Question.Kind.NUMBER:
+        try:
+            return float(text)
+        except ValueError:
+            raise RatingRejected(f"“{question.text}”: please give a number, not {text[:20]!r}") from None
+    return text[:MAX_ANSWER_LENGTH]
+
+
+def read_answers(asked: list[Question], form: QueryDict) -> dict[str, str | float]:
+    """The answers to ``asked`` in ``form``, or RatingRejected (400) naming the first
+    question left out or answered wrongly."""
+    answers: dict[str, str | float] = {}
+    for question in asked:
+        text = form.get(field_name(question), "").strip()
+        if not text:
+            if question.required:
+                raise RatingRejected(f"“{question.text}”: please answer this question")
+            continue
+        answers[question.name] = _answer(question, text)
+    return answers
+
+
+def screened_out(asked: list[Question], answers: dict[str, str | float]) -> bool:
+    """Whether an answer falls outside what a screening question accepts."""
+    return any(question.accepted_list and answers.get(question.name) not in question.accepted_list
+               for question in asked)
+
+
+__all__ = ["field_name", "questions", "read_answers", "screened_out"]

@@ -1,0 +1,210 @@
+"""Simulated participants: take a live study from its entry link to the completion page over HTTP.
+
+A dry run before a study goes to the crowd, the concurrency test and the ratings
+benchmark all use it. Each participant is an independent cookie-carrying client that
+reads the page it is on, as a browser would, and answers it: consent, instructions,
+practice clips, then a rating per clip, or an answer per side-by-side or pairwise page
+(claiming to have watched every clip to its end, and so answering no sooner than the
+longest clip on the page lasts).
+
+    python -m studyapp.participants.simulated http://127.0.0.1:8000/p/KEY/ -n 20
+
+Only the Python standard library is used, so it runs anywhere the app does.
+"""
+
+from __future__ import annotations
+
+import argparse
+import html
+import http.cookiejar
+import random
+import re
+import statistics
+import sys
+import time
+import urllib.error
+import urllib.parse
+import urllib.request
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+_FORM = re.compile(r'<form method="post" action="([^"]+)"[^>]*>(.*?)</form>', re.S)
+_HIDDEN = re.compile(r'<input type="hidden" name="([^"]+)"(?: value="([^"]*)")?>')
+_POINT = re.compile(r'<button type="submit" name="value" value="(-?\d+)"(?: disabled)?>')
+# Side-by-side and pairwise pages: a slider per clip, or the answer buttons and strengths.
+_SLIDER = re.compile(r'<input type="range" form="page-form" id="[^"]+" name="(value-\d+)" min="(-?\d+)" max="(-?\d+)"')
+_ANSWER = re.compile(r'<button type="submit" name="answer" value="(\w+)"')
+_STRENGTH = re.compile(r'<input type="radio" name="strength" value="(\d+)"')
+_PLAY = re.compile(r'data-play="(\d+)"')
+_RATING_STEPS = ("/rate/", "/rate-page/", "/compare/")
+_CLIP_SECONDS = re.compile(r'<video [^>]*data-seconds="([0-9.]+)"')
+
+
+def longest_clip_s(page: str) -> float:
+    """How long the longest clip on a page plays: the least time after the page was shown
+    before the server takes an answer as given after the end of every clip on it."""
+    return max((float(seconds) for seconds in _CLIP_SECONDS.findall(page)), default=0.0)
+
+
+@dataclass
+class Outcome:
+    """What one simulated participant did and how long each rating submission took."""
+
+    platform_id: str
+    finished: bool = False
+    ratings: int = 0  # accepted by the server (answered with the redirect to the next page)
+    rating_latencies_s: list[float] = field(default_factory=list)
+    final_page: str = ""
+    error: str = ""
+
+
+class _KeepRedirects(urllib.request.HTTPRedirectHandler):
+    """Hand a redirect back as an HTTPError instead of following it, so that an accepted
+    rating (the redirect) is counted even when the next page then fails."""
+
+    def redirect_request(self, *args, **kwargs) -> None:
+        return None
+
+
+class SimulatedParticipant:
+    """One participant with their own cookies; ``run()`` goes through the whole study."""
+
+    def __init__(self, entry_url: str, platform_id: str, id_parameter: str = "PROLIFIC_PID",
+                 rng: random.Random | None = None, timeout_s: float = 60.0, watch_s: float = 0.0) -> None:
+        separator = "&" if "?" in entry_url else "?"
+        self.entry_url = f"{entry_url}{separator}{urllib.parse.urlencode({id_parameter: platform_id})}"
+        self.outcome = Outcome(platform_id)
+        self.rng = rng or random.Random(platform_id)
+        self.timeout_s = timeout_s
+        self.watch_s = watch_s  # least time spent on each rating page before answering, as a person watches it
+        cookies = urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar())
+        self.opener = urllib.request.build_opener(cookies)
+        self.rating_opener = urllib.request.build_opener(cookies, _KeepRedirects)
+
+    def _open(self, url: str, data: dict | None = None) -> tuple[str, str]:
+        """(final URL, body) after redirects; a 4xx/5xx raises urllib.error.HTTPError."""
+        request = urllib.request.Request(url, urllib.parse.urlencode(data).encode() if data is not None else None)
+        with self.opener.open(request, timeout=self.timeout_s) as response:
+            return response.geturl(), response.read().decode()
+
+    def _answer(self, page_url: str, body: str) -> tuple[str, str] | None:
+        """Submit the page's form; None when the page has no form (the end, or a message)."""
+        match = _FORM.search(body)
+        if not match:
+            return None
+        action, form = html.unescape(match.group(1)), match.group(2)
+        data = {name: html.unescape(value or "") for name, value in _HIDDEN.findall(form)}
+        points = [int(point) for point in _POINT.findall(form)]
+        url = urllib.parse.urljoin(page_url, action)
+        sliders, answers = _SLIDER.findall(body), _ANSWER.findall(form)
+        if action.endswith("/consent/"):
+            data["agree"] = "yes"
+        elif points or sliders or answers:  # a rating page: every clip on it played to its end first
+            time.sleep(max(self.watch_s, longest_clip_s(body)))
+            if points:
+                data.update(value=str(self.rng.choice(points)), started_s="0.05", ended_s="0.5",
+                            answered_s="0.6", played_until_s="0.45")
+            else:
+                data.update(self._page_answer(body, sliders, answers, _STRENGTH.findall(form)))
+        if action.endswith(_RATING_STEPS):
+            start = time.perf_counter()
+            next_page = self._rate(url, data)
+            self.outcome.ratings += 1
+            result = self._open(next_page)
+            self.outcome.rating_latencies_s.append(time.perf_counter() - start)
+            return result
+        return self._open(url, data)
+
+    def _page_answer(self, body: str, sliders: list[tuple[str, str, str]], answers: list[str],
+                     strengths: list[str]) -> dict:
+        """A random answer to a side-by-side or pairwise page, every clip claimed watched to its end."""
+        data = {name: str(self.rng.randint(int(low), int(high))) for name, low, high in sliders}
+        if answers:
+            data["answer"] = self.rng.choice(answers)
+            if strengths and data["answer"] != "none":
+                data["strength"] = self.rng.choice(strengths)
+        for slot in _PLAY.findall(body):
+            data.update({f"started_s-{slot}": "0.05", f"ended_s-{slot}": "0.5", f"answered_s-{slot}": "0.6",
+                         f"played_until_s-{slot}": "0.45"})
+        return data
+
+    def _rate(self, url: str, data: dict) -> str:
+        """POST a rating; the URL of the page the server redirects to once it has stored it."""
+        request = urllib.request.Request(url, urllib.parse.urlencode(data).encode())
+        try:
+            with self.rating_opener.open(request, timeout=self.timeout_s) as response:
+                status, headers = response.status, response.headers
+        except urllib.error.HTTPError as answer:
+            if answer.code in (302, 303):
+                return urllib.parse.urljoin(url, answer.headers["Location"])
+            raise
+        raise urllib.error.HTTPError(url, status, "a rating was answered without a redirect", headers, None)
+
+    def run(self, max_pages: int = 500) -> Outcome:
+        try:
+            url, body = self._open(self.entry_url)
+            for _ in range(max_pages):
+                answered = self._answer(url, body)
+                if answered is None:
+                    break
+                url, body = answered
+            self.outcome.final_page = body
+            self.outcome.finished = "You have finished the study" in body
+        except (urllib.error.URLError, TimeoutError, ConnectionError) as error:
+            self.outcome.error = f"{type(error).__name__}: {error}"
+        return self.outcome
+
+
+def run_participants(entry_url: str, count: int, concurrency: int | None = None,
+                     id_parameter: str = "PROLIFIC_PID", prefix: str = "sim", watch_s: float = 0.0) -> list[Outcome]:
+    """``count`` participants, ``concurrency`` at a time (default: all at once), each
+    spending at least ``watch_s`` on every rating page before answering."""
+    participants = [SimulatedParticipant(entry_url, f"{prefix}-{i:05d}", id_parameter, watch_s=watch_s)
+                    for i in range(count)]
+    with ThreadPoolExecutor(max_workers=concurrency or count) as pool:
+        return list(pool.map(SimulatedParticipant.run, participants))
+
+
+def percentile(values: list[float], q: float) -> float:
+    """The q-quantile (0..1) by linear interpolation between order statistics."""
+    ordered = sorted(values)
+    position = q * (len(ordered) - 1)
+    low = int(position)
+    high = min(low + 1, len(ordered) - 1)
+    return ordered[low] + (ordered[high] - ordered[low]) * (position - low)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("entry_url", help="the study's entry link without the platform's id, e.g. http://host/p/KEY/")
+    parser.add_argument("-n", "--participants", type=int, default=10, help="how many (default %(default)s)")
+    parser.add_argument("--concurrency", type=int, help="how many at a time (default: all)")
+    parser.add_argument("--id-parameter", default="PROLIFIC_PID",
+                        help="query parameter carrying the id: PROLIFIC_PID, workerId or pid (default %(default)s)")
+    parser.add_argument("--prefix", default="sim", help="platform ids are PREFIX-00000, ... (default %(default)s)")
+    parser.add_argument("--watch", type=float, default=0.0,
+                        help="least seconds on each rating page before answering; a page is answered no sooner "
+                             "than its longest clip lasts either way (default %(default)s)")
+    args = parser.parse_args(argv)
+    if args.participants < 1 or (args.concurrency is not None and args.concurrency < 1):
+        parser.error("--participants and --concurrency must be at least 1")
+    if not 0.0 <= args.watch < float("inf"):  # also refuses nan
+        parser.error(f"--watch must be a finite number of seconds, 0 or more, not {args.watch}")
+    start = time.perf_counter()
+    outcomes = run_participants(args.entry_url, args.participants, args.concurrency, args.id_parameter, args.prefix,
+                                args.watch)
+    seconds = time.perf_counter() - start
+    latencies = [s for o in outcomes for s in o.rating_latencies_s]
+    finished = sum(o.finished for o in outcomes)
+    print(f"{finished} of {len(outcomes)} participants finished, {len(latencies)} ratings in {seconds:.1f} s")
+    if latencies:
+        print(f"rating submission: median {statistics.median(latencies) * 1000:.0f} ms, "
+              f"p95 {percentile(latencies, 0.95) * 1000:.0f} ms")
+    for outcome in outcomes:
+        if outcome.error:
+            print(f"{outcome.platform_id}: {outcome.error}", file=sys.stderr)
+    return 0 if all(not o.error for o in outcomes) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

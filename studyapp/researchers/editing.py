@@ -1,0 +1,80 @@
+"""Editing a system's name and sampling temperature, or a control's name, until the first
+participant starts (as ``removal``).
+
+Nothing that changes where the motion comes from can be edited: another checkpoint,
+other submitted motion or another path is another system or control (remove and add).
+A new temperature changes every sampled clip of the system, so those clips are deleted
+(rows, videos and sampled motion) and generating the stimuli again makes them anew. A new control name
+changes no clip, but the control's description carries its name and every clip's content
+key digests it, so its clips keep their videos and get their new keys.
+"""
+
+from __future__ import annotations
+
+from django.db import transaction
+
+from studyapp.models import ControlSignal, Stimulus, System
+from studyapp.researchers.removal import delete_files, require_not_started
+from studyapp.stimuli.clips import content_key
+
+
+class EditRefused(ValueError):
+    """An edit that cannot be made; ``field`` names the form field at fault."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(message)
+        self.field = field
+
+
+def _check_name(item: System | ControlSignal, name: str) -> None:
+    what = "system" if isinstance(item, System) else "control"
+    if not name.strip():
+        raise EditRefused("name", f"a {what} needs a name")
+    if type(item).objects.filter(study=item.study, name=name).exclude(pk=item.pk).exists():
+        raise EditRefused("name", f"this study already has a {what} named {name!r}")
+
+
+def edit_system(system: System, name: str, temperature: float | None = None) -> int:
+    """Rename ``system`` and, for a checkpoint system, set its sampling temperature (None:
+    unchanged); how many clips were deleted to be sampled again at the new temperature."""
+    _check_name(system, name)
+    if temperature is not None and not system.checkpoint:
+        raise EditRefused("temperature", f"{system.name} is not sampled from a checkpoint: it has no temperature")
+    if temperature is not None and not temperature > 0:
+        raise EditRefused("temperature", f"the sampling temperature must be positive, got {temperature}")
+    resample = temperature is not None and temperature != system.temperature
+    with transaction.atomic():
+        require_not_started(system.study)
+        stale = list(system.stimuli.all()) if resample else []
+        Stimulus.objects.filter(pk__in=[s.pk for s in stale]).delete()
+        system.name = name
+        if resample:
+            system.temperature = temperature
+        system.save(update_fields=["name", "temperature"])
+    delete_files(stale)
+    return len(stale)
+
+
+def rename_control(control: ControlSignal, name: str) -> None:
+    """Rename ``control``; its clips keep their videos under new content keys.
+
+    Refused while a submitted-motion system has motion for it: that motion is stored and
+    matched by the control's name.
+    """
+    _check_name(control, name)
+    submitted = [s.name for s in control.study.systems.filter(kind=System.SourceKind.SUBMITTED)
+                 if control.name in s.metadata.get("controls", [])]
+    if submitted:
+        raise EditRefused("name", f"{', '.join(submitted)} submitted motion named after {control.name}: "
+                                  "remove that system first, or keep the name")
+    with transaction.atomic():
+        require_not_started(control.study)
+        control.name = name
+        control.control = {**control.control, "name": name}
+        control.save(update_fields=["name", "control"])
+        for stimulus in control.stimuli.select_related("system"):  # an update: a queued clip stays as it was
+            Stimulus.objects.filter(pk=stimulus.pk).update(
+                content_key=content_key(control.study, stimulus.system, control, stimulus.seed))
+
+
+__all__ = ["EditRefused", "edit_system", "rename_control"]

@@ -1,0 +1,81 @@
+"""Removing a system or a control signal from a study, with its clips, until the first
+participant starts: from then on the clips are part of what participants saw and rated.
+Removing a whole study (the admin's delete) takes its clips' files with it.
+
+Sampled motion (``sources.sampled_folder``) is named by content key, and two studies
+whose clips have the same key share one file: a removal deletes only the files that no
+remaining stimulus of any study refers to.
+"""
+
+from __future__ import annotations
+
+import re
+
+from django.db import transaction
+
+from studyapp.models import ControlSignal, Stimulus, Study, System
+from studyapp.stimuli.sources import sampled_folder
+
+SAMPLED_NAME = re.compile(r"[0-9a-f]{64}\.npz")  # a content key; anything else there is not ours to delete
+
+
+class SystemsFixed(Exception):
+    """Participants have started: the study's systems and controls are fixed."""
+
+
+def require_not_started(study: Study) -> None:
+    """SystemsFixed once anyone has started the study (call inside the change's transaction)."""
+    if study.participants.exists():
+        raise SystemsFixed("participants have started this study: its systems and controls are fixed")
+
+
+def delete_files(stimuli: list[Stimulus]) -> None:
+    """Delete the stimuli's video files and the sampled motion no stimulus refers to any
+    more; call after the rows' deletion commits, so a failed delete leaves the files in place."""
+    for stimulus in stimuli:
+        stimulus.video_path().unlink(missing_ok=True)
+    delete_unreferenced_samples()
+
+
+def delete_unreferenced_samples() -> int:
+    """Delete the sampled motion files no stimulus refers to any more; how many went.
+
+    Only plain files directly in the folder and named by a content key are candidates.
+    The files are listed before the keys are read, so a file whose stimulus was planned
+    in between may go too; its clip is then sampled again when it is needed.
+    """
+    folder = sampled_folder()
+    if not folder.is_dir():
+        return 0
+    candidates = [path for path in folder.iterdir()
+                  if SAMPLED_NAME.fullmatch(path.name) and path.is_file() and not path.is_symlink()]
+    referenced = set(Stimulus.objects.values_list("content_key", flat=True))
+    unreferenced = [path for path in candidates if path.stem not in referenced]
+    for path in unreferenced:
+        path.unlink(missing_ok=True)
+    return len(unreferenced)
+
+
+def remove(item: System | ControlSignal) -> int:
+    """Delete ``item`` and its stimuli (rows, video files and sampled motion no other
+    stimulus shares); returns how many clips went."""
+    with transaction.atomic():
+        require_not_started(item.study)
+        stimuli = list(Stimulus.objects.filter(**{"system" if isinstance(item, System) else "control": item}))
+        item.delete()  # its stimuli go with it (CASCADE)
+    delete_files(stimuli)
+    return len(stimuli)
+
+
+def remove_study(study: Study) -> int:
+    """Delete ``study`` with everything in it, its clips' videos and the sampled motion no
+    other study shares; returns how many clips went."""
+    with transaction.atomic():
+        stimuli = list(study.stimuli.all())
+        study.delete()
+    delete_files(stimuli)
+    return len(stimuli)
+
+
+__all__ = ["SystemsFixed", "delete_files", "delete_unreferenced_samples", "remove", "remove_study",
+           "require_not_started"]

@@ -1,0 +1,72 @@
+"""The researcher's pages outside any one study: the gallery of natural clips and the
+analysis of an uploaded ratings table."""
+
+from django import forms
+from django.conf import settings
+from django.contrib.auth.decorators import login_required
+from django.http import Http404, HttpRequest, HttpResponse
+from django.shortcuts import redirect, render
+from django.views.decorators.http import require_safe
+
+from studyapp.researchers.reports import AnalysisInputError, create_report, report_page
+from studyapp.server.views import current_health
+from studyapp.stimuli.gallery import GalleryIndexError, index_path, load_gallery
+
+
+@login_required  # its natural clips could be recognised among a study's NAT stimuli
+@require_safe
+def gallery(request: HttpRequest) -> HttpResponse:
+    """The rendered natural clips, or how to build them, under the health summary."""
+    report = current_health()
+    clips, index_error = None, None
+    try:
+        clips = load_gallery(settings.MEDIA_ROOT)
+    except GalleryIndexError as exc:
+        index_error = str(exc)
+    context = {
+        "health": report,
+        "clips": clips,
+        "index_error": index_error,
+        "index_path": index_path(settings.MEDIA_ROOT),
+    }
+    return render(request, "studyapp/gallery.html", context)
+
+
+class RatingsUploadForm(forms.Form):
+    ratings = forms.FileField(help_text="A ratings table as CSV (see docs/ratings-schema.md).")
+    reference = forms.CharField(required=False, initial="NAT", max_length=100,
+                                help_text="System that significance stars compare against (empty: none).")
+
+    def clean_ratings(self):
+        upload = self.cleaned_data["ratings"]
+        if upload.size > settings.MAX_RATINGS_UPLOAD_BYTES:
+            raise forms.ValidationError(
+                f"the file is {upload.size / 1e6:.1f} MB; the limit is {settings.MAX_RATINGS_UPLOAD_BYTES / 1e6:.0f} MB")
+        return upload
+
+
+@login_required
+def analysis_upload(request: HttpRequest) -> HttpResponse:
+    """Researchers: upload a ratings table, get the papers' tables and figures."""
+    form = RatingsUploadForm(request.POST or None, request.FILES or None)
+    status = 200
+    if request.method == "POST":
+        if form.is_valid():
+            try:
+                digest = create_report(settings.MEDIA_ROOT, form.cleaned_data["ratings"].read(),
+                                       form.cleaned_data["reference"].strip() or None, request.user.pk)
+                return redirect("analysis-report", digest=digest)
+            except AnalysisInputError as exc:
+                form.add_error("ratings", str(exc))
+        status = 400
+    return render(request, "studyapp/analysis_upload.html", {"form": form}, status=status)
+
+
+@login_required
+@require_safe
+def analysis_report(request: HttpRequest, digest: str) -> HttpResponse:
+    try:
+        page = report_page(settings.MEDIA_ROOT, digest, request.user.pk)
+    except FileNotFoundError:
+        raise Http404("no such report") from None
+    return render(request, "studyapp/analysis_report.html", {"page": page})

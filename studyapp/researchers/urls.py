@@ -1,0 +1,29 @@
+"""URL map of the researcher's pages (included under ``studies/``)."""
+
+from django.urls import path
+
+from studyapp.researchers import views
+
+urlpatterns = [
+    path("", views.study_list, name="study-list"),
+    path("new/", views.study_edit, name="study-create"),
+    path("<int:pk>/", views.study_edit, name="study-edit"),
+    path("<int:pk>/systems/", views.study_systems, name="study-systems"),
+    path("<int:pk>/<str:kind>/<int:item>/remove/", views.study_remove, name="study-remove"),
+    path("<int:pk>/<str:kind>/<int:item>/edit/", views.study_item_edit, name="study-item-edit"),
+    path("<int:pk>/controls/", views.study_controls, name="study-controls"),
+    path("<int:pk>/controls.zip", views.study_controls_download, name="study-controls-download"),
+    path("<int:pk>/stimuli/", views.study_stimuli, name="study-stimuli"),
+    path("<int:pk>/stimuli/progress.json", views.study_progress, name="study-progress"),
+    path("<int:pk>/stimuli/<int:stimulus_id>/retry/", views.stimulus_retry, name="stimulus-retry"),
+    path("<int:pk>/monitor/", views.study_monitor_page, name="study-monitor"),
+    path("<int:pk>/preview/", views.study_preview, name="study-preview"),
+    path("<int:pk>/preview/<int:index>/", views.study_preview, name="study-preview-page"),
+    path("<int:pk>/questions/", views.study_questions, name="study-questions"),
+    path("<int:pk>/participants/", views.study_participants, name="study-participants"),
+    path("<int:pk>/participants.csv", views.study_participants_csv, name="study-participants-csv"),
+    path("<int:pk>/open/", views.study_open, name="study-open"),
+    path("<int:pk>/ratings.csv", views.study_export, name="study-export"),
+    path("<int:pk>/motion.zip", views.study_motion_download, name="study-motion-download"),
+    path("<int:pk>/report/", views.study_report, name="study-report"),
+]

@@ -1,0 +1,417 @@
+"""The researcher's pages: studies, their systems, controls, stimuli and the running study.
+
+Every page needs a login, and a researcher reaches only their own studies: another
+researcher's study answers 404, as if it did not exist. Forms post back to their page;
+what a form means is done by the service modules (``systems``, ``controls``,
+``stimuli``, ``monitor``), which the management commands share.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+from django.conf import settings
+from django.contrib import messages
+from django.contrib.auth.decorators import login_required
+from django.db.models import Count, Q
+from django.http import Http404, HttpRequest, HttpResponse, JsonResponse
+from django.shortcuts import get_object_or_404, redirect, render
+from django.urls import reverse
+from django.views.decorators.cache import never_cache
+from django.views.decorators.http import require_POST, require_safe
+
+from studyapp.models import NATURAL_NAME, ControlSignal, Question, Stimulus, Study, System
+from studyapp.participants.views import PLATFORM_PARAMETERS
+from studyapp.researchers.editing import EditRefused, edit_system, rename_control
+from studyapp.researchers.forms import (CheckpointSystemForm, ControlEditForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
+                            LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, StudyForm,
+                            SubmittedMotionSystemForm, SystemEditForm, VideoSystemForm)
+from studyapp.researchers.monitor import ratings_csv, study_monitor
+from studyapp.researchers.participant_list import participant_rows, participants_csv, question_names
+from studyapp.researchers.preview import preview_pages
+from studyapp.researchers.readiness import open_problems
+from studyapp.researchers.removal import SystemsFixed, remove, require_not_started
+from studyapp.researchers.reports import AnalysisInputError, create_report
+from studyapp.server.celery import app as celery_app
+from studyapp.server.health import collect_health
+from studyapp.stimuli.clips import progress
+from studyapp.stimuli.control_export import bundle_zip
+from studyapp.stimuli.controls import (ControlError, add_control_file, add_held_out_controls, add_label_controls,
+                               add_preset_controls, control_kind, study_labels)
+from studyapp.stimuli.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
+from studyapp.stimuli.motion_export import exported_stimuli, motion_zip
+from studyapp.stimuli.submissions import add_submitted_upload
+from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
+
+# Prolific fills these placeholders in a study URL; MTurk appends its own ids.
+PROLIFIC_PLACEHOLDERS = "PROLIFIC_PID={{%PROLIFIC_PID%}}&STUDY_ID={{%STUDY_ID%}}&SESSION_ID={{%SESSION_ID%}}"
+
+
+def _study(request: HttpRequest, pk: int) -> Study:
+    return get_object_or_404(Study, pk=pk, owner=request.user)
+
+
+@login_required
+@require_safe
+def study_list(request: HttpRequest) -> HttpResponse:
+    rated_clip = Q(stimuli__status=Stimulus.Status.DONE) & ~Q(stimuli__system__role=System.Role.BAD)
+    studies = Study.objects.filter(owner=request.user).annotate(
+        started=Count("participants", distinct=True),
+        finished=Count("participants", filter=Q(participants__finished_at__isnull=False), distinct=True),
+        rated_clips=Count("stimuli", filter=rated_clip, distinct=True),
+        ratings=Count("participants__assignments__rating", distinct=True,
+                      filter=~Q(participants__assignments__stimulus__system__role=System.Role.BAD)),
+    )
+    for study in studies:
+        needed = study.rated_clips * study.ratings_per_stimulus
+        study.needed = needed
+        study.percent = min(100, round(100 * study.ratings / needed)) if needed else 0
+    return render(request, "studyapp/researcher/study_list.html", {"studies": studies})
+
+
+@login_required
+def study_edit(request: HttpRequest, pk: int | None = None) -> HttpResponse:
+    """Create a study (no ``pk``) or edit one."""
+    study = _study(request, pk) if pk is not None else Study(owner=request.user)
+    form = StudyForm(request.POST or None, instance=study)
+    if request.method == "POST":
+        if form.is_valid():
+            study = form.save()
+            messages.success(request, f"Saved {study.title}.")
+            return redirect("study-systems", pk=study.pk)
+        return render(request, "studyapp/researcher/study_form.html", {"form": form, "study": study}, status=400)
+    return render(request, "studyapp/researcher/study_form.html", {"form": form, "study": study})
+
+
+def _forms_page(request: HttpRequest, study: Study, page: str, forms: dict, actions: dict,
+                refusal: type[Exception], context: dict) -> HttpResponse:
+    """A page of several forms, each posting ``action=<its key>``.
+
+    The submitted form is validated and its action run; the action's message is shown
+    after a redirect, and a refusal (``refusal``) becomes the form's error, with 400.
+    """
+    action = request.POST.get("action") if request.method == "POST" else None
+    bound = {key: form_class(request.POST, request.FILES) if key == action else form_class()
+             for key, form_class in forms.items()}
+    form = bound.get(action)
+    if form is not None and form.is_valid():
+        try:
+            messages.success(request, actions[action](form.cleaned_data))
+            return redirect(f"study-{page}", pk=study.pk)
+        except refusal as error:
+            form.add_error(None, str(error))
+    status = 400 if request.method == "POST" else 200
+    return render(request, f"studyapp/researcher/{page}.html", {"study": study, "forms": bound, **context},
+                  status=status)
+
+
+def _submitted(system: System) -> str:
+    return f"Registered {system.name} with motion for {len(system.metadata['controls'])} control(s)."
+
+
+@login_required
+def study_systems(request: HttpRequest, pk: int) -> HttpResponse:
+    study = _study(request, pk)
+    forms = {"checkpoint": CheckpointSystemForm, "natural": NaturalSystemForm, "motion": SubmittedMotionSystemForm,
+             "videos": VideoSystemForm}
+    actions = {
+        "checkpoint": lambda data: "Registered {}.".format(add_checkpoint_system(
+            study, data["name"], data["checkpoint"], data["role"], data["temperature"]).name),
+        "natural": lambda data: f"Registered {add_natural_system(study, data['name']).name}.",
+        "motion": lambda data: _submitted(add_submitted_upload(study, data["name"], data["motion"], data["role"])),
+        "videos": lambda data: "Registered {} with {} video(s).".format(
+            add_video_system(study, data["name"], data["videos"], data["role"]).name, len(data["videos"])),
+    }
+    return _forms_page(request, study, "systems", forms, actions, UploadRefused, {"systems": study.systems.all()})
+
+
+@login_required
+def study_controls(request: HttpRequest, pk: int) -> HttpResponse:
+    study = _study(request, pk)
+    try:
+        kind = control_kind(study)
+    except ControlError as error:
+        messages.error(request, str(error))
+        kind = "path"
+    forms: dict = {"held_out": partial(HeldOutControlsForm, paths=kind == "path")}
+    if kind == "path":
+        forms.update(presets=PresetControlsForm, file=ControlFileForm)
+    else:
+        forms["labels"] = partial(LabelControlsForm, labels=study_labels(study))
+    actions = {
+        "held_out": lambda data: "{} held-out control(s).".format(
+            len(add_held_out_controls(study, data["seconds"], data["count"], data.get("lead_in") or 0.0))),
+        "presets": lambda data: f"{len(add_preset_controls(study, data['presets']))} synthetic control(s).",
+        "file": lambda data: f"{len(add_control_file(study, data['description']))} control(s) from the file.",
+        "labels": lambda data: "{} label control(s).".format(
+            len(add_label_controls(study, data["actions"], data["styles"], data["seconds"]))),
+    }
+    return _forms_page(request, study, "controls", forms, actions, ControlError,
+                       {"controls": study.controls.all(), "kind": kind})
+
+
+@never_cache
+@login_required
+@require_safe
+def study_controls_download(request: HttpRequest, pk: int) -> HttpResponse:
+    """The controls as a zip (``control_export``); ``?natural=1`` adds the held-out controls' natural clips."""
+    study = _study(request, pk)
+    try:
+        data = bundle_zip(study, natural=request.GET.get("natural") == "1")
+    except (ControlError, ValueError, FileNotFoundError) as error:
+        messages.error(request, f"No download: {error}")
+        return redirect("study-controls", pk=study.pk)
+    response = HttpResponse(data, content_type="application/zip")
+    response["Content-Disposition"] = f'attachment; filename="controls-study-{study.pk}.zip"'
+    return response
+
+
+@login_required
+def study_stimuli(request: HttpRequest, pk: int) -> HttpResponse:
+    """Generate (idempotently) and watch the progress; failed clips with their reasons."""
+    study = _study(request, pk)
+    form = GenerateForm(request.POST or None)
+    status = 200
+    if request.method == "POST" and form.is_valid():
+        try:
+            result = generate_stimuli(study, form.cleaned_data["seed"])
+        except BrokerUnavailable as error:
+            messages.error(request, str(error))
+            status = 503
+        else:
+            messages.success(request, f"{result.total} stimuli ({result.created} new); {result.queued} sent to the workers.")
+            return redirect("study-stimuli", pk=study.pk)
+    state = progress(study)
+    # Queued clips with nobody to make them: say so rather than let the bar sit still.
+    waiting = state["counts"]["queued"] + state["counts"]["running"]
+    health = collect_health(celery_app, settings.HEALTH_TIMEOUT_S) if waiting else None
+    context = {"study": study, "form": form, "stimuli": study.stimuli.select_related("system", "control"),
+               "progress": state, "no_worker": health is not None and not health.workers, "health": health}
+    return render(request, "studyapp/researcher/stimuli.html", context, status=status)
+
+
+def _item(study: Study, kind: str, item: int) -> System | ControlSignal:
+    """The study's system or control ``item`` (``kind`` "systems" or "controls"), or 404."""
+    model = {"systems": System, "controls": ControlSignal}.get(kind)
+    if model is None:
+        raise Http404(f"nothing called {kind} in a study")
+    return get_object_or_404(model, pk=item, study=study)
+
+
+def _save_edit(target: System | ControlSignal, data: dict) -> str:
+    """Apply an edit form's data (``editing``); the message saying what happened."""
+    if isinstance(target, ControlSignal):
+        rename_control(target, data["name"])
+        return f"Saved {target.name}."
+    deleted = edit_system(target, data["name"], data.get("temperature"))
+    resample = f" Its {deleted} clip(s) were deleted: generate the stimuli to sample them at temperature " \
+               f"{target.temperature:g}." if deleted else ""
+    return f"Saved {target.name}.{resample}"
+
+
+@login_required
+def study_item_edit(request: HttpRequest, pk: int, kind: str, item: int) -> HttpResponse:
+    """Edit a system's name and temperature or a control's name, until the first participant starts (409 after)."""
+    study = _study(request, pk)
+    target = _item(study, kind, item)
+    if isinstance(target, System):
+        form = SystemEditForm(request.POST or None, sampled=bool(target.checkpoint),
+                              initial={"name": target.name, "temperature": target.temperature})
+    else:
+        form = ControlEditForm(request.POST or None, initial={"name": target.name})
+    status = 200
+    if request.method == "POST":
+        try:
+            require_not_started(study)  # before the form: once anyone has started, any input gets 409
+            if form.is_valid():
+                messages.success(request, _save_edit(target, form.cleaned_data))
+                return redirect(f"study-{kind}", pk=study.pk)
+            status = 400
+        except EditRefused as error:
+            form.add_error(error.field, str(error))
+            status = 400
+        except SystemsFixed:
+            status = 409
+    context = {"study": study, "form": form, "target": target, "kind": kind, "locked": study.participants.exists()}
+    return render(request, "studyapp/researcher/edit_item.html", context, status=status)
+
+
+@login_required
+@require_POST
+def study_remove(request: HttpRequest, pk: int, kind: str, item: int) -> HttpResponse:
+    """Remove a system or a control, with its clips, until the first participant starts."""
+    study = _study(request, pk)
+    target = _item(study, kind, item)
+    try:
+        clips = remove(target)
+        messages.success(request, f"Removed {target.name} and its {clips} clip(s).")
+    except SystemsFixed as refusal:
+        messages.error(request, f"{target.name} stays: {refusal}.")
+    return redirect(f"study-{kind}", pk=study.pk)
+
+
+@never_cache
+@login_required
+@require_safe
+def study_progress(request: HttpRequest, pk: int) -> JsonResponse:
+    return JsonResponse(progress(_study(request, pk)))
+
+
+@login_required
+@require_POST
+def stimulus_retry(request: HttpRequest, pk: int, stimulus_id: int) -> HttpResponse:
+    study = _study(request, pk)
+    stimulus = get_object_or_404(Stimulus, pk=stimulus_id, study=study, status=Stimulus.Status.FAILED)
+    try:
+        retry_stimulus(stimulus)
+        messages.success(request, "Sent again.")
+    except BrokerUnavailable as error:
+        messages.error(request, str(error))
+    return redirect("study-stimuli", pk=study.pk)
+
+
+def entry_link(request: HttpRequest, study: Study) -> str:
+    """The participants' entry link as the platform needs it."""
+    base = request.build_absolute_uri(reverse("participant-enter", args=[study.key]))
+    if study.platform == Study.Platform.PROLIFIC:
+        return f"{base}?{PROLIFIC_PLACEHOLDERS}"
+    if study.platform == Study.Platform.LINK:
+        return f"{base}?{PLATFORM_PARAMETERS[Study.Platform.LINK][0]}=PARTICIPANT_ID"
+    return base
+
+
+@never_cache
+@login_required
+@require_safe
+def study_monitor_page(request: HttpRequest, pk: int) -> HttpResponse:
+    study = _study(request, pk)
+    context = {
+        "study": study, "monitor": study_monitor(study), "entry_link": entry_link(request, study),
+        "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study),
+    }
+    return render(request, "studyapp/researcher/monitor.html", context)
+
+
+@never_cache
+@login_required
+@require_safe
+def study_preview(request: HttpRequest, pk: int, index: int = 0) -> HttpResponse:
+    """Page ``index`` of the participant's path as a participant sees it; nothing is recorded."""
+    study = _study(request, pk)
+    pages = preview_pages(study)
+    if not pages:
+        messages.error(request, "The preview needs a finished clip: generate the stimuli first.")
+        return redirect("study-stimuli", pk=study.pk)
+    if index >= len(pages):
+        return redirect("study-preview-page", pk=study.pk, index=0)
+    page = pages[index]
+    following = reverse("study-preview-page", args=[study.pk, index + 1]) if index + 1 < len(pages) else ""
+    preview = {"index": index + 1, "count": len(pages), "name": page.name, "next": following,
+               "back": reverse("study-monitor", args=[study.pk])}
+    return render(request, f"studyapp/participant/{page.template}", {"study": study, "preview": preview, **page.context})
+
+
+@never_cache
+@login_required
+@require_safe
+def study_participants(request: HttpRequest, pk: int) -> HttpResponse:
+    """Who took part, how far they got and what the study's rules suggest doing with their submission."""
+    study = _study(request, pk)
+    names = question_names(study)
+    rows = [(row, [row.answers.get(name, "") for name in names]) for row in participant_rows(study)]
+    return render(request, "studyapp/researcher/participants.html", {"study": study, "rows": rows, "questions": names})
+
+
+@login_required
+def study_questions(request: HttpRequest, pk: int) -> HttpResponse:
+    """Questions before the ratings (screening) and after them; fixed once anyone has started."""
+    study = _study(request, pk)
+    locked = study.participants.exists()
+    form = QuestionForm(instance=Question(study=study))
+    status = 200
+    if request.method == "POST":
+        if locked:
+            messages.error(request, "Participants have started: the questions are fixed.")
+            return redirect("study-questions", pk=study.pk)
+        if request.POST.get("action") == "remove":
+            question = get_object_or_404(Question, pk=request.POST.get("question"), study=study)
+            question.delete()
+            messages.success(request, f"Removed “{question.text}”.")
+            return redirect("study-questions", pk=study.pk)
+        form = QuestionForm(request.POST, instance=Question(study=study))
+        if form.is_valid():
+            messages.success(request, f"Added “{form.save().text}”.")
+            return redirect("study-questions", pk=study.pk)
+        status = 400
+    context = {"study": study, "form": form, "locked": locked, "questions": study.questions.all()}
+    return render(request, "studyapp/researcher/questions.html", context, status=status)
+
+
+@never_cache
+@login_required
+@require_safe
+def study_participants_csv(request: HttpRequest, pk: int) -> HttpResponse:
+    study = _study(request, pk)
+    response = HttpResponse(participants_csv(study), content_type="text/csv")
+    response["Content-Disposition"] = f'attachment; filename="participants-study-{study.pk}.csv"'
+    return response
+
+
+@login_required
+@require_POST
+def study_open(request: HttpRequest, pk: int) -> HttpResponse:
+    """Open the study to participants, or close it (``open`` = "1" or "0")."""
+    study = _study(request, pk)
+    want_open = request.POST.get("open") == "1"
+    if want_open and (problems := open_problems(study)):
+        messages.error(request, "The study cannot open: " + "; ".join(problems) + ".")
+    else:
+        study.is_open = want_open
+        study.save(update_fields=["is_open"])
+        messages.success(request, "The study is open." if want_open else "The study is closed.")
+    return redirect("study-monitor", pk=study.pk)
+
+
+@never_cache
+@login_required
+@require_safe
+def study_export(request: HttpRequest, pk: int) -> HttpResponse:
+    """The ratings table as a CSV download."""
+    study = _study(request, pk)
+    response = HttpResponse(ratings_csv(study, for_spreadsheets=True), content_type="text/csv")
+    response["Content-Disposition"] = f'attachment; filename="ratings-study-{study.pk}.csv"'
+    return response
+
+
+@never_cache
+@login_required
+@require_safe
+def study_motion_download(request: HttpRequest, pk: int) -> HttpResponse:
+    """Every system's motion of the finished clips as a zip, for the objective metrics (``motion_export``)."""
+    study = _study(request, pk)
+    if not exported_stimuli(study):
+        messages.error(request, "No motion to download yet: generate the stimuli first.")
+        return redirect("study-monitor", pk=study.pk)
+    try:
+        data = motion_zip(study)
+    except ValueError as error:
+        messages.error(request, f"No download: {error}")
+        return redirect("study-monitor", pk=study.pk)
+    response = HttpResponse(data, content_type="application/zip")
+    response["Content-Disposition"] = f'attachment; filename="motion-study-{study.pk}.zip"'
+    return response
+
+
+@login_required
+@require_POST
+def study_report(request: HttpRequest, pk: int) -> HttpResponse:
+    """The analysis report of the ratings so far (the analysis pages' report)."""
+    study = _study(request, pk)
+    try:
+        has_natural = study.systems.filter(role=System.Role.NATURAL).exists()
+        digest = create_report(settings.MEDIA_ROOT, ratings_csv(study), NATURAL_NAME if has_natural else None,
+                               request.user.pk)
+    except AnalysisInputError as error:
+        messages.error(request, f"No report yet: {error}")
+        return redirect("study-monitor", pk=study.pk)
+    return redirect("analysis-report", digest=digest)

@@ -1,0 +1,328 @@
+"""``make demo``: the main job on embedded defaults, from real motion capture to a live study.
+
+1. migrates the SQLite database under var/, collects the static files and makes sure a
+   researcher account exists;
+2. builds the MoGlow locomotion dataset from $MOTION_DATA (by default the locomotion of
+   both Bandai-Namco folders, 1.5 hours; about half a minute, cached after the first run);
+3. uses the project's own ``cpu`` MoGlow (models/moglow-cpu.safetensors, trained on that
+   data for hours) and trains the ``cpu`` RNN and VAE and an early MoGlow for the BAD
+   clips on the same data and split (minutes), unless var/models/ has them already;
+4. starts one local Celery worker on the serverless filesystem broker;
+5. has the worker render a gallery of natural clips (one per content label);
+6. sets up the demo study (MoGlow, RNN, VAE, NAT and BAD; held-out and synthetic
+   control) and has the worker sample and render every stimulus;
+7. sets up a side-by-side study beside it (the same systems, controls and clips, rated
+   on 0-100 sliders, every system's clip of one control on a page);
+8. opens both studies and serves them with Django's runserver (``manage.py serve``, whose
+   listen queue holds a crowd) until Ctrl-C, printing the participant links and the
+   researcher's login.
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import django
+
+REPO = Path(__file__).resolve().parents[2]
+# The data the committed MoGlow learnt from, prepared as it was (README, "Trained on the
+# real data"): the locomotion of both Bandai-Namco folders, windows overlapping by
+# three quarters, mirrored and reversed.
+LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right", "walk-turn-left", "walk-turn-right")
+DATASET = {"contents": LOCOMOTION, "overlap": 0.75, "mirror": True, "reverse": True}
+DEMO_STUDY = "Demo: naturalness of generated locomotion"
+SIDE_BY_SIDE_STUDY = "Demo: naturalness of generated locomotion, side by side"
+SIDE_BY_SIDE_INSTRUCTIONS = (
+    "Each page shows several short videos of a stick figure moving. Play every video to its end (playing one "
+    "pauses the others), then rate how natural each one looks on its slider, from 0 (completely unnatural) to 100 "
+    "(completely natural). Compare them with each other: the videos on one page follow the same path.")
+# (system name, model kind, training steps, role, checkpoint). The baselines train in
+# minutes and keep the state with the lowest validation loss ("best"); MoGlow's is the
+# project's own training, committed under COMMITTED_MODELS and trained again by the demo
+# (4,000 steps, about an hour) only if that file is missing or learnt from other data.
+# The BAD system is MoGlow stopped after a few steps, whose motion is visibly broken.
+DEMO_MODELS = (("MoGlow", "moglow", 4000, "model", "committed"), ("RNN", "rnn", 400, "model", "best"),
+               ("VAE", "vae", 1000, "model", "best"), ("BAD", "moglow", 15, "bad", "last"))
+COMMITTED_MODELS = REPO / "models"
+# Held-out clips start 1 s into their takes, the models warming up on that first second,
+# as the MoGlow authors sample a test take (many walks start slower than they go on).
+HELD_OUT_CONTROLS, CONTROL_SECONDS, HELD_OUT_LEAD_IN = 4, 6.0, 1.0
+SYNTHETIC_CONTROLS = ("walk-circle", "walk-backward", "stand-still", "sidestep-left")
+
+
+def say(text: str) -> None:
+    print(f"[demo] {text}", flush=True)
+
+
+def start_worker() -> subprocess.Popen:
+    command = [sys.executable, "-m", "celery", "-A", "studyapp", "worker", "--pool=solo",
+               "--loglevel=warning", "--hostname=demo@%h"]
+    return subprocess.Popen(command, cwd=REPO, start_new_session=True)
+
+
+def wait_for_worker(app, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if app.control.ping(timeout=1.0):
+            return
+    raise RuntimeError("the Celery worker did not answer within a minute; see its log above")
+
+
+def render_gallery(data: str, media_root: Path) -> int:
+    from tqdm import tqdm
+
+    from generation.gallery import GalleryOptions, choose_clips, write_index
+    from studyapp.tasks import render_natural_clip
+
+    options = GalleryOptions()
+    out = media_root / "gallery"
+    clips = choose_clips(data, options.per_content, options.contents, options.seconds)
+    pending = [render_natural_clip.delay(str(p), str(out), options.to_dict()) for p in clips]
+    entries = []
+    with tqdm(total=len(pending), desc="worker rendering gallery", unit="clip") as bar:
+        for result in pending:
+            entries.append(result.get(timeout=600))
+            bar.update()
+    write_index(out, entries)
+    return len(entries)
+
+
+def committed_model(kind: str, fingerprint: str) -> Path | None:
+    """The project's committed checkpoint of ``kind``, if it is there and learnt from the
+    data of this ``fingerprint`` (held-out controls of other data could be its training clips)."""
+    from generation.checkpoint import read_meta
+
+    path = COMMITTED_MODELS / f"{kind}-cpu.safetensors"
+    if not path.is_file():
+        return None
+    if read_meta(path).data_fingerprint != fingerprint:
+        say(f"{path.relative_to(REPO)} learnt from other data (the locomotion of both Bandai-Namco folders) "
+            "than $MOTION_DATA holds; the demo trains its own (about an hour)")
+        return None
+    return path
+
+
+def model_path(models: Path, kind: str, steps: int, which: str, fingerprint: str) -> Path:
+    """A demo model's checkpoint: the project's committed one where ``which`` asks for it
+    and it fits the data, else the last or best state of the demo's own training run."""
+    committed = committed_model(kind, fingerprint) if which == "committed" else None
+    return committed or models / f"{kind}-cpu-{steps}steps{'.best' if which == 'best' else ''}.safetensors"
+
+
+def ensure_models(dataset, models: Path) -> dict[str, Path]:
+    """Each demo system's checkpoint, trained where missing (minutes each on 2 cores; the
+    MoGlow, should its committed file be missing or not fit the data, about an hour)."""
+    from generation.checkpoint import read_meta
+    from generation.train import TrainOptions, train
+
+    checkpoints = {}
+    for name, kind, steps, _, which in DEMO_MODELS:
+        path = checkpoints[name] = model_path(models, kind, steps, which, dataset.fingerprint)
+        last = path.with_name(path.name.replace(".best", ""))
+        if path.parent == COMMITTED_MODELS or (path.exists() and read_meta(last).step >= steps):
+            continue
+        # A run stopped part-way (Ctrl-C) goes on from its last checkpoint instead of being taken as trained.
+        resume = last.exists()
+        say(f"{'continuing' if resume else 'training'} {name} ({kind}, cpu preset, {steps} steps) on the demo's "
+            f"data: once, kept in {models}")
+        train(kind, "cpu", dataset, last, TrainOptions(steps=steps, eval_every=min(steps, 250)), resume=resume)
+    return checkpoints
+
+
+def ensure_study(owner, checkpoints: dict[str, Path]):
+    """The demo study with its systems and controls, created once; its stimuli generated by the worker."""
+    from django.core.management import CommandError, call_command
+    from django.db import transaction
+
+    from studyapp.models import Stimulus, Study
+
+    study = Study.objects.filter(owner=owner, title=DEMO_STUDY).first()
+    if study is None:
+        with transaction.atomic():  # all or nothing, so a failed first run is simply repeated
+            study = _create_study(owner, checkpoints)
+    say("the worker samples and renders every stimulus (the first time only)")
+    try:
+        call_command("generate_stimuli", study.pk, wait=True)
+    except CommandError as error:  # the study still runs with the clips that were made
+        say(str(error))
+    done = study.stimuli.filter(status=Stimulus.Status.DONE).count()
+    say(f"{done} of {study.stimuli.count()} stimuli rendered")
+    study.is_open = done > 0
+    study.save(update_fields=["is_open"])
+    return study
+
+
+def _create_study(owner, checkpoints: dict[str, Path]):
+    from django.core.files import File
+
+    from studyapp.stimuli.controls import add_held_out_controls, add_preset_controls
+    from studyapp.models import Study
+    from studyapp.stimuli.systems import add_checkpoint_system, add_natural_system
+
+    study = Study.objects.create(owner=owner, title=DEMO_STUDY, clips_per_participant=12, ratings_per_stimulus=10,
+                                 training_clips=3, completion_code="DEMO-DONE")
+    for name, _, _, role, _ in DEMO_MODELS:
+        path = checkpoints[name]
+        with path.open("rb") as stream:
+            add_checkpoint_system(study, name, File(stream, name=path.name), role=role)
+    add_natural_system(study)
+    add_held_out_controls(study, CONTROL_SECONDS, HELD_OUT_CONTROLS, HELD_OUT_LEAD_IN)
+    add_preset_controls(study, list(SYNTHETIC_CONTROLS))
+    return study
+
+
+def ensure_side_by_side_study(single):
+    """The side-by-side demo study: the single study's systems, controls and rendered clips
+    (each clip's file linked under a token of its own), so it needs no rendering of its
+    own; clips rendered since the last run are added."""
+    from django.db import transaction
+
+    from studyapp.models import ControlSignal, Stimulus, Study, System
+
+    with transaction.atomic():
+        study, _ = Study.objects.get_or_create(owner=single.owner, title=SIDE_BY_SIDE_STUDY, defaults={
+            "design": Study.Design.SIDE_BY_SIDE, "scale_min": 0, "scale_max": 100, "pages_per_participant": 6,
+            "ratings_per_stimulus": 10, "training_clips": 3, "bad_checks": 2, "instructed_checks": 1,
+            "instructions": SIDE_BY_SIDE_INSTRUCTIONS, "completion_code": "DEMO-DONE", "camera": single.camera,
+            "video_width": single.video_width, "video_height": single.video_height})
+        systems = {s.pk: System.objects.get_or_create(study=study, name=s.name, defaults={
+            "role": s.role, "checkpoint": s.checkpoint, "checkpoint_digest": s.checkpoint_digest, "kind": s.kind,
+            "metadata": s.metadata, "temperature": s.temperature})[0] for s in single.systems.all()}
+        controls = {c.pk: ControlSignal.objects.get_or_create(study=study, name=c.name, defaults={
+            "origin": c.origin, "control": c.control, "source_clip": c.source_clip, "seconds": c.seconds})[0]
+            for c in single.controls.all()}
+        copied = set(study.stimuli.values_list("content_key", flat=True))
+        for clip in single.stimuli.filter(status=Stimulus.Status.DONE).exclude(content_key__in=copied):
+            twin = Stimulus.objects.create(
+                study=study, system=systems[clip.system_id], control=controls.get(clip.control_id), seed=clip.seed,
+                content_key=clip.content_key, status=Stimulus.Status.DONE, duration_s=clip.duration_s)
+            twin.video_path().parent.mkdir(parents=True, exist_ok=True)
+            os.link(clip.video_path(), twin.video_path())
+        study.is_open = study.stimuli.filter(status=Stimulus.Status.DONE).exists()
+        study.save(update_fields=["is_open"])
+    return study
+
+
+def ensure_researcher(var_dir: Path):
+    """The demo's researcher login; the password is made once and kept under var/."""
+    from django.contrib.auth.models import Permission, User
+
+    name = "researcher"
+    secret = var_dir / "demo-researcher-password.txt"
+    if not secret.exists():
+        secret.write_text(secrets.token_urlsafe(12))
+        secret.chmod(0o600)
+    password = secret.read_text().strip()
+    user, _ = User.objects.get_or_create(username=name, defaults={"is_staff": True})
+    if not user.check_password(password) or not user.is_staff:
+        user.set_password(password)
+        user.is_staff = True  # the admin is one of the researcher's pages
+        user.save()
+    # The admin shows a researcher the rows of their own studies only (studyapp.admin).
+    user.user_permissions.set(Permission.objects.filter(content_type__app_label="studyapp"))
+    return user, password
+
+
+def port_is_free(port: int) -> bool:
+    with socket.socket() as s:
+        return s.connect_ex(("127.0.0.1", port)) != 0
+
+
+def stop(process: subprocess.Popen | None) -> None:
+    if process is None or process.poll() is not None:
+        return
+    os.killpg(process.pid, signal.SIGTERM)
+    try:
+        process.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+
+
+def interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt  # so that a SIGTERM, too, stops the worker and the server
+
+
+def main() -> int:
+    signal.signal(signal.SIGTERM, interrupt)
+    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "studyapp.server.settings")
+    django.setup()
+    from django.conf import settings
+    from django.core.management import call_command
+    from django.urls import reverse
+
+    from generation.motion.dataset import DatasetOptions, build_dataset
+    from studyapp.server.celery import app
+    from studyapp.stimuli.natural import data_folders
+    from studyapp.participants.views import PLATFORM_PARAMETERS
+
+    data = settings.MOTION_DATA
+    missing = [folder for folder in data_folders() if not folder.is_dir()]
+    if missing:
+        say(f"no motion data at {', '.join(map(str, missing))}. Get the Bandai-Namco Research Motion Datasets 1 "
+            "and 2 from GitHub (BandaiNamcoResearchInc/Bandai-Namco-Research-Motiondataset) or use any folder of "
+            "BVH files, then run:  MOTION_DATA=/path/to/folder make demo  (several folders joined with ':')")
+        return 2
+    port = int(os.environ.get("DEMO_PORT", "8000"))
+    if not port_is_free(port):
+        say(f"port {port} is in use; choose another with DEMO_PORT=8001 make demo")
+        return 2
+
+    say(f"database: {settings.DATABASES['default']['NAME']}")
+    call_command("migrate", verbosity=0)
+    # The app serves the collected files itself: runserver does not, with DEBUG off.
+    call_command("collectstatic", interactive=False, verbosity=0)
+    researcher, password = ensure_researcher(Path(settings.VAR_DIR))
+    try:
+        say(f"building the locomotion dataset from {data}")
+        dataset = build_dataset(data, DatasetOptions(**DATASET))
+        say(f"dataset {dataset.fingerprint[:12]}: {len(dataset.select('train', augmented=False))} training takes, "
+            f"{len(dataset.select('test'))} held out, {len(dataset.windows('train')['pose'])} training windows")
+        checkpoints = ensure_models(dataset, Path(settings.VAR_DIR) / "models")
+    except KeyboardInterrupt:
+        say("stopped; make demo goes on from here")
+        return 130
+
+    worker = server = None
+    try:
+        say("starting one Celery worker (filesystem broker under var/broker)")
+        worker = start_worker()
+        wait_for_worker(app)
+        count = render_gallery(data, Path(settings.MEDIA_ROOT))
+        say(f"{count} natural clips rendered into {Path(settings.MEDIA_ROOT) / 'gallery'}")
+        study = ensure_study(researcher, checkpoints)
+        side_by_side = ensure_side_by_side_study(study)
+        server = subprocess.Popen(
+            [sys.executable, "manage.py", "serve", "--noreload", f"127.0.0.1:{port}"],
+            cwd=REPO, start_new_session=True,
+        )
+        base = f"http://127.0.0.1:{port}"
+        if study.is_open:
+            id_name = PLATFORM_PARAMETERS[study.platform][0]
+            for label, each in (("single clips", study), ("side by side", side_by_side)):
+                say(f"participant link ({label}): "
+                    f"{base}{reverse('participant-enter', args=[each.key])}?{id_name}=demo-participant-1")
+            say(f"   (another {id_name} starts a new participant; the same one resumes)")
+        else:
+            say("no stimulus could be rendered, so the study stays closed: see the stimuli page for the reasons")
+        say(f"researcher:       {base}{reverse('study-list')}  (login {researcher.username} / {password})")
+        say(f"gallery:          {base}/    health: {base}/health/    analysis: {base}/analysis/")
+        say("press Ctrl-C to stop")
+        server.wait()
+    except KeyboardInterrupt:
+        say("stopping")
+    finally:
+        stop(server)
+        stop(worker)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

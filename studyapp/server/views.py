@@ -1,0 +1,73 @@
+"""The server's own pages: its health (a page for researchers, JSON for load balancers)
+and the media and static files it serves when no proxy does."""
+
+from django.conf import settings
+from django.contrib.auth.decorators import login_required
+from django.contrib.auth.views import redirect_to_login
+from django.http import Http404, HttpRequest, HttpResponse, HttpResponseBase, JsonResponse
+from django.shortcuts import render
+from django.views.decorators.cache import never_cache
+from django.views.decorators.http import require_safe
+
+from studyapp.researchers.reports import REPORTS_FOLDER, report_owner
+from studyapp.server.celery import app as celery_app
+from studyapp.server.files import serve_with_ranges
+from studyapp.server.health import HealthReport, collect_health
+from studyapp.stimuli.gallery import GALLERY_FOLDER
+
+
+def current_health() -> HealthReport:
+    return collect_health(celery_app, settings.HEALTH_TIMEOUT_S)
+
+
+def _http_status(report: HealthReport) -> int:
+    # Without its database the web process cannot serve anything, so load
+    # balancers and compose should see it as down; a missing broker or worker
+    # only degrades it (pages still render, background work waits).
+    return 200 if report.database.ok else 503
+
+
+@never_cache
+@login_required  # /health.json stays public for the container health checks
+@require_safe
+def health_page(request: HttpRequest) -> HttpResponse:
+    report = current_health()
+    return render(request, "studyapp/health.html", {"health": report}, status=_http_status(report))
+
+
+@never_cache
+@require_safe
+def health_json(request: HttpRequest) -> JsonResponse:
+    """ok or not for anyone (load balancers, compose); the checks' details for researchers.
+
+    The details name the broker's address and the workers' host names, which are
+    nobody else's business.
+    """
+    report = current_health()
+    answer = report.as_dict() if request.user.is_authenticated else {"status": report.status}
+    return JsonResponse(answer, status=_http_status(report))
+
+
+def media_file(request: HttpRequest, path: str) -> HttpResponseBase:
+    """A file under MEDIA_ROOT, seekable through range requests, to whoever may see it.
+
+    Stimuli are for anyone with their random token (participants); the gallery is a
+    researcher's (its natural clips could be recognised among a study's NAT stimuli);
+    an analysis report holds a researcher's ratings and is for its owner alone.
+    Anything else under MEDIA_ROOT is not served.
+    """
+    folder, _, rest = path.partition("/")
+    if folder in (GALLERY_FOLDER, REPORTS_FOLDER) and not request.user.is_authenticated:
+        return redirect_to_login(request.get_full_path())
+    if folder == REPORTS_FOLDER:
+        owner = report_owner(settings.MEDIA_ROOT, rest.partition("/")[0])
+        if owner is None or owner != request.user.pk:
+            raise Http404("No such file")
+    elif folder not in ("stimuli", GALLERY_FOLDER):
+        raise Http404("No such file")
+    return serve_with_ranges(request, path, settings.MEDIA_ROOT, reveal_mtime=folder != "stimuli")
+
+
+def static_file(request: HttpRequest, path: str) -> HttpResponseBase:
+    """A collected static file, for when no proxy or runserver serves them."""
+    return serve_with_ranges(request, path, settings.STATIC_ROOT)

@@ -1,0 +1,161 @@
+"""Generating a study's stimuli: one row per (system, control) pair, then the clip itself.
+
+``plan_stimuli`` makes the rows. Each row's ``content_key`` digests everything its clip
+depends on (the checkpoint's digest or the natural clip, the control, seed, temperature,
+camera, video size and code version), so planning again finds the same rows and never
+duplicates a stimulus. Each system gets the controls its source has motion for
+(``sources``): checkpoints every control, NAT the held-out ones (a synthetic path has no
+natural clip), submitted motion those it was submitted for, uploaded videos none.
+
+``render_stimulus`` is the work a task does: ask the system's source for the motion and
+render it, whatever the source, with the study's camera and write ``MEDIA_ROOT/stimuli/<token>.mp4`` atomically. A
+killed attempt leaves only a hidden ``.<token>.mp4.*.part`` temporary, which the next
+attempt removes and the media view never serves.
+
+This module knows nothing of the task queue: ``dispatch`` sends the rows to the
+workers, and ``tasks`` calls ``claim``, ``render_stimulus`` and ``finish``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections import Counter
+from importlib import metadata
+from pathlib import Path
+
+from django.db import transaction
+from django.db.models import F
+from django.utils import timezone
+
+from generation.render import Camera, render_video
+from studyapp.models import ControlSignal, Stimulus, Study, System
+from studyapp.stimuli.sources import source_of
+
+# The package version, not the git commit: a commit that changes no rendering code
+# must not make every stimulus new.
+try:
+    CODE_VERSION = metadata.version("motion-study")
+except metadata.PackageNotFoundError:
+    CODE_VERSION = "unknown"
+
+
+
+def content_key(study: Study, system: System, control: ControlSignal, seed: int) -> str:
+    """SHA-256 of everything the clip of ``system`` for ``control`` depends on."""
+    parts = {
+        "role": system.role,
+        **source_of(system).identity(system, control, seed),  # source, seed, temperature
+        "control": control.control,
+        "seconds": control.seconds,
+        "camera": study.camera,
+        "size": [study.video_width, study.video_height],
+        "code": CODE_VERSION,
+    }
+    return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
+
+
+def _pairs(study: Study) -> list[tuple[System, ControlSignal]]:
+    """Each system with each control its source has motion for."""
+    controls = list(study.controls.all())
+    return [(system, control) for system in study.systems.all()
+            for control in source_of(system).controls(system, controls)]
+
+
+def plan_stimuli(study: Study, seed: int = 0) -> tuple[list[Stimulus], int]:
+    """The rows of every (system, control) pair, created where missing; (rows, how many were new)."""
+    stimuli, created = [], 0
+    with transaction.atomic():
+        for system, control in _pairs(study):
+            stimulus, new = Stimulus.objects.get_or_create(
+                study=study, content_key=content_key(study, system, control, seed),
+                defaults={"system": system, "control": control, "seed": seed})
+            stimuli.append(stimulus)
+            created += new
+    return stimuli, created
+
+
+def progress(study: Study) -> dict:
+    """Counts by status and the failed rows with their reasons, for the progress page."""
+    counts = Counter(study.stimuli.values_list("status", flat=True))
+    failed = study.stimuli.filter(status=Stimulus.Status.FAILED).select_related("system", "control")
+    return {
+        "total": sum(counts.values()),
+        "counts": {status: counts.get(status, 0) for status in Stimulus.Status.values},
+        "failed": [{"id": s.pk, "system": s.system.name, "control": s.control.name if s.control else "",
+                    "error": s.error, "attempts": s.attempts} for s in failed],
+    }
+
+
+# --- the work of one task ---------------------------------------------------------
+
+def sample_ahead(sent: list[tuple[int, str]]) -> list[tuple[int, str]]:
+    """Sample the motion of the stimuli a sampling task was sent for, as (stimulus id, the
+    task id its render was sent under) pairs, each system's in one call of its source;
+    the pairs sampled. A row sent again since (another task id) is left to its later
+    task; a row that fails is marked failed with the reason, and the others go on."""
+    task_ids = dict(sent)
+    rows = Stimulus.objects.filter(pk__in=task_ids).select_related("study", "system", "control")
+    by_system: dict[int, list[Stimulus]] = {}
+    for stimulus in rows:
+        if stimulus.task_id == task_ids[stimulus.pk]:
+            by_system.setdefault(stimulus.system_id, []).append(stimulus)
+    ready = []
+    for stimuli in by_system.values():
+        failed = source_of(stimuli[0].system).sample_ahead(stimuli[0].system, stimuli)
+        for stimulus in stimuli:
+            error = failed.get(stimulus.pk)
+            if error is not None:  # the reason is shown on the progress page, where it can be retried
+                finish(stimulus, error=f"{type(error).__name__}: {error}")
+            else:
+                ready.append((stimulus.pk, stimulus.task_id))
+    return ready
+
+
+def remove_partial_files(stimulus: Stimulus) -> int:
+    """Delete temporaries a killed attempt left beside the video; how many there were."""
+    target = stimulus.video_path()
+    stale = list(target.parent.glob(f".{target.name}.*.part")) if target.parent.is_dir() else []
+    for path in stale:
+        path.unlink(missing_ok=True)
+    return len(stale)
+
+
+def render_stimulus(stimulus: Stimulus) -> float:
+    """Write the stimulus's video atomically; its duration in seconds."""
+    remove_partial_files(stimulus)
+    if stimulus.control is None:
+        raise ValueError("an uploaded video has nothing to generate")
+    clip = source_of(stimulus.system).clip(stimulus)
+    study = stimulus.study
+    render_video(clip.motion, stimulus.video_path(), camera=Camera.from_dict(study.camera),
+                 size=(study.video_width, study.video_height), root_path=clip.floor)
+    return clip.motion.n_frames / clip.motion.fps
+
+
+def claim(stimulus_id: int, task_id: str) -> Stimulus | None:
+    """Mark the row running and count the attempt; None when there is nothing to do:
+    the row is gone, done, or was sent again since this task's message (another task
+    id), in which case the later task does the work."""
+    with transaction.atomic():
+        stimulus = (Stimulus.objects.select_for_update().select_related("study", "system", "control")
+                    .filter(pk=stimulus_id).first())
+        if stimulus is None or stimulus.task_id != task_id:
+            return None
+        if stimulus.status == Stimulus.Status.DONE and stimulus.video_path().is_file():
+            return None
+        Stimulus.objects.filter(pk=stimulus.pk).update(status=Stimulus.Status.RUNNING, attempts=F("attempts") + 1,
+                                                       error="", updated=timezone.now())
+    stimulus.refresh_from_db()
+    return stimulus
+
+
+def finish(stimulus: Stimulus, duration_s: float | None = None, error: str = "") -> None:
+    """Record the attempt's outcome: done with its duration, or failed with the reason."""
+    status = Stimulus.Status.FAILED if error else Stimulus.Status.DONE
+    Stimulus.objects.filter(pk=stimulus.pk, task_id=stimulus.task_id).update(
+        status=status, duration_s=duration_s, error=error, updated=timezone.now())
+
+
+__all__ = ["claim", "content_key", "finish", "plan_stimuli", "progress", "remove_partial_files", "render_stimulus",
+           "sample_ahead"]

@@ -1,0 +1,203 @@
+"""Choosing a study's control signals: held out from the motion data, or synthetic.
+
+A study's checkpoints decide the kind of control: a path (MoGlow and its baselines) or an
+action and a style label (HVRNN, ERD, QuaterNet); one study holds one kind, since it
+holds models trained on one dataset.
+
+Held-out controls come from the test split of the very dataset the study's checkpoints
+were trained on (same files, same options, so the same split): the models never saw
+these clips, and the NAT system shows the clip each one came from. A held-out path is
+the clip's own path; a held-out label control is the clip's action and style. Synthetic
+controls are ``generation.control``'s path presets or a JSON/YAML description, or
+chosen pairs of labels. All follow the frame rate the checkpoints were trained at.
+Adding a control again is harmless; adding a different control under a taken name is
+refused.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import tempfile
+from itertools import zip_longest
+from pathlib import Path
+
+from django.conf import settings
+from django.core.files import File
+
+from generation.control import (AttributeControl, Control, held_out_attributes, held_out_paths, lead_in_frames,
+                                load_control_file, preset_path)
+from generation.motion.dataset import DatasetOptions, build_dataset, find_bvh_files
+from studyapp.models import ControlSignal, Study
+from studyapp.stimuli.natural import data_folders, source_name
+
+CONTROL_FILE_SUFFIXES = (".json", ".yaml", ".yml")
+MAX_CONTROL_FILE_BYTES = 1_000_000
+
+
+class ControlError(ValueError):
+    """Controls that cannot be added; the message says why."""
+
+
+def training_options(study: Study) -> DatasetOptions:
+    """The dataset options every checkpoint system of the study was trained with."""
+    systems = list(study.systems.exclude(checkpoint=""))
+    if not systems:
+        raise ControlError("register a model checkpoint first: controls follow the data and frame rate it was trained on")
+    variants: dict[str, list[str]] = {}
+    for system in systems:
+        variants.setdefault(json.dumps(system.metadata["dataset_options"], sort_keys=True), []).append(system.name)
+    if len(variants) > 1:
+        groups = "; ".join(", ".join(names) for names in variants.values())
+        raise ControlError(f"the study's checkpoints were trained on differently prepared data ({groups}); "
+                           "one study needs one dataset")
+    return DatasetOptions.from_dict(systems[0].metadata["dataset_options"])
+
+
+def control_kind(study: Study) -> str:
+    """"path" or "attributes": what the study's checkpoints are controlled by."""
+    kinds = {s.metadata.get("control", "path") for s in study.systems.exclude(checkpoint="")}
+    if len(kinds) > 1:  # training_options refuses such a study too; say it in these words
+        raise ControlError("the study mixes path-controlled and label-controlled models; one study needs one kind")
+    return kinds.pop() if kinds else "path"
+
+
+def study_labels(study: Study) -> tuple[list[str], list[str]]:
+    """The actions and styles every label-controlled system of the study knows."""
+    systems = [s for s in study.systems.exclude(checkpoint="") if s.metadata.get("labels")]
+    if not systems:
+        return [], []
+    known = [systems[0].metadata["labels"][kind] for kind in ("actions", "styles")]
+    for system in systems[1:]:
+        known = [[name for name in names if name in system.metadata["labels"][kind]]
+                 for names, kind in zip(known, ("actions", "styles"))]
+    return known[0], known[1]
+
+
+def _require(study: Study, kind: str) -> None:
+    if control_kind(study) != kind:
+        raise ControlError("this study's models follow a path: add held-out or synthetic paths" if kind == "attributes"
+                           else "this study's models are controlled by action and style labels: add held-out or "
+                                "chosen label pairs, not paths")
+
+
+def _save(study: Study, control: Control, origin: str, source_clip: str = "") -> ControlSignal:
+    data = control.to_dict()
+    existing = study.controls.filter(name=control.name).first()
+    if existing is not None:
+        if json.dumps(existing.control, sort_keys=True) != json.dumps(data, sort_keys=True):
+            raise ControlError(f"this study already has a different control named {control.name!r}")
+        return existing
+    return ControlSignal.objects.create(study=study, name=control.name, origin=origin, control=data,
+                                        source_clip=source_clip, seconds=control.n_frames / control.fps)
+
+
+def _spread(controls: list[Control], contents: dict[str, str | None], count: int | None) -> list[Control]:
+    """``count`` controls taking each content label in turn, so a short list still varies;
+    the longest come first (and so do their labels). The controls are already cut to the
+    clip's length, so a count gives whole clips where the data has them."""
+    by_content: dict[str | None, list[Control]] = {}
+    for control in sorted(controls, key=lambda c: -c.n_frames):  # stable: dataset order among equals
+        by_content.setdefault(contents[control.name], []).append(control)
+    interleaved = [c for group in zip_longest(*by_content.values()) for c in group if c is not None]
+    return interleaved[:count] if count else interleaved
+
+
+def add_held_out_controls(study: Study, seconds: float, count: int | None = None,
+                          lead_in: float = 0.0) -> list[ControlSignal]:
+    """Controls of the held-out clips of ``settings.MOTION_DATA`` cut to ``seconds`` (``count`` of them, or all).
+
+    With a ``lead_in`` (path controls only) each clip starts that many seconds into its
+    take, the models warm up on the take's control before it, and NAT shows the same
+    frames: the MoGlow authors sample a test take from its first frame, and a walk's first
+    second is often slower than the rest of it.
+    """
+    if not seconds > 0:
+        raise ControlError(f"seconds must be positive, got {seconds}")
+    kind = control_kind(study)
+    if lead_in and kind != "path":
+        raise ControlError("a lead-in is the path before the clip: this study's models are controlled by labels")
+    options = training_options(study)
+    try:
+        lead = lead_in_frames(lead_in, options.fps) / options.fps  # refused before the data is read
+    except ValueError as error:
+        raise ControlError(str(error)) from None
+    where = settings.MOTION_DATA
+    try:
+        folders = data_folders()
+        dataset = build_dataset(folders, options, cache_dir=Path(settings.VAR_DIR) / "cache", progress=False)
+    except (FileNotFoundError, ValueError) as error:
+        raise ControlError(f"cannot read the motion data at {where} (MOTION_DATA): {error}") from None
+    trained_on = {s.metadata.get("data_fingerprint") for s in study.systems.exclude(checkpoint="")}
+    if dataset.fingerprint not in trained_on:
+        raise ControlError(f"the motion data at {where} (MOTION_DATA) is not the data the checkpoints were trained on "
+                           f"(fingerprint {dataset.fingerprint[:12]}, checkpoints {', '.join(sorted(f[:12] for f in trained_on))}); "
+                           "its held-out clips could have been training clips")
+    files = {path.stem: path for path in find_bvh_files(folders)}
+    contents = {clip.name: clip.content for clip in dataset.select("test", augmented=False)}
+    if kind == "path":
+        held_out = held_out_paths(dataset, seconds, lead)
+        if lead and not held_out:
+            raise ControlError(f"no held-out take of {where} (MOTION_DATA) is longer than the lead-in of {lead:g} s")
+    else:  # only what every model of the study can be asked for
+        actions, styles = study_labels(study)
+        held_out = [c for c in held_out_attributes(dataset, seconds) if c.action in actions and c.style in styles]
+    result = []
+    for control in _spread(held_out, contents, count):
+        source = source_name(files[control.name], folders)
+        cut = f"{lead:g}s+{seconds:g}s" if lead else f"{seconds:g}s"
+        named = dataclasses.replace(control, name=f"{control.name}-{cut}")
+        result.append(_save(study, named, ControlSignal.Origin.HELD_OUT, source))
+    return result
+
+
+def add_label_controls(study: Study, actions: list[str], styles: list[str], seconds: float) -> list[ControlSignal]:
+    """Synthetic label controls: every chosen action with every chosen style, ``seconds`` long."""
+    _require(study, "attributes")
+    known_actions, known_styles = study_labels(study)
+    for names, known, kind in ((actions, known_actions, "action"), (styles, known_styles, "style")):
+        if not names:
+            raise ControlError(f"choose at least one {kind}")
+        unknown = [name for name in names if name not in known]
+        if unknown:
+            raise ControlError(f"not every model knows the {kind}(s) {', '.join(unknown)}")
+    if not seconds > 0:
+        raise ControlError(f"seconds must be positive, got {seconds}")
+    fps = training_options(study).fps
+    frames = int(round(seconds * fps))
+    return [_save(study, AttributeControl(action, style, frames, fps, f"{action}-{style}-{seconds:g}s"),
+                  ControlSignal.Origin.SYNTHETIC) for action in actions for style in styles]
+
+
+def add_preset_controls(study: Study, names: list[str]) -> list[ControlSignal]:
+    """Synthetic controls from ``generation.control.PRESETS`` by name."""
+    _require(study, "path")
+    fps = training_options(study).fps
+    try:
+        controls = [preset_path(name, fps) for name in names]
+    except ValueError as error:
+        raise ControlError(str(error)) from None
+    return [_save(study, control, ControlSignal.Origin.SYNTHETIC) for control in controls]
+
+
+def add_control_file(study: Study, upload: File) -> list[ControlSignal]:
+    """Synthetic controls from an uploaded JSON or YAML description (one path or a list)."""
+    name = Path(upload.name or "").name
+    if Path(name).suffix.lower() not in CONTROL_FILE_SUFFIXES:
+        raise ControlError(f"{name or 'the file'}: a control description must be {', '.join(CONTROL_FILE_SUFFIXES)}")
+    if upload.size > MAX_CONTROL_FILE_BYTES:
+        raise ControlError(f"{name}: {upload.size / 1e6:.1f} MB is over the {MAX_CONTROL_FILE_BYTES / 1e6:.0f} MB limit")
+    _require(study, "path")
+    fps = training_options(study).fps
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / name
+        path.write_bytes(b"".join(upload.chunks()))
+        try:
+            controls = load_control_file(path, fps)
+        except (ValueError, UnicodeDecodeError) as error:
+            raise ControlError(str(error).replace(str(path), name)) from None
+    return [_save(study, control, ControlSignal.Origin.SYNTHETIC) for control in controls]
+
+
+__all__ = ["ControlError", "add_control_file", "add_held_out_controls", "add_label_controls", "add_preset_controls",
+           "control_kind", "study_labels", "training_options"]

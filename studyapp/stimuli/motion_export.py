@@ -1,0 +1,84 @@
+"""A study's motion as the objective metrics read it: one folder per system, one clip a file.
+
+    OUT/<system>/<control id>.npz    positions (frames, joints, 3) cm, y up; fps; names;
+                                     parents; offsets; system (analysis/motion_io.py's layout)
+
+Systems are named as in the ratings table (``System.export_name``: NAT and BAD for those
+roles, a model system by its name), in each file's ``system`` array and, where the name
+is a plain file name, in its folder's name (else ``system-<id>``), so ``python -m analysis objective OUT --out DIR`` and
+``python -m analysis report RATINGS.csv --motion OUT`` put each system's metrics beside
+its ratings. A clip is the motion of a finished stimulus as its system's source gives it
+to the renderer (``sources``): a checkpoint's sampled motion, submitted motion, the
+natural clip; uploaded videos have no motion and are left out. A clip sampled with
+another seed than 0 is ``<control id>-seed<seed>.npz``.
+
+The folder is written under a temporary name beside ``out`` and renamed into place, so a
+failure leaves nothing behind. ``motion_zip`` gives the same files as a zip.
+"""
+
+from __future__ import annotations
+
+import io
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from generation.files import atomic_folder
+from generation.motion.npz import save_motion_npz
+from studyapp.models import Stimulus, Study, System
+from studyapp.stimuli.control_export import SAFE_ID, control_id
+from studyapp.stimuli.sources import source_of
+
+
+def folder_name(system: System) -> str:
+    """A system's folder: its exported name where that is a plain file name (no path can
+    come of a system's name)."""
+    return system.export_name if SAFE_ID.fullmatch(system.export_name) else f"system-{system.pk}"
+
+
+def clip_name(stimulus: Stimulus) -> str:
+    """The file a stimulus's motion is written to, inside its system's folder."""
+    name = control_id(stimulus.control)
+    return f"{name}.npz" if stimulus.seed == 0 else f"{name}-seed{stimulus.seed}.npz"
+
+
+def exported_stimuli(study: Study) -> list[Stimulus]:
+    """The finished stimuli that have motion (every one but uploaded videos')."""
+    return list(study.stimuli.filter(status=Stimulus.Status.DONE, control__isnull=False)
+                .select_related("study", "system", "control").order_by("system__name", "control__name", "seed"))
+
+
+def write_motion(study: Study, out: Path) -> dict[str, int]:
+    """Write the motion of every finished stimulus of ``study`` into the new or empty folder
+    ``out``; how many clips each system got, by the system's exported name."""
+    out = Path(out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ValueError(f"{out}: give a new or empty folder")
+    counts: dict[str, int] = {}
+    with atomic_folder(out) as work:
+        for stimulus in exported_stimuli(study):
+            system = stimulus.system.export_name
+            try:
+                motion = source_of(stimulus.system).clip(stimulus).motion
+            except (ValueError, FileNotFoundError) as error:
+                raise ValueError(f"the motion of {stimulus.system.name} for {stimulus.control.name}: {error}") from None
+            save_motion_npz(motion, work / folder_name(stimulus.system) / clip_name(stimulus), system=np.array(system))
+            counts[system] = counts.get(system, 0) + 1
+    return counts
+
+
+def motion_zip(study: Study) -> bytes:
+    """The same folder as a zip, under ``motion-study-<pk>/`` (the monitor's download)."""
+    with tempfile.TemporaryDirectory() as scratch:
+        folder = Path(scratch) / f"motion-study-{study.pk}"
+        write_motion(study, folder)
+        buffer = io.BytesIO()
+        with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+            for path in sorted(folder.rglob("*.npz")):
+                archive.write(path, path.relative_to(folder.parent).as_posix())
+        return buffer.getvalue()
+
+
+__all__ = ["clip_name", "exported_stimuli", "folder_name", "motion_zip", "write_motion"]

@@ -1,0 +1,242 @@
+"""Where a system's motion comes from: one interface for every kind of system.
+
+Every system answers the same question, "the motion for this control", through its
+source: a checkpoint (a built-in model kind or one an installed plugin registers) is
+sampled, the natural system (NAT) reads the held-out clip the control came from, and
+submitted motion (another lab's files, one per control) is read from where it was
+stored. The stimuli module asks a system's source for a clip and renders every answer
+the same way. Uploaded videos are the one source that is never rendered: their
+stimuli are made finished when they are uploaded, so the source plans no clips.
+
+``source_of(system)`` picks the source by ``System.source_kind``; a new kind of system
+is one more class here and one more entry in ``SOURCES``.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+from django.conf import settings
+
+from generation.control import PathControl, control_from_dict
+from generation.motion.npz import load_motion_npz, save_motion_npz
+from generation.motion.root import root_trajectory
+from generation.motion.types import Motion
+from studyapp.models import ControlSignal, Stimulus, System
+from studyapp.stimuli.controls import training_options
+from studyapp.stimuli.natural import natural_motion
+from studyapp.stimuli.submissions import read_stored_motion
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Clip:
+    """A source's answer: the motion, and the floor path (frames × 2, x and z) drawn under it."""
+
+    motion: Motion
+    floor: np.ndarray
+
+
+class MotionSource(Protocol):
+    """What every kind of system answers."""
+
+    samples: bool  # whether its motion is sampled from a model (on STUDY_SAMPLE_QUEUE's workers)
+
+    def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
+        """The controls of the study this system has motion for."""
+
+    def identity(self, system: System, control: ControlSignal, seed: int) -> dict:
+        """What the motion depends on besides the control: ``source``, ``seed`` and ``temperature``
+        (None where they do not matter). Part of the stimulus's content key."""
+
+    def clip(self, stimulus: Stimulus) -> Clip:
+        """The motion of ``stimulus.system`` for ``stimulus.control``."""
+
+
+def commanded_floor(control: ControlSignal, motion: Motion) -> np.ndarray:
+    """The floor path drawn under a generated clip: the path it was told to follow, or,
+    for label controls, where its root went."""
+    signal = control_from_dict(control.control)
+    if isinstance(signal, PathControl):
+        return signal.path().xz
+    return root_trajectory(motion, training_options(control.study).root).xz
+
+
+def sampling_device(setting: str) -> str:
+    """The torch device STUDY_DEVICE names: "auto" is CUDA where a GPU is present."""
+    if setting != "auto":
+        return setting
+    import torch  # workers only
+
+    return "cuda" if torch.cuda.is_available() else "cpu"
+
+
+@lru_cache(maxsize=4)
+def _generator(path: str, digest: str, device: str):
+    """A worker keeps a few models loaded; the digest keys the cache to the file's content."""
+    from generation.generator import Generator  # torch loads in workers, not in every web process
+
+    generator = Generator.load(path, device)
+    logger.info("%s samples in %s (precision auto)", path, generator.resolve_precision())
+    return generator
+
+
+def sampled_folder() -> Path:
+    """Where sampled motion lies, one ``<content key>.npz`` per clip; studies whose clips
+    have the same content key share the file (``removal`` deletes what none refers to)."""
+    return Path(settings.VAR_DIR) / "sampled"
+
+
+def sampled_path(stimulus: Stimulus) -> Path:
+    """Where a sampling worker leaves a stimulus's motion for the rendering worker (named by
+    its content key, so it is the motion of exactly this clip)."""
+    return sampled_folder() / f"{stimulus.content_key}.npz"
+
+
+class CheckpointSource:
+    """A model checkpoint of any registered kind, sampled with the stimulus's seed.
+
+    With ``sample_ahead``, a worker on STUDY_SAMPLE_QUEUE samples every control of one
+    system in one task, the model loaded once and the controls sampled together,
+    STUDY_SAMPLE_BATCH at a time (``Generator.sample_batch``: each clip from its own seed,
+    so a clip is the same whichever batch it was sampled in), and leaves the motion at
+    ``sampled_path``; the rendering worker reads it. Where nothing was sampled ahead,
+    ``clip`` samples the one clip and leaves it there too.
+    """
+
+    samples = True  # dispatch sends its stimuli to the sampling queue first
+
+    def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
+        return controls
+
+    def identity(self, system: System, control: ControlSignal, seed: int) -> dict:
+        return {"source": f"checkpoint:{system.checkpoint_digest}", "seed": seed, "temperature": system.temperature}
+
+    def sample_ahead(self, system: System, stimuli: list[Stimulus]) -> dict[int, Exception]:
+        """Sample the motion of ``system``'s ``stimuli`` not sampled yet into ``sampled_path``;
+        what went wrong, by stimulus id. A control the model cannot follow fails alone; a
+        failing batch fails its stimuli (the error names the reason) and the next batch
+        is sampled all the same."""
+        todo = [stimulus for stimulus in stimuli if not sampled_path(stimulus).is_file()]
+        if not todo:
+            return {}
+        try:
+            generator = self._loaded(system)
+        except Exception as error:  # a missing or unreadable checkpoint: nothing of the system samples
+            return {stimulus.pk: error for stimulus in todo}
+        failed: dict[int, Exception] = {}
+        checked = []
+        for stimulus in todo:
+            try:
+                signal = control_from_dict(stimulus.control.control)
+                generator.check_control(signal)
+            except ValueError as error:
+                failed[stimulus.pk] = error
+            else:
+                checked.append((stimulus, signal))
+        size = settings.STUDY_SAMPLE_BATCH
+        for batch in (checked[i:i + size] for i in range(0, len(checked), size)):
+            try:
+                motions = generator.sample_batch([signal for _, signal in batch], [s.seed for s, _ in batch],
+                                                 temperature=system.temperature)
+            except Exception as error:  # e.g. out of memory: these clips fail, the next batch may not
+                failed.update((stimulus.pk, error) for stimulus, _ in batch)
+                continue
+            for (stimulus, _), motion in zip(batch, motions):
+                save_motion_npz(motion, sampled_path(stimulus))
+        return failed
+
+    def clip(self, stimulus: Stimulus) -> Clip:
+        sampled = sampled_path(stimulus)
+        if sampled.is_file():
+            motion = load_motion_npz(sampled)
+        else:
+            signal = control_from_dict(stimulus.control.control)
+            motion = self._loaded(stimulus.system).sample(signal, n=1, seed=stimulus.seed,
+                                                          temperature=stimulus.system.temperature)[0]
+            save_motion_npz(motion, sampled)  # the study's motion, for export_motion
+        return Clip(motion, commanded_floor(stimulus.control, motion))
+
+    @staticmethod
+    def _loaded(system: System):
+        path = system.checkpoint_path()
+        if path is None or not path.is_file():
+            raise FileNotFoundError(f"the checkpoint of {system.name} is missing ({path})")
+        return _generator(str(path), system.checkpoint_digest, sampling_device(settings.STUDY_DEVICE))
+
+
+class NaturalClips:
+    """NAT: the held-out clip each held-out control came from, as the models see the data."""
+
+    samples = False
+
+    def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
+        return [c for c in controls if c.origin == ControlSignal.Origin.HELD_OUT and c.source_clip]
+
+    def identity(self, system: System, control: ControlSignal, seed: int) -> dict:
+        return {"source": f"natural:{control.source_clip}", "seed": None, "temperature": None}
+
+    def clip(self, stimulus: Stimulus) -> Clip:
+        control = stimulus.control
+        options = training_options(stimulus.study)
+        motion = natural_motion(control, options)
+        return Clip(motion, root_trajectory(motion, options.root).xz)
+
+
+class SubmittedMotion:
+    """Motion another lab made for the study's exported controls, validated and stored as
+    one ``.npz`` per control (``studyapp.stimuli.submissions``)."""
+
+    samples = False
+
+    def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
+        stored = set(system.metadata.get("controls", []))
+        return [c for c in controls if c.name in stored]
+
+    def identity(self, system: System, control: ControlSignal, seed: int) -> dict:
+        return {"source": f"submitted:{system.checkpoint_digest}:{control.name}", "seed": None, "temperature": None}
+
+    def clip(self, stimulus: Stimulus) -> Clip:
+        motion = read_stored_motion(stimulus.system, stimulus.control)
+        return Clip(motion, commanded_floor(stimulus.control, motion))
+
+
+class UploadedVideos:
+    """Videos uploaded as they are: finished stimuli from the start, never rendered."""
+
+    samples = False
+
+    def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
+        return []
+
+    def identity(self, system: System, control: ControlSignal, seed: int) -> dict:
+        raise ValueError("an uploaded video has no motion to plan")
+
+    def clip(self, stimulus: Stimulus) -> Clip:
+        raise ValueError("an uploaded video has nothing to generate")
+
+
+SOURCES: dict[str, MotionSource] = {
+    System.SourceKind.CHECKPOINT: CheckpointSource(),
+    System.SourceKind.NATURAL: NaturalClips(),
+    System.SourceKind.SUBMITTED: SubmittedMotion(),
+    System.SourceKind.VIDEO: UploadedVideos(),
+}
+
+
+def source_of(system: System) -> MotionSource:
+    """The source of a system's motion (ValueError for a system that has none)."""
+    source = SOURCES.get(system.source_kind)
+    if source is None:
+        raise ValueError(f"system {system.name!r} has no source of motion: no checkpoint, and kind "
+                         f"{system.kind!r} is none of {', '.join(SOURCES)}")
+    return source
+
+
+__all__ = ["Clip", "MotionSource", "SOURCES", "commanded_floor", "sampled_folder", "sampled_path", "source_of"]
