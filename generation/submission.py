@@ -49,7 +49,7 @@ from .motion.rotations import matrix_to_quat, quat_to_matrix, yaw_matrix
 from .motion.types import Motion
 from .motion.unit_detection import choose_units
 
-# The study's tolerance for a root off its control's path (studyapp.control_export keeps
+# The study's tolerance for a root off its control's path (studyapp.stimuli.control_export keeps
 # the same number; a test holds them equal).
 PATH_TOLERANCE_CM = 100.0
 # How ``sample`` names the clips of a control: the control's name, "_", a sample number.

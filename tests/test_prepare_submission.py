@@ -18,11 +18,11 @@ from generation.motion.rotations import matrix_to_quat, quat_to_matrix, yaw_matr
 from generation.motion.takes import natural_takes
 from generation.motion.types import Motion
 from generation.submission import PATH_TOLERANCE_CM, match_files, prepare_submission
-from studyapp.control_export import PATH_TOLERANCE_CM as STUDY_TOLERANCE
-from studyapp.control_export import bundle_zip, control_id, natural_in_control_frame
-from studyapp.controls import training_options
-from studyapp.natural import natural_clip, natural_motion
-from studyapp.submissions import check_submission, read_zip
+from studyapp.stimuli.control_export import PATH_TOLERANCE_CM as STUDY_TOLERANCE
+from studyapp.stimuli.control_export import bundle_zip, control_id, natural_in_control_frame
+from studyapp.stimuli.controls import training_options
+from studyapp.stimuli.natural import natural_clip, natural_motion
+from studyapp.stimuli.submissions import check_submission, read_zip
 from tests.rig_variants import in_unit, z_up
 from tests.test_real_rigs import CMU, CMU_METRES
 from tests.test_study_researcher import files, new_study, researcher, site, upload_checkpoint  # noqa: F401 (fixtures)
@@ -112,7 +112,7 @@ def test_every_refusal_is_listed_per_control_and_nothing_is_written(cmu_control,
 
 
 def bundle_of(controls, folder):
-    """A controls bundle as the study exports it (studyapp.control_export), for tests without a study."""
+    """A controls bundle as the study exports it (studyapp.stimuli.control_export), for tests without a study."""
     (folder / "paths").mkdir(parents=True)
     entries = []
     for ident, control in controls.items():
