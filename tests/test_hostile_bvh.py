@@ -228,3 +228,33 @@ def test_a_folder_of_one_frame_clips_is_refused_for_having_no_training_windows(m
         (folder / source.name).write_text("\n".join([*lines[: motion + 1], "Frames: 1", *lines[motion + 2 : motion + 4]]) + "\n")
     assert cli_main(["build-dataset", str(folder), "--cache-dir", str(tmp_path / "cache")]) == 2
     assert "no training windows" in capsys.readouterr().err
+    assert not list((tmp_path / "cache").glob("dataset-*.npz"))
+
+
+@pytest.fixture
+def labelled(tmp_path) -> Path:
+    """A clip in a folder whose cfg/ lists the contents walk and run (with a dataset prefix)."""
+    folder = tmp_path / "labelled"
+    (folder / "cfg").mkdir(parents=True)
+    (folder / "cfg" / "content_label.txt").write_text("dataset-9_walk\ndataset-9_run\n")
+    (folder / "clip.bvh").write_text(SMALL_BVH)
+    return folder
+
+
+@pytest.mark.parametrize("entry, message", [
+    ('{"content": "abc"}', "'content' is 'abc', which is not a label of {names} (walk, run)"),
+    ('{"content": 2}', "'content' is 2, but {names} lists 2 labels (0 to 1)"),
+    ('{"content": -1}', "'content' is -1, but {names} lists 2 labels (0 to 1)"),
+], ids=["a name not in the list", "an index past the list", "a negative index"])
+def test_a_label_that_the_label_list_lacks_is_refused_naming_the_file_and_field(entry, message, labelled):
+    (labelled / "clip.json").write_text(entry)
+    with pytest.raises(ValueError) as caught:
+        read_labels(labelled / "clip.bvh")
+    names = labelled / "cfg" / "content_label.txt"
+    assert str(caught.value) == f"{labelled / 'clip.json'}: {message.format(names=names)}"
+
+
+@pytest.mark.parametrize("entry", ['{"content": "run"}', '{"content": "dataset-9_run"}', '{"content": 1}'])
+def test_a_label_of_the_list_is_read_by_name_or_index(entry, labelled):
+    (labelled / "clip.json").write_text(entry)
+    assert read_labels(labelled / "clip.bvh")[0] in ("run", "dataset-9_run")
