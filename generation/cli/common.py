@@ -6,8 +6,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from measures.units import parse_scale
+
 from ..motion.root import RootOptions
-from ..motion.units import parse_scale
 from ..render import Camera
 
 

@@ -17,12 +17,14 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from measures.feet import choose_foot_joints
+from measures.units import UNIT_NAMES, UNITS
+
 from ..control import PRESETS, held_out_paths, lead_in_frames, load_control_file, preset_path
 from ..motion.bvh import motion_to_bvh, write_bvh
 from ..motion.dataset import DatasetOptions, build_dataset, contents_or_all, find_bvh_files, load_body_motion
 from ..motion.npz import save_motion_npz
 from ..motion.root import RootOptions, root_trajectory
-from ..motion.units import UNIT_NAMES, UNITS
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
 from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, warn
@@ -250,8 +252,6 @@ def evaluate_command(args: argparse.Namespace) -> int:
 
 
 def sliding_command(args: argparse.Namespace) -> int:
-    from analysis.footsteps import choose_foot_joints
-
     from ..generator import Generator
     from ..motion.features import decode_positions
     from ..sliding import SETTLE_SECONDS, sliding_ladder

@@ -23,11 +23,13 @@ from pathlib import Path
 
 import numpy as np
 
+from measures.units import UNITS, Z_UP_TO_Y_UP
+
 from ..files import write_atomic
 from .kinematics import forward_kinematics
 from .rotations import euler_to_matrix, matrix_to_euler, matrix_to_quat, quat_to_matrix
 from .types import Motion, Skeleton
-from .units import UNITS, Z_UP_TO_Y_UP, Units
+from .units import Units
 
 POSITION_AXIS = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
 ROTATION_AXIS = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
@@ -434,7 +436,7 @@ def scale_lengths(bvh: BVH, factor: float) -> BVH:
 
 
 def motion_to_bvh(motion: Motion, rotation_order: str = "ZXY", unit: str = "cm") -> BVH:
-    """A BVH for any motion, its lengths in ``unit`` (a key of ``units.UNITS``; the
+    """A BVH for any motion, its lengths in ``unit`` (a key of ``measures.units.UNITS``; the
     motion itself is in centimetres).
 
     With joint rotations, every joint gets rotation channels in ``rotation_order`` and
