@@ -15,6 +15,7 @@ import os
 import zipfile
 import zlib
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import NoReturn
 
@@ -29,6 +30,7 @@ REQUIRED = ("positions", "fps", "names", "parents")
 # zip member, a malformed .npy header, data shorter than its header says, pickled objects,
 # or a declared shape too large to allocate.
 ARRAY_READ_ERRORS = (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error, MemoryError)
+Refuse = Callable[[str | None, str], NoReturn]  # raises MotionFileError for a field
 
 
 class MotionFileError(ValueError):
@@ -63,7 +65,7 @@ def load_motion_npz(file: str | os.PathLike | io.BytesIO, name: str | None = Non
         data = np.load(file, allow_pickle=False)
     except FileNotFoundError:
         refuse(None, "no such file")
-    except (*ARRAY_READ_ERRORS, TypeError) as error:  # not a zip, or arrays of Python objects
+    except ARRAY_READ_ERRORS as error:  # not a zip, or arrays of Python objects
         refuse(None, f"not a readable .npz file without pickled objects ({error})")
     if not isinstance(data, np.lib.npyio.NpzFile):
         refuse(None, "is a single .npy array, not an .npz of named arrays")
@@ -89,7 +91,7 @@ def load_motion_npz(file: str | os.PathLike | io.BytesIO, name: str | None = Non
     return Motion(positions, fps, Skeleton(names, parents, offsets))
 
 
-def _names(array: np.ndarray, refuse) -> list[str]:
+def _names(array: np.ndarray, refuse: Refuse) -> list[str]:
     if array.dtype.kind != "U":
         refuse("names", f"must be text (the joints' names), got an array of {array.dtype}")
     if array.ndim > 1:
@@ -103,7 +105,7 @@ def _names(array: np.ndarray, refuse) -> list[str]:
     return names
 
 
-def _parents(array: np.ndarray, names: list[str], refuse) -> np.ndarray:
+def _parents(array: np.ndarray, names: list[str], refuse: Refuse) -> np.ndarray:
     if array.dtype.kind not in "iu":
         refuse("parents", f"must be whole numbers (each joint's parent index), got an array of {array.dtype}")
     if array.shape != (len(names),):
@@ -117,7 +119,7 @@ def _parents(array: np.ndarray, names: list[str], refuse) -> np.ndarray:
     return parents
 
 
-def _lengths(array: np.ndarray, field: str, shape: tuple[int | None, ...], refuse) -> np.ndarray:
+def _lengths(array: np.ndarray, field: str, shape: tuple[int | None, ...], refuse: Refuse) -> np.ndarray:
     """Centimetres of ``shape`` (None: any length of at least one), finite and of a size a body can have."""
     wanted = "(" + ", ".join("frames" if n is None else str(n) for n in shape) + ")"
     if array.dtype.kind not in "biuf":
@@ -136,7 +138,7 @@ def _lengths(array: np.ndarray, field: str, shape: tuple[int | None, ...], refus
     return values
 
 
-def _fps(array: np.ndarray, refuse) -> float:
+def _fps(array: np.ndarray, refuse: Refuse) -> float:
     low, high = 1 / MAX_FRAME_TIME, 1 / MIN_FRAME_TIME
     if array.dtype.kind not in "iuf" or array.size != 1:
         refuse("fps", f"must be one number of frames per second, got {array.dtype} of shape {array.shape}")
