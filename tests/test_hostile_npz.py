@@ -91,6 +91,15 @@ def test_a_file_that_is_no_npz_archive_is_refused_naming_it(content, message, tm
         load_motion_npz(tmp_path / "missing.npz")
 
 
+def test_an_npz_that_unpacks_past_the_limit_is_refused_before_its_arrays_are_read():
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, **changed(positions=np.zeros((20_000, 3, 3))))  # 1.4 MB of zeros, a few kB packed
+    assert len(buffer.getvalue()) < 20_000
+    with pytest.raises(MotionFileError, match=r"^lab/c1\.npz: its arrays unpack to 1\.441 MB, over the 1 MB limit"):
+        load_motion_npz(io.BytesIO(buffer.getvalue()), name="lab/c1.npz", max_bytes=1_000_000)
+    assert load_motion_npz(io.BytesIO(buffer.getvalue())).n_frames == 20_000
+
+
 def test_a_skeleton_without_joints_is_refused_where_it_is_made():
     with pytest.raises(ValueError, match="a skeleton needs at least one joint, its root"):
         Skeleton((), np.zeros(0, dtype=np.int64), np.zeros((0, 3)))

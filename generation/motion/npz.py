@@ -31,6 +31,9 @@ REQUIRED = ("positions", "fps", "names", "parents")
 # or a declared shape too large to allocate.
 ARRAY_READ_ERRORS = (ValueError, OSError, EOFError, zipfile.BadZipFile, zlib.error, MemoryError)
 Refuse = Callable[[str | None, str], NoReturn]  # raises MotionFileError for a field
+# What the arrays may unpack to: an hour of 120-fps motion on 100 joints is 1 GB. A
+# compressed archive of zeros unpacks a thousandfold, so its size alone says little.
+MAX_UNPACKED_BYTES = 2 * 1024**3
 
 
 class MotionFileError(ValueError):
@@ -52,10 +55,12 @@ def save_motion_npz(motion: Motion, file: str | os.PathLike, **extra: np.ndarray
     return write_atomic(file, buffer.getvalue())
 
 
-def load_motion_npz(file: str | os.PathLike | io.BytesIO, name: str | None = None) -> Motion:
+def load_motion_npz(file: str | os.PathLike | io.BytesIO, name: str | None = None,
+                    max_bytes: int = MAX_UNPACKED_BYTES) -> Motion:
     """A motion from the layout above. ``name`` is how messages call the file (default:
     its path; a stream has none, its caller names it). MotionFileError naming the file
-    and the array for anything missing or malformed."""
+    and the array for anything missing or malformed, or arrays that would unpack to more
+    than ``max_bytes``."""
     where = name if name is not None else None if isinstance(file, io.IOBase) else str(file)
 
     def refuse(field: str | None, message: str) -> NoReturn:
@@ -73,6 +78,9 @@ def load_motion_npz(file: str | os.PathLike | io.BytesIO, name: str | None = Non
         missing = [key for key in REQUIRED if key not in data.files]
         if missing:
             refuse(None, f"lacks the array(s) {', '.join(missing)}")
+        unpacked = sum(member.file_size for member in data.zip.infolist())  # as the archive declares, never more
+        if unpacked > max_bytes:
+            refuse(None, f"its arrays unpack to {unpacked / 1e6:.4g} MB, over the {max_bytes / 1e6:.4g} MB limit")
         arrays = {}
         for key in (*REQUIRED, "offsets"):
             if key in data.files:
