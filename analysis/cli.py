@@ -30,7 +30,8 @@ from analysis.objective import objective_metrics
 from analysis.ratings import read_ratings
 from analysis.report import build_report, require_single_design, write_report
 from analysis.tables import objective_table, to_markdown, write_table
-from analysis.units import parse_scale, to_centimetres_y_up
+from analysis.units import to_centimetres_y_up
+from measures.units import parse_scale
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -112,10 +113,17 @@ def _add_objective_parser(commands) -> None:
     _add_unit_arguments(objective)
 
 
+def _scale(text: str) -> float | None:
+    try:
+        return parse_scale(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 def _add_unit_arguments(parser: argparse.ArgumentParser) -> None:
     """The motion's unit and up axis, the same options for every command that reads motion."""
     group = parser.add_argument_group("units (the motion is read into cm, y up)")
-    group.add_argument("--scale", default="auto", metavar="auto|UNIT|NUMBER",
+    group.add_argument("--scale", type=_scale, default="auto", metavar="auto|UNIT|NUMBER",
                        help="the motion's length unit: auto (from the figures' height; clips in different units "
                             "are an error naming them), a unit (mm, cm, in, cmu, ft, m) or centimetres per unit "
                             "(default %(default)s)")
@@ -125,7 +133,7 @@ def _add_unit_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _motion_in_centimetres(args: argparse.Namespace) -> dict[str, SystemClips]:
     """The --motion clips in cm with y up; prints what they were taken to be."""
-    motion, units = to_centimetres_y_up(load_motion_sets(args.motion), parse_scale(args.scale),
+    motion, units = to_centimetres_y_up(load_motion_sets(args.motion), args.scale,
                                         None if args.up == "auto" else args.up)
     print(units)
     return motion

@@ -176,7 +176,8 @@ def test_motion_written_in_another_unit_reads_back_as_the_same_centimetres_with_
         clip_path, tmp_path, unit, kind):
     from generation.motion import Motion
     from generation.motion.unit_detection import choose_units
-    from generation.motion.units import UNITS, Units
+    from generation.motion.units import Units
+    from measures.units import UNITS
 
     motion = load_motion(clip_path("walk_normal_001"))
     if kind == "positions only":  # as MoGlow and its baselines write it

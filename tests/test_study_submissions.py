@@ -151,7 +151,7 @@ def test_every_problem_of_a_submission_is_listed_at_once_and_nothing_is_stored(
         f"no file for the control(s) {ramp}",
         "lab/nobody.npz: no control has the id &#x27;nobody&#x27;",
         f"lab/{circle}.npz: the body is", "lengths must be centimetres",
-        f"lab/{sidestep}.npz: motion positions contain NaN or infinity (first at frame 5)",
+        f"lab/{sidestep}.npz: positions: holds NaN or infinity (first at frame 5, joint 2)",
         f"lab/{stand}.npz: 30 frames (1.50 s) at 20 fps, shorter than its control&#x27;s 80 frames (4.00 s)",
         f"lab/{backward}.npz: the root strays 300 cm from the control&#x27;s path", "the tolerance is 100 cm",
         f"lab/{straight}.npz: 10 fps is below the control&#x27;s 20 fps",

@@ -17,13 +17,15 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from measures.feet import choose_foot_joints
+from measures.units import UNIT_NAMES, UNITS
+
 from ..control import PRESETS, following_arrays, lead_in_frames, load_control_file, preset_path, take_paths
 from ..motion.bvh import motion_to_bvh, write_bvh
 from ..motion.dataset import DatasetOptions, build_dataset, contents_or_all
 from ..motion.npz import save_motion_npz
 from ..motion.root import RootOptions, integrate, root_trajectory
 from ..motion.takes import natural_takes
-from ..motion.units import UNIT_NAMES, UNITS
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
 from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, shown_control, warn
@@ -300,8 +302,6 @@ def evaluate_command(args: argparse.Namespace) -> int:
 
 
 def sliding_command(args: argparse.Namespace) -> int:
-    from analysis.footsteps import choose_foot_joints
-
     from ..generator import Generator
     from ..motion.features import decode_positions
     from ..sliding import SETTLE_SECONDS, sliding_ladder
