@@ -18,6 +18,7 @@ from django.db import models
 
 from analysis.exclusions import scaled_threshold
 from generation.render.camera import Camera
+from studyapp.bounds import Within
 
 NATURAL_NAME, ATTENTION_NAME = "NAT", "BAD"  # the names the analysis expects for these roles
 
@@ -36,29 +37,61 @@ def default_camera() -> dict:
 
 # Camera fields whose None means "from the character's size" (generation.render.camera).
 OPTIONAL_CAMERA_FIELDS = ("distance", "target_height")
+# What the renderer can draw of a person (lengths in cm): farther than 100 m a figure is a
+# few pixels tall, and a view narrower than a degree shows a few of its pixels.
+CAMERA_BOUNDS = {
+    "azimuth": Within(-360, 360, "degrees"),
+    "distance": Within(20, 10_000, "cm: 100 m at most"),
+    "fov": Within(1, 170, "degrees"),
+    "target_height": Within(-10_000, 10_000, "cm"),
+    "follow_smoothing": Within(0, 10, "seconds"),
+    "near": Within(0.1, 1000, "cm"),
+    "figure_share": Within(0.01, 2, "of the frame's height"),
+    "target_share": Within(0, 2, "of the character's size"),
+}
+
+
+def camera_setting_problem(name: str, value: object) -> str | None:
+    """What is wrong with one setting of a camera description, or None.
+
+    JSON admits NaN and Infinity, which no database's JSON column stores and no
+    renderer can draw, so every number must be finite, and within ``CAMERA_BOUNDS``.
+    """
+    if value is None and name in OPTIONAL_CAMERA_FIELDS:
+        return None
+    if name == "follow":
+        return None if isinstance(value, bool) else f"'follow' must be true or false, got {value!r}"
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return f"{name!r} must be a number, got {value!r}"
+    if not math.isfinite(value):
+        return f"{name!r} must be a finite number, got {value}"
+    bound = CAMERA_BOUNDS.get(name)
+    return f"{name!r} {bound.message(value)}" if bound and not bound.low <= value <= bound.high else None
 
 
 def camera_problem(data: object) -> str | None:
-    """What makes ``data`` no camera description (a JSON object of Camera's fields), or None.
-
-    JSON admits NaN and Infinity, which no database's JSON column stores and no
-    renderer can draw, so every number must be finite.
-    """
+    """What makes ``data`` no camera description (a JSON object of Camera's fields), or None."""
     if not isinstance(data, dict):
         return f"expected a JSON object of camera fields, got {type(data).__name__}"
     for name, value in data.items():
-        if value is None and name in OPTIONAL_CAMERA_FIELDS:
-            continue
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            if not (name == "follow" and isinstance(value, bool)):
-                return f"{name!r} must be a number, got {value!r}"
-        elif not math.isfinite(value):
-            return f"{name!r} must be a finite number, got {value}"
+        if problem := camera_setting_problem(name, value):
+            return problem
     try:
         Camera.from_dict(data)
     except (TypeError, ValueError) as error:
         return str(error)
     return None
+
+
+# The bounds of a study's numbers (``studyapp.bounds``), where they are shared or checked together.
+SCALE_END = Within(-1000, 1000, "the ratings table's range")
+MAX_BUTTON_POINTS = 11  # a single-clip page shows a button per scale point: 0-10 at most
+CHECKS = Within(0, 50)
+THRESHOLD = Within(0, 6, "on the 1-5 scale; 0 or 6, beyond its ends, turns the check off")
+SCREEN_SIDE = Within(0, 7680, "CSS pixels of an 8K screen")
+# The renderer draws every frame in memory and H.264 encoders stop at 4K frames.
+VIDEO_SIDE = Within(64, 3840, "pixels: smaller shows no figure, larger is past 4K video")
+MAX_VIDEO_PIXELS = 3840 * 2160
 
 
 class Study(models.Model):
@@ -80,8 +113,8 @@ class Study(models.Model):
     # The participants' entry link carries this key; it says nothing about the study.
     key = models.CharField(max_length=32, unique=True, default=new_study_key, editable=False)
     question = models.CharField(max_length=300, default="How natural does the motion of the character look?")
-    scale_min = models.SmallIntegerField(default=1)
-    scale_max = models.SmallIntegerField(default=5)
+    scale_min = models.SmallIntegerField(default=1, validators=[SCALE_END])
+    scale_max = models.SmallIntegerField(default=5, validators=[SCALE_END])
     label_min = models.CharField(max_length=60, default="Completely unnatural")
     label_max = models.CharField(max_length=60, default="Completely natural")
     instructions = models.TextField(default=(
@@ -92,40 +125,54 @@ class Study(models.Model):
         "may stop at any time. We record your ratings, the time you take, and the id your crowd "
         "platform gives you; nothing else about you."))
     design = models.CharField(max_length=12, choices=Design.choices, default=Design.SINGLE)
-    clips_per_participant = models.PositiveSmallIntegerField(default=20, help_text="rated clips, attention checks included")
-    ratings_per_stimulus = models.PositiveSmallIntegerField(default=10, help_text="target number of ratings of each stimulus")
+    clips_per_participant = models.PositiveSmallIntegerField(
+        default=20, help_text="rated clips, attention checks included", validators=[Within(1, 200, "one sitting")])
+    ratings_per_stimulus = models.PositiveSmallIntegerField(
+        default=10, help_text="target number of ratings of each stimulus", validators=[Within(1, 1000)])
     pages_per_participant = models.PositiveSmallIntegerField(
-        default=8, help_text="side-by-side and pairwise: pages each participant answers, attention checks included")
+        default=8, help_text="side-by-side and pairwise: pages each participant answers, attention checks included",
+        validators=[Within(0, 100, "one sitting")])
     abx = models.BooleanField(
         default=False, help_text="pairwise: show the control's natural clip as the reference X above A and B, and ask "
                                  "which of them is closer to it (held-out controls only; NAT is then not paired)")
     preference_strengths = models.PositiveSmallIntegerField(
-        default=0, help_text="pairwise: how many degrees of preference to ask (0: only which one)")
-    training_clips = models.PositiveSmallIntegerField(default=4, help_text="practice clips shown first and not recorded")
-    bad_checks = models.PositiveSmallIntegerField(default=1, help_text="BAD clips per participant (attention checks)")
-    natural_checks = models.PositiveSmallIntegerField(default=1, help_text="NAT clips per participant placed as attention checks")
-    bad_threshold = models.FloatField(default=4.0, help_text="on the 1-5 scale: rating a BAD clip this high or higher excludes")
-    natural_threshold = models.FloatField(default=2.0, help_text="on the 1-5 scale: rating a NAT clip below this excludes")
+        default=0, help_text="pairwise: how many degrees of preference to ask (0: only which one)",
+        validators=[Within(0, 5, "a button each")])
+    training_clips = models.PositiveSmallIntegerField(default=4, help_text="practice clips shown first and not recorded",
+                                                      validators=[Within(0, 20)])
+    bad_checks = models.PositiveSmallIntegerField(default=1, help_text="BAD clips per participant (attention checks)",
+                                                  validators=[CHECKS])
+    natural_checks = models.PositiveSmallIntegerField(
+        default=1, help_text="NAT clips per participant placed as attention checks", validators=[CHECKS])
+    bad_threshold = models.FloatField(
+        default=4.0, help_text="on the 1-5 scale: rating a BAD clip this high or higher excludes", validators=[THRESHOLD])
+    natural_threshold = models.FloatField(
+        default=2.0, help_text="on the 1-5 scale: rating a NAT clip below this excludes", validators=[THRESHOLD])
     instructed_checks = models.PositiveSmallIntegerField(
-        default=0, help_text="pages per participant that tell them which answer to give (not analysed)")
+        default=0, help_text="pages per participant that tell them which answer to give (not analysed)",
+        validators=[CHECKS])
     stop_after_failed_checks = models.PositiveSmallIntegerField(
-        default=0, help_text="end a participant's session politely after this many failed instructed checks (0: never)")
+        default=0, help_text="end a participant's session politely after this many failed instructed checks (0: never)",
+        validators=[CHECKS])
     discard_early = models.BooleanField(default=True, help_text="flag ratings given before the clip finished playing")
     require_full_play = models.BooleanField(
         default=True, help_text="the rating buttons unlock when the clip has played to its end, and answers sent "
                                 "sooner after the page than the clip lasts are refused")
     reservation_minutes = models.PositiveIntegerField(
-        default=90, help_text="an unfinished participant's unrated clips stop counting towards the target after this idle time")
+        default=90, help_text="an unfinished participant's unrated clips stop counting towards the target after this idle time",
+        validators=[Within(1, 7 * 24 * 60, "a week")])
     device_check = models.BooleanField(
         default=False, help_text="before consent, the browser plays a clip of the study and shows its screen size")
-    min_screen_width = models.PositiveSmallIntegerField(default=0, help_text="CSS pixels the device check asks for (0: any)")
-    min_screen_height = models.PositiveSmallIntegerField(default=0, help_text="CSS pixels the device check asks for (0: any)")
+    min_screen_width = models.PositiveSmallIntegerField(default=0, help_text="CSS pixels the device check asks for (0: any)",
+                                                        validators=[SCREEN_SIDE])
+    min_screen_height = models.PositiveSmallIntegerField(default=0, help_text="CSS pixels the device check asks for (0: any)",
+                                                         validators=[SCREEN_SIDE])
     platform = models.CharField(max_length=10, choices=Platform.choices, default=Platform.LINK)
     completion_code = models.CharField(max_length=100, blank=True)
     redirect_url = models.URLField(blank=True, help_text="where finished participants are sent (Prolific: its completion URL)")
     camera = models.JSONField(default=default_camera)
-    video_width = models.PositiveSmallIntegerField(default=640)
-    video_height = models.PositiveSmallIntegerField(default=480)
+    video_width = models.PositiveSmallIntegerField(default=640, validators=[VIDEO_SIDE])
+    video_height = models.PositiveSmallIntegerField(default=480, validators=[VIDEO_SIDE])
     is_open = models.BooleanField(default=False, help_text="accepting participants")
     created = models.DateTimeField(auto_now_add=True)
     # Participant pages keep the study in memory while this stamp is unchanged (``study_cache``).
@@ -147,8 +194,14 @@ class Study(models.Model):
     def clean(self) -> None:
         if self.scale_min >= self.scale_max:
             raise ValidationError({"scale_max": f"the scale must rise: {self.scale_min} to {self.scale_max} does not"})
+        if self.design == self.Design.SINGLE and len(self.scale) > MAX_BUTTON_POINTS:
+            raise ValidationError({"scale_max": f"a single-clip page shows a button per point: at most "
+                                                f"{MAX_BUTTON_POINTS} points, not {len(self.scale)}"})
         if self.video_width % 2 or self.video_height % 2:
             raise ValidationError({"video_width": "H.264 video needs an even width and height"})
+        if self.video_width * self.video_height > MAX_VIDEO_PIXELS:
+            raise ValidationError({"video_width": f"{self.video_width}×{self.video_height} is past 4K video: at most "
+                                                  f"{MAX_VIDEO_PIXELS:,} pixels a frame (3840×2160)"})
         if self.design == self.Design.SINGLE and self.bad_checks + self.natural_checks >= self.clips_per_participant:
             raise ValidationError({"clips_per_participant": "leave room for rated clips besides the attention checks"})
         if self.design == self.Design.PAIRWISE and self.bad_checks >= self.pages_per_participant:
@@ -157,9 +210,20 @@ class Study(models.Model):
             raise ValidationError({"abx": "a reference X goes with the pairwise design"})
         if self.design != self.Design.SINGLE and self.pages_per_participant == 0:
             raise ValidationError({"pages_per_participant": "a participant needs at least one page"})
+        if self.design == self.Design.SIDE_BY_SIDE and self.bad_checks > self.pages_per_participant:
+            raise ValidationError({"bad_checks": f"BAD joins at most one page each: at most {self.pages_per_participant} "
+                                                 f"for {self.pages_per_participant} pages"})
+        pages = self.clips_per_participant if self.design == self.Design.SINGLE else self.pages_per_participant
+        if self.instructed_checks > pages:
+            raise ValidationError({"instructed_checks": f"at most one instructed check per page: at most {pages} for "
+                                                        f"{pages} {'clips' if self.design == self.Design.SINGLE else 'pages'}"})
+        if self.stop_after_failed_checks > self.instructed_checks:
+            raise ValidationError({"stop_after_failed_checks": f"a participant meets {self.instructed_checks} "
+                                                               f"instructed check(s): stopping after "
+                                                               f"{self.stop_after_failed_checks} failed never happens"})
         problem = camera_problem(self.camera)
-        if problem:
-            raise ValidationError({"camera": f"not a camera description: {problem}"})
+        if problem:  # not keyed to "camera": the study form shows the camera as one field per setting
+            raise ValidationError(f"camera: not a camera description: {problem}")
 
     @property
     def scale(self) -> range:
@@ -174,6 +238,11 @@ class Study(models.Model):
 
     def natural_cutoff(self) -> float:
         return scaled_threshold(self.natural_threshold, self.scale_min, self.scale_max)
+
+
+# Past 10 the noise swamps what a model learnt; the models take any finite temperature.
+TEMPERATURE = Within(0.0001, 10, "the sampling temperature")
+SEED = Within(0, 2**31 - 1, "a 32-bit seed")
 
 
 class System(models.Model):
@@ -199,7 +268,7 @@ class System(models.Model):
     checkpoint_digest = models.CharField(max_length=64, blank=True)
     kind = models.CharField(max_length=30, blank=True)
     metadata = models.JSONField(default=dict, blank=True)
-    temperature = models.FloatField(default=1.0)
+    temperature = models.FloatField(default=1.0, validators=[TEMPERATURE])
     created = models.DateTimeField(auto_now_add=True)
 
     class Meta:
@@ -268,7 +337,7 @@ class Stimulus(models.Model):
     study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="stimuli")
     system = models.ForeignKey(System, on_delete=models.CASCADE, related_name="stimuli")
     control = models.ForeignKey(ControlSignal, on_delete=models.CASCADE, related_name="stimuli", null=True, blank=True)
-    seed = models.IntegerField(default=0)
+    seed = models.IntegerField(default=0, validators=[SEED])
     content_key = models.CharField(max_length=64)
     token = models.CharField(max_length=32, unique=True, default=new_token, editable=False)
     status = models.CharField(max_length=10, choices=Status.choices, default=Status.PENDING)
@@ -340,6 +409,9 @@ class Participant(models.Model):
         return f"{self.platform_id} in {self.study}"
 
 
+ANSWER_BOUND = Within(-1e9, 1e9, "a number a participant types")
+
+
 class Question(models.Model):
     """A question asked before the ratings (screening: other answers than the accepted
     ones end the study politely) or after them (demographics, comments)."""
@@ -362,6 +434,10 @@ class Question(models.Model):
     accepted = models.TextField(blank=True, help_text="before the ratings: the choices that may go on, one per line "
                                                       "(empty: every answer)")
     required = models.BooleanField(default=True)
+    # Number questions' answers lie in [minimum, maximum]; the defaults suit an age in years.
+    minimum = models.FloatField(default=0, validators=[ANSWER_BOUND], help_text="number questions: the smallest answer")
+    maximum = models.FloatField(default=120, validators=[ANSWER_BOUND], help_text="number questions: the largest answer")
+    whole_numbers = models.BooleanField(default=True, help_text="number questions: only whole numbers (as ages)")
     created = models.DateTimeField(auto_now_add=True)
 
     class Meta:
@@ -388,6 +464,10 @@ class Question(models.Model):
             raise ValidationError({"accepted": f"not among the choices: {', '.join(unknown)}"})
         if self.accepted_list and self.part != self.Part.BEFORE:
             raise ValidationError({"accepted": "only questions before the ratings screen participants"})
+        if self.kind == self.Kind.NUMBER and not self.minimum < self.maximum:
+            raise ValidationError({"maximum": f"the largest answer must exceed the smallest ({self.minimum:g})"})
+        if self.kind == self.Kind.NUMBER and self.whole_numbers and math.floor(self.maximum) < self.minimum:
+            raise ValidationError({"maximum": f"no whole number lies from {self.minimum:g} to {self.maximum:g}"})
 
 
 class Assignment(models.Model):

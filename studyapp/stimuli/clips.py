@@ -29,6 +29,7 @@ from django.db.models import F
 from django.utils import timezone
 
 from generation.render import Camera, render_video
+from studyapp.bounds import check_field
 from studyapp.models import ControlSignal, Stimulus, Study, System
 from studyapp.stimuli.sources import source_of
 
@@ -64,6 +65,8 @@ def _pairs(study: Study) -> list[tuple[System, ControlSignal]]:
 
 def plan_stimuli(study: Study, seed: int = 0) -> tuple[list[Stimulus], int]:
     """The rows of every (system, control) pair, created where missing; (rows, how many were new)."""
+    if problem := check_field(Stimulus, "seed", seed):
+        raise ValueError(problem)
     stimuli, created = [], 0
     with transaction.atomic():
         for system, control in _pairs(study):

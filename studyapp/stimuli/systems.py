@@ -28,6 +28,7 @@ from django.core.files import File
 from django.db import transaction
 
 from generation.files import atomic_output
+from studyapp.bounds import check_field
 from studyapp.models import Stimulus, Study, System, new_token
 
 if TYPE_CHECKING:  # torch-backed modules load only when a checkpoint is handled
@@ -172,8 +173,8 @@ def add_checkpoint_system(study: Study, name: str, upload: File, role: str = Sys
     """A model system (or a BAD one sampled from a weak checkpoint) from an uploaded checkpoint."""
     if role not in (System.Role.MODEL, System.Role.BAD):
         raise UploadRefused(f"a checkpoint makes a model or a BAD system, not {role!r}")
-    if not temperature > 0:
-        raise UploadRefused(f"the sampling temperature must be positive, got {temperature}")
+    if problem := check_field(System, "temperature", temperature):
+        raise UploadRefused(problem)
     check_name(study, name)
     stored = store_checkpoint(upload)
     twin = study.systems.filter(checkpoint_digest=stored.digest, role=role, temperature=temperature).first()

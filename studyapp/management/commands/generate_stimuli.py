@@ -23,7 +23,7 @@ class Command(BaseCommand):
         study = study_by_id(options["study_id"])
         try:
             result = generate_stimuli(study, options["seed"])
-        except BrokerUnavailable as error:
+        except (BrokerUnavailable, ValueError) as error:
             raise InputError(str(error)) from None
         self.stdout.write(f"{result.total} stimuli ({result.created} new), {result.queued} queued")
         if not options["wait"]:
