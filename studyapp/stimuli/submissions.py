@@ -22,8 +22,10 @@ import hashlib
 import io
 import os
 import shutil
+import struct
 import tempfile
 import zipfile
+import zlib
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
@@ -63,11 +65,18 @@ def _max_bytes() -> int:
 
 
 def read_zip(stream) -> dict[str, bytes]:
-    """The motion files of a zip by file name (folders inside it ignored)."""
+    """The motion files of a zip by file name (folders inside it ignored).
+
+    A damaged archive fails in many ways inside zipfile (a CRC that does not match, a
+    member that inflates past its declared size, a cut deflate stream, a compression
+    method it lacks, headers that contradict each other); each is refused naming the
+    member.
+    """
     limit = _max_bytes()
+    damaged = (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError, OSError, ValueError, struct.error)
     try:
         archive = zipfile.ZipFile(stream)
-    except (zipfile.BadZipFile, OSError) as error:
+    except damaged as error:
         raise UploadRefused(f"not a zip file ({error})") from None
     with archive:
         members = [info for info in archive.infolist() if not info.is_dir()]
@@ -80,8 +89,11 @@ def read_zip(stream) -> dict[str, bytes]:
         for info in members:
             if info.flag_bits & 0x1:
                 raise UploadRefused(f"{info.filename}: encrypted zip members are not read")
-            with archive.open(info) as member:
-                data = member.read(info.file_size + 1)  # never past what the directory declares
+            try:
+                with archive.open(info) as member:
+                    data = member.read(info.file_size + 1)  # never past what the directory declares
+            except damaged as error:
+                raise UploadRefused(f"{info.filename}: a damaged zip member ({error})") from None
             if len(data) > info.file_size:
                 raise UploadRefused(f"{info.filename}: unpacks to more than its declared {info.file_size} bytes")
             files[info.filename] = data
