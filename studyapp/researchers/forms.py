@@ -147,6 +147,18 @@ class QuestionForm(forms.ModelForm):
             self.add_error("name", "another question of this study has this name")
 
 
+class QuestionRemovalForm(forms.Form):
+    """The question to remove: one of the study's, by id (any other value is this form's error)."""
+
+    question = forms.ModelChoiceField(queryset=Question.objects.none(),
+                                      error_messages={"invalid_choice": "no question of this study has the id %(value)s",
+                                                      "required": "say which question to remove"})
+
+    def __init__(self, *args, study: Study, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.fields["question"].queryset = study.questions.all()
+
+
 def _megabytes(limit: int) -> str:
     return f"at most {limit / 1e6:.0f} MB"
 

@@ -24,7 +24,7 @@ from studyapp.models import NATURAL_NAME, ControlSignal, Question, Stimulus, Stu
 from studyapp.participants.views import PLATFORM_PARAMETERS
 from studyapp.researchers.editing import EditRefused, edit_system, rename_control
 from studyapp.researchers.forms import (CheckpointSystemForm, ControlEditForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
-                            LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, StudyForm,
+                            LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, QuestionRemovalForm, StudyForm,
                             SubmittedMotionSystemForm, SystemEditForm, VideoSystemForm)
 from studyapp.researchers.monitor import ratings_csv, study_monitor
 from studyapp.researchers.participant_list import participant_rows, participants_csv, question_names
@@ -336,14 +336,18 @@ def study_questions(request: HttpRequest, pk: int) -> HttpResponse:
             messages.error(request, "Participants have started: the questions are fixed.")
             return redirect("study-questions", pk=study.pk)
         if request.POST.get("action") == "remove":
-            question = get_object_or_404(Question, pk=request.POST.get("question"), study=study)
-            question.delete()
-            messages.success(request, f"Removed “{question.text}”.")
-            return redirect("study-questions", pk=study.pk)
-        form = QuestionForm(request.POST, instance=Question(study=study))
-        if form.is_valid():
-            messages.success(request, f"Added “{form.save().text}”.")
-            return redirect("study-questions", pk=study.pk)
+            removal = QuestionRemovalForm(request.POST, study=study)
+            if removal.is_valid():
+                question = removal.cleaned_data["question"]
+                question.delete()
+                messages.success(request, f"Removed “{question.text}”.")
+                return redirect("study-questions", pk=study.pk)
+            messages.error(request, "Nothing removed: " + " ".join(removal.errors["question"]))
+        else:
+            form = QuestionForm(request.POST, instance=Question(study=study))
+            if form.is_valid():
+                messages.success(request, f"Added “{form.save().text}”.")
+                return redirect("study-questions", pk=study.pk)
         status = 400
     context = {"study": study, "form": form, "locked": locked, "questions": study.questions.all()}
     return render(request, "studyapp/researcher/questions.html", context, status=status)

@@ -1,0 +1,53 @@
+"""Ids a form or an address takes: anything but an id of the study's own rows is a 4xx
+with a message, never a 500, and changes nothing."""
+
+from __future__ import annotations
+
+import html
+
+import pytest
+from django.test import Client
+from django.urls import reverse
+
+from studyapp.models import Question, System
+from tests.study_fixtures import make_study
+
+pytestmark = pytest.mark.django_db
+
+HOSTILE_IDS = ["abc", "", "1.5", "-1", "9" * 400, "9" * 5000, "0x10", "1 OR 1=1", "None", "[1]"]
+
+
+@pytest.mark.parametrize("question", HOSTILE_IDS)
+def test_removing_a_question_by_a_hostile_id_is_a_400_and_removes_nothing(question):
+    study = make_study()
+    other = make_study(owner_name="other")
+    kept = [Question.objects.create(study=s, part=Question.Part.AFTER, name="comments", text="Any comments?",
+                                    kind=Question.Kind.TEXT) for s in (study, other)]
+    client = Client()
+    client.force_login(study.owner)
+    url = reverse("study-questions", args=[study.pk])
+
+    response = client.post(url, {"action": "remove", "question": question})
+
+    assert response.status_code == 400
+    assert "Nothing removed: " in html.unescape(response.content.decode())
+    assert Question.objects.count() == 2
+    # Another study's question is no question of this one either.
+    assert client.post(url, {"action": "remove", "question": kept[1].pk}).status_code == 400
+    assert client.post(url, {"action": "remove", "question": kept[0].pk}).status_code == 302
+    assert list(Question.objects.all()) == [kept[1]]
+
+
+@pytest.mark.parametrize("number", ["9" * 400, str(2**63), str(2**31)])
+def test_addresses_with_ids_past_any_integer_are_404(number):
+    study = make_study(controls=1)
+    client = Client()
+    client.force_login(study.owner)
+    moglow = study.systems.get(name="MoGlow")
+    for method, url in [("get", f"/studies/{number}/"), ("get", f"/studies/{study.pk}/systems/{number}/edit/"),
+                        ("post", f"/studies/{study.pk}/systems/{number}/remove/"),
+                        ("post", f"/studies/{study.pk}/stimuli/{number}/retry/"),
+                        ("get", f"/studies/{number}/controls.zip"), ("get", f"/studies/{number}/monitor/")]:
+        assert getattr(client, method)(url).status_code == 404, url
+    assert client.get(f"/studies/{study.pk}/preview/{number}/").status_code in (302, 404)
+    assert System.objects.filter(pk=moglow.pk).exists()
