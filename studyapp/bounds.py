@@ -52,6 +52,24 @@ class Within:
         return isinstance(other, Within) and (self.low, self.high, self.why) == (other.low, other.high, other.why)
 
 
+def _non_finite(value: object) -> str | None:
+    """Where in a JSON value a NaN or an infinity is, or None."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
+    children = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for key, child in children:
+        if (found := _non_finite(child)) is not None:
+            return f"{key}: {found}"
+    return None
+
+
+def storable_json(value: object) -> None:
+    """A validator of JSON fields: no NaN or infinity anywhere, which JSON parsers admit
+    but no database's JSON column stores (SQLite answers with an IntegrityError)."""
+    if (found := _non_finite(value)) is not None:
+        raise ValidationError(f"JSON numbers must be finite, not {found}", code="not_finite")
+
+
 def bound_of(model: type[models.Model], name: str) -> Within | None:
     """The ``Within`` validator of a model's field, if it has one."""
     return next((v for v in model._meta.get_field(name).validators if isinstance(v, Within)), None)
@@ -67,4 +85,4 @@ def check_field(model: type[models.Model], name: str, value: object) -> str | No
     return None
 
 
-__all__ = ["Within", "bound_of", "check_field"]
+__all__ = ["Within", "bound_of", "check_field", "storable_json"]

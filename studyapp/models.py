@@ -18,9 +18,34 @@ from django.db import models
 
 from analysis.exclusions import scaled_threshold
 from generation.render.camera import Camera
-from studyapp.bounds import Within
+from generation.control import Control, control_from_dict
+from generation.motion.dataset import DatasetOptions
+from studyapp.bounds import Within, storable_json
 
 NATURAL_NAME, ATTENTION_NAME = "NAT", "BAD"  # the names the analysis expects for these roles
+
+
+class StoredDataError(ValueError):
+    """A row holds data the study's code cannot read (an admin edit, an older version, a
+    hand-made row); the message names the row and the field, for the researcher to fix or
+    remove it in the admin (``admin_url``)."""
+
+    def __init__(self, row: models.Model, field: str, problem: str) -> None:
+        self.row, self.field = row, field
+        super().__init__(f"{row._meta.verbose_name} {str(row)!r} (id {row.pk}): its {field} {problem}")
+
+    @property
+    def admin_url(self) -> str:
+        meta = self.row._meta
+        return f"/admin/{meta.app_label}/{meta.model_name}/{self.row.pk}/change/"
+
+
+def json_object(row: models.Model, field: str) -> dict:
+    """A JSON field of ``row`` that must hold an object (StoredDataError if it does not)."""
+    value = getattr(row, field)
+    if not isinstance(value, dict):
+        raise StoredDataError(row, field, f"is {type(value).__name__}, not a JSON object")
+    return value
 
 
 def new_token() -> str:
@@ -170,7 +195,7 @@ class Study(models.Model):
     platform = models.CharField(max_length=10, choices=Platform.choices, default=Platform.LINK)
     completion_code = models.CharField(max_length=100, blank=True)
     redirect_url = models.URLField(blank=True, help_text="where finished participants are sent (Prolific: its completion URL)")
-    camera = models.JSONField(default=default_camera)
+    camera = models.JSONField(default=default_camera, validators=[storable_json])
     video_width = models.PositiveSmallIntegerField(default=640, validators=[VIDEO_SIDE])
     video_height = models.PositiveSmallIntegerField(default=480, validators=[VIDEO_SIDE])
     is_open = models.BooleanField(default=False, help_text="accepting participants")
@@ -267,7 +292,7 @@ class System(models.Model):
     checkpoint = models.CharField(max_length=200, blank=True)
     checkpoint_digest = models.CharField(max_length=64, blank=True)
     kind = models.CharField(max_length=30, blank=True)
-    metadata = models.JSONField(default=dict, blank=True)
+    metadata = models.JSONField(default=dict, blank=True, validators=[storable_json])
     temperature = models.FloatField(default=1.0, validators=[TEMPERATURE])
     created = models.DateTimeField(auto_now_add=True)
 
@@ -291,6 +316,47 @@ class System(models.Model):
     def checkpoint_path(self) -> Path | None:
         return Path(settings.CHECKPOINT_ROOT) / self.checkpoint if self.checkpoint else None
 
+    # What a checkpoint system's metadata tells the study (``systems.checkpoint_metadata``
+    # writes it); each reader raises StoredDataError naming the system if it cannot.
+
+    def dataset_options(self) -> DatasetOptions:
+        """The options of the data the checkpoint was trained on."""
+        data = json_object(self, "metadata").get("dataset_options")
+        try:
+            return DatasetOptions.from_dict(data)
+        except (KeyError, TypeError, ValueError, AttributeError) as error:
+            raise StoredDataError(self, "metadata", f"holds no readable dataset_options ({error!r})") from None
+
+    def control_type(self) -> str:
+        """"path" or "attributes": what the checkpoint's controls are."""
+        kind = json_object(self, "metadata").get("control", "path")
+        if kind not in ("path", "attributes"):
+            raise StoredDataError(self, "metadata", f"names the control {kind!r}, neither 'path' nor 'attributes'")
+        return kind
+
+    def labels(self) -> dict[str, list[str]] | None:
+        """The actions and styles a label-controlled checkpoint knows (None for a path-controlled one)."""
+        labels = json_object(self, "metadata").get("labels")
+        if not labels:
+            return None
+        if not (isinstance(labels, dict) and all(isinstance(labels.get(part), list) and
+                                                 all(isinstance(name, str) for name in labels[part])
+                                                 for part in ("actions", "styles"))):
+            raise StoredDataError(self, "metadata", "holds labels that are not lists of actions and styles")
+        return labels
+
+    def clean(self) -> None:
+        if self.source_kind not in self.SourceKind.values:
+            raise ValidationError({"kind": f"a system without a checkpoint has its motion from "
+                                           f"{', '.join(k for k in self.SourceKind.values if k != self.SourceKind.CHECKPOINT)}, "
+                                           f"not {self.kind!r}"})
+        try:
+            json_object(self, "metadata")
+            if self.checkpoint:
+                self.dataset_options(), self.control_type(), self.labels()
+        except StoredDataError as error:
+            raise ValidationError({"metadata": str(error)}) from None
+
 
 class ControlSignal(models.Model):
     """A control signal every model system is sampled with: held out from real clips, or synthetic."""
@@ -302,7 +368,7 @@ class ControlSignal(models.Model):
     study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="controls")
     name = models.CharField(max_length=100)
     origin = models.CharField(max_length=10, choices=Origin.choices)
-    control = models.JSONField(help_text="generation.control's to_dict() form")
+    control = models.JSONField(help_text="generation.control's to_dict() form", validators=[storable_json])
     # For held-out control: the natural clip it came from, which NAT stimuli show.
     source_clip = models.CharField(max_length=200, blank=True)
     seconds = models.FloatField()
@@ -314,10 +380,34 @@ class ControlSignal(models.Model):
     def __str__(self) -> str:
         return f"{self.name} ({self.origin})"
 
+    def signal(self) -> Control:
+        """The stored control as ``generation.control`` reads it (StoredDataError if it is none)."""
+        try:
+            return control_from_dict(json_object(self, "control"))
+        except StoredDataError:
+            raise
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as error:
+            detail = f"lacks {error}" if isinstance(error, KeyError) else str(error)
+            raise StoredDataError(self, "control", f"is no control description ({detail})") from None
+
     @property
     def lead_in_seconds(self) -> float:
         """How far into its take a held-out control starts: the length of its lead-in (0 without one)."""
-        return len(self.control["lead_in"]) / self.control["fps"] if "lead_in" in self.control else 0.0
+        signal = self.signal()
+        return len(signal.lead_in) / signal.fps if getattr(signal, "lead_in", None) is not None else 0.0
+
+    @property
+    def problem(self) -> str:
+        """Why the stored control cannot be read ("" when it can), for the pages that list controls."""
+        try:
+            self.signal()
+        except StoredDataError as error:
+            return str(error)
+        return ""
+
+    def clean(self) -> None:
+        if problem := self.problem:
+            raise ValidationError({"control": problem})
 
 
 class Stimulus(models.Model):
@@ -376,14 +466,15 @@ class Participant(models.Model):
 
     study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="participants")
     platform_id = models.CharField(max_length=100)
-    platform_data = models.JSONField(default=dict, blank=True)
+    platform_data = models.JSONField(default=dict, blank=True, validators=[storable_json])
     # Anonymous id written to the ratings table instead of the platform id.
     code = models.CharField(max_length=32, unique=True, default=new_token, editable=False)
     started_at = models.DateTimeField(auto_now_add=True)
     last_seen = models.DateTimeField(auto_now_add=True)
     consented_at = models.DateTimeField(null=True, blank=True)
     instructed_at = models.DateTimeField(null=True, blank=True)
-    training = models.JSONField(default=list, blank=True, help_text="ids of the practice stimuli, in order")
+    training = models.JSONField(default=list, blank=True, help_text="ids of the practice stimuli, in order",
+                                validators=[storable_json])
     training_done = models.PositiveSmallIntegerField(default=0)
     finished_at = models.DateTimeField(null=True, blank=True)
     failed_checks = models.PositiveSmallIntegerField(default=0, help_text="instructed checks answered otherwise than asked")
@@ -393,7 +484,8 @@ class Participant(models.Model):
     screened_at = models.DateTimeField(null=True, blank=True, help_text="passed the questions before the ratings")
     screened_out_at = models.DateTimeField(null=True, blank=True, help_text="a screening answer did not match")
     surveyed_at = models.DateTimeField(null=True, blank=True, help_text="answered the questions after the ratings")
-    answers = models.JSONField(default=dict, blank=True, help_text="questionnaire answers by question name")
+    answers = models.JSONField(default=dict, blank=True, help_text="questionnaire answers by question name",
+                               validators=[storable_json])
     excluded = models.BooleanField(default=False)
     exclusion_reason = models.CharField(max_length=100, blank=True)
     # Answers refused for coming sooner than the clip lasts (require_full_play): they are
@@ -407,6 +499,13 @@ class Participant(models.Model):
 
     def __str__(self) -> str:
         return f"{self.platform_id} in {self.study}"
+
+    def clean(self) -> None:
+        for field in ("answers", "platform_data"):
+            if not isinstance(getattr(self, field), dict):
+                raise ValidationError({field: "must be a JSON object"})
+        if not (isinstance(self.training, list) and all(type(pk) is int for pk in self.training)):
+            raise ValidationError({"training": "must be a JSON list of stimulus ids"})
 
 
 ANSWER_BOUND = Within(-1e9, 1e9, "a number a participant types")

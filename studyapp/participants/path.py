@@ -33,7 +33,7 @@ from django.utils import timezone
 from studyapp.designs.instructed_checks import instruction
 from studyapp.designs.page_steps import client_times, page_context, rate_pairwise, rate_side_by_side
 from studyapp.designs.ratings import RatingRejected, record_rating
-from studyapp.models import Assignment, Participant, Question, Stimulus, Study
+from studyapp.models import Assignment, Participant, Question, Stimulus, Study, json_object
 from studyapp.participants.assignment import is_idle, renew_reservations
 from studyapp.participants.questionnaires import field_name, questions, read_answers, screened_out
 
@@ -128,7 +128,7 @@ def _screening(request: HttpRequest, study: Study, participant: Participant) -> 
     asked = questions(study, Question.Part.BEFORE)
     answers = read_answers(asked, request.POST)
     now = timezone.now()
-    participant.answers = {**participant.answers, **answers}
+    participant.answers = {**json_object(participant, "answers"), **answers}
     participant.screened_at = now
     fields = ["answers", "screened_at"]
     if screened_out(asked, answers):
@@ -141,7 +141,8 @@ def _screening(request: HttpRequest, study: Study, participant: Participant) -> 
 
 def _survey(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
     """Answers after the ratings."""
-    participant.answers = {**participant.answers, **read_answers(questions(study, Question.Part.AFTER), request.POST)}
+    participant.answers = {**json_object(participant, "answers"),
+                           **read_answers(questions(study, Question.Part.AFTER), request.POST)}
     participant.surveyed_at = timezone.now()
     participant.save(update_fields=["answers", "surveyed_at"])
     return _next_page(study)
@@ -239,8 +240,9 @@ def completion_page(study: Study, participant: Participant) -> dict:
     mturk_submit = None
     if study.platform == Study.Platform.PROLIFIC and code and not target:
         target = f"{PROLIFIC_COMPLETION_URL}?{urlencode({'cc': code})}"
-    if study.platform == Study.Platform.MTURK and (url := mturk_submit_url(participant.platform_data)):
-        mturk_submit = {"url": url, "assignment_id": participant.platform_data.get("assignmentId", "")}
+    platform_data = json_object(participant, "platform_data") if study.platform == Study.Platform.MTURK else {}
+    if url := mturk_submit_url(platform_data):
+        mturk_submit = {"url": url, "assignment_id": platform_data.get("assignmentId", "")}
     return {"code": code, "redirect_url": target, "mturk_submit": mturk_submit}
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 from django.db import transaction
 
 from studyapp.bounds import check_field
-from studyapp.models import ControlSignal, Stimulus, System
+from studyapp.models import ControlSignal, Stimulus, System, json_object
 from studyapp.researchers.removal import delete_files, require_not_started
 from studyapp.stimuli.clips import content_key
 
@@ -64,7 +64,7 @@ def rename_control(control: ControlSignal, name: str) -> None:
     """
     _check_name(control, name)
     submitted = [s.name for s in control.study.systems.filter(kind=System.SourceKind.SUBMITTED)
-                 if control.name in s.metadata.get("controls", [])]
+                 if control.name in (json_object(s, "metadata").get("controls") or [])]
     if submitted:
         raise EditRefused("name", f"{', '.join(submitted)} submitted motion named after {control.name}: "
                                   "remove that system first, or keep the name")

@@ -71,7 +71,8 @@ class StudyForm(forms.ModelForm):
         for name in stored & set(self.fields):  # the browser holds to the bounds of Study's validators too
             if bound := bound_of(Study, name):
                 self.fields[name].widget.attrs.update(min=f"{bound.low:g}", max=f"{bound.high:g}")
-        camera = {**Camera().to_dict(), **(self.instance.camera or {})}
+        stored = self.instance.camera if isinstance(self.instance.camera, dict) else {}  # saving replaces a broken one
+        camera = {**Camera().to_dict(), **stored}
         for spec in dataclasses.fields(Camera):
             field = self.fields[CAMERA_PREFIX + spec.name] = _camera_field(spec)
             field.initial = camera.get(spec.name)

@@ -18,7 +18,7 @@ from datetime import datetime
 from django.db.models import Count, Q
 from django.utils import timezone
 
-from studyapp.models import Study
+from studyapp.models import Study, json_object
 from studyapp.participants.assignment import is_idle
 from studyapp.participants.views import SESSION_PARAMETERS
 
@@ -60,11 +60,13 @@ def participant_rows(study: Study) -> list[ParticipantRow]:
             status = "idle" if is_idle(participant, now) else "in progress"
         action = "reject" if participant.excluded else "approve" if finished else ""
         rows.append(ParticipantRow(
-            platform_id=participant.platform_id, session=participant.platform_data.get(session, "") if session else "",
+            platform_id=participant.platform_id,
+            session=json_object(participant, "platform_data").get(session, "") if session else "",
             status=status, started=participant.started_at, finished=finished,
             minutes_taken=round((finished - participant.started_at).total_seconds() / 60, 1) if finished else None,
             ratings=participant.rating_count, early_answers=participant.refused_early + participant.flagged,
-            exclusion_reason=participant.exclusion_reason, suggested_action=action, answers=participant.answers))
+            exclusion_reason=participant.exclusion_reason, suggested_action=action,
+            answers=json_object(participant, "answers")))
     return rows
 
 

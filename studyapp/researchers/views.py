@@ -287,10 +287,12 @@ def entry_link(request: HttpRequest, study: Study) -> str:
 @require_safe
 def study_monitor_page(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
-    context = {
-        "study": study, "monitor": study_monitor(study), "entry_link": entry_link(request, study),
-        "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study),
-    }
+    context = {"study": study, "entry_link": entry_link(request, study),
+               "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study)}
+    try:
+        context["monitor"] = study_monitor(study)
+    except AnalysisInputError as error:  # rows changed outside the study pages (a rating without its value)
+        context["unreadable"] = str(error)
     return render(request, "studyapp/researcher/monitor.html", context)
 
 

@@ -61,6 +61,7 @@ MIDDLEWARE = [
     "django.contrib.auth.middleware.AuthenticationMiddleware",
     "django.contrib.messages.middleware.MessageMiddleware",
     "django.middleware.clickjacking.XFrameOptionsMiddleware",
+    "studyapp.server.broken_rows.BrokenRowMiddleware",  # a row the code cannot read: 409 naming it, not 500
 ]
 
 ROOT_URLCONF = "studyapp.urls"

@@ -44,19 +44,19 @@ def training_options(study: Study) -> DatasetOptions:
     systems = list(study.systems.exclude(checkpoint=""))
     if not systems:
         raise ControlError("register a model checkpoint first: controls follow the data and frame rate it was trained on")
-    variants: dict[str, list[str]] = {}
+    variants: dict[DatasetOptions, list[str]] = {}
     for system in systems:
-        variants.setdefault(json.dumps(system.metadata["dataset_options"], sort_keys=True), []).append(system.name)
+        variants.setdefault(system.dataset_options(), []).append(system.name)
     if len(variants) > 1:
         groups = "; ".join(", ".join(names) for names in variants.values())
         raise ControlError(f"the study's checkpoints were trained on differently prepared data ({groups}); "
                            "one study needs one dataset")
-    return DatasetOptions.from_dict(systems[0].metadata["dataset_options"])
+    return next(iter(variants))
 
 
 def control_kind(study: Study) -> str:
     """"path" or "attributes": what the study's checkpoints are controlled by."""
-    kinds = {s.metadata.get("control", "path") for s in study.systems.exclude(checkpoint="")}
+    kinds = {s.control_type() for s in study.systems.exclude(checkpoint="")}
     if len(kinds) > 1:  # training_options refuses such a study too; say it in these words
         raise ControlError("the study mixes path-controlled and label-controlled models; one study needs one kind")
     return kinds.pop() if kinds else "path"
@@ -64,13 +64,12 @@ def control_kind(study: Study) -> str:
 
 def study_labels(study: Study) -> tuple[list[str], list[str]]:
     """The actions and styles every label-controlled system of the study knows."""
-    systems = [s for s in study.systems.exclude(checkpoint="") if s.metadata.get("labels")]
-    if not systems:
+    labels = [found for s in study.systems.exclude(checkpoint="") if (found := s.labels())]
+    if not labels:
         return [], []
-    known = [systems[0].metadata["labels"][kind] for kind in ("actions", "styles")]
-    for system in systems[1:]:
-        known = [[name for name in names if name in system.metadata["labels"][kind]]
-                 for names, kind in zip(known, ("actions", "styles"))]
+    known = [labels[0][kind] for kind in ("actions", "styles")]
+    for other in labels[1:]:
+        known = [[name for name in names if name in other[kind]] for names, kind in zip(known, ("actions", "styles"))]
     return known[0], known[1]
 
 

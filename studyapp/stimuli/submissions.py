@@ -34,7 +34,7 @@ import numpy as np
 from django.conf import settings
 from django.core.files import File
 
-from generation.control import PathControl, control_from_dict
+from generation.control import PathControl
 from generation.motion.bvh import BVHError, load_motion
 from generation.motion.kinematics import subtree_motion
 from generation.motion.npz import load_motion_npz, save_motion_npz
@@ -138,7 +138,7 @@ class Accepted:
 
 def _check_one(name: str, motion: Motion, control: ControlSignal, root_options) -> tuple[Motion | None, list[str]]:
     """The motion as the study will render it (body, control's fps and frames), or the problems."""
-    signal = control_from_dict(control.control)
+    signal = control.signal()
     problems = []
     if motion.fps + 1e-6 < signal.fps:
         return None, [f"{name}: {motion.fps:g} fps is below the control's {signal.fps:g} fps; "
