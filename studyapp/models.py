@@ -32,7 +32,8 @@ class StoredDataError(ValueError):
 
     def __init__(self, row: models.Model, field: str, problem: str) -> None:
         self.row, self.field = row, field
-        super().__init__(f"{row._meta.verbose_name} {str(row)!r} (id {row.pk}): its {field} {problem}")
+        super().__init__(f"{row._meta.verbose_name} {getattr(row, 'name', None) or str(row)!r} (id {row.pk}): "
+                         f"its {field} {problem}")
 
     @property
     def admin_url(self) -> str:

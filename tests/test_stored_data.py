@@ -162,7 +162,7 @@ def test_the_controls_download_of_a_control_of_only_its_type_names_the_control(c
 
     assert response.redirect_chain[-1][0] == reverse("study-controls", args=[study.pk])
     page = html.unescape(response.content.decode())
-    assert (f"No download: control signal 'walk-0 (synthetic)' (id {broken.pk}): its control is no control "
+    assert (f"No download: control signal 'walk-0' (id {broken.pk}): its control is no control "
             "description (lacks 'velocities')") in page
     assert "its control is no control description" in page.split("<table", 1)[1]  # and in the control's row
 
@@ -180,7 +180,7 @@ def test_editing_a_control_of_a_study_whose_system_has_no_source_is_a_409_naming
 
     assert response.status_code == 409
     page = html.unescape(response.content.decode())
-    assert f"system 'MoGlow (model)' (id {system.pk}): its kind '' names no source of motion" in page
+    assert f"system 'MoGlow' (id {system.pk}): its kind '' names no source of motion" in page
     assert f"/admin/studyapp/system/{system.pk}/change/" in page
     assert ControlSignal.objects.get(pk=control.pk).name == control.name  # the rename rolled back
 
