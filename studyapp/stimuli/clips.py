@@ -29,6 +29,7 @@ from django.db.models import F
 from django.utils import timezone
 
 from generation.render import Camera, render_video
+from generation.render.video_check import VideoError, check_rendered_video
 from studyapp.bounds import check_field
 from studyapp.models import ControlSignal, Stimulus, Study, System
 from studyapp.stimuli.sources import source_of
@@ -125,15 +126,21 @@ def remove_partial_files(stimulus: Stimulus) -> int:
 
 
 def render_stimulus(stimulus: Stimulus) -> float:
-    """Write the stimulus's video atomically; its duration in seconds."""
+    """Write the stimulus's video atomically and check it whole against its clip (every
+    frame decodes, as many frames lasting as long as the motion); its duration in seconds.
+    A video that fails the check is removed, so no finished row points at it."""
     remove_partial_files(stimulus)
     if stimulus.control is None:
         raise ValueError("an uploaded video has nothing to generate")
     clip = source_of(stimulus.system).clip(stimulus)
     study = stimulus.study
-    render_video(clip.motion, stimulus.video_path(), camera=Camera.from_dict(study.camera),
-                 size=(study.video_width, study.video_height), root_path=clip.floor)
-    return clip.motion.n_frames / clip.motion.fps
+    path = render_video(clip.motion, stimulus.video_path(), camera=Camera.from_dict(study.camera),
+                        size=(study.video_width, study.video_height), root_path=clip.floor)
+    try:
+        return check_rendered_video(path, clip.motion).seconds
+    except VideoError:
+        path.unlink(missing_ok=True)
+        raise
 
 
 def claim(stimulus_id: int, task_id: str) -> Stimulus | None:

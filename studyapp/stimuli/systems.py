@@ -2,8 +2,8 @@
 
 Uploads are never trusted: a checkpoint must be a safetensors file of this project that
 loads completely (digest, kind, every tensor's name and shape) and can drive the
-Generator; a video must be an MP4 whose first frame decodes. Nothing is unpickled or
-executed, and a refused upload leaves nothing on disk. Accepted checkpoints are stored
+Generator; a video must be an MP4 whose every frame decodes, as long as it says it lasts
+(a file cut short still decodes its first frames). Nothing is unpickled or executed, and a refused upload leaves nothing on disk. Accepted checkpoints are stored
 under ``CHECKPOINT_ROOT`` named by their SHA-256, so the same file uploaded twice is
 stored once; accepted videos become finished stimuli under ``MEDIA_ROOT/stimuli/``.
 """
@@ -28,6 +28,7 @@ from django.core.files import File
 from django.db import transaction
 
 from generation.files import atomic_output
+from generation.render.video_check import VideoError, read_stream
 from studyapp.bounds import check_field
 from studyapp.models import Stimulus, Study, System, new_token
 
@@ -195,23 +196,20 @@ def add_natural_system(study: Study, name: str = "NAT") -> System:
 
 
 def video_duration(path: Path) -> float:
-    """Seconds of an MP4 whose first frame decodes; UploadRefused naming the problem if not."""
+    """Seconds of an MP4 whose every frame decodes, to the end its container declares
+    (``video_check.read_stream``: a file cut short still decodes its first frames);
+    UploadRefused naming the problem if not."""
     with path.open("rb") as stream:
         head = stream.read(12)
     if head[4:8] != b"ftyp":
         raise UploadRefused("not an MP4 file (it has no ftyp box)")
-    frames = imageio_ffmpeg.read_frames(str(path))
     try:
-        meta = next(frames)
-        next(frames)
-    except (RuntimeError, OSError, StopIteration) as error:
-        raise UploadRefused(f"its video does not decode ({str(error).strip().splitlines()[-1] if str(error) else 'no frames'})") from None
-    finally:
-        frames.close()
-    duration = float(meta.get("duration") or 0.0)
-    if not duration > 0:
+        decoded = read_stream(path)
+    except VideoError as error:
+        raise UploadRefused(f"its video does not decode to its end: {str(error).removeprefix(f'{path}: ')}") from None
+    if decoded.declared_seconds is None:
         raise UploadRefused("the video does not say how long it lasts")
-    return duration
+    return decoded.seconds
 
 
 def strip_metadata(source: Path, target: Path) -> None:
