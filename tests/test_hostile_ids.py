@@ -51,3 +51,36 @@ def test_addresses_with_ids_past_any_integer_are_404(number):
         assert getattr(client, method)(url).status_code == 404, url
     assert client.get(f"/studies/{study.pk}/preview/{number}/").status_code in (302, 404)
     assert System.objects.filter(pk=moglow.pk).exists()
+
+
+@pytest.mark.parametrize("slot", ["²", "٣", "1" * 5, "-1"])
+def test_a_side_by_side_field_whose_slot_is_no_few_ascii_digits_is_ignored_as_any_unknown_field(slot):
+    """"value-²" passed the slot check (isdigit) and failed int(): a 500. Like any field the
+    form does not have, it is now ignored, and the page's answer is stored on its own slots."""
+    from tests.test_study_designs import SIDE_BY_SIDE, page_html, page_token, through_practice, watched
+    from tests.test_study_participant import make_shown_long_ago, post
+
+    study = make_study(**SIDE_BY_SIDE)
+    client = Client()
+    participant = through_practice(client, study)
+    token = page_token(page_html(client, study))
+    make_shown_long_ago(participant)
+    slots = sorted(participant.assignments.filter(page=0).values_list("slot", flat=True))
+
+    response = post(client, study, "rate-page", page=token, **{f"value-{s}": 50 for s in slots},
+                    **{f"value-{slot}": 70}, **watched(slots))
+
+    assert response.status_code == 302
+    rated = participant.assignments.filter(rating__isnull=False).order_by("slot")
+    assert [(a.slot, a.rating.value) for a in rated] == [(s, 50) for s in slots]
+
+
+def test_a_form_field_name_past_djangos_multipart_limit_is_a_400_not_a_500():
+    study = make_study()
+    client = Client()
+    client.force_login(study.owner)
+    for url in (reverse("study-questions", args=[study.pk]), f"/p/{study.key}/consent/"):
+        response = client.post(url, {"x" * 10_000: "1"})  # multipart: the name goes in the part's headers
+        assert response.status_code == 400, url
+        assert "Bad request" in response.content.decode()
+    assert not Question.objects.exists()

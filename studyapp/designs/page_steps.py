@@ -8,6 +8,8 @@ by its slot, so nothing on it says which system made which clip.
 
 from __future__ import annotations
 
+import re
+
 from django.db.models import Count, Q
 from django.http import HttpRequest, HttpResponse
 from django.shortcuts import redirect
@@ -19,6 +21,7 @@ from studyapp.designs.ratings import ClientTimes, RatingRejected
 from studyapp.models import Assignment, Participant, Stimulus, Study, System
 
 TIME_FIELDS = ("started_s", "ended_s", "answered_s", "played_until_s")
+SLOT_FIELD = re.compile(r"value-[0-9]{1,4}")
 
 
 def optional_seconds(request: HttpRequest, name: str) -> float | None:
@@ -81,8 +84,8 @@ def _reference(study: Study, page: list[Assignment]) -> dict | None:
 
 def rate_side_by_side(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
     """Store the sliders of the page on screen."""
-    slots = sorted({int(name.removeprefix("value-")) for name in request.POST
-                    if name.startswith("value-") and name.removeprefix("value-").isdigit()})
+    # A slot is a few ASCII digits: "²" passes isdigit() but not int(), and 5000 digits pass neither limit.
+    slots = sorted({int(name.removeprefix("value-")) for name in request.POST if SLOT_FIELD.fullmatch(name)})
     values = {}
     for slot in slots:
         value = _whole_number(request, f"value-{slot}", f"the rating of clip {clip_label(slot)}")
