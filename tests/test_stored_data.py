@@ -195,6 +195,9 @@ def test_the_admin_refuses_to_store_the_rows_the_pages_cannot_read(client):
         f"/admin/studyapp/controlsignal/{control.pk}/change/": (
             {"study": study.pk, "name": control.name, "origin": "synthetic", "control": '{"type": "path"}',
              "seconds": 4}, "its control is no control description (lacks &#x27;velocities&#x27;)"),
+        f"/admin/studyapp/controlsignal/{control.pk}/change/?deep": (
+            {"study": study.pk, "name": control.name, "origin": "synthetic", "control": "[" * 100_000 + "]" * 100_000,
+             "seconds": 4}, "nested too deeply to read"),
         f"/admin/studyapp/system/{system.pk}/change/": (
             {"study": study.pk, "name": "MoGlow", "role": "model", "kind": "moglow", "metadata": '["moglow"]',
              "temperature": 1}, "its metadata is list, not a JSON object"),
