@@ -88,6 +88,8 @@ def safetensors_header_problem(path: Path) -> str | None:
         parsed = json.loads(header)
     except (UnicodeDecodeError, json.JSONDecodeError):
         return "not a safetensors file (its header is not JSON)"
+    except RecursionError:  # thousands of nested brackets exhaust the parser's stack
+        return "not a safetensors file (its header is nested too deeply)"
     return None if isinstance(parsed, dict) else "not a safetensors file (its header is not a JSON object)"
 
 
