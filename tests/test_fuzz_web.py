@@ -1,5 +1,6 @@
-"""Random, oversized, non-finite and wrongly-typed values posted to every participant step
-and every researcher form: whatever comes in, no answer is a server error, and a refused
+"""Random, oversized, non-finite and wrongly-typed values sent to every participant step
+(the entry link's query included) and every researcher form (the admin's study and
+control forms included): whatever comes in, no answer is a server error, and a refused
 request (4xx) changes no row.
 
 Each drawn form starts from a valid one, so that a hostile value gets past the fields
@@ -186,6 +187,32 @@ def test_hostile_values_on_a_participant_step_never_answer_500_and_a_refusal_cha
     form = data.draw(hostile_form(on.valid))
     form = {name: on.tokens.get(value, value) if isinstance(value, str) else value for name, value in form.items()}
     post_in_a_rolled_back_transaction(on.client, on.url, form)
+
+
+ENTRY_LINKS = {Study.Platform.PROLIFIC: {"PROLIFIC_PID": "p-1", "STUDY_ID": "s", "SESSION_ID": "x"},
+               Study.Platform.MTURK: {"workerId": "w-1", "assignmentId": "a", "hitId": "h",
+                                      "turkSubmitTo": "https://workersandbox.mturk.com"},
+               Study.Platform.LINK: {"pid": "p-1"}}
+
+
+@pytest.fixture
+def open_study(platform: str) -> Study:
+    return make_study(platform=platform)
+
+
+@pytest.mark.parametrize("platform", ENTRY_LINKS)
+@FUZZ
+@given(data=st.data())
+def test_hostile_entry_links_never_answer_500_and_a_refusal_enrols_nobody(platform, open_study, data):
+    query = data.draw(hostile_form(ENTRY_LINKS[platform]))
+    with transaction.atomic():
+        before = rows()
+        response = Client(raise_request_exception=False).get(reverse("participant-enter", args=[open_study.key]),
+                                                              query)
+        assert response.status_code < 500, (query, response.status_code)
+        if response.status_code >= 400:
+            assert rows() == before
+        transaction.set_rollback(True)
 
 
 # --- researchers -----------------------------------------------------------------------
