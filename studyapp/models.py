@@ -17,9 +17,9 @@ from django.core.exceptions import ValidationError
 from django.db import models
 
 from analysis.exclusions import scaled_threshold
-from generation.render.camera import Camera
 from generation.control import Control, control_from_dict
 from generation.motion.dataset import DatasetOptions
+from generation.render.camera import Camera
 from studyapp.bounds import Within, storable_json
 
 NATURAL_NAME, ATTENTION_NAME = "NAT", "BAD"  # the names the analysis expects for these roles
@@ -348,13 +348,15 @@ class System(models.Model):
 
     def clean(self) -> None:
         if self.source_kind not in self.SourceKind.values:
-            raise ValidationError({"kind": f"a system without a checkpoint has its motion from "
-                                           f"{', '.join(k for k in self.SourceKind.values if k != self.SourceKind.CHECKPOINT)}, "
+            kinds = [kind for kind in self.SourceKind.values if kind != self.SourceKind.CHECKPOINT]
+            raise ValidationError({"kind": f"a system without a checkpoint has its motion from {', '.join(kinds)}, "
                                            f"not {self.kind!r}"})
         try:
             json_object(self, "metadata")
-            if self.checkpoint:
-                self.dataset_options(), self.control_type(), self.labels()
+            if self.checkpoint:  # every reader of a checkpoint's metadata can read it
+                self.dataset_options()
+                self.control_type()
+                self.labels()
         except StoredDataError as error:
             raise ValidationError({"metadata": str(error)}) from None
 
