@@ -178,3 +178,25 @@ def test_continuous_euler_angles_pass_through_gimbal_lock_and_whole_turns_withou
     assert np.abs(np.diff(canonical, axis=0)).max() > np.pi  # the usual conversion jumps
     assert np.abs(np.diff(continuous, axis=0)).max() < 0.1
     np.testing.assert_allclose(euler_to_matrix(continuous, "ZXY"), matrices, atol=1e-12)
+
+
+def test_a_bone_that_swings_round_to_near_its_opposite_turns_its_joint_no_faster_than_itself():
+    # An arm (one bone, from a fixed shoulder) held mostly along +x that swings over the top
+    # to circle 5 degrees off -x: a swing from its usual direction would spin it about itself.
+    skeleton = Skeleton(names=("shoulder", "elbow", "hand"), parents=np.array([-1, 0, 1]),
+                        offsets=np.array([[0, 100, 0], [0, 10, 0], [10, 0, 0]], dtype=float))
+    over = np.linspace(0, np.radians(175), 30)
+    around = np.linspace(0, 2 * np.pi, 40)
+    directions = np.concatenate([
+        np.tile([1.0, 0.0, 0.0], (130, 1)),
+        np.stack([np.cos(over), np.sin(over), 0 * over], axis=-1),
+        np.stack([-np.cos(np.radians(5)) + 0 * around, np.sin(np.radians(5)) * np.cos(around),
+                  np.sin(np.radians(5)) * np.sin(around)], axis=-1),
+    ])
+    positions = np.zeros((len(directions), 3, 3))
+    positions[:, 0] = [0, 100, 0]
+    positions[:, 1] = [0, 110, 0]
+    positions[:, 2] = positions[:, 1] + 10 * directions
+    rotations, _ = solve_rotations(positions, skeleton)
+    bone_step = np.degrees(np.arccos(np.clip(np.sum(directions[1:] * directions[:-1], -1), -1, 1)))
+    assert np.all(angle_between(rotations[1:, 1], rotations[:-1, 1]) <= 2 * bone_step + 1e-3)

@@ -36,15 +36,18 @@ the solver:
   direction. k then bends relative to j without twisting, and the torso's twist
   between hips and chest goes to the segment above the hips.
 
-  Elsewhere (limbs that end in a hand or a foot) the reference is the bone's mean
-  direction over the clip in the parent's axes, m: ``R_j = swing(m -> d) Q``, where the
-  fixed Q takes r onto m: ``swing(r -> m)`` where the two are less than a right angle
-  apart, else a half turn about a normal of r that the rig fixes, then
-  ``swing(-r -> m)``, so that Q does not hang on small differences between clips where
-  the rest direction is near opposite the usual one (the Bandai-Namco rigs' legs point
-  up at rest). A swing is singular only where d is opposite its start; starting from
-  the mean keeps it far from that, and the twist is a smooth function of the bone's
-  direction, free of the drift that chaining swings from frame to frame accumulates.
+  Elsewhere (limbs that end in a hand or a foot) the reference is a direction m of the
+  bone in the parent's axes: ``R_j = swing(m -> d) Q``, where the fixed Q takes r onto
+  m: ``swing(r -> m)`` where the two are less than a right angle apart, else a half
+  turn about a normal of r that the rig fixes, then ``swing(-r -> m)``, so that Q does
+  not hang on small differences between clips where the rest direction is near
+  opposite the usual one (the Bandai-Namco rigs' legs point up at rest). A swing is
+  singular where d is opposite its start, and spins the joint about the bone near
+  there, so m is the bone's mean direction over the clip, unless the bone comes within
+  30 degrees of its opposite; then the one of r and the parent's six axis directions
+  that the bone strays least far from. The twist is thus a smooth function of the
+  bone's direction, free of the drift that chaining swings from frame to frame
+  accumulates.
 
   ``swing(a -> b)`` is the quaternion ``(1 + a.b, a x b)`` normalised: it turns a onto
   b about their common normal by the angle between them.
@@ -81,6 +84,10 @@ ZERO_LENGTH = 1e-6
 # Bones whose rest directions are within about a degree of parallel (the second singular
 # value of their unit directions below this) fix no twist between them: one bone.
 PARALLEL = 1e-2
+# A swing is undefined where the bone points opposite its start, and turns the joint fast
+# about the bone near there: a start the bone comes this near the opposite of (cosine of
+# 150 degrees) is replaced.
+NEAR_OPPOSITE = np.cos(np.radians(150))
 
 
 def solve_rotations(positions: np.ndarray, skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
@@ -179,17 +186,26 @@ def _wahba(rest: np.ndarray, observed: np.ndarray) -> np.ndarray:
 
 
 def _swing_from_mean(rest: np.ndarray, observed: np.ndarray) -> np.ndarray:
-    """R = swing(m -> d) Q, m the mean observed direction (r where the bone's
-    directions cancel out or it never stands apart), Q as the module explains."""
-    mean = _unit(observed.mean(axis=0))
-    if np.linalg.norm(mean) < 0.5:  # a mean this short is no direction to start from
-        mean = rest
-    if np.dot(rest, mean) >= 0:
-        reference = quat_to_matrix(_swing(rest, mean))
+    """R = swing(m -> d) Q, m where the swings start (``_start_direction``) and Q as
+    the module explains."""
+    start = _start_direction(rest, observed)
+    if np.dot(rest, start) >= 0:
+        reference = quat_to_matrix(_swing(rest, start))
     else:  # a half turn about a fixed normal first: the swing left is short, whatever the clip
         half_turn = np.concatenate([[0.0], _normal(rest)])
-        reference = quat_to_matrix(_swing(-rest, mean)) @ quat_to_matrix(half_turn)
-    return quat_to_matrix(_swing(np.broadcast_to(mean, observed.shape), observed)) @ reference
+        reference = quat_to_matrix(_swing(-rest, start)) @ quat_to_matrix(half_turn)
+    return quat_to_matrix(_swing(np.broadcast_to(start, observed.shape), observed)) @ reference
+
+
+def _start_direction(rest: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """Where a bone's swings start: its mean direction, unless the bone comes within 30
+    degrees of the opposite; then whichever of its rest direction and the parent's six
+    axis directions it strays least far from."""
+    mean = _unit(observed.mean(axis=0))
+    if np.any(mean) and np.min(observed @ mean) > NEAR_OPPOSITE:
+        return mean
+    candidates = np.concatenate([[rest], np.eye(3), -np.eye(3)])
+    return candidates[np.argmax(np.min(observed @ candidates.T, axis=0))]
 
 
 def _swing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
