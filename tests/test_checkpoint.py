@@ -303,12 +303,23 @@ def test_sample_command_writes_npz_bvh_and_video_per_clip(checkpoint, tmp_path, 
         assert_rotation_bvh_following(out / "turn-0_01.bvh", clip["positions"], read_meta(checkpoint).skeleton)
 
 
+@pytest.fixture
+def one_torch_thread():
+    """Small networks train in a second on one thread and far slower on several cores
+    that other work shares."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
 @pytest.mark.parametrize("kind", ["rnn", "vae"])
-def test_sample_command_writes_rotation_bvh_for_the_path_baselines_too(kind, dataset, tmp_path):
+def test_sample_command_writes_rotation_bvh_for_the_path_baselines_too(kind, dataset, tmp_path, one_torch_thread):
     from generation.cli import main
 
     path = tmp_path / f"{kind}.safetensors"
-    train(kind, "cpu", dataset, path, TrainOptions(steps=2, eval_every=2), progress=False)
+    train(kind, "cpu", dataset, path, TrainOptions(steps=2, eval_every=2), progress=False,
+          overrides={"hidden_size": 16, "batch_size": 8})
     out = tmp_path / "samples"
     assert main(["sample", str(path), "-c", "walk-straight", "--out", str(out)]) == 0
     with np.load(out / "walk-straight_00.npz") as clip:
