@@ -62,6 +62,9 @@ def euler_rate(bvh, quaternions: np.ndarray) -> tuple[float, float]:
 def measure(folder: Path, fps: float, all_takes: bool) -> None:
     options = DatasetOptions()
     files = find_bvh_files(folder) if all_takes else held_out_files(folder, options)
+    if not files:
+        raise ValueError(f"{folder}: no held-out takes (the split holds out takes of contents that have two or "
+                         "more); --all-takes measures every take")
     units = choose_units(files, None, None, options.root).units
     errors, worst, fastest, excess, jumps, rates = [], (0.0, ""), [], [], [], []
     with tempfile.TemporaryDirectory() as scratch:
@@ -83,11 +86,11 @@ def measure(folder: Path, fps: float, all_takes: bool) -> None:
             rates.append(rate)
     errors = np.concatenate(errors)
     solved, captured = max(fastest)
-    print(f"{folder.name}: {len(files)} {'' if all_takes else 'held-out '}takes, {len(errors) // take.skeleton.n_joints} "
-          f"frames at {fps:g} fps")
+    frames = len(errors) // take.skeleton.n_joints
+    print(f"{folder.name}: {len(files)} {'' if all_takes else 'held-out '}takes, {frames} frames at {fps:g} fps")
     print(f"  joint error: mean {errors.mean():.2e} cm, worst {worst[0]:.2e} cm ({worst[1]})")
-    print(f"  largest turn of a joint between frames: {solved:.1f} deg (that take's captured rotations: {captured:.1f}); "
-          f"in any take at most {max(excess):+.1f} deg against the capture's fastest joint")
+    print(f"  largest turn of a joint between frames: {solved:.1f} deg (that take's captured rotations: "
+          f"{captured:.1f}); in any take at most {max(excess):+.1f} deg against the capture's fastest joint")
     print(f"  written Euler angles: largest change between frames {max(jumps):.1f} deg, at most {max(rates):.2f} "
           "times the joint's turn over the cosine of its middle angle")
 
@@ -98,8 +101,12 @@ def main() -> None:
     parser.add_argument("--fps", type=float, default=DatasetOptions().fps, help="frame rate to read the takes at")
     parser.add_argument("--all-takes", action="store_true", help="every take, not only the held-out ones")
     args = parser.parse_args()
-    for folder in args.folders:
-        measure(folder, args.fps, args.all_takes)
+    try:
+        for folder in args.folders:
+            measure(folder, args.fps, args.all_takes)
+    except (ValueError, OSError) as error:  # BVHError is a ValueError naming the file and line
+        print(f"error: {error}", file=sys.stderr)
+        sys.exit(2)
 
 
 if __name__ == "__main__":

@@ -65,9 +65,9 @@ are finally given one sign over time (``quat_continuity``).
 
 The twists positions cannot show need not be the ones a rig's animator chose: on the
 Bandai-Namco rigs the spine, the chest and the left leg come out within about ten
-degrees of the captured rotations on average, but the right leg (mirrored with a half turn about
-its bones) and the arms differ by a twist about their bones. Where every joint is, and
-so every bone, is the same.
+degrees of the captured rotations on average, but the right leg (mirrored with a half
+turn about its bones) and the arms differ by a twist about their bones. Where every
+joint is, and so every bone, is the same.
 """
 
 from __future__ import annotations
