@@ -382,7 +382,10 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--control", "-c", nargs="+", default=["walk-straight"], help="control presets, files or 'held-out'")
     p.add_argument("--action", nargs="+", help="attribute models: actions to sample (default: all the model knows)")
     p.add_argument("--style", nargs="+", help="attribute models: styles to sample (default: all the model knows)")
-    p.add_argument("--out", "-o", required=True, help="output folder (npz and BVH per clip)")
+    p.add_argument("--out", "-o", required=True,
+                   help="output folder: per clip an npz (the model's joint positions) and a BVH (the root's "
+                        "position and every joint's ZXY rotation on the training rig; path models' rotations "
+                        "come from their positions by inverse kinematics)")
     p.add_argument("--n", type=int, default=1, help="samples per control (default %(default)s)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--temperature", type=float, default=1.0, help="sampling temperature (default %(default)s)")
