@@ -81,7 +81,8 @@ def ticked(page: str) -> list[str]:
 def shown_requests(page: str) -> list[tuple[str, dict]]:
     """Each planned request's operation and body as the dry run shows them."""
     plan = page[page.index('id="plan"'):]
-    rows = re.findall(r'<code>([^<]+)</code>(?:.|\n)*?(?:<pre class="request">([^<]*)</pre>|</td>)', plan)
+    rows = re.findall(r'<code class="operation">([^<]+)</code>(?:.|\n)*?(?:<pre class="request">([^<]*)</pre>|</li>)',
+                      plan)
     return [(html.unescape(operation), json.loads(html.unescape(body)) if body else {}) for operation, body in rows]
 
 
@@ -133,7 +134,7 @@ def test_only_the_ticked_requests_are_sent_and_a_retry_sends_only_what_was_not_d
 
     prolific.submissions.update(prolific_submissions("cheat"))
     page = dry_run(client, study)
-    assert page.count("<td>done before</td>") == 1 and "Dry run: 2 requests" in page
+    assert page.count('class="request done"') == 1 and "Dry run: 2 requests" in page
     prolific.requests.clear()
     apply(client, study, ticked(page))
     assert [r["path"] for r in prolific.sent()] == ["/api/v1/submissions/sub-cheat/transition/",
@@ -216,7 +217,7 @@ def test_bonuses_are_set_up_then_paid_once_and_a_bad_line_is_named(prolific):
     assert prolific.bulk_bonuses["bulk-1"]["paid"] and result.count("<td>sent</td>") == 2
     prolific.requests.clear()
     again = dry_run(client, study, **data)
-    assert again.count("<td>done before</td>") == 2 and ticked(again) == []
+    assert again.count('class="request done"') == 2 and ticked(again) == []
     apply(client, study, ticked(page), **data)
     assert prolific.sent() == []  # the same list is the same payment: never paid twice
 

@@ -46,7 +46,7 @@ def test_a_participant_stopped_by_failed_checks_is_listed_as_stopped_with_the_re
     stopped = rows["stopped"]
     assert (stopped.status, stopped.failed_checks, stopped.suggested_action) == ("stopped by checks", 2, REJECT)
     assert "failed 2 instructed attention checks" in stopped.action_reason
-    assert "Prolific's attention-check policy (the study takes 12.0 min)" in stopped.action_reason
+    assert "Prolific's attention-check policy (a study of 12.0 min) allows a rejection after 2" in stopped.action_reason
     assert (rows["careful"].status, rows["careful"].suggested_action) == ("finished", APPROVE)
 
     client = Client()
@@ -85,7 +85,7 @@ def test_prolific_rejects_after_one_failed_check_under_five_minutes_and_two_from
     row = rows_of(study)["slip"]
     assert row.suggested_action == expected
     if expected == REQUEST_RETURN:
-        assert "fewer than the 2" in row.action_reason and "ask them to return" in row.action_reason
+        assert "allows a rejection only after 2" in row.action_reason and "ask for a return" in row.action_reason
 
 
 @pytest.mark.parametrize("platform, standing, failed, codes, expected", [

@@ -194,16 +194,16 @@ def apply(study: Study, api: PlatformAPI, calls: list[Call], researcher: Abstrac
 def read_back(study: Study, api: PlatformAPI, researcher: AbstractBaseUser) -> list[ReadRow]:
     """The platform's status of every participant's submission beside the participant
     list's; a refused read raises PlatformError."""
-    groups = {_payee(study, p).group for p in study.participants.all()} - {""}
+    reads = api.reads(sorted({_payee(study, p).group for p in study.participants.all()} - {""}))
     statuses: dict[str, str] = {}
-    for call in api.reads(sorted(groups)):
+    for call in reads:
         statuses |= api.statuses(api.send(call, {}))
         logger.info("study %s: %s read %s from %s", study.pk, researcher, call.key, api.name)
     PlatformAction.objects.create(
         study=study, researcher=researcher, platform=study.platform, key=f"read:{timezone.now().isoformat()}",
-        action="read", request={"operations": [call.operation for call in api.reads(sorted(groups))],
-                                "address": api.address}, outcome=PlatformAction.Outcome.DONE,
-        response={"statuses": statuses})
+        action="read", request={"operation": "; ".join(call.operation for call in reads), "address": api.address,
+                                "bodies": [call.body for call in reads]},
+        outcome=PlatformAction.Outcome.DONE, response={"status": f"{len(statuses)} submissions", "statuses": statuses})
     return [ReadRow(row.platform_id, row.session, row.status, row.suggested_action, statuses.get(row.session, ""))
             for row in participant_rows(study)]
 

@@ -77,21 +77,23 @@ def suggest(study: Study, submission: Submission, minutes: float | None) -> Sugg
         return Suggestion(NOTHING, "not finished yet")
     needed = checks_for_rejection(study, minutes)
     failed = submission.failed_checks
+    rules = _rules(study, minutes)
     if failed >= needed:
-        return Suggestion(REJECT, f"{_failed(failed)}, as many as {_rules(study, minutes)} allow a rejection for")
+        return Suggestion(REJECT, f"{_failed(failed)}; {rules} allows a rejection after {needed}")
     if submission.standing == Standing.SCREENED_OUT:
         return _screened_out(study)
+    below = f"{rules} allows a rejection only after {needed}"
     if submission.standing == Standing.STOPPED:
-        below = f"{_failed(failed)} and was stopped, fewer than the {needed} {_rules(study, minutes)} ask for a rejection"
         if study.platform == Study.Platform.PROLIFIC:
-            return Suggestion(REQUEST_RETURN, f"{below}: ask them to return the submission, and approve it if they do not")
-        return Suggestion(APPROVE, below)
+            return Suggestion(REQUEST_RETURN, f"{_failed(failed)} and was stopped; {below}: ask for a return, and "
+                                              f"approve if they decline")
+        return Suggestion(APPROVE, f"{_failed(failed)} and was stopped; {below}")
     reasons = ["finished"]
     if failed:
-        reasons.append(f"{_failed(failed)}, fewer than the {needed} {_rules(study, minutes)} ask for a rejection")
+        reasons.append(f"{_failed(failed)}, and {below}")
     if submission.exclusion_reason:
-        reasons.append(f"excluded from the analysis ({submission.exclusion_reason}), a judgement of their ratings, "
-                       f"which is no ground for refusing payment")
+        reasons.append(f"excluded from the analysis ({submission.exclusion_reason}): a judgement of the ratings, "
+                       f"no ground for refusing payment")
     return Suggestion(APPROVE, "; ".join(reasons))
 
 
@@ -110,12 +112,11 @@ def _failed(count: int) -> str:
 
 def _rules(study: Study, minutes: float | None) -> str:
     if study.platform == Study.Platform.PROLIFIC:
-        length = ("no one has finished yet" if minutes is None else
-                  f"the study takes {minutes:.1f} min{' (under 5)' if minutes < PROLIFIC_SHORT_STUDY_MINUTES else ''}")
+        length = "no one has finished yet" if minutes is None else f"a study of {minutes:.1f} min"
         return f"Prolific's attention-check policy ({length})"
     if study.platform == Study.Platform.MTURK:
-        return "MTurk's guidance (a single slip is no ground)"
-    return "the rules suggested here"
+        return "MTurk's guidance (one slip is no ground)"
+    return "the rule suggested here"
 
 
 __all__ = ["APPROVE", "NOTHING", "REJECT", "REQUEST_RETURN", "Standing", "Submission", "Suggestion",
