@@ -144,6 +144,13 @@ def test_only_the_ticked_requests_are_sent_and_a_retry_sends_only_what_was_not_d
     assert prolific.sent() == []
 
 
+def test_a_participant_whose_link_brought_no_submission_id_is_named_instead_of_planned(prolific):
+    study = prolific_study()
+    participant(study, "no-session", {"PROLIFIC_PID": "no-session", "STUDY_ID": "PS1"}, finished_at=timezone.now())
+    page = dry_run(researcher(study), study)
+    assert "Not listed: no-session." in page and "Dry run: 3 requests" in page
+
+
 def test_a_plan_that_changed_since_the_dry_run_sends_nothing(prolific):
     study = prolific_study()
     client = researcher(study)

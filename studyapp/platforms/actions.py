@@ -102,6 +102,13 @@ def decision_calls(study: Study, api: PlatformAPI) -> list[Call]:
     return calls
 
 
+def without_submission(study: Study) -> list[str]:
+    """Platform ids with a suggested decision that no request can carry: their entry link
+    brought no submission id (decide them on the platform's own pages)."""
+    return [row.platform_id for row in participant_rows(study)
+            if row.suggested_action in (APPROVE, REJECT, REQUEST_RETURN) and not row.session]
+
+
 def bonus_calls(study: Study, api: PlatformAPI, text: str, reason: str) -> list[Call]:
     """The calls that pay the bonuses of ``text``: one "<platform id>,<amount>" a line
     (the amount in the study's currency, e.g. 1.50); BonusListError names a bad line."""
@@ -214,4 +221,5 @@ def _done_keys(study: Study, keys: list[str]) -> set[str]:
 
 
 __all__ = ["ALREADY_DONE", "BonusListError", "HELD_BACK", "PlanChanged", "Planned", "REFUSED", "ReadRow", "Result",
-           "SENT", "apply", "bonus_calls", "chosen", "decision_calls", "planned", "platform_api", "read_back"]
+           "SENT", "apply", "bonus_calls", "chosen", "decision_calls", "planned", "platform_api", "read_back",
+           "without_submission"]

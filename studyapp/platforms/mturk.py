@@ -60,8 +60,8 @@ class MTurkAPI:
     def bonuses(self, amounts: list[tuple[Payee, Decimal]], reason: str) -> list[Call]:
         calls = []
         for payee, amount in amounts:
-            key = f"bonus:{payee.session}:{amount}:{reason}"
-            token = hashlib.sha256(key.encode()).hexdigest()[:64]  # MTurk refuses a second bonus with this token
+            key = f"bonus:{payee.session}:{amount}:{hashlib.sha256(reason.encode()).hexdigest()[:12]}"
+            token = hashlib.sha256(key.encode()).hexdigest()  # 64 characters: MTurk refuses a second bonus with it
             calls.append(Call(key, "bonus", payee.platform_id, "SendBonus", {
                 "WorkerId": payee.platform_id, "AssignmentId": payee.session, "BonusAmount": str(amount),
                 "Reason": reason, "UniqueRequestToken": token}))

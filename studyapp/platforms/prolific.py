@@ -37,7 +37,7 @@ TIMEOUT_S = 30.0
 
 def rejection_message(failed_checks: int) -> str:
     """What a rejected participant reads: the reason in words, and where to turn."""
-    checks = "attention check" if failed_checks == 1 else f"{failed_checks} attention checks"
+    checks = "an attention check" if failed_checks == 1 else f"{failed_checks} attention checks"
     return (f"Your submission is rejected because you did not answer {checks} as the page asked. Each of these "
             f"checks told you which answer to give (for example 'please answer 3'), whatever you thought of the "
             f"video. If you believe this is a mistake, please send the researcher a message.")

@@ -20,7 +20,7 @@ from django.views.decorators.http import require_POST
 from studyapp.models import Study
 from studyapp.platforms import credentials
 from studyapp.platforms.actions import (BonusListError, PlanChanged, apply, bonus_calls, chosen, decision_calls,
-                                        planned, platform_api, read_back)
+                                        planned, platform_api, read_back, without_submission)
 from studyapp.platforms.calls import Call, PlatformError
 from studyapp.researchers.platform_forms import BonusForm, MTurkCredentialsForm, ProlificCredentialsForm
 
@@ -104,6 +104,7 @@ def study_platform_dry_run(request: HttpRequest, pk: int) -> HttpResponse:
     context = {"study": study, "api": api, "plan": planned(study, calls), "kind": request.POST.get("kind", ""),
                "bonuses": request.POST.get("bonuses", ""), "reason": request.POST.get("reason", "")}
     context["to_send"] = sum(not item.done_before for item in context["plan"])
+    context["unsendable"] = without_submission(study) if context["kind"] != "bonuses" else []
     return render(request, "studyapp/researcher/platform_plan.html", context)
 
 
