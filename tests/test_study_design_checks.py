@@ -160,3 +160,19 @@ def test_the_analysis_recomputes_the_apps_flags_of_each_design_and_agrees(settin
     flagged = apply_exclusions(read_ratings(io.StringIO(ratings_csv(study).decode())), StudyRules.of(study).exclusion)
     assert not [note for note in exclusion_notes(flagged, StudyRules.of(study).exclusion) if "disagrees" in note]
     assert flagged["discarded_early"].any() and flagged["excluded_participant"].any()
+
+
+@pytest.mark.parametrize("settings, heading", [
+    ({"clips_per_participant": 8}, "Clip 1 of 8"),
+    ({**SIDE_BY_SIDE, "pages_per_participant": 8}, "Page 1 of 8"),
+    ({**PAIRWISE, "pages_per_participant": 8}, "Page 1 of 8"),
+], ids=["single", "side-by-side", "pairwise"])
+def test_instructed_checks_are_counted_among_the_pages_a_participant_answers(settings, heading):
+    study = make_study(**settings, controls=8, instructed_checks=1, training_clips=0)
+    client = Client()
+    participant = through_practice(client, study)
+    pages = participant.assignments.values_list("page", flat=True).distinct().count()
+    instructed = participant.assignments.exclude(expected="").values_list("page", flat=True).distinct().count()
+    assert (pages, instructed) == (8, 1)
+    assert heading in page_html(client, study)
+
