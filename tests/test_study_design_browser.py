@@ -15,10 +15,9 @@ import io
 import pytest
 
 from analysis.ratings import read_ratings
-from studyapp.designs.pages import current_page
 from studyapp.models import Participant, Rating, Study, System
 from studyapp.researchers.export import ratings_csv
-from tests.study_fixtures import make_study
+from tests.study_fixtures import current_page, make_study
 from tests.test_study_browser import browser, clip_video  # noqa: F401 (fixtures)
 
 CLIP_SECONDS = 1.0

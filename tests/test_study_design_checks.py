@@ -12,10 +12,9 @@ from django.utils import timezone
 
 from analysis.ratings import read_ratings
 from studyapp.designs.multi_clip import page_loads
-from studyapp.designs.pages import current_page
-from tests.study_fixtures import current_clip
+from tests.study_fixtures import current_clip, current_page
 from studyapp.designs.rules import StudyRules
-from studyapp.models import Participant, Rating, Study, System
+from studyapp.models import Participant, Rating, System
 from studyapp.researchers.export import ratings_csv
 from tests.study_fixtures import make_study
 from tests.test_study_designs import PAIRWISE, SIDE_BY_SIDE, compare, page_html, rate_page, through_practice

@@ -11,11 +11,10 @@ from django.test import Client
 from django.urls import reverse
 
 from analysis.ratings import read_ratings
-from studyapp.designs.pages import current_page
 from studyapp.models import Participant, Rating, Stimulus, Study, System
 from studyapp.researchers.export import ratings_csv
 from studyapp.researchers.forms import StudyForm
-from tests.study_fixtures import make_study
+from tests.study_fixtures import current_page, make_study
 from tests.test_study_participant import enter, make_shown_long_ago, post
 
 pytestmark = pytest.mark.django_db
