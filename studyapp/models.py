@@ -157,9 +157,11 @@ class Study(models.Model):
             raise ValidationError({"scale_max": f"the scale must rise: {self.scale_min} to {self.scale_max} does not"})
         if self.video_width % 2 or self.video_height % 2:
             raise ValidationError({"video_width": "H.264 video needs an even width and height"})
-        if self.design not in designs.DESIGNS:
-            raise ValidationError({"design": f"not a rating design; choose one of {', '.join(designs.DESIGNS)}"})
-        if problems := designs.design_of(self).problems(self):
+        try:
+            design = designs.design_of(self)
+        except KeyError as unknown:
+            raise ValidationError({"design": unknown.args[0]}) from None
+        if problems := design.problems(self):
             raise ValidationError(problems)
         for name, owners in designs.foreign_settings(self.design).items():
             if getattr(self, name) is True:  # a switch of another design's, turned on

@@ -20,6 +20,7 @@ from django.urls import reverse
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
+from generation import registry
 from studyapp.designs.rules import StudyRules
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.participants.views import PLATFORM_PARAMETERS
@@ -134,9 +135,9 @@ def study_controls(request: HttpRequest, pk: int) -> HttpResponse:
         kind = control_kind(study)
     except ControlError as error:
         messages.error(request, str(error))
-        kind = "path"
-    forms: dict = {"held_out": partial(HeldOutControlsForm, paths=kind == "path")}
-    if kind == "path":
+        kind = registry.PATH
+    forms: dict = {"held_out": partial(HeldOutControlsForm, paths=kind == registry.PATH)}
+    if kind == registry.PATH:
         forms.update(presets=PresetControlsForm, file=ControlFileForm)
     else:
         forms["labels"] = partial(LabelControlsForm, labels=study_labels(study))

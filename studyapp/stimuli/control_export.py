@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from generation import registry
 from generation.control import PathControl, control_from_dict
 from generation.motion.bvh import bvh_text, motion_to_bvh
 from generation.motion.root import root_trajectory, to_root_frame
@@ -117,7 +118,7 @@ def _path_npz(control: PathControl) -> bytes:
 
 def _readme(study: Study, kind: str) -> str:
     sigma = training_options(study).root.position_sigma
-    controls = ("paths/ID.npz, one per path control, with these arrays:\n" + PATH_ARRAYS if kind == "path" else
+    controls = ("paths/ID.npz, one per path control, with these arrays:\n" + PATH_ARRAYS if kind == registry.PATH else
                 "labels/ID.json, one per label control: action, style, frames, fps")
     return (f"Controls of the study \"{study.title}\"\n\nUnits and axes: {AXES}.\n\n"
             f"index.json lists every control (id, name, origin, frames, fps, seconds, its file, the seconds\n"
@@ -146,18 +147,18 @@ def bundle_files(study: Study, natural: bool = False) -> dict[str, bytes]:
         if control.lead_in_seconds:
             entry["lead_in_seconds"] = control.lead_in_seconds
         if isinstance(signal, PathControl):
-            kinds.add("path")
+            kinds.add(registry.PATH)
             entry["file"] = f"paths/{ident}.npz"
             files[entry["file"]] = _path_npz(signal)
         else:
-            kinds.add("attributes")
+            kinds.add(registry.LABELS)
             entry["file"] = f"labels/{ident}.json"
             files[entry["file"]] = json.dumps({"id": ident, **signal.to_dict()}, indent=2).encode()
         if natural and control.origin == ControlSignal.Origin.HELD_OUT and control.source_clip:
             entry["natural"] = f"natural/{ident}.bvh"
             files[entry["natural"]] = _natural_bvh(study, control).encode()
         entries.append(entry)
-    kind = "path" if kinds == {"path"} else "attributes"
+    kind = registry.PATH if kinds == {registry.PATH} else registry.LABELS
     index = {"study": study.title, "kind": kind, "units": UNITS, "axes": AXES, "controls": entries}
     files["index.json"] = json.dumps(index, indent=2).encode()
     files["README.txt"] = _readme(study, kind).encode()

@@ -27,6 +27,7 @@ from django.core.files import File
 
 from generation.control import (AttributeControl, Control, held_out_attributes, held_out_paths, lead_in_frames,
                                 load_control_file, preset_path)
+from generation import registry
 from generation.motion.dataset import DatasetOptions, build_dataset, find_bvh_files
 from studyapp.models import ControlSignal, Study
 from studyapp.stimuli.natural import data_folders, source_name
@@ -55,11 +56,17 @@ def training_options(study: Study) -> DatasetOptions:
 
 
 def control_kind(study: Study) -> str:
-    """"path" or "attributes": what the study's checkpoints are controlled by."""
-    kinds = {s.metadata.get("control", "path") for s in study.systems.exclude(checkpoint="")}
+    """What the study's checkpoints are controlled by, as the model registry says:
+    ``registry.PATH`` or ``registry.LABELS`` (a study without checkpoints takes paths)."""
+    kinds = set()
+    for system in study.systems.exclude(checkpoint=""):
+        if system.kind not in registry.MODELS:
+            raise ControlError(f"{system.name} is a {system.kind!r} model, a kind this server does not know "
+                               f"(known: {', '.join(registry.MODELS)})")
+        kinds.add(registry.MODELS[system.kind].control)
     if len(kinds) > 1:  # training_options refuses such a study too; say it in these words
         raise ControlError("the study mixes path-controlled and label-controlled models; one study needs one kind")
-    return kinds.pop() if kinds else "path"
+    return kinds.pop() if kinds else registry.PATH
 
 
 def study_labels(study: Study) -> tuple[list[str], list[str]]:
@@ -76,7 +83,7 @@ def study_labels(study: Study) -> tuple[list[str], list[str]]:
 
 def _require(study: Study, kind: str) -> None:
     if control_kind(study) != kind:
-        raise ControlError("this study's models follow a path: add held-out or synthetic paths" if kind == "attributes"
+        raise ControlError("this study's models follow a path: add held-out or synthetic paths" if kind == registry.LABELS
                            else "this study's models are controlled by action and style labels: add held-out or "
                                 "chosen label pairs, not paths")
 
@@ -115,7 +122,7 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
     if not seconds > 0:
         raise ControlError(f"seconds must be positive, got {seconds}")
     kind = control_kind(study)
-    if lead_in and kind != "path":
+    if lead_in and kind != registry.PATH:
         raise ControlError("a lead-in is the path before the clip: this study's models are controlled by labels")
     options = training_options(study)
     try:
@@ -135,7 +142,7 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
                            "its held-out clips could have been training clips")
     files = {path.stem: path for path in find_bvh_files(folders)}
     contents = {clip.name: clip.content for clip in dataset.select("test", augmented=False)}
-    if kind == "path":
+    if kind == registry.PATH:
         held_out = held_out_paths(dataset, seconds, lead)
         if lead and not held_out:
             raise ControlError(f"no held-out take of {where} (MOTION_DATA) is longer than the lead-in of {lead:g} s")
@@ -153,7 +160,7 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
 
 def add_label_controls(study: Study, actions: list[str], styles: list[str], seconds: float) -> list[ControlSignal]:
     """Synthetic label controls: every chosen action with every chosen style, ``seconds`` long."""
-    _require(study, "attributes")
+    _require(study, registry.LABELS)
     known_actions, known_styles = study_labels(study)
     for names, known, kind in ((actions, known_actions, "action"), (styles, known_styles, "style")):
         if not names:
@@ -171,7 +178,7 @@ def add_label_controls(study: Study, actions: list[str], styles: list[str], seco
 
 def add_preset_controls(study: Study, names: list[str]) -> list[ControlSignal]:
     """Synthetic controls from ``generation.control.PRESETS`` by name."""
-    _require(study, "path")
+    _require(study, registry.PATH)
     fps = training_options(study).fps
     try:
         controls = [preset_path(name, fps) for name in names]
@@ -187,7 +194,7 @@ def add_control_file(study: Study, upload: File) -> list[ControlSignal]:
         raise ControlError(f"{name or 'the file'}: a control description must be {', '.join(CONTROL_FILE_SUFFIXES)}")
     if upload.size > MAX_CONTROL_FILE_BYTES:
         raise ControlError(f"{name}: {upload.size / 1e6:.1f} MB is over the {MAX_CONTROL_FILE_BYTES / 1e6:.0f} MB limit")
-    _require(study, "path")
+    _require(study, registry.PATH)
     fps = training_options(study).fps
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / name
