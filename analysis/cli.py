@@ -1,6 +1,6 @@
 """Command line (or ``motion-analysis``):
 
-    python -m analysis report RATINGS.csv --out report/ [--motion DIR ...]
+    python -m analysis report RATINGS.csv --out report/ [--rules RULES.json] [--motion DIR ...]
     python -m analysis objective DIR ... --out objective/ [--appropriateness RATINGS.csv]
     python -m analysis hvrnn-scores OUTPUTS.npz --out scores/
 """
@@ -30,7 +30,8 @@ from analysis.objective import objective_metrics
 from analysis.ratings import read_ratings
 from analysis.report import build_report, require_single_design, write_report
 from analysis.tables import objective_table, to_markdown, write_table
-from analysis.units import parse_scale, to_centimetres_y_up
+from analysis.units import to_centimetres_y_up
+from measures.units import parse_scale
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -59,16 +60,22 @@ def _parser() -> argparse.ArgumentParser:
                              "analysis/motion_io.py); a subfolder or file stem names the system")
     report.add_argument("--systems", help="comma-separated list of expected systems; any other "
                                           "system in the ratings is an error")
-    report.add_argument("--natural", default="NAT", help="name of the natural-motion system")
-    report.add_argument("--attention", default="BAD", help="name of the attention-check system")
-    report.add_argument("--bad-threshold", type=float, default=4.0,
-                        help="exclude a participant rating any attention clip at or above this "
-                             "(on a 1-5 scale, rescaled for others; default 4)")
-    report.add_argument("--nat-threshold", type=float, default=2.0,
-                        help="exclude a participant rating any natural clip below this "
-                             "(on a 1-5 scale; default 2)")
-    report.add_argument("--keep-early", action="store_true",
-                        help="do not discard ratings given before the clip ended")
+    rules = report.add_argument_group(
+        "exclusion rules", "as options, or all at once with --rules (the study app's rules.json, which "
+                           "reproduces its report); not both")
+    rules.add_argument("--rules", metavar="RULES.json",
+                       help="the exclusion rules as JSON: natural_system, attention_system, "
+                            "bad_at_or_above, natural_below, discard_early")
+    rules.add_argument("--natural", help="name of the natural-motion system (default NAT)")
+    rules.add_argument("--attention", help="name of the attention-check system (default BAD)")
+    rules.add_argument("--bad-threshold", type=float,
+                       help="exclude a participant rating any attention clip at or above this "
+                            "(on a 1-5 scale, rescaled for others; default 4)")
+    rules.add_argument("--nat-threshold", type=float,
+                       help="exclude a participant rating any natural clip below this "
+                            "(on a 1-5 scale; default 2)")
+    rules.add_argument("--keep-early", action="store_true",
+                       help="do not discard ratings given before the clip ended")
     report.add_argument("--compare-attention-checks", action="store_true",
                         help="include the attention-check system in the comparisons")
     report.add_argument("--foot-joints", help="comma-separated foot joint names (default: "
@@ -112,10 +119,17 @@ def _add_objective_parser(commands) -> None:
     _add_unit_arguments(objective)
 
 
+def _scale(text: str) -> float | None:
+    try:
+        return parse_scale(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 def _add_unit_arguments(parser: argparse.ArgumentParser) -> None:
     """The motion's unit and up axis, the same options for every command that reads motion."""
     group = parser.add_argument_group("units (the motion is read into cm, y up)")
-    group.add_argument("--scale", default="auto", metavar="auto|UNIT|NUMBER",
+    group.add_argument("--scale", type=_scale, default="auto", metavar="auto|UNIT|NUMBER",
                        help="the motion's length unit: auto (from the figures' height; clips in different units "
                             "are an error naming them), a unit (mm, cm, in, cmu, ft, m) or centimetres per unit "
                             "(default %(default)s)")
@@ -125,7 +139,7 @@ def _add_unit_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _motion_in_centimetres(args: argparse.Namespace) -> dict[str, SystemClips]:
     """The --motion clips in cm with y up; prints what they were taken to be."""
-    motion, units = to_centimetres_y_up(load_motion_sets(args.motion), parse_scale(args.scale),
+    motion, units = to_centimetres_y_up(load_motion_sets(args.motion), args.scale,
                                         None if args.up == "auto" else args.up)
     print(units)
     return motion
@@ -213,6 +227,23 @@ def _mean_scores(args: argparse.Namespace) -> pd.Series:
     return appropriateness_pages(kept).groupby("system")["score"].mean()
 
 
+def _rules(args: argparse.Namespace) -> ExclusionRules:
+    """The exclusion rules of the options, or of the --rules file."""
+    options = {"natural_system": args.natural, "attention_system": args.attention,
+               "bad_at_or_above": args.bad_threshold, "natural_below": args.nat_threshold,
+               "discard_early": False if args.keep_early else None}
+    given = {name: value for name, value in options.items() if value is not None}
+    if args.rules is None:
+        return ExclusionRules(**given)
+    if given:
+        raise AnalysisInputError("give the exclusion rules with --rules or as options, not both")
+    try:
+        text = Path(args.rules).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise AnalysisInputError(f"cannot read --rules {args.rules}: {exc.strerror}") from None
+    return ExclusionRules.from_json(text, source=args.rules)
+
+
 def _split(text: str | None) -> list[str] | None:
     return [t.strip() for t in text.split(",") if t.strip()] if text else None
 
@@ -239,9 +270,7 @@ def _run(args: argparse.Namespace) -> int:
         for note in notes:
             print(f"note: {note}")
         return 0
-    rules = ExclusionRules(natural_system=args.natural, attention_system=args.attention,
-                           bad_at_or_above=args.bad_threshold, natural_below=args.nat_threshold,
-                           discard_early=not args.keep_early)
+    rules = _rules(args)
     with staged_output(out) as work:
         ratings = read_ratings(args.ratings)
         if args.motion:

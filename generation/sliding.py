@@ -1,6 +1,6 @@
 """Where a MoGlow's foot sliding arises, measured on held-out takes.
 
-The weight-bearing foot's speed (``analysis.smoothness.lower_foot_speed``) of versions
+The weight-bearing foot's speed (``measures.feet.lower_foot_speed``) of versions
 of each take's motion, all on the take's own control and all measured over the same
 frames (from ``SETTLE_SECONDS`` on), each version a step further from the take:
 
@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from analysis.smoothness import lower_foot_speed
+from measures.feet import lower_foot_speed
 
 from .control import PathControl
 from .generator import Generator

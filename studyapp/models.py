@@ -16,8 +16,8 @@ from django.conf import settings
 from django.core.exceptions import ValidationError
 from django.db import models
 
-from analysis.exclusions import scaled_threshold
 from generation.render.camera import Camera
+from studyapp.designs import registry as designs
 
 NATURAL_NAME, ATTENTION_NAME = "NAT", "BAD"  # the names the analysis expects for these roles
 
@@ -64,12 +64,6 @@ def camera_problem(data: object) -> str | None:
 class Study(models.Model):
     """One rating study: its question, scale, design, protocol and crowd platform."""
 
-    class Design(models.TextChoices):
-        # The names the ratings table's design column uses (analysis.designs).
-        SINGLE = "single", "single clip per page, rated on the scale"
-        SIDE_BY_SIDE = "side-by-side", "side by side: every system's clip of one control on a page, each on a slider"
-        PAIRWISE = "pairwise", "pairwise: two systems' clips of one control, which is better"
-
     class Platform(models.TextChoices):
         PROLIFIC = "prolific", "Prolific"
         MTURK = "mturk", "Amazon Mechanical Turk"
@@ -91,11 +85,14 @@ class Study(models.Model):
         "This study is part of research on computer-generated motion. Taking part is voluntary and you "
         "may stop at any time. We record your ratings, the time you take, and the id your crowd "
         "platform gives you; nothing else about you."))
-    design = models.CharField(max_length=12, choices=Design.choices, default=Design.SINGLE)
-    clips_per_participant = models.PositiveSmallIntegerField(default=20, help_text="rated clips, attention checks included")
+    # A registered design's name (studyapp.designs.registry), as the ratings table's design column says it.
+    design = models.CharField(max_length=12, choices=designs.choices, default=designs.DEFAULT)
+    clips_per_participant = models.PositiveSmallIntegerField(
+        default=20, help_text="single design: clips each participant rates, attention and instructed checks included")
     ratings_per_stimulus = models.PositiveSmallIntegerField(default=10, help_text="target number of ratings of each stimulus")
     pages_per_participant = models.PositiveSmallIntegerField(
-        default=8, help_text="side-by-side and pairwise: pages each participant answers, attention checks included")
+        default=8, help_text="side-by-side and pairwise: pages each participant answers, attention and instructed "
+                             "checks included")
     abx = models.BooleanField(
         default=False, help_text="pairwise: show the control's natural clip as the reference X above A and B, and ask "
                                  "which of them is closer to it (held-out controls only; NAT is then not paired)")
@@ -107,7 +104,8 @@ class Study(models.Model):
     bad_threshold = models.FloatField(default=4.0, help_text="on the 1-5 scale: rating a BAD clip this high or higher excludes")
     natural_threshold = models.FloatField(default=2.0, help_text="on the 1-5 scale: rating a NAT clip below this excludes")
     instructed_checks = models.PositiveSmallIntegerField(
-        default=0, help_text="pages per participant that tell them which answer to give (not analysed)")
+        default=0, help_text="pages per participant, among their pages, that tell them which answer to give "
+                             "(not analysed)")
     stop_after_failed_checks = models.PositiveSmallIntegerField(
         default=0, help_text="end a participant's session politely after this many failed instructed checks (0: never)")
     discard_early = models.BooleanField(default=True, help_text="flag ratings given before the clip finished playing")
@@ -149,14 +147,14 @@ class Study(models.Model):
             raise ValidationError({"scale_max": f"the scale must rise: {self.scale_min} to {self.scale_max} does not"})
         if self.video_width % 2 or self.video_height % 2:
             raise ValidationError({"video_width": "H.264 video needs an even width and height"})
-        if self.design == self.Design.SINGLE and self.bad_checks + self.natural_checks >= self.clips_per_participant:
-            raise ValidationError({"clips_per_participant": "leave room for rated clips besides the attention checks"})
-        if self.design == self.Design.PAIRWISE and self.bad_checks >= self.pages_per_participant:
-            raise ValidationError({"pages_per_participant": "leave room for rated pages besides the BAD-versus-NAT checks"})
-        if self.abx and self.design != self.Design.PAIRWISE:
-            raise ValidationError({"abx": "a reference X goes with the pairwise design"})
-        if self.design != self.Design.SINGLE and self.pages_per_participant == 0:
-            raise ValidationError({"pages_per_participant": "a participant needs at least one page"})
+        if self.design not in designs.DESIGNS:
+            raise ValidationError({"design": f"not a rating design; choose one of {', '.join(designs.DESIGNS)}"})
+        if problems := designs.design_of(self).problems(self):
+            raise ValidationError(problems)
+        for name, owners in designs.foreign_settings(self.design).items():
+            if getattr(self, name) is True:  # a switch of another design's, turned on
+                raise ValidationError({name: f"{self._meta.get_field(name).verbose_name} goes with the "
+                                             f"{' or '.join(owners)} design"})
         problem = camera_problem(self.camera)
         if problem:
             raise ValidationError({"camera": f"not a camera description: {problem}"})
@@ -168,12 +166,6 @@ class Study(models.Model):
     @property
     def strengths(self) -> range:
         return range(1, self.preference_strengths + 1)
-
-    def bad_cutoff(self) -> float:
-        return scaled_threshold(self.bad_threshold, self.scale_min, self.scale_max)
-
-    def natural_cutoff(self) -> float:
-        return scaled_threshold(self.natural_threshold, self.scale_min, self.scale_max)
 
 
 class System(models.Model):
@@ -212,7 +204,7 @@ class System(models.Model):
     @property
     def export_name(self) -> str:
         """The name in the ratings table: NAT and BAD for their roles, so the analysis finds them."""
-        return {self.Role.NATURAL: NATURAL_NAME, self.Role.BAD: ATTENTION_NAME}.get(self.role, self.name)
+        return export_name(self.role, self.name)
 
     @property
     def source_kind(self) -> str:
@@ -221,6 +213,11 @@ class System(models.Model):
 
     def checkpoint_path(self) -> Path | None:
         return Path(settings.CHECKPOINT_ROOT) / self.checkpoint if self.checkpoint else None
+
+
+def export_name(role: str, name: str) -> str:
+    """The name in the ratings table of a system of ``role`` called ``name``."""
+    return {System.Role.NATURAL: NATURAL_NAME, System.Role.BAD: ATTENTION_NAME}.get(role, name)
 
 
 class ControlSignal(models.Model):

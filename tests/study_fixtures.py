@@ -12,7 +12,8 @@ from pathlib import Path
 
 from django.contrib.auth.models import User
 
-from studyapp.models import ControlSignal, Stimulus, Study, System
+from studyapp.designs.pages import current_page
+from studyapp.models import Assignment, ControlSignal, Participant, Stimulus, Study, System
 
 SYSTEMS = (("MoGlow", System.Role.MODEL), ("RNN", System.Role.MODEL), ("NAT", System.Role.NATURAL),
            ("BAD", System.Role.BAD))
@@ -51,3 +52,9 @@ def make_study(owner_name: str = "researcher", controls: int = 3, video: Path | 
                 stimulus.video_path().parent.mkdir(parents=True, exist_ok=True)
                 shutil.copyfile(video, stimulus.video_path())
     return study
+
+
+def current_clip(participant: Participant) -> Assignment | None:
+    """The first clip of the participant's page on screen (the clip, in the single design); None once all are answered."""
+    page = current_page(participant)
+    return page[0] if page else None

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from django.urls import reverse
 
-from studyapp.designs.ratings import current_assignment
+from tests.study_fixtures import current_clip
 from studyapp.models import Participant, Question, Rating, Stimulus
 from tests.study_fixtures import make_study
 from tests.test_study_browser import CLIP_SECONDS, PASSWORD, browser, clip_video, wait_for_clip_end  # noqa: F401 (fixtures)
@@ -97,7 +97,7 @@ def test_the_server_refuses_an_answer_sooner_than_the_clip_and_the_page_says_why
     page.wait_for_selector("#clip")
     assert on_screen(page) == token and Rating.objects.count() == 0
     participant = Participant.objects.get(platform_id="speeder")
-    assert participant.refused_early == 2 and current_assignment(participant).token == token
+    assert participant.refused_early == 2 and current_clip(participant).token == token
     context.close()
 
 

@@ -52,8 +52,8 @@ def test_the_preview_shows_every_page_in_order_and_records_nothing():
         if "Next page" not in page:
             break
         url = page.split('<a href="')[1].split('"')[0]
-    assert names == ["1 of 7 (device check)", "2 of 7 (consent)", "3 of 7 (screening)", "4 of 7 (instructions)",
-                     "5 of 7 (a clip to rate)", "6 of 7 (closing questions)", "7 of 7 (completion)"]
+    assert names == ["1 of 8 (device check)", "2 of 8 (consent)", "3 of 8 (screening)", "4 of 8 (instructions)",
+                     "5 of 8 (practice)", "6 of 8 (a page to rate)", "7 of 8 (closing questions)", "8 of 8 (completion)"]
     assert "C0MPL3TE" in page
     assert (Participant.objects.count(), Assignment.objects.count(), Rating.objects.count()) == (0, 0, 0)
     stranger = Client()

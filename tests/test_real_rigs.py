@@ -19,7 +19,8 @@ from generation.motion.dataset import DatasetOptions, build_dataset, load_body_m
 from generation.motion.features import angle_feature_spec, encode_angles
 from generation.motion.npz import load_motion_npz
 from generation.motion.takes import natural_takes
-from generation.motion.units import UNITS, skeleton_size
+from generation.motion.units import skeleton_size
+from measures.units import UNITS
 from tests.test_any_rig import figure_box
 
 RIGS = Path(__file__).parent / "fixtures" / "rigs"

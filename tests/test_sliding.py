@@ -8,7 +8,7 @@ import re
 import numpy as np
 import pytest
 
-from analysis.smoothness import lower_foot_speed
+from measures.feet import lower_foot_speed
 from generation.cli import main
 from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
 from tests.test_checkpoint import checkpoint, clips_folder, dataset, monkeypatch_module, tiny_preset  # noqa: F401

@@ -14,9 +14,9 @@ import io
 import pytest
 
 from analysis.ratings import read_ratings
-from studyapp.designs.page_ratings import current_page
+from studyapp.designs.pages import current_page
 from studyapp.models import Participant, Rating, Study, System
-from studyapp.researchers.monitor import ratings_csv
+from studyapp.researchers.export import ratings_csv
 from tests.study_fixtures import make_study
 from tests.test_study_browser import browser, clip_video  # noqa: F401 (fixtures)
 
@@ -75,7 +75,7 @@ def careless_choice(clips) -> str:
 
 
 def answer_page(page, study: Study, clips, careful: bool) -> None:
-    if study.design == Study.Design.SIDE_BY_SIDE:
+    if study.design == "side-by-side":
         for clip in clips:
             set_slider(page, clip.slot, (careful_value if careful else careless_value)(study, clip))
         page.get_by_role("button", name="Submit ratings").click()
@@ -124,9 +124,9 @@ def take_part(browser, live_server, study: Study, pid: str, screen: dict, carefu
 @pytest.mark.slow
 @pytest.mark.django_db(transaction=True)
 @pytest.mark.parametrize("design, fields", [
-    (Study.Design.SIDE_BY_SIDE, {"scale_min": 0, "scale_max": 100, "pages_per_participant": 2}),
-    (Study.Design.PAIRWISE, {"pages_per_participant": 3, "preference_strengths": 3}),
-    (Study.Design.PAIRWISE, {"pages_per_participant": 3, "preference_strengths": 3, "abx": True}),
+    ("side-by-side", {"scale_min": 0, "scale_max": 100, "pages_per_participant": 2}),
+    ("pairwise", {"pages_per_participant": 3, "preference_strengths": 3}),
+    ("pairwise", {"pages_per_participant": 3, "preference_strengths": 3, "abx": True}),
 ])
 def test_careful_careless_and_hasty_participants_in_a_browser(browser, live_server, clip_video, settings, tmp_path,
                                                               design, fields):
@@ -143,7 +143,7 @@ def test_careful_careless_and_hasty_participants_in_a_browser(browser, live_serv
     assert all(p.finished_at is not None for p in people.values())
     assert {pid: (p.excluded, p.failed_checks) for pid, p in people.items()} == {
         "careful-phone": (False, 0), "careful-desktop": (False, 0), "careless": (True, 1), "hasty": (False, 0)}
-    assert people["careless"].exclusion_reason == ("rated a NAT clip low" if design == Study.Design.SIDE_BY_SIDE
+    assert people["careless"].exclusion_reason == ("rated a NAT clip low" if design == "side-by-side"
                                                    else "preferred a BAD clip")
     early = Rating.objects.filter(answered_before_end=True)
     assert {r.assignment.participant.platform_id for r in early} == {"hasty"}

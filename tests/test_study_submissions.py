@@ -154,7 +154,8 @@ def test_every_control_of_a_refused_submission_is_reported_at_once_and_nothing_i
         f"{ramp}: no file: refused: no file named {ramp}.bvh or {ramp}_NN.bvh",
         "named after no control, left out: nobody.npz",
         f"{circle}: {circle}.npz: refused: the body is 1.", "cm tall as read; a body is 50-250 cm tall",
-        f"{sidestep}: {sidestep}.npz: refused: unreadable (motion positions contain NaN or infinity (first at frame 5))",
+        f"{sidestep}: {sidestep}.npz: refused: unreadable ({sidestep}.npz: positions: holds NaN or infinity "
+        "(first at frame 5, joint 2))",
         f"{stand}: {stand}.npz: refused: 30 frames (1.50 s) at 20 fps, shorter than its control's 80 frames (4.00 s)",
         f"{backward}: {backward}.npz: refused: the root strays 3", "cm from the control's path (at frame 79); the "
                                                                    "tolerance is 100 cm",

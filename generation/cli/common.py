@@ -7,9 +7,10 @@ from __future__ import annotations
 import argparse
 import sys
 
+from measures.units import parse_scale
+
 from ..control import PRESETS, PathControl, load_control_file, preset_path
 from ..motion.root import RootOptions
-from ..motion.units import parse_scale
 from ..render import Camera
 
 

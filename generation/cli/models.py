@@ -17,13 +17,15 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from measures.feet import choose_foot_joints
+from measures.units import UNIT_NAMES, UNITS
+
 from ..control import PRESETS, following_arrays, lead_in_frames, load_control_file, preset_path, take_paths
 from ..motion.bvh import motion_to_bvh, write_bvh
 from ..motion.dataset import LOCOMOTION, DatasetOptions, build_dataset, contents_or_all
 from ..motion.npz import save_motion_npz
 from ..motion.root import RootOptions, integrate, root_trajectory
 from ..motion.takes import natural_takes
-from ..motion.units import UNIT_NAMES, UNITS
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
 from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, shown_control, warn
@@ -299,8 +301,6 @@ def evaluate_command(args: argparse.Namespace) -> int:
 
 
 def sliding_command(args: argparse.Namespace) -> int:
-    from analysis.footsteps import choose_foot_joints
-
     from ..generator import Generator
     from ..motion.features import decode_positions
     from ..sliding import SETTLE_SECONDS, sliding_ladder
@@ -381,7 +381,10 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--control", "-c", nargs="+", default=["walk-straight"], help="control presets, files or 'held-out'")
     p.add_argument("--action", nargs="+", help="attribute models: actions to sample (default: all the model knows)")
     p.add_argument("--style", nargs="+", help="attribute models: styles to sample (default: all the model knows)")
-    p.add_argument("--out", "-o", required=True, help="output folder (npz and BVH per clip)")
+    p.add_argument("--out", "-o", required=True,
+                   help="output folder: per clip an npz (the model's joint positions) and a BVH (the root's "
+                        "position and every joint's ZXY rotation on the training rig; path models' rotations "
+                        "come from their positions by inverse kinematics)")
     p.add_argument("--n", type=int, default=1, help="samples per control (default %(default)s)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--temperature", type=float, default=1.0, help="sampling temperature (default %(default)s)")

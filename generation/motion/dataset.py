@@ -203,11 +203,16 @@ class MotionDataset:
             result += [getattr(clip, kind)] * n
         return result
 
+    def training_windows(self) -> int:
+        """How many windows the training clips give (augmented clips included)."""
+        return sum(window_count(c.stop - c.start, self.options.window_frames, self.options.hop_frames)
+                   for c in self.select("train"))
+
     def require_training_windows(self) -> int:
         """How many training windows there are; ValueError when there are none (every
         training take shorter than one window), rather than a model trained on nothing."""
         train = self.select("train")
-        count = sum(window_count(c.stop - c.start, self.options.window_frames, self.options.hop_frames) for c in train)
+        count = self.training_windows()
         if count == 0:
             longest = max((c.stop - c.start for c in train), default=0)
             raise ValueError(
@@ -315,19 +320,24 @@ def label_name_file(folder: Path, kind: str) -> Path | None:
     return None
 
 
-def _label_names(folder: Path, kind: str) -> list[str] | None:
+def _label_names(folder: Path, kind: str) -> tuple[Path, list[str]] | None:
+    """The ``{kind}_label.txt`` that covers ``folder`` and its labels, or None."""
     path = label_name_file(folder, kind)
     if path is None:
         return None
-    lines = [line.strip() for line in path.read_text().splitlines() if line.strip()]
+    try:
+        lines = [line.strip() for line in path.read_text(encoding="utf-8").splitlines() if line.strip()]
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{path}: not UTF-8 text (byte {error.start})") from None
     # Drop a shared "dataset-1_" style prefix, up to its last underscore.
     prefix = os.path.commonprefix(lines)
     cut = prefix.rfind("_") + 1 if len(lines) > 1 else 0
-    return [line[cut:] for line in lines]
+    return path, [line[cut:] for line in lines]
 
 
 def read_labels(bvh_path: Path) -> tuple[str | None, str | None]:
-    """(content, style) of a clip from its JSON side file, or (None, None)."""
+    """(content, style) of a clip from its JSON side file, or (None, None). Where a label
+    list covers the folder, a label is one of its lines, by index or by name."""
     side = bvh_path.with_suffix(".json")
     if not side.is_file():
         return None, None
@@ -337,20 +347,32 @@ def read_labels(bvh_path: Path) -> tuple[str | None, str | None]:
         raise ValueError(f"{side}: not UTF-8 text (byte {error.start})") from None
     except json.JSONDecodeError as error:
         raise ValueError(f"{side}:{error.lineno}: invalid JSON ({error.msg})") from None
+    except (ValueError, RecursionError) as error:  # a number of thousands of digits, arrays nested thousands deep
+        raise ValueError(f"{side}: not a label file ({error})") from None
     if not isinstance(data, dict):
         raise ValueError(f"{side}: expected a JSON object with 'content' and 'style', got a {type(data).__name__}")
     result = []
     for kind in ("content", "style"):
         index = data.get(kind)
-        names = _label_names(bvh_path.parent, kind)
+        listed = _label_names(bvh_path.parent, kind)
         if index is None:
             result.append(None)
         elif isinstance(index, bool) or not isinstance(index, int | str):
             raise ValueError(f"{side}: {kind!r} must be a label index or name, got {index!r}")
-        elif names is not None and isinstance(index, int) and 0 <= index < len(names):
-            result.append(names[index])
-        else:  # a label given by name, or a number no names file covers
+        elif listed is None:  # no label list: the label as given
             result.append(str(index))
+        elif isinstance(index, int):
+            names_file, names = listed
+            if not 0 <= index < len(names):
+                raise ValueError(f"{side}: {kind!r} is {index}, but {names_file} lists {len(names)} labels "
+                                 f"(0 to {len(names) - 1})")
+            result.append(names[index])
+        else:
+            names_file, names = listed
+            if not any(content_matches(index, name) for name in names):
+                shown = ", ".join(names[:10]) + (f" and {len(names) - 10} more" if len(names) > 10 else "")
+                raise ValueError(f"{side}: {kind!r} is {index!r}, which is not a label of {names_file} ({shown})")
+            result.append(index)
     return result[0], result[1]
 
 
@@ -520,7 +542,8 @@ def build_dataset(
         for key in arrays
     }
     dataset = MotionDataset(options, skeleton, spec, clips, arrays, stats, key)
-    dataset.save(cached)
+    if dataset.training_windows():  # else no model can learn from it: the command refusing it leaves no cache behind
+        dataset.save(cached)
     return dataset
 
 

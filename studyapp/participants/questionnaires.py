@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from django.http import QueryDict
 
-from studyapp.designs.ratings import RatingRejected
 from studyapp.models import Question, Study
+from studyapp.participants.refusal import AnswerRefused
 
 MAX_ANSWER_LENGTH = 2000
 
@@ -27,25 +27,25 @@ def field_name(question: Question) -> str:
 def _answer(question: Question, text: str) -> str | float:
     if question.kind == Question.Kind.CHOICE:
         if text not in question.choice_list:
-            raise RatingRejected(f"“{question.text}”: please choose one of the answers")
+            raise AnswerRefused(f"“{question.text}”: please choose one of the answers")
         return text
     if question.kind == Question.Kind.NUMBER:
         try:
             return float(text)
         except ValueError:
-            raise RatingRejected(f"“{question.text}”: please give a number, not {text[:20]!r}") from None
+            raise AnswerRefused(f"“{question.text}”: please give a number, not {text[:20]!r}") from None
     return text[:MAX_ANSWER_LENGTH]
 
 
 def read_answers(asked: list[Question], form: QueryDict) -> dict[str, str | float]:
-    """The answers to ``asked`` in ``form``, or RatingRejected (400) naming the first
+    """The answers to ``asked`` in ``form``, or AnswerRefused (400) naming the first
     question left out or answered wrongly."""
     answers: dict[str, str | float] = {}
     for question in asked:
         text = form.get(field_name(question), "").strip()
         if not text:
             if question.required:
-                raise RatingRejected(f"“{question.text}”: please answer this question")
+                raise AnswerRefused(f"“{question.text}”: please answer this question")
             continue
         answers[question.name] = _answer(question, text)
     return answers

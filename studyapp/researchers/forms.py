@@ -13,8 +13,9 @@ from django import forms
 from django.conf import settings
 
 from generation.control import PRESETS
-from generation.motion.units import UNITS, parse_scale
 from generation.render.camera import Camera
+from measures.units import UNITS, parse_scale
+from studyapp.designs import registry as designs
 from studyapp.models import ControlSignal, Question, Study, System
 
 
@@ -43,7 +44,6 @@ class StudyForm(forms.ModelForm):
 
     INSTRUMENT = ("design", "abx", "question", "scale_min", "scale_max", "label_min", "label_max", "preference_strengths",
                   "bad_threshold", "natural_threshold", "video_width", "video_height")
-    SLIDER_SCALE = (0, 100)  # side-by-side's scale unless the researcher sets one (HEMVIP, GENEA)
     SECTIONS = (
         ("The study", ("title", "instructions", "consent_text")),
         ("Design", ("design", "pages_per_participant", "abx", "preference_strengths")),
@@ -99,9 +99,11 @@ class StudyForm(forms.ModelForm):
                 raise forms.ValidationError(f"camera: {error}") from None
         cleaned = super().clean()
         changed = set(self.changed_data)
-        if (cleaned.get("design") == Study.Design.SIDE_BY_SIDE and "design" in changed
-                and not changed & {"scale_min", "scale_max"}):
-            cleaned["scale_min"], cleaned["scale_max"] = self.SLIDER_SCALE
+        # A design with a scale of its own (side-by-side's 0-100 sliders, as HEMVIP and
+        # GENEA) gets it when chosen, unless the researcher sets one.
+        default_scale = designs.design_named(cleaned["design"]).default_scale if cleaned.get("design") else None
+        if default_scale and "design" in changed and not changed & {"scale_min", "scale_max"}:
+            cleaned["scale_min"], cleaned["scale_max"] = default_scale
         return cleaned
 
     class Meta:

@@ -24,6 +24,7 @@ urlpatterns = [
     path("<int:pk>/participants.csv", views.study_participants_csv, name="study-participants-csv"),
     path("<int:pk>/open/", views.study_open, name="study-open"),
     path("<int:pk>/ratings.csv", views.study_export, name="study-export"),
+    path("<int:pk>/rules.json", views.study_rules, name="study-rules"),
     path("<int:pk>/motion.zip", views.study_motion_download, name="study-motion-download"),
     path("<int:pk>/report/", views.study_report, name="study-report"),
 ]

@@ -20,13 +20,15 @@ from django.urls import reverse
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
-from studyapp.models import NATURAL_NAME, ControlSignal, Question, Stimulus, Study, System
+from studyapp.designs.rules import StudyRules
+from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.participants.views import PLATFORM_PARAMETERS
 from studyapp.researchers.editing import EditRefused, edit_system, rename_control
+from studyapp.researchers.export import ratings_csv, rules_json
 from studyapp.researchers.forms import (CheckpointSystemForm, ControlEditForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
                             LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, StudyForm,
                             SubmittedMotionSystemForm, SystemEditForm, VideoSystemForm)
-from studyapp.researchers.monitor import ratings_csv, study_monitor
+from studyapp.researchers.monitor import study_monitor
 from studyapp.researchers.participant_list import participant_rows, participants_csv, question_names
 from studyapp.researchers.preview import preview_pages
 from studyapp.researchers.readiness import open_problems
@@ -291,6 +293,7 @@ def study_monitor_page(request: HttpRequest, pk: int) -> HttpResponse:
     context = {
         "study": study, "monitor": study_monitor(study), "entry_link": entry_link(request, study),
         "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study),
+        "rules": StudyRules.of(study).described(),
     }
     return render(request, "studyapp/researcher/monitor.html", context)
 
@@ -389,6 +392,17 @@ def study_export(request: HttpRequest, pk: int) -> HttpResponse:
 @never_cache
 @login_required
 @require_safe
+def study_rules(request: HttpRequest, pk: int) -> HttpResponse:
+    """The exclusion rules of the ratings table, for ``python -m analysis report --rules``."""
+    study = _study(request, pk)
+    response = HttpResponse(rules_json(study), content_type="application/json")
+    response["Content-Disposition"] = f'attachment; filename="rules-study-{study.pk}.json"'
+    return response
+
+
+@never_cache
+@login_required
+@require_safe
 def study_motion_download(request: HttpRequest, pk: int) -> HttpResponse:
     """Every system's motion of the finished clips as a zip, for the objective metrics (``motion_export``)."""
     study = _study(request, pk)
@@ -411,9 +425,10 @@ def study_report(request: HttpRequest, pk: int) -> HttpResponse:
     """The analysis report of the ratings so far (the analysis pages' report)."""
     study = _study(request, pk)
     try:
-        has_natural = study.systems.filter(role=System.Role.NATURAL).exists()
-        digest = create_report(settings.MEDIA_ROOT, ratings_csv(study), NATURAL_NAME if has_natural else None,
-                               request.user.pk)
+        # As `python -m analysis report ratings.csv --rules rules.json` makes it: the study's
+        # rules, and NAT as the reference where it was rated.
+        digest = create_report(settings.MEDIA_ROOT, ratings_csv(study), None, request.user.pk,
+                               StudyRules.of(study).exclusion)
     except AnalysisInputError as error:
         messages.error(request, f"No report yet: {error}")
         return redirect("study-monitor", pk=study.pk)

@@ -6,7 +6,7 @@ from django.db import migrations, models
 class Migration(migrations.Migration):
 
     dependencies = [
-        ('studyapp', '0005_study_updated_and_shown_at'),
+        ('studyapp', '0006_designs_from_the_registry'),
     ]
 
     operations = [
