@@ -67,6 +67,10 @@ def test_a_studys_nat_comes_from_a_folder_no_checkpoint_was_trained_on(client, r
     assert study.controls.get(name="walk-circle").control["fps"] == 20.0
     unknown = client.post(f"/studies/{study.pk}/controls/", {"action": "held_out", "seconds": "2", "takes": "nobody"})
     assert unknown.status_code == 400 and "no take named nobody in" in html.unescape(unknown.content.decode())
+    furlongs = client.post(f"/studies/{study.pk}/controls/", {"action": "held_out", "seconds": "2", "unit": "furlong"})
+    assert furlongs.status_code == 400
+    assert "scale must be auto, a unit (mm, cm, in, cmu, ft, m) or a number, got 'furlong'" in html.unescape(
+        furlongs.content.decode())
 
     assert client.post(f"/studies/{study.pk}/systems/", {"action": "natural", "name": "NAT"}).status_code == 302
     stimuli, _ = plan_stimuli(study)

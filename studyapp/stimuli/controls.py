@@ -154,8 +154,8 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
         raise ControlError("a lead-in is the path before the clip: this study's models are controlled by labels")
     trained = study.systems.exclude(checkpoint="").exists()
     if trained and (scale is not None or up is not None):
-        raise ControlError("the study's checkpoints fix the unit and up axis their data is read in; a unit or up "
-                           "axis is given for the takes of a study without checkpoints")
+        raise ControlError("the study's checkpoints fix the unit and up axis their data is read in; a unit or an "
+                           "up axis is for the takes of a study without checkpoints")
     options = training_options(study) if trained else DatasetOptions(scale=scale, up=up)
     try:
         lead = lead_in_frames(lead_in, options.fps) / options.fps  # refused before the data is read
@@ -168,10 +168,7 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
         if trained:
             held_out, contents = _trained_takes(study, folders, options, kind, wanted, seconds, lead, where)
         else:
-            options = dataclasses.replace(options, contents=None if wanted else contents_or_all(folders, LOCOMOTION))
-            found, options = natural_takes(folders, options, wanted or None)
-            held_out = take_paths([(take.name, take.control) for take in found], options.fps, seconds, lead)
-            contents = {take.name: take.content for take in found}
+            held_out, contents, options = _untrained_takes(folders, options, wanted, seconds, lead)
     except ControlError:
         raise
     except (FileNotFoundError, ValueError) as error:
@@ -211,6 +208,18 @@ def _trained_takes(study: Study, folders: list[Path], options: DatasetOptions, k
         actions, styles = study_labels(study)
         held_out = [c for c in held_out_attributes(dataset, seconds) if c.action in actions and c.style in styles]
     return [c for c in held_out if not wanted or c.name in wanted], contents
+
+
+def _untrained_takes(folders: list[Path], options: DatasetOptions, wanted: list[str], seconds: float, lead: float
+                     ) -> tuple[list[Control], dict[str, str | None], DatasetOptions]:
+    """The held-out paths of takes no checkpoint of the study was trained on: those the
+    seeded split that training on the folders makes holds out (of the locomotion contents
+    where the takes have labels, as ``train`` takes them), or the ``wanted`` ones; each
+    take's content; and the options with the unit and up axis as read."""
+    options = dataclasses.replace(options, contents=None if wanted else contents_or_all(folders, LOCOMOTION))
+    found, options = natural_takes(folders, options, wanted or None)
+    held_out = take_paths([(take.name, take.control) for take in found], options.fps, seconds, lead)
+    return held_out, {take.name: take.content for take in found}, options
 
 
 def add_label_controls(study: Study, actions: list[str], styles: list[str], seconds: float) -> list[ControlSignal]:

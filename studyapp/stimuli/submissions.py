@@ -35,7 +35,7 @@ from django.core.files import File
 from generation.control import control_from_dict
 from generation.motion.kinematics import subtree_motion
 from generation.motion.npz import load_motion_npz, save_motion_npz
-from generation.motion.root import hips_index
+from generation.motion.root import RootOptions, hips_index
 from generation.motion.types import Motion
 from generation.submission import MOTION_SUFFIXES, prepare_submission
 from studyapp.models import ControlSignal, Study, System
@@ -159,7 +159,7 @@ def check_submission(study: Study, files: dict[str, bytes], reading: Reading = R
     return [Accepted(by_id[result.control], _body(result.motion, root)) for result in report.results], lines
 
 
-def _body(motion: Motion, root) -> Motion:
+def _body(motion: Motion, root: RootOptions) -> Motion:
     """The body (the hips and below), as NAT clips and the models' data are."""
     return subtree_motion(motion, hips_index(motion.skeleton, root.hips))
 
