@@ -184,9 +184,14 @@ def test_zip_members_never_become_paths_and_a_zip_that_unpacks_past_the_cap_is_r
     study = study_for_submissions(client, researcher, files)
     good = other_labs_motion(study, files, tmp_path)
     slipping = {f"../../{Path(name).name}" if i == 0 else name: data for i, (name, data) in enumerate(good.items())}
+    first = next(iter(good))
+    twice = {**good, f"other/{Path(first).name}": good[first]}  # two files of one name: which is meant?
+    response = upload_motion(client, study, zipped(twice), name="Twice")
+    assert response.status_code == 400 and (f"{first} and other/{Path(first).name}: only a file&#x27;s name counts, "
+                                            "and these have the same") in response.content.decode()
     response = upload_motion(client, study, zipped(slipping))
     assert response.status_code == 302  # the name counts, never the path
-    assert not (Path(settings.CHECKPOINT_ROOT).parent / Path(next(iter(good))).name).exists()
+    assert not (Path(settings.CHECKPOINT_ROOT).parent / Path(first).name).exists()
 
     settings.MAX_MOTION_UPLOAD_BYTES = 100_000
     bomb = zipped({"lab/zeros.npz": bytes(5_000_000)})
