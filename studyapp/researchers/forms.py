@@ -53,7 +53,8 @@ class StudyForm(forms.ModelForm):
         ("Attention checks and early answers", ("bad_checks", "natural_checks", "bad_threshold", "natural_threshold",
                                                 "instructed_checks", "stop_after_failed_checks",
                                                 "require_full_play", "discard_early")),
-        ("Crowd platform", ("platform", "completion_code", "redirect_url", "is_open")),
+        ("Crowd platform", ("platform", "completion_code", "redirect_url", "screen_out_code", "stopped_code",
+                            "is_open")),
         ("Device check", ("device_check", "min_screen_width", "min_screen_height")),
         ("Video and camera", ("video_width", "video_height")),  # and every camera field
     )

@@ -6,7 +6,7 @@ from django.db import migrations, models
 class Migration(migrations.Migration):
 
     dependencies = [
-        ('studyapp', '0006_designs_from_the_registry'),
+        ('studyapp', '0007_platform_codes_and_actions'),
     ]
 
     operations = [
