@@ -33,7 +33,7 @@ from studyapp.models import Stimulus, Study, System
 from studyapp.stimuli.clips import plan_stimuli
 from studyapp.stimuli.controls import training_options
 from studyapp.stimuli.motion_export import write_motion
-from studyapp.stimuli.sources import sampled_path
+from studyapp.stimuli.sources import sampled_path, source_of
 from studyapp.tasks import sample_stimuli
 from tests.test_study_researcher import (files, new_study, queue, researcher, run_task, site,  # noqa: F401 (fixtures)
                                          upload_checkpoint)
@@ -190,17 +190,20 @@ def test_the_motion_download_is_the_owners_alone(client, researcher):
 
 
 @pytest.mark.django_db
-def test_a_label_models_exported_bvh_holds_its_own_rotations(client, researcher, site, files, settings, tmp_path):
+def test_a_label_models_exported_bvh_gives_its_clip_back_joint_for_joint(client, researcher, site, files, settings,
+                                                                        tmp_path):
     settings.MOTION_DATA = files.labelled
     study = new_study(researcher)
     assert upload_checkpoint(client, study, files.erd.read_bytes(), name="ERD").status_code == 302
     client.post(f"/studies/{study.pk}/controls/", {"action": "labels", "actions": ["walk"], "styles": ["happy"],
                                                    "seconds": "1"})
-    stimuli, _ = plan_stimuli(study)
-    Stimulus.objects.filter(pk__in=[s.pk for s in stimuli]).update(status=Stimulus.Status.DONE)  # sampled on export
+    (stimulus,), _ = plan_stimuli(study)
+    source_of(stimulus.system).clip(stimulus)  # sampled as a worker samples it: kept as positions
+    assert sampled_path(stimulus).is_file()
+    Stimulus.objects.filter(pk=stimulus.pk).update(status=Stimulus.Status.DONE)
     out = tmp_path / "motion"
     assert write_motion(study, out) == {"ERD": 1}
-    # The model's own rotations: forward kinematics of them is its clip, joint for joint.
     assert System.objects.get(name="ERD").kind == "erd"
+    # ERD's clip is forward kinematics on its rig: the rotations found from it give it back.
     assert_rotation_bvh_of(out / "ERD" / "walk-happy-1s.bvh", load_motion_npz(out / "ERD" / "walk-happy-1s.npz"),
                            exact=True)

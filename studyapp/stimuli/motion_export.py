@@ -7,11 +7,13 @@ system, one clip in two files.
                                      every joint's ZXY rotation and the root's position,
                                      in cm with y up (BVH cannot say so itself)
 
-The BVH files hold rotations for every kind of system: NAT's and a label model's own, and
-for motion of positions only (MoGlow, RNN, VAE, submitted motion) those that inverse
-kinematics finds on the rig (``generation.motion.ik``; the rig's bone lengths, every
-bone pointing where the clip's does), so the motion loads onto a character in Blender,
-Maya or a game engine. The objective metrics read the ``.npz`` files only.
+The BVH files hold rotations for every kind of system, so the motion loads onto a
+character in Blender, Maya or a game engine: NAT's are the capture's own; every other
+clip is kept as positions (sampled motion of any model kind, submitted motion), and its
+rotations are those that inverse kinematics finds on the rig (``generation.motion.ik``:
+the rig's bone lengths, every bone pointing where the clip's does; a label model's
+clip, made by its rig's forward kinematics, comes back joint for joint). The objective
+metrics read the ``.npz`` files only.
 
 Systems are named as in the ratings table (``System.export_name``: NAT and BAD for those
 roles, a model system by its name), in each file's ``system`` array and, where the name
