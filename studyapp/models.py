@@ -245,6 +245,10 @@ class ControlSignal(models.Model):
     control = models.JSONField(help_text="generation.control's to_dict() form")
     # For held-out control: the natural clip it came from, which NAT stimuli show.
     source_clip = models.CharField(max_length=200, blank=True)
+    # For held-out control: where its take was found and how it is read (``stimuli.natural.NaturalSource``).
+    natural = models.JSONField(default=dict, blank=True,
+                               help_text="held-out: the folders its take was found in and the dataset options it is "
+                                         "read with")
     seconds = models.FloatField()
 
     class Meta:

@@ -22,7 +22,7 @@ from measures.units import UNIT_NAMES, UNITS
 
 from ..control import PRESETS, following_arrays, lead_in_frames, load_control_file, preset_path, take_paths
 from ..motion.bvh import motion_to_bvh, write_bvh
-from ..motion.dataset import DatasetOptions, build_dataset, contents_or_all
+from ..motion.dataset import LOCOMOTION, DatasetOptions, build_dataset, contents_or_all
 from ..motion.npz import save_motion_npz
 from ..motion.root import RootOptions, integrate, root_trajectory
 from ..motion.takes import natural_takes
@@ -31,7 +31,6 @@ from ..render import render_video
 from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, shown_control, warn
 
 
-LOCOMOTION = "walk,run,dash,walk-back,walk-left,walk-right"
 OWN_CONTROL = "own"  # --draw-control without a value: each clip's own control
 
 
@@ -54,7 +53,7 @@ def _contents(args: argparse.Namespace) -> tuple[str, ...] | None:
     """--contents, else the locomotion contents, or every clip of folders without labels."""
     if args.contents:
         return tuple(args.contents.split(","))
-    contents = contents_or_all(args.folder, tuple(LOCOMOTION.split(",")))
+    contents = contents_or_all(args.folder, LOCOMOTION)
     if contents is None:
         print("note: the clips have no content labels: all of them are used, as one content")
     return contents
