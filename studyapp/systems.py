@@ -29,6 +29,7 @@ from django.db import transaction
 
 from generation.files import atomic_output
 from studyapp.models import Stimulus, Study, System, new_token
+from studyapp.null_characters import null_character_in
 
 if TYPE_CHECKING:  # torch-backed modules load only when a checkpoint is handled
     from generation.checkpoint import CheckpointMeta
@@ -131,6 +132,8 @@ def store_checkpoint(upload: File) -> StoredCheckpoint:
             Generator(model, meta)  # the features and statistics sampling needs are there
         except (KeyError, TypeError, ValueError, AttributeError) as error:
             raise UploadRefused(f"{name}: a {meta.kind} checkpoint that cannot drive sampling ({error!r})") from None
+        if (where := null_character_in(dataclasses.asdict(meta))) is not None:  # PostgreSQL could not store it
+            raise UploadRefused(f"{name}: the checkpoint's description holds a NUL character (\\0) in {where}")
         parameters = sum(p.numel() for p in model.parameters())
         final = root / f"{digest}{CHECKPOINT_SUFFIX}"
         os.chmod(tmp, 0o644)

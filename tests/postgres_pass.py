@@ -42,6 +42,7 @@ DATABASE_TESTS = (
     "tests/test_crowd_questionnaires.py",
     "tests/test_crowd_researcher.py",
     "tests/test_hostile_web.py",
+    "tests/test_hostile_database_limits.py",
     "tests/test_lost_tasks.py",
 )
 
