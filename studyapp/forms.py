@@ -14,7 +14,7 @@ from django.conf import settings
 
 from generation.control import PRESETS
 from generation.render.camera import Camera
-from studyapp.models import ControlSignal, Question, Study, System
+from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 
 
 CAMERA_PREFIX = "camera_"
@@ -229,4 +229,5 @@ class ControlFileForm(forms.Form):
 
 
 class GenerateForm(forms.Form):
-    seed = forms.IntegerField(initial=0, help_text="random seed of every model's samples")
+    seed = forms.IntegerField(initial=0, min_value=0, max_value=Stimulus.MAX_SEED,
+                              help_text="random seed of every model's samples")

@@ -12,10 +12,11 @@ from __future__ import annotations
 import pytest
 from django.contrib.auth.models import User
 from django.core.files.uploadedfile import SimpleUploadedFile
+from django.core.management import CommandError, call_command
 from django.test import Client
 from django.urls import reverse
 
-from studyapp.models import Participant, Question, Rating, Study, System
+from studyapp.models import Participant, Question, Rating, Stimulus, Study, System
 from studyapp.null_characters import null_character_in
 from tests.study_fixtures import make_study
 from tests.test_hostile_checkpoints import rewritten, tiny  # noqa: F401 (a fixture: a tiny checkpoint)
@@ -147,3 +148,23 @@ def test_null_character_in_names_the_path_to_the_first_nul():
     assert null_character_in({"a\x00": 1}) == "a\\0"
     assert null_character_in("plain\x00") == "the text"
     assert null_character_in({"numbers": [1, 2.5, None], "text": "fine"}) is None
+
+
+@pytest.mark.parametrize("seed", [Stimulus.MAX_SEED + 1, 10**20, -1])
+def test_a_seed_past_what_the_database_holds_is_a_400_naming_the_bound_and_plans_nothing(seed):
+    study = make_study()
+    before = list(Stimulus.objects.values_list("pk", "seed"))
+    researcher = Client()
+    researcher.force_login(study.owner)
+    response = researcher.post(reverse("study-stimuli", args=[study.pk]), {"seed": str(seed)})
+    assert response.status_code == 400
+    bound = "less than or equal to 2147483647" if seed > 0 else "greater than or equal to 0"
+    assert bound in response.content.decode()
+    assert list(Stimulus.objects.values_list("pk", "seed")) == before
+
+
+def test_the_command_refuses_a_seed_past_what_the_database_holds_with_exit_status_2():
+    study = make_study()
+    with pytest.raises(CommandError, match="--seed 2147483648: a seed is a whole number from 0 to 2147483647") as refused:
+        call_command("generate_stimuli", str(study.pk), "--seed", str(Stimulus.MAX_SEED + 1))
+    assert refused.value.returncode == 2

@@ -5,6 +5,7 @@ import time
 from django.core.management.base import BaseCommand
 
 from studyapp.dispatch import BrokerUnavailable, generate_stimuli
+from studyapp.models import Stimulus
 from studyapp.stimuli import progress
 
 from ._study import InputError, study_by_id
@@ -21,6 +22,8 @@ class Command(BaseCommand):
 
     def handle(self, *args, **options):
         study = study_by_id(options["study_id"])
+        if not 0 <= options["seed"] <= Stimulus.MAX_SEED:
+            raise InputError(f"--seed {options['seed']}: a seed is a whole number from 0 to {Stimulus.MAX_SEED}")
         try:
             result = generate_stimuli(study, options["seed"])
         except BrokerUnavailable as error:
