@@ -118,13 +118,13 @@ def test_a_cookie_that_spells_a_nul_is_a_400_naming_the_cookie():
     refusal(client.get(reverse("study-list")), "The cookie sessionid")
 
 
-def test_a_forged_form_is_refused_as_forged_whatever_it_holds():
+def test_a_form_without_its_csrf_token_is_refused_as_such_whatever_it_holds():
     study = make_study()
-    response = Client(enforce_csrf_checks=True).get(reverse("participant-enter", args=[study.key]), ENTRY)
-    assert response.status_code == 302
-    forged = Client(enforce_csrf_checks=True).post(reverse("participant-consent", args=[study.key]),
-                                                   {"agree": "yes\x00"})
-    assert forged.status_code == 403
+    client = Client(enforce_csrf_checks=True)
+    assert client.get(reverse("participant-enter", args=[study.key]), ENTRY).status_code == 302
+    forged = client.post(reverse("participant-consent", args=[study.key]), {"agree": "yes\x00"})
+    assert forged.status_code == 403 and "This page had expired" in forged.content.decode()
+    assert Participant.objects.get().consented_at is None
 
 
 def test_a_checkpoint_whose_description_holds_a_nul_is_refused_naming_the_field(tiny, tmp_path, settings):  # noqa: F811
