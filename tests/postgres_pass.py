@@ -23,10 +23,11 @@ from tests.throwaway_postgres import throwaway_postgres
 
 REPO = Path(__file__).resolve().parents[1]
 
-# The modules of the database's work: migrations, assignment and its concurrency, ratings
-# and their export, the study designs, stimuli claimed by tasks, removal, the admin's
-# scoping and the hostile inputs of the participant's and the researcher's forms. Their
-# tests that never meet the test database are left out (pytest_collection_modifyitems).
+# The modules of the database's work: migrations, assignment and its concurrency, ratings,
+# their export and the monitor, the study designs, stimuli claimed by tasks, removal, the
+# admin's scoping and the hostile inputs of the participant's and the researcher's forms
+# and uploads. Their tests that never meet the test database are left out
+# (pytest_collection_modifyitems). A new module of database tests belongs here too.
 DATABASE_TESTS = (
     "tests/test_migrations.py",
     "tests/test_study_concurrency.py",
@@ -34,6 +35,7 @@ DATABASE_TESTS = (
     "tests/test_study_design_checks.py",
     "tests/test_study_designs.py",
     "tests/test_study_participant.py",
+    "tests/test_study_monitor.py",
     "tests/test_study_researcher.py",
     "tests/test_study_editing.py",
     "tests/test_study_sampled_cleanup.py",
@@ -41,7 +43,10 @@ DATABASE_TESTS = (
     "tests/test_crowd_platform.py",
     "tests/test_crowd_questionnaires.py",
     "tests/test_crowd_researcher.py",
+    "tests/test_study_control_export.py",
     "tests/test_hostile_web.py",
+    "tests/test_hostile_checkpoints.py",
+    "tests/test_hostile_ratings.py",
     "tests/test_hostile_database_limits.py",
     "tests/test_lost_tasks.py",
 )
