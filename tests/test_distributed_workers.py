@@ -85,8 +85,8 @@ class Processes:
     """The deployment's processes, each in a session of its own with its log in a file;
     whatever happens, each is killed with its group at the end."""
 
-    def __init__(self, env: dict[str, str], logs: Path) -> None:
-        self.env, self.logs, self.started = env, logs, []
+    def __init__(self, env: dict[str, str], logs: Path, run: str) -> None:
+        self.env, self.logs, self.run, self.started = env, logs, run, []
 
     def start(self, name: str, command: list[str], **env: str) -> subprocess.Popen:
         with (self.logs / f"{name}.log").open("wb") as log:
@@ -96,9 +96,10 @@ class Processes:
         return process
 
     def worker(self, name: str, queue: str, **env: str) -> subprocess.Popen:
-        """A Celery worker as compose.yaml runs them (prefork, one child), on ``queue``."""
+        """A Celery worker as compose.yaml runs them (prefork, one child), on ``queue``; its
+        node name is this run's, as other runs may share the Redis server."""
         return self.start(name, [sys.executable, "-m", "celery", "-A", "studyapp", "worker", "--loglevel=info",
-                                 "--queues", queue, "--concurrency", "1", "--hostname", f"{name}@%h",
+                                 "--queues", queue, "--concurrency", "1", "--hostname", f"{name}-{self.run}@%h",
                                  "--without-mingle", "--without-gossip"], **env)
 
     def log(self, name: str) -> str:
@@ -146,8 +147,9 @@ def wait_for(condition, timeout: float, what: str, processes: Processes):
 
 
 def answers(url: str) -> bool:
+    """Whether the web process serves pages (its login page)."""
     with contextlib.suppress(OSError):
-        with urllib.request.urlopen(f"{url}/health.json", timeout=2) as response:
+        with urllib.request.urlopen(f"{url}/login/", timeout=5) as response:
             return response.status == 200
     return False
 
@@ -176,13 +178,13 @@ def test_a_rendering_worker_killed_mid_batch_leaves_every_stimulus_rendered_once
                         STUDY_RENDER_QUEUE=render_queue, STUDYAPP_VAR_DIR=str(var), MEDIA_ROOT=str(var / "media"),
                         MOTION_DATA=str(files.clips), SECRET_KEY="distributed-test-" + "x" * 40,
                         ALLOWED_HOSTS="127.0.0.1", DJANGO_SUPERUSER_PASSWORD=PASSWORD, STUDY_SAMPLE_BATCH="2",
-                        OMP_NUM_THREADS="1")
+                        HEALTH_TIMEOUT_S="5", OMP_NUM_THREADS="1")
         built = subprocess.run([sys.executable, "-c", BUILD, str(files.good), str(controls)], cwd=REPO, env=env,
                                capture_output=True, text=True, timeout=300)
         assert built.returncode == 0, built.stderr[-3000:]
         study = int(built.stdout.split()[-1])
 
-        processes = Processes(env, logs)
+        processes = Processes(env, logs, run)
         try:
             processes.start("web", [sys.executable, "-m", "gunicorn", "studyapp.wsgi", "--bind", f"127.0.0.1:{port}",
                                     "--workers", "1", "--worker-class", "gthread", "--threads", "4"])
@@ -194,6 +196,8 @@ def test_a_rendering_worker_killed_mid_batch_leaves_every_stimulus_rendered_once
 
             researcher = Browser(url)
             researcher.submit("/login/", {"username": "researcher", "password": PASSWORD})
+            health = researcher.get("/health/").decode()  # the web process sees both workers
+            assert f"gpu-{run}@" in health and f"render-{run}@" in health, health
             page = researcher.submit(f"/studies/{study}/stimuli/", {"seed": "0"})
             assert "sent to the workers" in page, page[-2000:]
 
