@@ -42,3 +42,12 @@ def motion_data_2() -> Path:
 def clip_path(motion_data):
     """Path of a named clip, e.g. clip_path('walk-left_normal_001')."""
     return lambda name: motion_data / "data" / f"dataset-1_{name}.bvh"
+
+
+@pytest.fixture(autouse=True)
+def fast_password_hashing(settings):
+    """Passwords made in tests are hashed with one round of MD5: the real hasher's million
+    rounds cost 0.7 s a password on this machine, and no test measures them. Hashes made
+    by the real hasher (in a subprocess's createsuperuser) still check."""
+    settings.PASSWORD_HASHERS = ["django.contrib.auth.hashers.MD5PasswordHasher",
+                                 *(name for name in settings.PASSWORD_HASHERS if "MD5" not in name)]
