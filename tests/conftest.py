@@ -45,9 +45,14 @@ def clip_path(motion_data):
 
 
 @pytest.fixture(autouse=True)
-def fast_password_hashing(settings):
+def fast_password_hashing():
     """Passwords made in tests are hashed with one round of MD5: the real hasher's million
     rounds cost 0.7 s a password on this machine, and no test measures them. Hashes made
-    by the real hasher (in a subprocess's createsuperuser) still check."""
-    settings.PASSWORD_HASHERS = ["django.contrib.auth.hashers.MD5PasswordHasher",
-                                 *(name for name in settings.PASSWORD_HASHERS if "MD5" not in name)]
+    by the real hasher (in a subprocess's createsuperuser) still check. (Not through the
+    ``settings`` fixture: some tests have a parameter of that name.)"""
+    from django.conf import settings
+    from django.test import override_settings
+
+    hashers = ["django.contrib.auth.hashers.MD5PasswordHasher", *(h for h in settings.PASSWORD_HASHERS if "MD5" not in h)]
+    with override_settings(PASSWORD_HASHERS=hashers):
+        yield
