@@ -278,6 +278,9 @@ class Stimulus(models.Model):
         DONE = "done", "done"
         FAILED = "failed", "failed"
 
+    # ``seed`` is a 32-bit column, which PostgreSQL enforces (SQLite would store more).
+    MAX_SEED = 2**31 - 1
+
     study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="stimuli")
     system = models.ForeignKey(System, on_delete=models.CASCADE, related_name="stimuli")
     control = models.ForeignKey(ControlSignal, on_delete=models.CASCADE, related_name="stimuli", null=True, blank=True)

@@ -16,7 +16,7 @@ from generation.control import PRESETS
 from generation.render.camera import Camera
 from measures.units import UNITS, parse_scale
 from studyapp.designs import registry as designs
-from studyapp.models import ControlSignal, Question, Study, System
+from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 
 
 CAMERA_PREFIX = "camera_"
@@ -270,4 +270,5 @@ class ControlFileForm(forms.Form):
 
 
 class GenerateForm(forms.Form):
-    seed = forms.IntegerField(initial=0, help_text="random seed of every model's samples")
+    seed = forms.IntegerField(initial=0, min_value=0, max_value=Stimulus.MAX_SEED,
+                              help_text="random seed of every model's samples")

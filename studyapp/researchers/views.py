@@ -187,6 +187,8 @@ def study_stimuli(request: HttpRequest, pk: int) -> HttpResponse:
         else:
             messages.success(request, f"{result.total} stimuli ({result.created} new); {result.queued} sent to the workers.")
             return redirect("study-stimuli", pk=study.pk)
+    elif request.method == "POST":
+        status = 400  # the form, with what is wrong with it
     state = progress(study)
     # Queued clips with nobody to make them: say so rather than let the bar sit still.
     waiting = state["counts"]["queued"] + state["counts"]["running"]

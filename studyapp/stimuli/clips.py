@@ -138,7 +138,9 @@ def claim(stimulus_id: int, task_id: str) -> Stimulus | None:
     the row is gone, done, or was sent again since this task's message (another task
     id), in which case the later task does the work."""
     with transaction.atomic():
-        stimulus = (Stimulus.objects.select_for_update().select_related("study", "system", "control")
+        # Only the row itself is locked: PostgreSQL refuses to lock the nullable side
+        # (control) of the outer join, and the study and system need no lock.
+        stimulus = (Stimulus.objects.select_for_update(of=("self",)).select_related("study", "system", "control")
                     .filter(pk=stimulus_id).first())
         if stimulus is None or stimulus.task_id != task_id:
             return None

@@ -31,6 +31,7 @@ from generation import registry
 from generation.files import atomic_output
 from generation.store import SUFFIX as CHECKPOINT_SUFFIX
 from studyapp.models import Stimulus, Study, System, new_token
+from studyapp.server.null_characters import null_character_in
 
 if TYPE_CHECKING:  # torch-backed modules load only when a checkpoint is handled
     from generation.checkpoint import CheckpointMeta
@@ -99,6 +100,8 @@ def store_checkpoint(upload: File) -> StoredCheckpoint:
             Generator(model, meta)  # the features and statistics sampling needs are there
         except (KeyError, TypeError, ValueError, AttributeError) as error:
             raise UploadRefused(f"{name}: a {meta.kind} checkpoint that cannot drive sampling ({error!r})") from None
+        if (where := null_character_in(dataclasses.asdict(meta))) is not None:  # PostgreSQL could not store it
+            raise UploadRefused(f"{name}: the checkpoint's description holds a NUL character (\\0) in {where}")
         parameters = sum(p.numel() for p in model.parameters())
         stored, digest = keep(received, root)
     return StoredCheckpoint(stored.name, digest, meta, parameters)
