@@ -2,7 +2,7 @@
 
 A study opens only with clips to rate and with what its crowd platform needs to pay the
 participants who finish: Prolific a completion code or URL; MTurk its frame over HTTPS
-(the participant's link brings the submit target, which ``participant_views`` checks on
+(the participant's link brings the submit target, which ``participants.views`` checks on
 entry). The monitor's open button lists the reasons; the open view refuses on them.
 """
 
