@@ -1,7 +1,7 @@
 """Command line (or ``motion-analysis``):
 
     python -m analysis report RATINGS.csv --out report/ [--rules RULES.json] [--motion DIR ...]
-    python -m analysis objective DIR ... --out objective/
+    python -m analysis objective DIR ... --out objective/ [--appropriateness RATINGS.csv]
     python -m analysis hvrnn-scores OUTPUTS.npz --out scores/
 """
 
@@ -16,16 +16,22 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
+import pandas as pd
+
 from analysis import plots
-from analysis.attribute_scores import write_scores
+from analysis.adherence import adherence_correlation, label_adherence, path_adherence
+from analysis.appropriateness import appropriateness_pages
+from analysis.attribute_scores import read_classifier_outputs, write_scores
+from analysis.designs import APPROPRIATENESS, table_design
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import ExclusionRules
+from analysis.exclusions import ExclusionRules, apply_exclusions
 from analysis.motion_io import SystemClips, load_motion_sets
 from analysis.objective import objective_metrics
 from analysis.ratings import read_ratings
 from analysis.report import build_report, require_single_design, write_report
 from analysis.tables import objective_table, to_markdown, write_table
-from analysis.units import parse_scale, to_centimetres_y_up
+from analysis.units import to_centimetres_y_up
+from measures.units import parse_scale
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -41,8 +47,10 @@ def _parser() -> argparse.ArgumentParser:
                     "control class, and write tables (CSV, Markdown, LaTeX, JSON), figures "
                     "(PNG, SVG) and summary.md. With --motion, add the objective metrics. "
                     "Side-by-side tables (design column) get Wilcoxon signed-rank tests with "
-                    "Holm correction, pairwise tables sign tests and a Bradley-Terry scale; "
-                    "every design gets the ratings needed for 80 %% power per pair.")
+                    "Holm correction, pairwise tables sign tests and a Bradley-Terry scale, "
+                    "appropriateness tables the share preferring the matched clip, the mean "
+                    "appropriateness score and tests between systems; every design but "
+                    "appropriateness gets the ratings needed for 80 %% power per pair.")
     report.add_argument("ratings", help="ratings CSV file")
     report.add_argument("--out", required=True, help="folder to write the report into")
     report.add_argument("--reference", help="system to mark significant differences from "
@@ -87,22 +95,41 @@ def _parser() -> argparse.ArgumentParser:
 
 def _add_objective_parser(commands) -> None:
     objective = commands.add_parser(
-        "objective", help="objective metrics of motion alone (no ratings): Table 3 and Fig. 5",
+        "objective", help="objective metrics of motion alone (no ratings): Table 3 and Fig. 5, control adherence",
         description="Footstep and bone-length metrics of each system's clips, the MoGlow Table 3 layout "
-                    "(value closest to the natural system marked) and the footstep curves.")
+                    "(value closest to the natural system marked) and the footstep curves. Clips that carry "
+                    "the path they were asked to follow (as `python -m generation sample` and `natural` write "
+                    "them) also get their control adherence: the root's distance from the path (cm) and its "
+                    "heading error (degrees), over time and at the end; label models get the attribute "
+                    "classifiers' accuracy (--classifier-outputs). With --appropriateness, how each "
+                    "adherence metric correlates with the systems' mean appropriateness scores.")
     objective.add_argument("motion", nargs="+", metavar="DIR_OR_NPZ",
                            help="motion clips (layout: analysis/motion_io.py); a subfolder or file stem names the system")
     objective.add_argument("--out", required=True, help="folder to write tables and the figure into")
     objective.add_argument("--natural", default="NAT", help="name of the natural-motion system")
     objective.add_argument("--foot-joints", help="comma-separated foot joint names (default: found by name)")
     objective.add_argument("--foot-kind", choices=("heel", "toe"), default="heel")
+    objective.add_argument("--classifier-outputs", metavar="OUTPUTS.npz",
+                           help="attribute-classifier outputs of label-controlled systems (python -m generation "
+                                "hvrnn-eval): how often the action and style asked for are recognised, per set")
+    objective.add_argument("--appropriateness", metavar="RATINGS.csv",
+                           help="an appropriateness ratings table of the same systems: correlate each system's mean "
+                                "appropriateness score (after the exclusions) with its control adherence")
+    objective.add_argument("--attention", default="BAD", help="name of the attention-check system of the ratings")
     _add_unit_arguments(objective)
+
+
+def _scale(text: str) -> float | None:
+    try:
+        return parse_scale(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def _add_unit_arguments(parser: argparse.ArgumentParser) -> None:
     """The motion's unit and up axis, the same options for every command that reads motion."""
     group = parser.add_argument_group("units (the motion is read into cm, y up)")
-    group.add_argument("--scale", default="auto", metavar="auto|UNIT|NUMBER",
+    group.add_argument("--scale", type=_scale, default="auto", metavar="auto|UNIT|NUMBER",
                        help="the motion's length unit: auto (from the figures' height; clips in different units "
                             "are an error naming them), a unit (mm, cm, in, cmu, ft, m) or centimetres per unit "
                             "(default %(default)s)")
@@ -112,7 +139,7 @@ def _add_unit_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _motion_in_centimetres(args: argparse.Namespace) -> dict[str, SystemClips]:
     """The --motion clips in cm with y up; prints what they were taken to be."""
-    motion, units = to_centimetres_y_up(load_motion_sets(args.motion), parse_scale(args.scale),
+    motion, units = to_centimetres_y_up(load_motion_sets(args.motion), args.scale,
                                         None if args.up == "auto" else args.up)
     print(units)
     return motion
@@ -141,15 +168,63 @@ def staged_output(out: Path) -> Iterator[Path]:
 
 
 def objective_command(args: argparse.Namespace, out: Path) -> list[str]:
-    """Write the objective tables and figure into ``out``; returns the notes."""
-    table, curves, notes = objective_metrics(_motion_in_centimetres(args), _split(args.foot_joints), args.foot_kind)
+    """Write the objective tables and figures into ``out``; returns the notes."""
+    motion = _motion_in_centimetres(args)
+    table, curves, notes = objective_metrics(motion, _split(args.foot_joints), args.foot_kind)
     write_table(table, out / "tables", "objective_metrics")
     write_table(objective_table(table, args.natural), out / "tables", "table3_objective",
                 caption=f"Objective metrics (MoGlow Table 3 layout); marked: closest to {args.natural}.")
     write_table(curves, out / "tables", "footstep_curves", formats=("csv", "json"))
     plots.save_figure(plots.footstep_plot(curves, args.natural), out / "figures", "footstep_curves")
     print(to_markdown(objective_table(table, args.natural)))
+    adherence = _adherence(args, motion, out, notes)
+    if args.appropriateness:
+        if adherence.empty:
+            raise AnalysisInputError("--appropriateness correlates scores with control adherence, and no clip "
+                                     "carries a control path nor were --classifier-outputs given")
+        correlation, correlation_notes = adherence_correlation(_mean_scores(args), adherence)
+        notes += correlation_notes
+        write_table(correlation, out / "tables", "adherence_correlation",
+                    caption="Pearson correlation across systems of the mean appropriateness score with "
+                            "each control-adherence metric.")
+        print(to_markdown(correlation.round(3)))
     return notes
+
+
+def _adherence(args: argparse.Namespace, motion: dict[str, SystemClips], out: Path,
+               notes: list[str]) -> pd.DataFrame:
+    """Write the control-adherence tables and figure; the metrics of every system, one row each."""
+    paths, over_time, path_notes = path_adherence(motion)
+    notes += path_notes
+    if len(paths):
+        write_table(paths, out / "tables", "control_adherence",
+                    caption="Control adherence of path-controlled systems: the root's distance from the "
+                            "control's path (cm) and its heading error (degrees), mean over time and at the end.")
+        write_table(over_time, out / "tables", "adherence_over_time", formats=("csv", "json"))
+        plots.save_figure(plots.adherence_plot(over_time, args.natural), out / "figures", "adherence_over_time")
+        print(to_markdown(paths.round(2)))
+    labels = pd.DataFrame()
+    if args.classifier_outputs:
+        labels = label_adherence(read_classifier_outputs(args.classifier_outputs))
+        write_table(labels, out / "tables", "label_adherence",
+                    caption="Share of sequences whose action and style the attribute classifiers recognise "
+                            "(Wilson 95 % intervals).")
+        print(to_markdown(labels.round(3)))
+    measured = [frame for frame in (paths, labels) if len(frame)]
+    return pd.concat(measured, ignore_index=True) if measured else pd.DataFrame(columns=["system"])
+
+
+def _mean_scores(args: argparse.Namespace) -> pd.Series:
+    """Each system's mean appropriateness score over the kept pages of --appropriateness."""
+    ratings = read_ratings(args.appropriateness)
+    if table_design(ratings) != APPROPRIATENESS:
+        raise AnalysisInputError(f"--appropriateness {args.appropriateness} is a {table_design(ratings)} table; "
+                                 "give an appropriateness table (docs/ratings-schema.md)")
+    flagged = apply_exclusions(ratings, ExclusionRules(natural_system=args.natural, attention_system=args.attention))
+    kept = flagged[flagged["kept"] & (flagged["system"] != args.attention)]
+    if kept.empty:
+        raise AnalysisInputError(f"--appropriateness {args.appropriateness}: no pages are left after the exclusions")
+    return appropriateness_pages(kept).groupby("system")["score"].mean()
 
 
 def _rules(args: argparse.Namespace) -> ExclusionRules:

@@ -8,6 +8,8 @@
   median and mean of side-by-side ratings, or the Bradley-Terry strengths.
 - `preference_plot`: per pair, the share of pages preferring each system, with the
   Wilson interval and the share answered "no preference".
+- `appropriateness_plots`: per system, the share of appropriateness pages preferring the
+  matched clip and the mean appropriateness score, each with its interval.
 """
 
 from __future__ import annotations
@@ -114,3 +116,18 @@ def preference_plot(pairs: pd.DataFrame) -> Figure:
     axes[0].set_ylim(-0.5, len(labels) - 0.5)
     axes[-1].legend(bbox_to_anchor=(1.02, 1), loc="upper left", fontsize="small")
     return fig
+
+
+def appropriateness_plots(shares: pd.DataFrame, scores: pd.DataFrame, order: Sequence[str]) -> dict[str, Figure]:
+    """`matched_preference` and `appropriateness_scores` as two figures, with a dotted line
+    where motion shows no sign of the control it was made for (50 %, a score of 0)."""
+    figures = {
+        "matched_preference": (scale_plot(shares, [("matched", "share_matched", "ci_low", "ci_high")],
+                                          "share preferring the matched clip (Wilson 95 % CI)", order), 0.5),
+        "appropriateness_scores": (scale_plot(scores, [("score", "mean_score", "ci_low", "ci_high")],
+                                              "mean appropriateness score, -2..+2 (bootstrap 95 % CI)", order), 0.0),
+    }
+    for fig, chance in figures.values():
+        for ax in fig.axes:
+            ax.axvline(chance, color="black", linewidth=0.6, linestyle=":")
+    return {name: fig for name, (fig, _) in figures.items()}

@@ -1,5 +1,5 @@
-"""The report of a side-by-side or pairwise study: build, then write (as `analysis.report`
-does for the single design, which dispatches here on the table's design).
+"""The report of a side-by-side, pairwise or appropriateness study: build, then write (as
+`analysis.report` does for the single design, which dispatches here on the table's design).
 
 Side-by-side (GENEA's analysis of HEMVIP pages): exclusions, per system the median and
 mean with 95 % intervals, two-sided Wilcoxon signed-rank tests on the per-page
@@ -11,8 +11,13 @@ share of "no preference", exact two-sided binomial (sign) tests on the pages wit
 preference, Holm-Bonferroni corrected, a Bradley-Terry scale with 95 % intervals, and a
 check of the raters' side bias.
 
-Both: how many more ratings would give 80 % power per pair (`analysis.power`), and a
-paragraph per task to paste into a paper. The folder layout is the single design's:
+Appropriateness (`analysis.appropriateness`): exclusions, per system the share of pages
+preferring the matched clip (ties split, Wilson interval) with a sign test of 50 %, the
+mean appropriateness score with a bootstrap interval over participants, Wilcoxon tests of
+every pair of systems' scores, Holm corrected, and the raters' side bias.
+
+Side-by-side and pairwise: how many more ratings would give 80 % power per pair
+(`analysis.power`). All: a paragraph per task to paste into a paper. The folder layout is the single design's:
 summary.md, tables/<name>.{csv,md,tex,json}, figures/<name>.{png,svg}.
 """
 
@@ -24,8 +29,9 @@ from pathlib import Path
 import pandas as pd
 
 from analysis import design_plots, plots
+from analysis.appropriateness import appropriateness_scores, matched_preference, score_pairs
 from analysis.bradley_terry import bradley_terry_scale
-from analysis.designs import PAGE, PAIRWISE, SIDE_BY_SIDE, table_design
+from analysis.designs import APPROPRIATENESS, PAGE, PAIRWISE, SIDE_BY_SIDE, table_design
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import (ExclusionRules, apply_exclusions, compared_ratings, exclusion_notes,
                                  exclusion_summary, removed_by_reason, scaled_threshold)
@@ -64,11 +70,11 @@ def build_design_report(ratings: pd.DataFrame, reference: str | None = None,
                         rules: ExclusionRules = ExclusionRules(),
                         compare_attention_checks: bool = False,
                         alpha: float = 0.05) -> DesignReport:
-    """Run the analysis of a validated side-by-side or pairwise ratings table."""
+    """Run the analysis of a validated side-by-side, pairwise or appropriateness ratings table."""
     design = table_design(ratings)
-    if design not in (SIDE_BY_SIDE, PAIRWISE):
-        raise AnalysisInputError(f"build_design_report analyses side-by-side and pairwise "
-                                 f"tables; this one is {design}")
+    if design not in (SIDE_BY_SIDE, PAIRWISE, APPROPRIATENESS):
+        raise AnalysisInputError(f"build_design_report analyses side-by-side, pairwise and "
+                                 f"appropriateness tables; this one is {design}")
     if reference is not None and reference not in set(ratings["system"]):
         raise AnalysisInputError(
             f"reference system {reference!r} does not exist in the ratings; systems: "
@@ -82,10 +88,12 @@ def build_design_report(ratings: pd.DataFrame, reference: str | None = None,
         raise AnalysisInputError("no ratings are left after the exclusions; nothing to analyse")
     if reference is None and rules.natural_system in set(kept["system"]):
         reference = rules.natural_system
-    build = _side_by_side_tables if design == SIDE_BY_SIDE else _pairwise_tables
+    build = {SIDE_BY_SIDE: _side_by_side_tables, PAIRWISE: _pairwise_tables,
+             APPROPRIATENESS: _appropriateness_tables}[design]
     tables = build(kept, alpha, notes)
-    power = more_ratings_for_power(kept, alpha, POWER)
-    tables["power_more_ratings"] = (f"Ratings needed for {POWER * 100:g} % power per pair", power)
+    if design != APPROPRIATENESS:  # its systems are not compared on shared pages
+        power = more_ratings_for_power(kept, alpha, POWER)
+        tables["power_more_ratings"] = (f"Ratings needed for {POWER * 100:g} % power per pair", power)
     return DesignReport(design, flagged, exclusion_summary(flagged), removed_by_reason(flagged),
                         tables, reference, rules, alpha, notes)
 
@@ -133,6 +141,23 @@ def _pairwise_tables(kept: pd.DataFrame, alpha: float, notes: list[str]) -> dict
     }
 
 
+def _appropriateness_tables(kept: pd.DataFrame, alpha: float, notes: list[str]) -> dict:
+    shares = matched_preference(kept, alpha=alpha)
+    pairs = score_pairs(kept, alpha=alpha)
+    untested = pairs[pairs["method"] == "not computed"]
+    notes += [f"No Wilcoxon test of {r.system_a} and {r.system_b} in {r.task} · {r.control_class}: no "
+              "participant who saw both scored them differently." for r in untested.itertuples(index=False)]
+    return {
+        "matched_preference": ("Share of pages preferring the matched clip ('no preference' split), Wilson "
+                               "95 % intervals, sign tests of 50 %, Holm corrected over systems", shares),
+        "appropriateness_scores": ("Mean appropriateness score (-2..+2) with 95 % bootstrap intervals over "
+                                   "participants", appropriateness_scores(kept)),
+        "score_pairs": ("Wilcoxon signed-rank tests of participants' mean scores between systems, Holm "
+                        "corrected", pairs),
+        "side_bias": ("Share of preferences for the left clip", side_bias(kept)),
+    }
+
+
 def _p_text(p: float) -> str:
     return "p < .001" if p < 0.001 else f"p = {p:.3f}".replace("0.", ".", 1)
 
@@ -141,9 +166,11 @@ def _exclusion_sentence(report: DesignReport, row) -> str:
     rules = report.rules
     removed = report.removed[report.removed["task"] == row.task]
     reasons = ", ".join(f"{r.participants} {r.reason}" for r in removed.itertuples(index=False))
-    if report.design == PAIRWISE:
+    if report.design in (PAIRWISE, APPROPRIATENESS):
         rule = (f"a participant was removed who preferred a {rules.attention_system} clip on any "
-                f"page showing one")
+                f"page showing one" if report.design == PAIRWISE else
+                f"a participant was removed who preferred the mismatched clip of any "
+                f"{rules.attention_system} page")
         # both rows of a pairwise page share its flags, so pages are rows / 2
         collected, by_participant, early, kept = (
             n // 2 for n in (row.ratings_collected, row.discarded_participant,
@@ -227,10 +254,33 @@ def _pairwise_sentence(report: DesignReport, task: str, cc: str) -> str:
     return text
 
 
+def _appropriateness_sentence(report: DesignReport, task: str, cc: str) -> str:
+    shares = _in_cell(report.table("matched_preference"), task, cc).set_index("system")
+    scores = _in_cell(report.table("appropriateness_scores"), task, cc).sort_values("mean_score", ascending=False)
+    each = [f"{r.system} {_interval(r.mean_score, r.ci_low, r.ci_high, 2)}, matched preferred on "
+            f"{shares.at[r.system, 'share_matched'] * 100:.0f} % of {shares.at[r.system, 'n_pages']} pages "
+            f"(95 % CI {shares.at[r.system, 'ci_low'] * 100:.0f}-{shares.at[r.system, 'ci_high'] * 100:.0f} %, "
+            f"sign test {_p_text(shares.at[r.system, 'p_holm'])} Holm-adjusted)"
+            for r in scores.itertuples(index=False)]
+    text = (f" In {cc}, the mean appropriateness scores (-2 to +2, [95 % bootstrap CI over participants]) "
+            f"were {'; '.join(each)}; 'no preference' counts half for each clip in the shares and is left "
+            "out of the sign tests.")
+    pairs = _in_cell(report.table("score_pairs"), task, cc)
+    pairs = pairs[pairs["p"].notna()] if len(pairs) else pairs
+    if len(pairs):
+        found = [f"{r.higher} > {r.system_b if r.higher == r.system_a else r.system_a} ({_p_text(r.p_holm)})"
+                 for r in pairs[pairs["reject"]].itertuples(index=False)]
+        text += (f" Wilcoxon signed-rank tests of the participants' mean scores, Holm-Bonferroni corrected over "
+                 f"the {len(pairs)} pairs (family-wise α = {report.alpha:g}), found "
+                 + (f"{'; '.join(found)}." if found else "no significant difference."))
+    return text
+
+
 def design_summary_text(report: DesignReport) -> str:
     """Paragraphs a researcher can paste: exclusions and the tests' findings per task."""
-    sentence = _side_by_side_sentence if report.design == SIDE_BY_SIDE else _pairwise_sentence
-    main = "system_medians_means" if report.design == SIDE_BY_SIDE else "preference_pairs"
+    sentence, main = {SIDE_BY_SIDE: (_side_by_side_sentence, "system_medians_means"),
+                      PAIRWISE: (_pairwise_sentence, "preference_pairs"),
+                      APPROPRIATENESS: (_appropriateness_sentence, "matched_preference")}[report.design]
     cells = report.table(main)[list(CELL)].drop_duplicates().sort_values(list(CELL))
     out = []
     for row in report.exclusions.itertuples(index=False):
@@ -238,7 +288,8 @@ def design_summary_text(report: DesignReport) -> str:
         for cc in cells.loc[cells["task"] == row.task, "control_class"]:
             text += sentence(report, row.task, cc)
         out.append(text)
-    out.append(power_summary(report.table("power_more_ratings"), report.alpha, POWER))
+    if "power_more_ratings" in report.tables:
+        out.append(power_summary(report.table("power_more_ratings"), report.alpha, POWER))
     return "\n\n".join(p for p in out if p) + "\n"
 
 
@@ -263,6 +314,12 @@ def write_design_report(report: DesignReport, folder: str | Path) -> list[Path]:
         if len(report.table("wilcoxon_pairs")):
             written += plots.save_figure(design_plots.significance_matrix_plot(
                 report.table("wilcoxon_pairs"), scores), figures, "significance_matrix")
+    elif report.design == APPROPRIATENESS:
+        scores = report.table("appropriateness_scores")
+        order = system_order(scores["system"].unique(), report.reference)
+        for name, figure in design_plots.appropriateness_plots(report.table("matched_preference"), scores,
+                                                                order).items():
+            written += plots.save_figure(figure, figures, name)
     else:
         written += plots.save_figure(design_plots.preference_plot(report.table("preference_pairs")),
                                      figures, "preferences")

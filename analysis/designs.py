@@ -11,6 +11,11 @@
   ``right`` or ``none`` for no preference) repeated on both; ``strength`` (an integer from
   1) optionally says how strong a stated preference is. ``value`` and the scale columns
   are not needed.
+- ``appropriateness``: a pairwise page whose two clips come from the same system, one
+  made for the control the page shows and one for another control; which fits the shown
+  control better? The pairwise columns, both rows naming the same system, and
+  ``matched`` (true on the clip made for the shown control, false on the other) on
+  each; ``strength`` is 1 (slightly) or 2 (clearly), the five levels of GENEA's question.
 
 A page is identified by (task, participant, page): page ids may repeat across
 participants (a control's name, say). One table holds one design.
@@ -24,7 +29,9 @@ import pandas as pd
 from analysis.errors import AnalysisInputError
 
 SINGLE, SIDE_BY_SIDE, PAIRWISE = "single", "side-by-side", "pairwise"
-DESIGNS = (SINGLE, SIDE_BY_SIDE, PAIRWISE)
+APPROPRIATENESS = "appropriateness"
+DESIGNS = (SINGLE, SIDE_BY_SIDE, PAIRWISE, APPROPRIATENESS)
+PREFERENCE_DESIGNS = (PAIRWISE, APPROPRIATENESS)  # a page is answered by a preference, not rated
 PAGE = ("task", "participant", "page")  # the columns that identify one screen
 SIDES = ("left", "right")
 NO_PREFERENCE = "none"
@@ -56,18 +63,20 @@ def required_columns(design: str, minimal: tuple[str, ...]) -> tuple[str, ...]:
     """The columns a table of ``design`` must have, given the single design's ``minimal``."""
     if design == SIDE_BY_SIDE:
         return (*minimal, "page")
-    if design == PAIRWISE:
-        return (*(c for c in minimal if c not in _SCALE_COLUMNS), "page", "side", "answer")
+    if design in PREFERENCE_DESIGNS:
+        extra = ("matched",) if design == APPROPRIATENESS else ()
+        return (*(c for c in minimal if c not in _SCALE_COLUMNS), "page", "side", "answer", *extra)
     return minimal
 
 
 def needs_scale(design: str) -> bool:
-    """Whether rows carry a rating on a scale (every design but pairwise)."""
-    return design != PAIRWISE
+    """Whether rows carry a rating on a scale (not the preference designs)."""
+    return design not in PREFERENCE_DESIGNS
 
 
 def validate_design_columns(df: pd.DataFrame, design: str) -> pd.DataFrame:
-    """Check the page structure of a side-by-side or pairwise table (labels already checked).
+    """Check the page structure of a side-by-side, pairwise or appropriateness table
+    (labels already checked).
 
     Returns the table with ``position`` and ``strength`` as integers (nullable) and
     ``side`` and ``answer`` lower-cased.
@@ -111,7 +120,32 @@ def validate_design_columns(df: pd.DataFrame, design: str) -> pd.DataFrame:
         raise AnalysisInputError(
             "the two rows of a pairwise page must carry the same answer; page "
             f"{_page_name(df, ~answer_ok)} (first at row {_first(~answer_ok)}) does not")
+    if design == APPROPRIATENESS:
+        return _one_system_matched_once(df)
     _no_system_twice_on_a_page(df)
+    return df
+
+
+def _one_system_matched_once(df: pd.DataFrame) -> pd.DataFrame:
+    """An appropriateness page shows one system's clip for the shown control and its clip
+    for another (``matched`` already read as booleans)."""
+    pages = df.groupby(list(PAGE), sort=False)
+    one_system = pages["system"].transform("nunique") == 1
+    if not one_system.all():
+        raise AnalysisInputError(
+            "an appropriateness page shows one system twice, its matched and its mismatched clip; page "
+            f"{_page_name(df, ~one_system)} (first at row {_first(~one_system)}) shows two systems")
+    matched_once = pages["matched"].transform("sum") == 1
+    if not matched_once.all():
+        raise AnalysisInputError(
+            "an appropriateness page has one matched clip (matched true) and one mismatched (false); page "
+            f"{_page_name(df, ~matched_once)} (first at row {_first(~matched_once)}) does not")
+    if "strength" in df.columns:
+        strong = df["strength"].notna() & (df["strength"] > 2)
+        if strong.any():
+            raise AnalysisInputError(
+                "an appropriateness answer has five levels, a preference of strength 1 (slightly) or 2 "
+                f"(clearly); row {_first(strong)} gives strength {int(df.loc[strong, 'strength'].iloc[0])}")
     return df
 
 

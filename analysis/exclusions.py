@@ -15,7 +15,9 @@ Pairwise designs (`analysis.designs`) have no ratings to threshold. There rule 1
 a participant who prefers the attention-check clip on any page that shows one (a BAD
 versus NAT page in the studies this project runs) is excluded; "no preference" there
 does not exclude. Rule 2 discards a page, both its rows, when either clip was answered
-before it finished playing.
+before it finished playing. Appropriateness pages (one system's matched and mismatched
+clips) are attention checks when their system is BAD: natural motion against a path it
+obviously does not follow. Preferring the mismatched clip on one excludes.
 
 Nothing is deleted. Each rating gets ``excluded_participant``, ``discarded_early``,
 ``kept`` and ``exclusion_reason``; a rating that breaks both rules is counted under the
@@ -35,7 +37,7 @@ from dataclasses import asdict, dataclass, fields
 
 import pandas as pd
 
-from analysis.designs import PAGE, PAIRWISE, table_design
+from analysis.designs import APPROPRIATENESS, PAGE, PREFERENCE_DESIGNS, table_design
 from analysis.errors import AnalysisInputError
 
 REFERENCE_SCALE = (1, 5)
@@ -74,6 +76,11 @@ class ExclusionRules:
         """Rule 1 on pairwise pages: the attention-check clip is the one preferred."""
         return (system == self.attention_system) & (answer == side)
 
+    def preferred_mismatched_attention(self, system, answer, side, matched):
+        """Rule 1 on appropriateness pages: on a check page (both clips the attention-check
+        system's), the clip made for another control is the one preferred."""
+        return self.preferred_attention(system, answer, side) & ~matched
+
     @property
     def attention_reason(self) -> str:
         return f"rated a {self.attention_system} clip high"
@@ -85,6 +92,10 @@ class ExclusionRules:
     @property
     def preference_reason(self) -> str:
         return f"preferred a {self.attention_system} clip"
+
+    @property
+    def mismatch_reason(self) -> str:
+        return f"preferred the mismatched clip of a {self.attention_system} page"
 
     def described(self) -> list[str]:
         """The rules in words, as a report states them."""
@@ -136,11 +147,16 @@ def apply_exclusions(ratings: pd.DataFrame, rules: ExclusionRules = ExclusionRul
     ``"rated a NAT clip low"`` and ``"answered before clip end"`` (with the configured
     system names); a participant who failed both attention rules is attributed to the
     BAD rule. Pairwise tables get the preference rule instead (reason ``"preferred a
-    BAD clip"``).
+    BAD clip"``), appropriateness tables theirs (``"preferred the mismatched clip of a
+    BAD page"``).
     """
     df = ratings.copy()
     reason = pd.Series("", index=df.index, dtype=object)
-    if table_design(ratings) == PAIRWISE:
+    design = table_design(ratings)
+    if design == APPROPRIATENESS:
+        failed = [(rules.preferred_mismatched_attention(df["system"], df["answer"], df["side"], df["matched"]),
+                   rules.mismatch_reason)]
+    elif design in PREFERENCE_DESIGNS:
         failed = [(rules.preferred_attention(df["system"], df["answer"], df["side"]), rules.preference_reason)]
     else:
         scale = (df["value"], df["scale_min"], df["scale_max"])
@@ -163,7 +179,7 @@ def early_discards(ratings: pd.DataFrame, rules: ExclusionRules, excluded: pd.Se
     if not rules.discard_early or "answered_before_end" not in ratings.columns:
         return pd.Series(False, index=ratings.index)
     early = ratings["answered_before_end"].astype(bool)
-    if table_design(ratings) == PAIRWISE:
+    if table_design(ratings) in PREFERENCE_DESIGNS:
         early = early.groupby([ratings[column] for column in PAGE], sort=False).transform("any")
     return early & ~excluded
 
@@ -173,7 +189,7 @@ def compared_ratings(kept: pd.DataFrame, rules: ExclusionRules) -> pd.DataFrame:
     rows left out, and on a pairwise page the whole page showing it (a check page
     compares nothing)."""
     drop = kept["system"] == rules.attention_system
-    if table_design(kept) == PAIRWISE:
+    if table_design(kept) in PREFERENCE_DESIGNS:
         check_pages = kept.loc[drop, list(PAGE)].set_index(list(PAGE)).index
         drop |= kept.set_index(list(PAGE)).index.isin(check_pages)
     return kept[~drop]
@@ -205,7 +221,7 @@ def exclusion_notes(flagged: pd.DataFrame, rules: ExclusionRules = ExclusionRule
                 f"The web app's discarded_early flag disagrees with the recomputed rule on "
                 f"{differ} rating(s); the recomputed flags were used."
             )
-    ruled = ((rules.attention_system,) if table_design(flagged) == PAIRWISE
+    ruled = ((rules.attention_system,) if table_design(flagged) in PREFERENCE_DESIGNS
              else (rules.attention_system, rules.natural_system))
     for system in ruled:
         if not (flagged["system"] == system).any():

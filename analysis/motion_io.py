@@ -16,6 +16,23 @@ offsets     (joints, 3) float       rest offsets from the parent in cm; optional
 system      scalar str              optional; the system the clips belong to
 ==========  ======================  ===============================================
 
+For the control-adherence metrics (`analysis.adherence`) a clip made for a path control
+also carries, all four or none, per frame (a stack: with the clips' axis first):
+
+============  ============  ====================================================
+key           shape         meaning
+============  ============  ====================================================
+control_path  (frames, 2)   the floor path (x, z) in cm the clip was asked to follow
+control_yaw   (frames,)     the facing it asks for, radians, 0 facing +z, left positive
+root_path     (frames, 2)   where the clip's root went on the floor, cm
+root_yaw      (frames,)     the root's facing, radians
+============  ============  ====================================================
+
+Both in the clip's own floor coordinates (a y-up floor in cm, whatever unit the positions
+are in). The root is the models' (`generation.motion.root`: the hips' floor projection and
+facing, smoothed), which ``python -m generation sample`` and ``natural`` write beside every
+clip of a path control.
+
 Without a ``system`` key the system is named by where the file lies: a file given
 directly, or lying directly in a given folder, is named by its stem (``MoGlow.npz``);
 a file in a subfolder of a given folder by that subfolder (``DIR/MoGlow/clip_001.npz``).
@@ -33,6 +50,19 @@ import numpy as np
 from analysis.errors import AnalysisInputError
 
 
+FOLLOWING_KEYS = ("control_path", "control_yaw", "root_path", "root_yaw")
+
+
+@dataclass(frozen=True)
+class FollowedPath:
+    """A clip's control path and its root's path, for the control-adherence metrics."""
+
+    control_xz: np.ndarray  # (frames, 2) cm
+    control_yaw: np.ndarray  # (frames,) radians
+    root_xz: np.ndarray
+    root_yaw: np.ndarray
+
+
 @dataclass
 class SystemClips:
     """All clips of one system on one skeleton."""
@@ -44,6 +74,7 @@ class SystemClips:
     offsets: np.ndarray | None
     clips: list[np.ndarray] = field(default_factory=list)
     sources: list[str] = field(default_factory=list)  # the file of each clip, for messages
+    followed: list[FollowedPath | None] = field(default_factory=list)  # per clip read from files; None: no control
 
     def source(self, k: int) -> str:
         """Where clip ``k`` came from: its file (``FILE[i]`` in a stack of clips), or its
@@ -119,5 +150,33 @@ def _add_file(systems: dict[str, SystemClips], file: Path, default_name: str) ->
         raise AnalysisInputError(
             f"{file}: fps or skeleton differ from earlier files of system {system!r}"
         )
+    entry.followed.extend(_followed_paths(data, file, positions.shape[:2]))
     entry.clips.extend(positions)
     entry.sources.extend([str(file)] if len(positions) == 1 else [f"{file}[{k}]" for k in range(len(positions))])
+
+
+def _followed_paths(data, file: Path, shape: tuple[int, int]) -> list[FollowedPath | None]:
+    """The control and root paths of each of a file's ``shape`` = (clips, frames), or Nones."""
+    present = [key for key in FOLLOWING_KEYS if key in data.files]
+    if not present:
+        return [None] * shape[0]
+    if len(present) < len(FOLLOWING_KEYS):
+        missing = ", ".join(k for k in FOLLOWING_KEYS if k not in present)
+        raise AnalysisInputError(f"{file}: has {', '.join(present)} but not {missing}; the control-adherence "
+                                 "metrics read all four (see analysis/motion_io.py)")
+    arrays = {}
+    for key in FOLLOWING_KEYS:
+        try:
+            value = np.asarray(data[key], dtype=np.float64)
+        except (TypeError, ValueError):
+            raise AnalysisInputError(f"{file}: {key} must hold numbers") from None
+        wanted = (*shape, 2) if key.endswith("path") else shape
+        if value.shape == wanted[1:]:
+            value = value[None]
+        if value.shape != wanted:
+            raise AnalysisInputError(f"{file}: {key} must be {wanted[1:]} for positions of {shape[1]} frames "
+                                     f"(or {wanted} for a stack), got {data[key].shape}")
+        if not np.isfinite(value).all():
+            raise AnalysisInputError(f"{file}: {key} contains NaN or infinity")
+        arrays[key] = value
+    return [FollowedPath(*(arrays[key][k] for key in FOLLOWING_KEYS)) for k in range(shape[0])]

@@ -1,5 +1,5 @@
 """The objective metrics of all systems at once: MoGlow Table 3 and the Fig. 5 curves,
-with jitter and foot sliding (``analysis.smoothness``) beside them."""
+with jitter (``analysis.smoothness``) and foot sliding (``measures.feet``) beside them."""
 
 from __future__ import annotations
 
@@ -10,9 +10,10 @@ import pandas as pd
 
 from analysis.bones import bone_length_rmse
 from analysis.errors import AnalysisInputError
-from analysis.footsteps import DEFAULT_MIN_CONTACT_S, HUMAN_TOLERANCES, choose_foot_joints, footstep_summary
+from analysis.footsteps import DEFAULT_MIN_CONTACT_S, HUMAN_TOLERANCES, footstep_summary
 from analysis.motion_io import SystemClips
-from analysis.smoothness import lower_foot_speed, mean_joint_acceleration
+from analysis.smoothness import mean_joint_acceleration
+from measures.feet import choose_foot_joints, lower_foot_speed
 
 METRIC_COLUMNS = ("v_tol_95", "step_duration_mean", "step_duration_sd", "bone_length_rmse", "joint_acceleration",
                   "lower_foot_speed")
@@ -34,7 +35,7 @@ def objective_metrics(motion: dict[str, SystemClips], foot_joints: Sequence[str]
     for system, clips in sorted(motion.items()):
         try:
             foot_indices = choose_foot_joints(clips.names, clips.parents, clips.clips, foot_kind, foot_joints)
-        except AnalysisInputError as error:
+        except ValueError as error:
             raise AnalysisInputError(f"system {system!r}: {error}") from None
         summary, curve = footstep_summary(clips.clips, clips.fps, foot_indices, tolerances, min_contact_s)
         if not np.isfinite(summary["v_tol_95"]):

@@ -100,6 +100,22 @@ def footstep_plot(curves: pd.DataFrame, natural: str = "NAT") -> Figure:
     return fig
 
 
+def adherence_plot(curves: pd.DataFrame, natural: str = "NAT") -> Figure:
+    """Position and heading error over the clips' time per system (`analysis.adherence`)."""
+    fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.4))
+    for system, curve in curves.groupby("system", sort=True):
+        width = 2.0 if system == natural else 1.2
+        for ax, column in zip(axes, ("position_error", "heading_error")):
+            ax.plot(curve["time_s"], curve[column], label=plain_text(system), linewidth=width)
+    axes[0].set_ylabel("distance from the control's path (cm)")
+    axes[1].set_ylabel("heading error (degrees)")
+    for ax in axes:
+        ax.set_xlabel("time in the clip (s)")
+    axes[1].legend(fontsize="small")
+    fig.tight_layout()
+    return fig
+
+
 def save_figure(fig: Figure, folder: str | Path, name: str) -> list[Path]:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

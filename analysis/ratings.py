@@ -30,9 +30,10 @@ Optional columns:
   app wrote. Analysis recomputes them from the rules and reports any disagreement; they
   are kept as ``app_excluded_participant`` and ``app_discarded_early``.
 
-Side-by-side and pairwise tables carry a ``design`` column and the page structure
-described in `analysis.designs` (``page``, ``position``; ``side``, ``answer``,
-``strength``); pairwise tables need no ``value`` or scale columns. Without a ``design``
+Side-by-side, pairwise and appropriateness tables carry a ``design`` column and the page
+structure described in `analysis.designs` (``page``, ``position``; ``side``, ``answer``,
+``strength``; ``matched``); pairwise and appropriateness tables need no ``value`` or
+scale columns. Without a ``design``
 column a table is ``single`` and reads as it always has.
 
 Any other column is carried through untouched. The web app's export is the minimal
@@ -47,7 +48,7 @@ from typing import IO
 import numpy as np
 import pandas as pd
 
-from analysis.designs import (SINGLE, needs_scale, required_columns, table_design,
+from analysis.designs import (APPROPRIATENESS, SINGLE, needs_scale, required_columns, table_design,
                               validate_design_columns)
 from analysis.errors import AnalysisInputError
 
@@ -116,6 +117,8 @@ def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
             )
     if needs_scale(design):
         _check_scale(df)
+    if design == APPROPRIATENESS:
+        df["matched"] = _booleans(df["matched"], "matched")
     df = validate_design_columns(df, design)
     _refuse_duplicates(df)
     early = _answered_before_end(df)

@@ -98,9 +98,9 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
                  foot_kind: str = "heel") -> Report | DesignReport:
     """Run the whole analysis on a validated ratings table (see `analysis.ratings`).
 
-    Side-by-side and pairwise tables (their ``design`` column) get their own analysis,
-    a `DesignReport` (`analysis.design_report`); `write_report` and `summary_text` take
-    either.
+    Side-by-side, pairwise and appropriateness tables (their ``design`` column) get their
+    own analysis, a `DesignReport` (`analysis.design_report`); `write_report` and
+    `summary_text` take either.
 
     ``reference`` marks significance in Table 2 (default NAT when rated). ``systems``,
     when given, lists the systems expected; any other system in the ratings is an error.

@@ -10,6 +10,9 @@ One function per design (`analysis.designs`), each drawing a study with known ef
   controls are harder), which is what pairing by page removes;
 - `simulate_pairwise`: pages of two systems, preferences drawn from a Bradley-Terry
   model with known strengths, a share of pages answered "no preference", sides random.
+- `simulate_appropriateness`: pages of one system's matched and mismatched clips, the
+  matched one preferred with a known probability per system, BAD attention pages that
+  attentive participants get right.
 
 In each, a chosen share of participants is inattentive (answers at random, attention
 checks included) and a share of answers is given before the clip ended. Seeded: the same
@@ -157,4 +160,50 @@ def simulate_pairwise(strengths: Mapping[str, float], n_participants: int,
     table["task"], table["control_class"] = task, control_class
     table["clip_duration_s"] = 10.0
     table["played_until_s"] = _early_playback(rng, len(table), early_share)
+    return table
+
+
+def simulate_appropriateness(prefer_matched: Mapping[str, float], n_participants: int,
+                             pages_per_participant: int = 24, no_preference_share: float = 0.15,
+                             clear_share: float = 0.5, attention_pages: int = 2,
+                             inattentive_share: float = 0.05, early_share: float = 0.02,
+                             task: str = "locomotion", control_class: str = "held-out",
+                             controls: int = 40, seed: int = 0) -> pd.DataFrame:
+    """Appropriateness pages: each shows one system's matched and mismatched clips, sides at random.
+
+    A page is answered "none" with probability ``no_preference_share``; otherwise the
+    matched clip is preferred with the system's probability in ``prefer_matched``,
+    clearly (strength 2) with probability ``clear_share``, else slightly. Every
+    participant also sees ``attention_pages`` BAD pages, where the matched clip is
+    always preferred by the attentive; inattentive participants answer every page at
+    random. So the share preferring matched, ties split, is
+    ``p (1 - t) + t / 2`` and the mean score ``(2 p - 1)(1 - t)(1 + c)`` for p the
+    system's probability, t the no-preference share and c the clear share.
+    """
+    rng = np.random.default_rng(seed)
+    systems = list(prefer_matched)
+    rows = []
+    for p in range(n_participants):
+        inattentive = rng.random() < inattentive_share
+        shown = [systems[rng.integers(len(systems))] for _ in range(pages_per_participant)]
+        for page, system in enumerate([*shown, *["BAD"] * attention_pages]):
+            left_matched = rng.random() < 0.5
+            if inattentive:
+                answer = ("left", "right", "none")[rng.integers(3)]
+            elif system != "BAD" and rng.random() < no_preference_share:
+                answer = "none"
+            else:
+                chose_matched = system == "BAD" or rng.random() < prefer_matched[system]
+                answer = "left" if chose_matched == left_matched else "right"
+            strength = "" if answer == "none" else 2 if rng.random() < clear_share else 1
+            control = f"c{rng.integers(controls)}"
+            for side, matched in (("left", left_matched), ("right", not left_matched)):
+                clip = f"{system}_{control}" if matched else f"{system}_{control}_mismatched"
+                rows.append({"participant": f"p{p}", "system": system, "stimulus": clip, "page": f"q{page}",
+                             "side": side, "matched": matched, "answer": answer, "strength": strength})
+    table = pd.DataFrame(rows)
+    table.insert(0, "design", "appropriateness")
+    table["task"], table["control_class"] = task, control_class
+    table["clip_duration_s"] = 10.0
+    table["played_until_s"] = np.repeat(_early_playback(rng, len(table) // 2, early_share), 2)
     return table

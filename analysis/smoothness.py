@@ -9,7 +9,8 @@ one before any participant sees it:
 * **Lower-foot speed** (cm/s): in each frame, the horizontal speed of whichever foot
   joint is lowest (the one bearing weight), averaged over frames and clips. A planted
   foot hardly moves (natural walking: about 13 cm/s); a character that glides instead of
-  stepping moves it at the body's speed.
+  stepping moves it at the body's speed. ``generation`` measures it too, so it lives
+  below both libraries, in ``measures.feet``.
 """
 
 from __future__ import annotations
@@ -23,16 +24,3 @@ def mean_joint_acceleration(clips: Sequence[np.ndarray], fps: float) -> float:
     """Mean |second difference| · fps² (cm/s²) over every joint, frame and clip (frames, joints, 3)."""
     values = [np.linalg.norm(np.diff(clip, 2, axis=0), axis=-1).ravel() for clip in clips if len(clip) >= 3]
     return float(np.concatenate(values).mean() * fps**2) if values else float("nan")
-
-
-def lower_foot_speed(clips: Sequence[np.ndarray], fps: float, foot_indices: Sequence[int]) -> float:
-    """Mean horizontal speed (cm/s, y up) over the last frame of the lowest foot joint in each frame."""
-    speeds = []
-    for clip in clips:
-        if len(clip) < 2:
-            continue
-        feet = clip[:, list(foot_indices)]
-        lowest = feet[1:, :, 1].argmin(axis=1)  # the foot nearest the floor at the end of each step
-        step = np.linalg.norm(np.diff(feet[..., [0, 2]], axis=0), axis=-1)  # (frames-1, feet)
-        speeds.append(step[np.arange(len(step)), lowest] * fps)
-    return float(np.concatenate(speeds).mean()) if speeds else float("nan")

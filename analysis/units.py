@@ -3,8 +3,8 @@ the metrics are stated in (footstep tolerances in cm/s, bone errors in cm).
 
 Given, or detected from the clips: the up axis is the one along which the figures
 stand tallest, and the unit the one common unit that makes that height a human's
-(joint positions span 1.0-2.1 m from foot to head; at most one unit fits), clip by
-clip: clips that different units make human-sized are an error naming them.
+(``measures.units.unit_for_height``, the rule ``generation`` reads BVH files by), clip
+by clip: clips that different units make human-sized are an error naming them.
 """
 
 from __future__ import annotations
@@ -16,28 +16,7 @@ import numpy as np
 
 from analysis.errors import AnalysisInputError
 from analysis.motion_io import SystemClips
-
-UNITS = {"mm": 0.1, "cm": 1.0, "in": 2.54, "cmu": 2.54 / 0.45, "ft": 30.48, "m": 100.0}
-FIGURE_HEIGHT_CM = (100.0, 210.0)
-UP_AXES = {"y": 1, "z": 2}
-# (x, y, z) with z up -> (x, z, -y) with y up
-Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
-
-
-def parse_scale(text: str) -> float | None:
-    """'auto' (None), a unit name (m, cm, in, ...) or a number of centimetres per unit."""
-    text = text.strip().lower()
-    if text == "auto":
-        return None
-    if text in UNITS:
-        return UNITS[text]
-    try:
-        scale = float(text)
-    except ValueError:
-        raise AnalysisInputError(f"--scale must be auto, a unit ({', '.join(UNITS)}) or a number, got {text!r}") from None
-    if not (np.isfinite(scale) and scale > 0):
-        raise AnalysisInputError(f"--scale must be positive, got {text!r}")
-    return scale
+from measures.units import HUMAN_HEIGHT_CM, UNITS, UP_AXES, Z_UP_TO_Y_UP, unit_for_height
 
 
 def to_centimetres_y_up(motion: dict[str, SystemClips], scale: float | None = None,
@@ -74,14 +53,12 @@ def _detect_scale(motion: dict[str, SystemClips], axis: int) -> float:
         for k, frames in enumerate(_heights(system, axis)):
             source = system.source(k)
             height[source] = float(np.median(frames))
-            fits = [name for name, factor in UNITS.items()
-                    if FIGURE_HEIGHT_CM[0] <= height[source] * factor <= FIGURE_HEIGHT_CM[1]]
-            unit[source] = fits[0] if len(fits) == 1 else None
+            unit[source] = unit_for_height(height[source])
     counts = Counter(u for u in unit.values() if u is not None)
     if not counts:
         raise AnalysisInputError(
             f"cannot tell the unit of the motion: the figures stand {np.median(list(height.values())):.4g} units "
-            f"tall, which no common unit makes human-sized ({FIGURE_HEIGHT_CM[0]:g}-{FIGURE_HEIGHT_CM[1]:g} cm); "
+            f"tall, which no common unit makes human-sized ({HUMAN_HEIGHT_CM[0]:g}-{HUMAN_HEIGHT_CM[1]:g} cm); "
             "give --scale")
     common, count = counts.most_common(1)[0]
     outliers = [source for source, u in unit.items() if u not in (None, common)]

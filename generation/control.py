@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,7 +19,8 @@ import numpy as np
 import yaml
 from scipy.ndimage import gaussian_filter1d
 
-from .motion.root import RootTrajectory, integrate
+from .motion.root import RootOptions, RootTrajectory, integrate, root_trajectory, to_root_frame
+from .motion.types import Motion
 
 # Seconds of Gaussian smoothing between segments, so speeds change as a person's do.
 TRANSITION_SIGMA = 0.25
@@ -259,22 +261,49 @@ def load_control_file(path: str | Path, fps: float = 20.0) -> list[PathControl]:
     return controls
 
 
+def in_control_frame(motion: Motion, root: RootOptions = RootOptions()) -> Motion:
+    """``motion`` moved on the floor so that its root starts at the origin facing +z, where
+    every control's path starts: a natural take then walks along its own control's
+    path, and any clip can be drawn over any control's path (``render_video``'s
+    ``control_path``). Generated motion starts there already."""
+    start = root_trajectory(motion, root)
+    positions = motion.positions.copy()
+    floor = to_root_frame(positions[..., [0, 2]] - start.xz[0], start.yaw[0])
+    positions[..., 0], positions[..., 2] = floor[..., 0], floor[..., 1]
+    return Motion(positions, motion.fps, motion.skeleton)
+
+
+def following_arrays(motion: Motion, asked: RootTrajectory, root: RootOptions = RootOptions()) -> dict[str, np.ndarray]:
+    """The arrays beside a clip that ``analysis``'s control-adherence metrics read
+    (analysis/motion_io.py): the path and facing the clip was asked to follow
+    (``asked``, in the clip's floor coordinates) and where its root went and faced."""
+    went = root_trajectory(motion, root)
+    return {"control_path": asked.xz, "control_yaw": asked.yaw, "root_path": went.xz, "root_yaw": went.yaw}
+
+
 def held_out_paths(dataset, seconds: float | None = None, lead_in_seconds: float = 0.0) -> list[PathControl]:
-    """The control of each held-out natural clip of a dataset (cut to ``seconds``).
+    """The control of each held-out natural clip of a dataset (``take_paths``)."""
+    takes = [(clip.name, dataset.clip_arrays(clip)["control"]) for clip in dataset.select("test")]
+    return take_paths(takes, dataset.options.fps, seconds, lead_in_seconds)
+
+
+def take_paths(takes: Iterable[tuple[str, np.ndarray]], fps: float, seconds: float | None = None,
+               lead_in_seconds: float = 0.0) -> list[PathControl]:
+    """The control of each natural take, given as (name, per-frame control), cut to
+    ``seconds``; takes too short for two frames are left out.
 
     With ``lead_in_seconds`` each clip starts that far into its take, and the take's
     control before it is the clip's lead-in: sampling then warms up on the take's own
     start, as the MoGlow authors' code samples a test take from its first frame.
     """
-    fps = dataset.options.fps
     frames = _frames_of(seconds, fps)
     lead = lead_in_frames(lead_in_seconds, fps)
     result = []
-    for clip in dataset.select("test"):
-        take = dataset.clip_arrays(clip)["control"].astype(np.float64)
-        control = take[lead:] if frames is None else take[lead:lead + frames]
-        if len(control) >= 2:
-            result.append(PathControl(control, fps, clip.name, take[:lead] if lead else None))
+    for name, control in takes:
+        take = np.asarray(control, dtype=np.float64)
+        clip = take[lead:] if frames is None else take[lead:lead + frames]
+        if len(clip) >= 2:
+            result.append(PathControl(clip, fps, name, take[:lead] if lead else None))
     return result
 
 
@@ -286,15 +315,18 @@ def lead_in_frames(seconds: float, fps: float) -> int:
 
 
 def held_out_attributes(dataset, seconds: float | None = None) -> list[AttributeControl]:
-    """The action and style labels of each labelled held-out natural clip, for as long as
-    the clip lasts (or ``seconds``, if shorter): what a label-controlled model is asked
-    to do where the clip shows what a person did."""
-    fps = dataset.options.fps
+    """The action and style labels of each labelled held-out natural clip of a dataset
+    (``take_attributes``)."""
+    takes = [(clip.name, clip.content, clip.style, clip.stop - clip.start)
+             for clip in dataset.select("test", augmented=False)]
+    return take_attributes(takes, dataset.options.fps, seconds)
+
+
+def take_attributes(takes: Iterable[tuple[str, str | None, str | None, int]], fps: float,
+                    seconds: float | None = None) -> list[AttributeControl]:
+    """The action and style labels of each labelled natural take, given as (name, content,
+    style, frames), for as long as the take lasts (or ``seconds``, if shorter): what a
+    label-controlled model is asked to do where the take shows what a person did."""
     longest = _frames_of(seconds, fps)
-    result = []
-    for clip in dataset.select("test", augmented=False):
-        if clip.content is None or clip.style is None:
-            continue
-        frames = clip.stop - clip.start if longest is None else min(clip.stop - clip.start, longest)
-        result.append(AttributeControl(clip.content, clip.style, frames, fps, clip.name))
-    return result
+    return [AttributeControl(content, style, frames if longest is None else min(frames, longest), fps, name)
+            for name, content, style, frames in takes if content is not None and style is not None]

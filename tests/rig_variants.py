@@ -12,7 +12,7 @@ from generation.motion.bvh import BVH, motion_to_bvh, read_bvh, scale_lengths, w
 from generation.motion.kinematics import subtree_motion
 from generation.motion.rotations import matrix_to_quat, quat_to_matrix
 from generation.motion.types import Motion, Skeleton
-from generation.motion.units import Z_UP_TO_Y_UP
+from measures.units import Z_UP_TO_Y_UP
 
 SIDED = ("Shoulder", "UpperArm", "LowerArm", "Hand", "UpperLeg", "LowerLeg", "Foot", "Toes")
 CENTRAL = ("joint_Root", "Hips", "Spine", "Chest", "Neck", "Head")

@@ -108,7 +108,7 @@ def test_broken_pairwise_pages_are_refused_naming_page_and_row(change, message):
 
 def test_unknown_and_mixed_designs_are_refused():
     rows = [sbs_row("p1", "c1", "A", 40), {**sbs_row("p1", "c1", "B", 40), "design": "mushra"}]
-    with pytest.raises(AnalysisInputError, match="'design' must be one of single, side-by-side, pairwise; row 2"):
+    with pytest.raises(AnalysisInputError, match="'design' must be one of single, side-by-side, pairwise, appropriateness; row 2"):
         read_ratings(csv_of(rows))
     rows[1]["design"] = "single"
     with pytest.raises(AnalysisInputError, match="mixes side-by-side, single"):

@@ -21,11 +21,11 @@ from scipy.signal import find_peaks
 from analysis.bones import bone_length_rmse, rigid_bones
 from analysis.correlation import subjective_objective_correlation
 from analysis.errors import AnalysisInputError
-from analysis.footsteps import (FootSpeeds, choose_foot_joints, find_foot_joints, footstep_summary,
-                                footstep_tolerance_curve, step_durations, v_tol_95)
+from analysis.footsteps import FootSpeeds, footstep_summary, footstep_tolerance_curve, step_durations, v_tol_95
 from analysis.scores import frechet_distance, inception_score
-from analysis.smoothness import lower_foot_speed, mean_joint_acceleration
-from analysis.units import Z_UP_TO_Y_UP
+from analysis.smoothness import mean_joint_acceleration
+from measures.feet import choose_foot_joints, find_foot_joints, lower_foot_speed
+from measures.units import Z_UP_TO_Y_UP
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +40,7 @@ def test_foot_joints_are_found_by_name():
     assert find_foot_joints(names) == ["Foot_L", "Foot_R"]
     assert find_foot_joints(names, "toe") == ["Toes_L", "Toes_R"]
     assert find_foot_joints(["LeftHeel", "RightHeel", "LeftFoot", "RightFoot"]) == ["LeftHeel", "RightHeel"]
-    with pytest.raises(AnalysisInputError, match="pass the foot joints explicitly"):
+    with pytest.raises(ValueError, match="pass the foot joints explicitly"):
         find_foot_joints(["Hips", "Spine"])
 
 
@@ -212,7 +212,7 @@ def test_feet_are_the_lowest_end_joints_when_names_say_nothing(walks):
     assert feet == [skeleton.index("Toes_L"), skeleton.index("Toes_R")]
     assert choose_foot_joints(skeleton.names, skeleton.parents, clips) == [skeleton.index("Foot_L"), skeleton.index("Foot_R")]
     assert choose_foot_joints(nameless, skeleton.parents, clips, given=["J2"]) == [2]
-    with pytest.raises(AnalysisInputError, match="no joint.* Heel_L"):
+    with pytest.raises(ValueError, match="no joint.* Heel_L"):
         choose_foot_joints(nameless, skeleton.parents, clips, given=["Heel_L"])
 
 

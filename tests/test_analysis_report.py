@@ -157,7 +157,7 @@ def test_latex_tables_use_booktabs_and_escape_text():
 def test_motion_in_metres_or_z_up_gives_the_report_of_the_motion_in_centimetres(ratings_file, clip_path, tmp_path,
                                                                                   capsys):
     from generation.motion import load_motion
-    from generation.motion.units import Z_UP_TO_Y_UP
+    from measures.units import Z_UP_TO_Y_UP
     from tests.rig_variants import write_variants
 
     walks = dict(zip(SYSTEMS, ("walk_normal_001", "walk_happy_001", "walk_old_001", "walk_angry_001")))

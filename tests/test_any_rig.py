@@ -9,7 +9,7 @@ import shutil
 import numpy as np
 import pytest
 
-from analysis.footsteps import choose_foot_joints, footstep_summary
+from analysis.footsteps import footstep_summary
 from generation.motion.augment import mirror
 from generation.motion.bvh import load_motion, motion_to_bvh, write_bvh
 from generation.motion.dataset import DatasetOptions, build_dataset, find_bvh_files, load_body_motion, read_labels
@@ -20,6 +20,7 @@ from generation.motion.unit_detection import choose_units
 from generation.motion.units import Units, skeleton_size
 from generation.render import Camera
 from generation.render.draw import FrameDrawer
+from measures.feet import choose_foot_joints
 from tests.rig_variants import CMU_NAMES, CONVENTIONS, convention_names, renamed, write_variants
 
 FPS = 20.0

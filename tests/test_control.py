@@ -12,6 +12,7 @@ from generation.control import (
     PathControl,
     control_from_dict,
     held_out_paths,
+    in_control_frame,
     load_control_file,
     preset_path,
     synthetic_path,
@@ -119,3 +120,21 @@ def test_held_out_control_with_a_lead_in_starts_that_far_into_each_take(motion_d
         assert np.array_equal(control.velocities, whole.velocities[20:60])
     with pytest.raises(ValueError, match="the lead-in must be 0 or more seconds"):
         held_out_paths(dataset, seconds=2, lead_in_seconds=-1)
+
+
+def test_a_natural_take_moved_into_its_controls_frame_walks_along_its_controls_path(motion_data, tmp_path):
+    from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
+    from generation.motion.root import root_trajectory
+
+    dataset = build_dataset(motion_data, DatasetOptions(contents=("walk-left",)), cache_dir=tmp_path, progress=False)
+    options = dataset.options
+    for control in held_out_paths(dataset, seconds=4):
+        take = load_body_motion(motion_data / "data" / f"{control.name}.bvh", options.fps, 4.0, options.scale,
+                                options.root, options.up)
+        assert np.linalg.norm(root_trajectory(take, options.root).xz[0]) > 50  # the take starts elsewhere
+        root = root_trajectory(in_control_frame(take, options.root), options.root)
+        assert np.allclose(root.xz[0], 0.0, atol=1e-6) and abs(root.yaw[0]) < 1e-6
+        # within a few cm of the path all along (the take's root is smoothed over the whole take for
+        # its control, over the cut clip here)
+        assert np.linalg.norm(root.xz - control.path().xz, axis=1).max() < 10.0
+        assert np.abs(root.yaw - control.path().yaw).max() < np.radians(5)

@@ -136,8 +136,10 @@ def test_another_session_of_the_same_prolific_id_cannot_continue_and_the_researc
 
     context, page = log_in(browser, live_server, study.owner)
     page.goto(f"{live_server.url}{reverse('study-participants', args=[study.pk])}")
-    cells = page.locator("#participants tr").nth(1).locator("td").all_inner_texts()
-    assert cells[:3] == ["P1", "session-P1", "finished"] and cells[-1] == "approve"
+    headers = page.locator("#participants tr").nth(0).locator("th").all_inner_texts()
+    cells = dict(zip(headers, page.locator("#participants tr").nth(1).locator("td").all_inner_texts()))
+    assert [cells["Platform id"], cells["Session"], cells["Status"]] == ["P1", "session-P1", "finished"]
+    assert (cells["Analysis"], cells["Suggested payment"]) == ("kept", "approve")
     with page.expect_download() as download:
         page.get_by_role("link", name="Download as CSV").click()
     table = list(csv.DictReader(io.StringIO(Path(download.value.path()).read_text())))

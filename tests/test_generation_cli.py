@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from generation.cli import main
@@ -21,6 +22,27 @@ def test_render_writes_a_video_and_sheet(clip_path, tmp_path):
     target = tmp_path / "clips" / "walk.mp4"
     assert main(["render", str(clip_path("walk_normal_001")), "-o", str(target), "--sheet", "--size", "320x240"]) == 0
     assert target.stat().st_size > 10_000 and target.with_suffix(".png").is_file()
+
+
+def test_render_draws_a_control_under_a_take_cut_to_its_length_and_refuses_a_longer_control(clip_path, tmp_path,
+                                                                                           capsys):
+    from PIL import Image
+
+    from generation.render import Style
+
+    target = tmp_path / "walk.mp4"
+    assert main(["render", str(clip_path("walk_normal_001")), "-o", str(target), "--sheet", "--size", "320x240",
+                 "--draw-control", "walk-circle"]) == 0
+    sheet = np.asarray(Image.open(target.with_suffix(".png")).convert("RGB")).astype(int)
+    for colour in (Style().control_past, Style().control_future):
+        assert (np.abs(sheet - np.array(colour)).sum(axis=-1) < 20).sum() > 100  # the circle is drawn
+    long_walk = tmp_path / "long.yaml"
+    long_walk.write_text("segments:\n  - {type: straight, speed: 100, seconds: 10}\n")
+    assert main(["render", str(clip_path("walk_normal_001")), "-o", str(tmp_path / "long.mp4"),
+                 "--draw-control", str(long_walk)]) == 2
+    assert "walk_normal_001.bvh: the take lasts 130 frames at 20 fps, shorter than the 200 of the control" \
+        in capsys.readouterr().err
+    assert not (tmp_path / "long.mp4").exists()
 
 
 def test_malformed_bvh_is_named_with_its_line_and_leaves_no_output(clip_path, tmp_path, capsys):
@@ -67,7 +89,7 @@ def test_natural_clips_export_feeds_the_objective_metrics(motion_data, tmp_path,
     from analysis.cli import main as analysis_main
 
     out = tmp_path / "motion" / "NAT"
-    assert main(["natural", str(motion_data), "--contents", "walk", "--out", str(out), "--cache-dir", str(tmp_path)]) == 0
+    assert main(["natural", str(motion_data), "--contents", "walk", "--out", str(out)]) == 0
     clips = sorted(out.glob("*.npz"))
     assert clips and all(np.load(c)["positions"].shape == (80, 21, 3) for c in clips)
     capsys.readouterr()
@@ -75,6 +97,10 @@ def test_natural_clips_export_feeds_the_objective_metrics(motion_data, tmp_path,
     table = (tmp_path / "objective" / "tables" / "objective_metrics.csv").read_text()
     assert table.startswith("system,n_clips,v_tol_95,steps_per_s")
     assert "NAT" in table and (tmp_path / "objective" / "figures" / "footstep_curves.png").is_file()
+    # each take carries its own control, placed where it starts: it follows it all but exactly
+    adherence = pd.read_csv(tmp_path / "objective" / "tables" / "control_adherence.csv").iloc[0]
+    assert adherence["n_clips"] == len(clips)
+    assert adherence["position_error_mean"] < 1.0 and adherence["heading_error_mean"] < 1.0
 
 
 def test_commands_read_other_units_and_up_axes_and_say_which(clip_path, tmp_path, capsys):
@@ -122,10 +148,10 @@ def test_natural_exports_every_clip_of_a_folder_without_labels_and_names_short_t
     for name in names:
         (folder / f"{name}.bvh").symlink_to(clip_path(name))
     out = tmp_path / "NAT"
-    assert main(["natural", str(folder), "--split", "train", "--out", str(out), "--cache-dir", str(tmp_path / "cache")]) == 0
+    assert main(["natural", str(folder), "--split", "train", "--out", str(out)]) == 0
     said = capsys.readouterr()
     assert "no content labels: all of them are used" in said.out
-    assert "take(s) shorter than one 4-s window give no windows" in said.err  # run_normal_001 lasts 0.8 s
+    assert "take(s) end before 4 s, so their clips are shorter" in said.err  # run_normal_001 lasts 0.8 s
     assert "run_normal_001" in said.err or "walk_normal_002" in said.err
     exported = {p.stem for p in out.glob("*.npz")}
     assert exported and exported <= set(names)

@@ -32,10 +32,9 @@ def test_a_lead_in_is_sampled_as_the_start_of_the_control_and_then_dropped(check
 def test_natural_and_held_out_samples_with_the_same_lead_in_cover_the_same_frames(checkpoint, clips_folder,  # noqa: F811
                                                                                  tmp_path, capsys):
     cache = str(tmp_path / "cache")
-    assert main(["natural", str(clips_folder), "--out", str(tmp_path / "NAT"), "--seconds", "2", "--lead-in", "1",
-                 "--cache-dir", cache]) == 0
+    assert main(["natural", str(clips_folder), "--out", str(tmp_path / "NAT"), "--seconds", "2", "--lead-in", "1"]) == 0
     assert main(["sample", str(checkpoint), "-c", "held-out", "--data", str(clips_folder), "--seconds", "2",
-                 "--lead-in", "1", "--out", str(tmp_path / "MoGlow"), "--cache-dir", cache]) == 0, capsys.readouterr().err
+                 "--lead-in", "1", "--out", str(tmp_path / "MoGlow")]) == 0, capsys.readouterr().err
     natural = {p.stem: load_motion_npz(p) for p in (tmp_path / "NAT").glob("*.npz")}
     sampled = {p.stem.rsplit("_", 1)[0]: load_motion_npz(p) for p in (tmp_path / "MoGlow").glob("*.npz")}
     assert natural and natural.keys() == sampled.keys()
@@ -49,11 +48,9 @@ def test_natural_and_held_out_samples_with_the_same_lead_in_cover_the_same_frame
 
 def test_a_lead_in_longer_than_every_take_is_refused_and_writes_nothing(checkpoint, clips_folder, tmp_path,  # noqa: F811
                                                                        capsys):
-    cache = str(tmp_path / "cache")
-    assert main(["natural", str(clips_folder), "--out", str(tmp_path / "NAT"), "--lead-in", "500",
-                 "--cache-dir", cache]) == 2
+    assert main(["natural", str(clips_folder), "--out", str(tmp_path / "NAT"), "--lead-in", "500"]) == 2
     assert main(["sample", str(checkpoint), "-c", "held-out", "--data", str(clips_folder), "--lead-in", "500",
-                 "--out", str(tmp_path / "MoGlow"), "--cache-dir", cache]) == 2
+                 "--out", str(tmp_path / "MoGlow")]) == 2
     errors = capsys.readouterr().err
     assert "no test take is longer than the lead-in of 500 s" in errors
     assert "no held-out take is longer than the lead-in of 500 s" in errors

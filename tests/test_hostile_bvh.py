@@ -11,7 +11,7 @@ import pytest
 
 from generation.cli import main as cli_main
 from generation.motion import BVHError, read_bvh, write_bvh
-from generation.motion.bvh import bvh_duration
+from generation.motion.bvh import bvh_duration, read_bvh_skeleton
 from generation.motion.dataset import DatasetOptions, build_dataset, read_labels
 from generation.motion.types import Motion
 from generation.render.draw import FrameDrawer
@@ -58,12 +58,37 @@ def test_a_hostile_bvh_is_refused_naming_the_file_and_line(text, line, message, 
     assert str(caught.value).startswith(f"{path}:{line}: " if line else f"{path}")
 
 
-def test_bvh_duration_of_a_file_that_is_no_utf8_is_read_from_its_header(tmp_path):
+@pytest.mark.parametrize("text, line, message", HOSTILE_BVH.values(), ids=HOSTILE_BVH.keys())
+def test_bvh_duration_refuses_a_header_that_read_bvh_refuses(text, line, message, tmp_path):
     path = tmp_path / "clip.bvh"
-    path.write_bytes(b"HIERARCHY\nROOT \xe9\xff\n{\n}\nMOTION\nFrames: 40\nFrame Time: 0.05\n")
-    assert bvh_duration(path) == pytest.approx(2.0)
-    path.write_bytes(b"MOTION\nFrames: 2\nFrame Time: 1e308\n")
-    assert bvh_duration(path) == 0.0  # infinite: unreadable, as the docstring promises
+    path.write_bytes(text if isinstance(text, bytes) else text.encode())
+    if line is not None and line > FRAME_TIME_LINE:
+        assert bvh_duration(path) == pytest.approx(2 * 0.0333333)  # the rows are not read
+        return
+    with pytest.raises(BVHError) as caught:
+        bvh_duration(path)
+    assert message in str(caught.value)
+    assert str(caught.value).startswith(f"{path}:{line}: " if line else f"{path}")
+
+
+@pytest.mark.parametrize("content", [bytes(range(256)) * 4, b"\x00" * 100, b"MOTION\nFrames: 2\nFrame Time: 0.05\n"],
+                         ids=["binary garbage", "NUL bytes", "no hierarchy"])
+def test_bvh_duration_refuses_what_is_no_bvh_file(content, tmp_path):
+    path = tmp_path / "clip.bvh"
+    path.write_bytes(content)
+    with pytest.raises(BVHError, match=f"^{path}"):
+        bvh_duration(path)
+
+
+def test_bvh_duration_reads_the_header_of_a_real_clip(clip_path):
+    path = clip_path("walk_normal_001")
+    assert bvh_duration(path) == pytest.approx(read_bvh(path).to_motion().duration)
+
+
+@pytest.mark.parametrize("reader", [read_bvh, bvh_duration, read_bvh_skeleton])
+def test_a_missing_bvh_file_is_a_bvh_error_naming_it(reader, tmp_path):
+    with pytest.raises(BVHError, match=f"^{tmp_path / 'gone.bvh'}: no such file$"):
+        reader(tmp_path / "gone.bvh")
 
 
 HOSTILE_SIDE_FILES = {
@@ -203,3 +228,33 @@ def test_a_folder_of_one_frame_clips_is_refused_for_having_no_training_windows(m
         (folder / source.name).write_text("\n".join([*lines[: motion + 1], "Frames: 1", *lines[motion + 2 : motion + 4]]) + "\n")
     assert cli_main(["build-dataset", str(folder), "--cache-dir", str(tmp_path / "cache")]) == 2
     assert "no training windows" in capsys.readouterr().err
+    assert not list((tmp_path / "cache").glob("dataset-*.npz"))
+
+
+@pytest.fixture
+def labelled(tmp_path) -> Path:
+    """A clip in a folder whose cfg/ lists the contents walk and run (with a dataset prefix)."""
+    folder = tmp_path / "labelled"
+    (folder / "cfg").mkdir(parents=True)
+    (folder / "cfg" / "content_label.txt").write_text("dataset-9_walk\ndataset-9_run\n")
+    (folder / "clip.bvh").write_text(SMALL_BVH)
+    return folder
+
+
+@pytest.mark.parametrize("entry, message", [
+    ('{"content": "abc"}', "'content' is 'abc', which is not a label of {names} (walk, run)"),
+    ('{"content": 2}', "'content' is 2, but {names} lists 2 labels (0 to 1)"),
+    ('{"content": -1}', "'content' is -1, but {names} lists 2 labels (0 to 1)"),
+], ids=["a name not in the list", "an index past the list", "a negative index"])
+def test_a_label_that_the_label_list_lacks_is_refused_naming_the_file_and_field(entry, message, labelled):
+    (labelled / "clip.json").write_text(entry)
+    with pytest.raises(ValueError) as caught:
+        read_labels(labelled / "clip.bvh")
+    names = labelled / "cfg" / "content_label.txt"
+    assert str(caught.value) == f"{labelled / 'clip.json'}: {message.format(names=names)}"
+
+
+@pytest.mark.parametrize("entry", ['{"content": "run"}', '{"content": "dataset-9_run"}', '{"content": 1}'])
+def test_a_label_of_the_list_is_read_by_name_or_index(entry, labelled):
+    (labelled / "clip.json").write_text(entry)
+    assert read_labels(labelled / "clip.bvh")[0] in ("run", "dataset-9_run")

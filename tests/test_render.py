@@ -243,3 +243,67 @@ def test_the_figure_fills_the_same_share_of_the_frame_whatever_its_size(walker):
     assert height(giant, fixed) > 2 * height(walker, fixed)
     with pytest.raises(ValueError, match="call framing"):
         Camera().eye_offset()
+
+
+def floor_like(frame: np.ndarray) -> np.ndarray:
+    """(h, w) mask of pixels showing bare floor: light and grey (the background, the grid
+    and their blends), not a bone, a path or a shadow."""
+    return (frame.min(axis=-1) > 195) & (np.ptp(frame.astype(int), axis=-1) < 20)
+
+
+def straight_control(n_frames: int, fps: float) -> np.ndarray:
+    """The floor path (x, z) of a control walking 100 cm/s along +z from the origin."""
+    return np.column_stack([np.zeros(n_frames), 100.0 * np.arange(n_frames) / fps])
+
+
+def test_a_control_path_is_drawn_where_the_camera_projects_it():
+    walker = walking_in_a_circle(seconds=2.0, fps=20.0)
+    control = straight_control(walker.n_frames, walker.fps)
+    style = Style(draw_shadow=False, draw_future_path=False)
+    hidden = Style(draw_shadow=False, draw_future_path=False,  # the same frames without the control
+                   control_past=style.background, control_future=style.background)
+    size = (320, 240)
+    drawer, plain = (FrameDrawer(walker, Camera(elevation=35.0), size, style=s, control_path=control)
+                     for s in (style, hidden))
+    end = control[-1, 1]  # its interior: a line has no caps, so its ends may fall a pixel short
+    dense = np.column_stack([np.zeros(400), np.zeros(400), np.linspace(0.01 * end, 0.99 * end, 400)])
+    for k in (0, 20, 39):
+        frame, without = drawer.frame(k), plain.frame(k)
+        drawn = (frame != without).any(axis=-1)
+        pixels, visible = drawer.camera.project(dense, drawer.targets[k], size)
+        inside = visible & (pixels >= 0).all(axis=1) & (pixels < np.array(size) - 1).all(axis=1)
+        points = np.round(pixels[inside]).astype(int)
+        floor = floor_like(without)[points[:, 1], points[:, 0]]  # not under the figure or its own path
+        assert floor.sum() > 50, f"the control's path is out of view in frame {k}"
+        assert drawn[points[:, 1], points[:, 0]][floor].all(), f"frame {k}: the control's path is missing where it projects"
+        rows, cols = np.nonzero(drawn)
+        distance = np.hypot(cols[:, None] - pixels[inside, 0], rows[:, None] - pixels[inside, 1]).min(axis=1)
+        assert distance.max() < 4, f"frame {k}: the control is drawn {distance.max():.1f} px off its path"
+        colours = frame[drawn].astype(int)
+        assert (np.abs(colours - np.array(style.control_past)).sum(axis=1) < 30).any() or k == 0
+        assert (np.abs(colours - np.array(style.control_future)).sum(axis=1) < 30).any()
+
+
+def test_two_systems_clips_of_one_control_draw_the_same_control_path_from_the_same_camera():
+    control = straight_control(40, 20.0)
+    circling = walking_in_a_circle(seconds=2.0, fps=20.0, radius=200.0)
+    tighter = walking_in_a_circle(seconds=2.0, fps=20.0, radius=90.0, speed=70.0)
+    style = Style()
+    hidden = Style(control_past=style.background, control_future=style.background)  # same camera, no control drawn
+    drawers = [FrameDrawer(m, Camera(), SIZE, style=s, control_path=control)
+               for m in (circling, tighter) for s in (style, hidden)]
+    assert np.array_equal(drawers[0].targets, drawers[2].targets)  # the camera follows the control, not the figure
+    compared = 0
+    for k in range(0, 40, 6):
+        a, a_plain, b, b_plain = (d.frame(k) for d in drawers)
+        figures_apart = (a_plain == b_plain).all(axis=-1)  # everything but the two figures and their own paths
+        assert figures_apart.mean() > 0.8
+        assert np.array_equal(a[figures_apart], b[figures_apart]), f"frame {k}: the control is drawn differently"
+        control_pixels = (a != a_plain).any(axis=-1) & figures_apart
+        compared += int(control_pixels.sum())
+    assert compared > 200  # the comparison covered the control's path, not an empty floor
+
+
+def test_a_control_path_of_another_length_than_the_motion_is_refused(walker):
+    with pytest.raises(ValueError, match=r"control_path must have shape \(30, 2\).*got \(29, 2\)"):
+        FrameDrawer(walker, size=SIZE, control_path=np.zeros((29, 2)))

@@ -1,5 +1,6 @@
-"""The packages' import structure: no import cycles, every module importable on its own
-terms, and the cheap entry points (the registry, checkpoint headers) free of torch."""
+"""The packages' import structure: each package imports only what docs/architecture.md
+allows it, no import cycles, every module importable on its own terms, and the cheap
+entry points (the registry, checkpoint headers) free of torch."""
 
 from __future__ import annotations
 
@@ -13,7 +14,23 @@ import pytest
 from generation import registry
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("generation", "analysis", "studyapp", "benchmarks")
+PACKAGES = ("measures", "generation", "analysis", "studyapp", "benchmarks")
+# docs/architecture.md's table: the project packages each package may import (besides
+# itself), and the outside packages it never imports. Imports go one way, down this list.
+MAY_IMPORT = {
+    "measures": set(),
+    "generation": {"measures"},
+    "analysis": {"measures"},
+    "studyapp": {"measures", "generation", "analysis"},
+    "benchmarks": {"measures", "generation", "analysis", "studyapp"},
+}
+NEVER_IMPORTS = {
+    "measures": {"torch", "django", "celery", "pandas", "scipy", "statsmodels", "matplotlib"},
+    "generation": {"django", "celery"},
+    "analysis": {"django", "celery", "torch"},
+    "studyapp": set(),
+    "benchmarks": set(),
+}
 
 
 def module_name(path: Path) -> str:
@@ -29,30 +46,59 @@ def is_type_checking_block(node: ast.AST) -> bool:
     return isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
 
 
-def imported_modules(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
-    """The project modules that ``name`` imports anywhere in its body (functions
-    included); imports only for type checkers never run, so they do not count."""
-    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    found: set[str] = set()
+def import_statements(path: Path) -> list[ast.Import | ast.ImportFrom]:
+    """Every import of a module, functions included; imports only for type checkers
+    never run, so they are left out."""
+    found: list[ast.Import | ast.ImportFrom] = []
 
     def visit(node: ast.AST) -> None:
         if is_type_checking_block(node):
             return
-        if isinstance(node, ast.Import):
-            found.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            base = package
-            for _ in range(node.level - 1):
-                base = base.rpartition(".")[0]
-            source = ".".join(p for p in (base if node.level else "", node.module or "") if p)
-            for alias in node.names:
-                # "from package import module" imports the module; "from module import name" the module.
-                found.add(f"{source}.{alias.name}" if f"{source}.{alias.name}" in modules else source)
+        if isinstance(node, ast.Import | ast.ImportFrom):
+            found.append(node)
         for child in ast.iter_child_nodes(node):
             visit(child)
 
     visit(ast.parse(path.read_text(), str(path)))
+    return found
+
+
+def imported_modules(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
+    """The project modules that ``name`` imports anywhere in its body."""
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[str] = set()
+    for node in import_statements(path):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+            continue
+        base = package
+        for _ in range(node.level - 1):
+            base = base.rpartition(".")[0]
+        source = ".".join(p for p in (base if node.level else "", node.module or "") if p)
+        for alias in node.names:
+            # "from package import module" imports the module; "from module import name" the module.
+            found.add(f"{source}.{alias.name}" if f"{source}.{alias.name}" in modules else source)
     return {m for m in found if m in modules and m != name}
+
+
+def broken_package_rules(modules: dict[str, Path]) -> list[str]:
+    """'module imports name (why not)' for every absolute import that breaks
+    ``MAY_IMPORT`` or ``NEVER_IMPORTS``; relative imports stay inside their package."""
+    broken = []
+    for name, path in sorted(modules.items()):
+        package = name.split(".")[0]
+        for node in import_statements(path):
+            targets = [alias.name for alias in node.names] if isinstance(node, ast.Import) else \
+                [node.module] if node.level == 0 and node.module else []
+            for target in targets:
+                top = target.split(".")[0]
+                if top in MAY_IMPORT and top != package and top not in MAY_IMPORT[package]:
+                    allowed = ", ".join(sorted(MAY_IMPORT[package]))
+                    why = f"{package} may import only {allowed}" if allowed else f"{package} imports no other project package"
+                    broken.append(f"{name} imports {target} ({why})")
+                elif top in NEVER_IMPORTS[package]:
+                    broken.append(f"{name} imports {target} ({package} never imports {top})")
+    return broken
 
 
 def find_cycle(graph: dict[str, set[str]], starts: list[str] | None = None) -> list[str] | None:
@@ -91,6 +137,27 @@ def test_the_cycle_finder_sees_a_cycle_through_a_function_level_import(tmp_path)
     modules["pkg.b"].write_text("def thing():\n    pass\n")
     graph = {name: imported_modules(name, path, modules) for name, path in modules.items()}
     assert find_cycle(graph) is None
+
+
+def test_every_package_imports_only_what_its_rules_allow():
+    assert broken_package_rules(project_modules()) == []
+
+
+def test_the_rule_checker_sees_a_forbidden_import_inside_a_function(tmp_path):
+    modules = {"generation.sliding": tmp_path / "sliding.py", "analysis.units": tmp_path / "units.py",
+               "measures.feet": tmp_path / "feet.py"}
+    modules["generation.sliding"].write_text(
+        "from typing import TYPE_CHECKING\nfrom measures.feet import lower_foot_speed\n"
+        "if TYPE_CHECKING:\n    from studyapp.models import Study\n"
+        "def ladder():\n    from analysis.smoothness import mean_joint_acceleration\n")
+    modules["analysis.units"].write_text("import torch.nn\nfrom . import errors\n")
+    modules["measures.feet"].write_text("import numpy as np\nimport pandas as pd\nimport generation\n")
+    assert broken_package_rules(modules) == [
+        "analysis.units imports torch.nn (analysis never imports torch)",
+        "generation.sliding imports analysis.smoothness (generation may import only measures)",
+        "measures.feet imports pandas (measures never imports pandas)",
+        "measures.feet imports generation (measures imports no other project package)",
+    ]
 
 
 @pytest.mark.parametrize("package", PACKAGES)

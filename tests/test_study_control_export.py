@@ -15,7 +15,7 @@ from django.core.management.base import CommandError
 from generation.motion.root import integrate
 from generation.motion.bvh import load_motion
 from generation.motion.root import root_trajectory
-from studyapp.stimuli.control_export import PATH_TOLERANCE_CM
+from generation.submission import PATH_TOLERANCE_CM
 from tests.test_study_researcher import files, new_study, researcher, site, upload_checkpoint  # noqa: F401 (fixtures)
 
 

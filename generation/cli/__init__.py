@@ -9,6 +9,8 @@
   natural FOLDER        export held-out natural clips the same way (the NAT system)
   evaluate CHECKPOINT   held-out loss (MoGlow: negative log-likelihood per frame)
   sliding CHECKPOINT    where a MoGlow's foot sliding arises, on held-out takes
+  prepare-submission FOLDER --controls BUNDLE
+                        another lab's BVH files as a submission for a study's exported controls
   import-stylegestures CHECKPOINT
                         a checkpoint of the authors' MoGlow code as a project checkpoint
   hvrnn-classifiers, hvrnn-denoiser, hvrnn-eval FOLDER
@@ -21,10 +23,10 @@ import argparse
 import sys
 
 from ..motion.bvh import BVHError
-from . import data, hvrnn, models, render, stylegestures
+from . import data, hvrnn, models, render, stylegestures, submission
 
 # The command groups, in the order --help lists their commands.
-GROUPS = (data, render, models, stylegestures, hvrnn)
+GROUPS = (data, render, models, submission, stylegestures, hvrnn)
 
 
 def parser() -> argparse.ArgumentParser:

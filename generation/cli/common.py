@@ -1,13 +1,16 @@
 """What several command groups share: the camera arguments of every rendering command,
-and the unit and rig arguments of every command that reads BVH files."""
+the control a rendered clip can draw on the floor, and the unit and rig arguments of
+every command that reads BVH files."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
+from measures.units import parse_scale
+
+from ..control import PRESETS, PathControl, load_control_file, preset_path
 from ..motion.root import RootOptions
-from ..motion.units import parse_scale
 from ..render import Camera
 
 
@@ -34,6 +37,14 @@ def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
 
 def camera_from(args: argparse.Namespace) -> Camera:
     return Camera(azimuth=args.azimuth, elevation=args.elevation, distance=args.distance)
+
+
+def shown_control(name: str, fps: float) -> PathControl:
+    """The one path ``--draw-control`` names: a preset, or a JSON or YAML file holding one."""
+    controls = [preset_path(name, fps)] if name in PRESETS else load_control_file(name, fps)
+    if len(controls) != 1:
+        raise ValueError(f"{name}: --draw-control draws one path; the file describes {len(controls)}")
+    return controls[0]
 
 
 def _scale(text: str) -> float | None:

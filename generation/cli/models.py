@@ -17,18 +17,21 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from ..control import PRESETS, held_out_paths, lead_in_frames, load_control_file, preset_path
+from measures.feet import choose_foot_joints
+from measures.units import UNIT_NAMES, UNITS
+
+from ..control import PRESETS, following_arrays, lead_in_frames, load_control_file, preset_path, take_paths
 from ..motion.bvh import motion_to_bvh, write_bvh
-from ..motion.dataset import DatasetOptions, build_dataset, contents_or_all, find_bvh_files, load_body_motion
+from ..motion.dataset import LOCOMOTION, DatasetOptions, build_dataset, contents_or_all
 from ..motion.npz import save_motion_npz
-from ..motion.root import RootOptions, root_trajectory
-from ..motion.units import UNIT_NAMES, UNITS
+from ..motion.root import RootOptions, integrate, root_trajectory
+from ..motion.takes import natural_takes
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
-from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, warn
+from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, shown_control, warn
 
 
-LOCOMOTION = "walk,run,dash,walk-back,walk-left,walk-right"
+OWN_CONTROL = "own"  # --draw-control without a value: each clip's own control
 
 
 def _dataset_for_training(args: argparse.Namespace, attributes: bool):
@@ -50,7 +53,7 @@ def _contents(args: argparse.Namespace) -> tuple[str, ...] | None:
     """--contents, else the locomotion contents, or every clip of folders without labels."""
     if args.contents:
         return tuple(args.contents.split(","))
-    contents = contents_or_all(args.folder, tuple(LOCOMOTION.split(",")))
+    contents = contents_or_all(args.folder, LOCOMOTION)
     if contents is None:
         print("note: the clips have no content labels: all of them are used, as one content")
     return contents
@@ -61,10 +64,8 @@ def train_command(args: argparse.Namespace) -> int:
 
     from ..train import TrainOptions, train
 
-    if args.device.startswith("cuda") and not torch.cuda.is_available():
-        raise ValueError("--device cuda asked for, but torch sees no CUDA device (is a CUDA build of torch installed?)")
-    if args.threads:
-        torch.set_num_threads(args.threads)
+    _require_device(args.device)
+    _use_threads(args)
     attributes = model_kind(args.model).control == LABELS
     for option in ("classifiers", "denoiser"):
         if getattr(args, option) and not attributes:
@@ -91,6 +92,14 @@ def train_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def _require_device(device: str) -> None:
+    """Refuse --device cuda up front where torch has no GPU, instead of a traceback from deep in torch."""
+    import torch
+
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        raise ValueError("--device cuda asked for, but torch sees no CUDA device (is a CUDA build of torch installed?)")
+
+
 def _setting(text: str) -> tuple[str, object]:
     """NAME=VALUE, the value read as JSON where it is JSON (numbers, true/false), else as text."""
     name, equals, value = text.partition("=")
@@ -102,15 +111,18 @@ def _setting(text: str) -> tuple[str, object]:
         return name.strip(), value
 
 
-def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
+def _controls(args: argparse.Namespace, dataset_options: dict):
+    if args.takes and "held-out" not in args.control:
+        raise ValueError("--takes names the takes of held-out control: add -c held-out")
+    fps = dataset_options["fps"]
     controls = []
     for name in args.control:
         if name == "held-out":
             folder = args.data or os.environ.get("MOTION_DATA")
             if not folder:
                 raise ValueError("held-out control needs the motion folder: --data FOLDER or $MOTION_DATA")
-            dataset = build_dataset(folder, DatasetOptions.from_dict(dataset_options), cache_dir=args.cache_dir)
-            held_out = held_out_paths(dataset, args.seconds, args.lead_in)
+            takes, _ = natural_takes(folder, DatasetOptions.from_dict(dataset_options), args.takes, progress=True)
+            held_out = take_paths([(take.name, take.control) for take in takes], fps, args.seconds, args.lead_in)
             if not held_out:
                 raise ValueError(f"no held-out take is longer than the lead-in of {args.lead_in:g} s")
             controls += held_out
@@ -121,16 +133,50 @@ def _controls(args: argparse.Namespace, fps: float, dataset_options: dict):
     return controls
 
 
+def _use_threads(args: argparse.Namespace) -> None:
+    """torch's CPU threads, where --threads gives them."""
+    import torch
+
+    if args.threads:
+        torch.set_num_threads(args.threads)
+
+
+def _thread_count(text: str) -> int:
+    try:
+        count = int(text)
+    except ValueError:
+        count = 0
+    if count < 1:
+        raise argparse.ArgumentTypeError(f"threads must be a whole number of at least 1, got {text!r}")
+    return count
+
+
+def _take_names(text: str) -> list[str]:
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError("name at least one take (file names, comma-separated)")
+    return names
+
+
 def sample_command(args: argparse.Namespace) -> int:
     from ..generator import Generator
     from ..models.precision import cpu_has_bfloat16_units
 
+    _use_threads(args)
     generator = Generator.load(args.checkpoint, args.device)
     if generator.attributes:
+        if args.draw_control:
+            raise ValueError(f"--draw-control draws a path; {args.checkpoint} follows action and style labels")
         return _sample_attributes(args, generator)
     if args.action or args.style:
         raise ValueError(f"--action and --style are for attribute-controlled models; {args.checkpoint} follows a path (--control)")
-    controls = _controls(args, generator.fps, generator.meta.features["dataset_options"])
+    dataset_options = DatasetOptions.from_dict(generator.meta.features["dataset_options"])
+    controls = _controls(args, generator.meta.features["dataset_options"])
+    shown = None if args.draw_control in (None, OWN_CONTROL) else shown_control(args.draw_control, generator.fps)
+    for control in controls if shown is not None else ():
+        if control.n_frames != shown.n_frames:
+            raise ValueError(f"--draw-control {args.draw_control} lasts {shown.n_frames} frames, the control "
+                             f"{control.name} {control.n_frames}: a clip is drawn over a control of its own length")
     precision = generator.resolve_precision(args.precision)
     print(f"sampling in {precision}" + (" (--precision auto)" if args.precision == "auto" else ""), file=sys.stderr)
     if precision == "bfloat16" and generator.device.type == "cpu" and not cpu_has_bfloat16_units():
@@ -143,9 +189,15 @@ def sample_command(args: argparse.Namespace) -> int:
         path = control.path()
         for i, motion in enumerate(motions):
             stem = f"{control.name}_{i:02d}"
-            save_motion_npz(motion, out / f"{stem}.npz", control=control.velocities, floor_path=path.xz)
+            save_motion_npz(motion, out / f"{stem}.npz", control=control.velocities, floor_path=path.xz,
+                            **following_arrays(motion, path, dataset_options.root))
             write_bvh(motion_to_bvh(motion, unit=args.bvh_unit), out / f"{stem}.bvh")
-            if args.render:
+            if args.draw_control:  # the figure's own path over the control's
+                drawn = shown or control
+                render_video(motion, out / f"{stem}.mp4", camera=camera_from(args), size=args.size,
+                             root_path=root_trajectory(motion, dataset_options.root).xz,
+                             control_path=drawn.path().xz)
+            elif args.render:
                 render_video(motion, out / f"{stem}.mp4", camera=camera_from(args), size=args.size, root_path=path.xz)
     print(f"{len(controls) * args.n} clips in {out} ({_written_units(args.bvh_unit)})")
     _note_training_unit(generator, args.bvh_unit)
@@ -191,31 +243,37 @@ def _note_training_unit(generator, bvh_unit: str) -> None:
 
 
 def natural_command(args: argparse.Namespace) -> int:
-    dataset = build_dataset(args.folder, DatasetOptions(contents=_contents(args), **dataset_units(args)),
-                            cache_dir=args.cache_dir)
-    warn(dataset.window_warnings())
-    options = dataset.options  # with the units as detected
-    clips = dataset.select(args.split, augmented=False)
-    files = {p.stem: p for p in find_bvh_files(args.folder)}
-    out = Path(args.out)
     if not (math.isfinite(args.seconds) and args.seconds > 0):
         raise ValueError(f"--seconds must be a positive number, not {args.seconds}")
+    options = DatasetOptions(contents=None if args.takes else _contents(args), holdout_fraction=args.holdout,
+                             seed=args.seed, **dataset_units(args))
+    takes, options = natural_takes(args.folder, options, args.takes, args.split, progress=True)
     lead = lead_in_frames(args.lead_in, options.fps)
-    written = 0
-    for clip in tqdm(clips, desc="natural clips", unit="clip", disable=len(clips) < 2):
-        if clip.stop - clip.start < lead + 2:  # as held-out control leaves it out
+    frames = int(round(args.seconds * options.fps))
+    out = Path(args.out)
+    written, short = 0, []
+    for take in tqdm(takes, desc="natural clips", unit="clip", disable=len(takes) < 2):
+        if take.motion.n_frames < lead + 2:  # as held-out control leaves it out
             continue
-        motion = load_body_motion(files[clip.name], options.fps, args.seconds, options.scale, options.root,
-                                  options.up, start=args.lead_in)
-        save_motion_npz(motion, out / f"{clip.name}.npz")
+        motion = take.clip(args.seconds, args.lead_in)
+        if motion.n_frames < frames:
+            short.append(take.name)
+        control = take.control[lead:lead + motion.n_frames]
+        start = root_trajectory(motion, options.root)  # the take's control, from where the clip starts
+        asked = integrate(control, options.fps, start.xz[0], start.yaw[0])
+        save_motion_npz(motion, out / f"{take.name}.npz", **following_arrays(motion, asked, options.root))
         written += 1
         if args.render:
             floor = root_trajectory(motion, options.root).xz
-            render_video(motion, out / f"{clip.name}.mp4", camera=camera_from(args), size=args.size, root_path=floor)
-    if clips and not written:
-        raise ValueError(f"no {args.split} take is longer than the lead-in of {args.lead_in:g} s")
-    skipped = f" ({len(clips) - written} shorter than the lead-in left out)" if written < len(clips) else ""
-    print(f"{written} natural {args.split} clips in {out}{skipped}")
+            render_video(motion, out / f"{take.name}.mp4", camera=camera_from(args), size=args.size, root_path=floor)
+    which = "named" if args.takes else args.split
+    if not written:
+        raise ValueError(f"no {which} take is longer than the lead-in of {args.lead_in:g} s")
+    if short:
+        warn([f"{len(short)} take(s) end before {args.lead_in + args.seconds:g} s, so their clips are shorter: "
+              + ", ".join(short[:10]) + (f" and {len(short) - 10} more" if len(short) > 10 else "")])
+    skipped = f" ({len(takes) - written} shorter than the lead-in left out)" if written < len(takes) else ""
+    print(f"{written} natural {which} clips in {out}{skipped}")
     return 0
 
 
@@ -250,13 +308,12 @@ def evaluate_command(args: argparse.Namespace) -> int:
 
 
 def sliding_command(args: argparse.Namespace) -> int:
-    from analysis.footsteps import choose_foot_joints
-
     from ..generator import Generator
     from ..motion.features import decode_positions
     from ..sliding import SETTLE_SECONDS, sliding_ladder
 
-    generator = Generator.load(args.checkpoint)
+    _require_device(args.device)
+    generator = Generator.load(args.checkpoint, args.device)
     meta = generator.meta
     if meta.kind != "moglow" or meta.features.get("control_layout"):
         raise ValueError(f"{args.checkpoint} is not a MoGlow of this project ({meta.kind}"
@@ -319,7 +376,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
                    "windows; short takes give more windows with more overlap (default %(default)s)")
     p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu", help="cpu or cuda (default %(default)s)")
-    p.add_argument("--threads", type=int, help="CPU threads for torch")
+    p.add_argument("--threads", type=_thread_count, help="CPU threads for torch (default: torch's own choice)")
     p.add_argument("--seed", type=int, default=0)
     add_unit_arguments(p)
     p.set_defaults(run=train_command)
@@ -332,7 +389,10 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--control", "-c", nargs="+", default=["walk-straight"], help="control presets, files or 'held-out'")
     p.add_argument("--action", nargs="+", help="attribute models: actions to sample (default: all the model knows)")
     p.add_argument("--style", nargs="+", help="attribute models: styles to sample (default: all the model knows)")
-    p.add_argument("--out", "-o", required=True, help="output folder (npz and BVH per clip)")
+    p.add_argument("--out", "-o", required=True,
+                   help="output folder: per clip an npz (the model's joint positions) and a BVH (the root's "
+                        "position and every joint's ZXY rotation on the training rig; path models' rotations "
+                        "come from their positions by inverse kinematics)")
     p.add_argument("--n", type=int, default=1, help="samples per control (default %(default)s)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--temperature", type=float, default=1.0, help="sampling temperature (default %(default)s)")
@@ -346,14 +406,23 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
                         "from float32's samples (default %(default)s)")
     p.add_argument("--seconds", type=float, default=4.0, help="length of held-out control or of attribute-controlled clips (default %(default)s)")
     p.add_argument("--data", nargs="+", help="motion folder(s) for held-out control (default $MOTION_DATA)")
+    p.add_argument("--takes", type=_take_names, metavar="NAME,...",
+                   help="held-out control from these takes of the folder (file names without .bvh), instead of "
+                        "the takes the training's seeded split holds out")
     p.add_argument("--lead-in", type=float, default=0.0, metavar="SECONDS",
                    help="held-out control starts SECONDS into each take, and the warm-up runs on the take's own "
                         "control before it, as the MoGlow authors' code samples a test take from its start "
                         "(default %(default)s: the control starts with the take, and the warm-up holds its first "
                         "frame); export NAT with the same `natural --lead-in`")
-    p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--device", default="cpu")
+    p.add_argument("--threads", type=_thread_count, help="CPU threads for torch (default: torch's own choice)")
     p.add_argument("--render", action="store_true", help="also render each clip to MP4")
+    p.add_argument("--draw-control", nargs="?", const=OWN_CONTROL, metavar="CONTROL",
+                   help="render each clip (implies --render) with a control's path drawn on the floor and the "
+                        "camera following that path, the figure's own path over it: without a value each "
+                        "clip's own control; with a preset name or a JSON or YAML file describing one path, "
+                        "that path under every clip, as an appropriateness study shows a clip sampled for "
+                        "another control (it must last as many frames as the clips)")
     p.add_argument("--bvh-unit", choices=tuple(UNITS), default="cm",
                    help="length unit of the BVH files written (BVH cannot state it; the command prints it); "
                         "npz files are always in cm (default %(default)s)")
@@ -361,18 +430,26 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.set_defaults(run=sample_command)
 
     p = commands.add_parser("natural", help="export natural clips (held-out takes by default) like samples",
-                            description="Write the natural clips of a dataset split as npz (and optionally MP4), "
-                                        "processed exactly as the models' training data: the NAT system of a study "
-                                        "or of the objective metrics.")
+                            description="Write natural clips of FOLDER as npz (and optionally MP4), read exactly as "
+                                        "the models' training data is: the NAT system of a study or of the objective "
+                                        "metrics. The takes are those the seeded split that training makes of the "
+                                        "folder holds out (no model needs to have been trained on it), or the takes "
+                                        "named with --takes.")
     p.add_argument("folder", nargs="+", help="folder of .bvh files; several are pooled (clip names must differ)")
     p.add_argument("--out", "-o", required=True, help="output folder")
     p.add_argument("--split", choices=("test", "train"), default="test", help="which takes (default: held-out)")
+    p.add_argument("--takes", type=_take_names, metavar="NAME,...",
+                   help="these takes (file names without .bvh, comma-separated) instead of a split's, whatever "
+                        "their content")
     p.add_argument("--contents", help="content labels (default: locomotion; every clip where the clips have no labels)")
+    p.add_argument("--holdout", type=float, default=0.1,
+                   help="fraction of each content's takes the split holds out, as build-dataset's (default "
+                        "%(default)s, as train's)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the split, as build-dataset's (default %(default)s)")
     p.add_argument("--seconds", type=float, default=4.0, help="length of each clip (default %(default)s)")
     p.add_argument("--lead-in", type=float, default=0.0, metavar="SECONDS",
                    help="each clip starts SECONDS into its take, as `sample -c held-out --lead-in` samples it "
                         "(default %(default)s)")
-    p.add_argument("--cache-dir", help="dataset cache folder")
     p.add_argument("--render", action="store_true", help="also render each clip to MP4")
     add_camera_arguments(p)
     add_unit_arguments(p)
@@ -400,4 +477,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--samples", type=int, default=8, help="samples per take at T=1 (default %(default)s)")
     p.add_argument("--seed", type=int, default=1, help="of the free-running samples (default %(default)s)")
     p.add_argument("--cache-dir", help="dataset cache folder")
+    p.add_argument("--device", default="cpu",
+                   help="cpu or cuda: where the model predicts and samples; a paper-sized MoGlow wants a GPU "
+                        "(default %(default)s)")
     p.set_defaults(run=sliding_command)

@@ -7,16 +7,16 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from ..control import in_control_frame
 from ..gallery import GalleryOptions, build_gallery
 from ..motion.dataset import load_body_motion
 from ..motion.root import RootOptions, root_trajectory
 from ..motion.unit_detection import choose_units
 from ..render import contact_sheet, render_video
-from .common import add_camera_arguments, add_unit_arguments, camera_from, up_axis
+from .common import add_camera_arguments, add_unit_arguments, camera_from, shown_control, up_axis
 
 
 def render(args: argparse.Namespace) -> int:
-
     out = Path(args.out)
     if len(args.bvh) > 1 and out.suffix:
         raise ValueError("with several input files, --out must be a folder")
@@ -25,16 +25,24 @@ def render(args: argparse.Namespace) -> int:
     root = RootOptions(pairs=args.mirror_pairs)
     choice = choose_units(sources, args.scale, up_axis(args), root)
     print(choice.description)
+    control = shown_control(args.draw_control, args.fps) if args.draw_control else None
+    seconds = None if control is None else control.n_frames / args.fps
     for source in tqdm(sources, desc="rendering", unit="clip", disable=len(sources) < 2):
-        motion = load_body_motion(source, args.fps, scale=choice.units.scale, root=root, up=choice.units.up)
+        motion = load_body_motion(source, args.fps, seconds, choice.units.scale, root, choice.units.up)
         target = out if out.suffix else out / f"{source.stem}.mp4"
         try:
+            if control is not None:
+                if motion.n_frames < control.n_frames:
+                    raise ValueError(f"the take lasts {motion.n_frames} frames at {args.fps:g} fps, shorter "
+                                     f"than the {control.n_frames} of the control it is to be drawn over")
+                motion = in_control_frame(motion, root)  # starts where the control's path does
             floor = root_trajectory(motion, root).xz
         except ValueError as error:
             raise ValueError(f"{source}: {error}") from None
-        render_video(motion, target, camera=camera, size=args.size, root_path=floor)
+        drawn = {"root_path": floor, "control_path": None if control is None else control.path().xz}
+        render_video(motion, target, camera=camera, size=args.size, **drawn)
         if args.sheet:
-            contact_sheet(motion, target.with_suffix(".png"), camera=camera, root_path=floor)
+            contact_sheet(motion, target.with_suffix(".png"), camera=camera, **drawn)
         print(target)
     return 0
 
@@ -56,6 +64,11 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("bvh", nargs="+", help="BVH files")
     p.add_argument("--out", "-o", required=True, help="an .mp4 path (one input) or a folder")
     p.add_argument("--sheet", action="store_true", help="also write a contact-sheet PNG beside each video")
+    p.add_argument("--draw-control", metavar="CONTROL",
+                   help="draw this control's path on the floor (a preset such as walk-circle, or a JSON or "
+                        "YAML file describing one path), the camera following it: each clip is cut to the "
+                        "control's length and moved to start where the path starts, at the origin facing "
+                        "+z, so whether the motion follows the path can be seen")
     add_camera_arguments(p)
     add_unit_arguments(p)
     p.set_defaults(run=render)

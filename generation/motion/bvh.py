@@ -16,16 +16,21 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from measures.units import UNITS, Z_UP_TO_Y_UP
+
 from ..files import write_atomic
+from .ik import with_rotations
 from .kinematics import forward_kinematics
-from .rotations import euler_to_matrix, matrix_to_euler, matrix_to_quat, quat_to_matrix
+from .rotations import euler_to_matrix, matrix_to_continuous_euler, matrix_to_quat, quat_to_matrix
 from .types import Motion, Skeleton
-from .units import UNITS, Z_UP_TO_Y_UP, Units
+from .units import Units
 
 POSITION_AXIS = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
 ROTATION_AXIS = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}
@@ -128,35 +133,52 @@ def _bvh_path(path: str | os.PathLike) -> Path:
     return path
 
 
+@contextmanager
+def _reading(path: Path) -> Iterator[None]:
+    """A file that cannot be read as text is a BVHError naming it, as a malformed one is."""
+    try:
+        yield
+    except FileNotFoundError:
+        raise BVHError(path, "no such file") from None
+    except UnicodeDecodeError as error:
+        raise BVHError(path, f"not a text file ({error.reason})") from None
+    except OSError as error:
+        raise BVHError(path, f"cannot be read ({error.strerror or error})") from None
+
+
 def read_bvh(path: str | os.PathLike) -> BVH:
     """Parse a BVH file. Raises BVHError naming the file and line on malformed input."""
     path = _bvh_path(path)
-    try:
+    with _reading(path):
         text = path.read_text()
-    except UnicodeDecodeError as error:
-        raise BVHError(path, f"not a text file ({error.reason})") from None
     lines = text.splitlines()
     skeleton, channels, motion_line = _parse_hierarchy(path, lines)
     frame_time, values = _parse_motion(path, lines, motion_line, sum(map(len, channels)))
     return BVH(skeleton, channels, frame_time, values)
 
 
-def bvh_duration(path: str | os.PathLike) -> float:
-    """Seconds of motion a BVH file declares, read from its header only (0 if unreadable)."""
-    frames = frame_time = None
-    with open(path, encoding="utf-8", errors="replace") as f:  # only the two numbers matter
-        for line in f:
-            key, _, value = line.strip().partition(":")
-            if key == "Frames":
-                frames = value
-            elif key == "Frame Time":
-                frame_time = value
+def _header_lines(path: Path) -> list[str]:
+    """The lines up to the MOTION section's 'Frame Time:' (all of them if there is none):
+    the hierarchy and the frame count and rate, without the rows of values."""
+    lines, in_motion = [], False
+    with _reading(path), open(path) as f:
+        for raw in f:
+            lines.append(raw)
+            in_motion = in_motion or raw.split()[:1] == ["MOTION"]
+            if in_motion and raw.strip().startswith("Frame Time"):
                 break
-    try:
-        seconds = int(frames) * float(frame_time)
-    except (TypeError, ValueError):
-        return 0.0
-    return seconds if math.isfinite(seconds) and seconds > 0 else 0.0
+    return lines
+
+
+def bvh_duration(path: str | os.PathLike) -> float:
+    """Seconds of motion a BVH file declares, read from its header only. The header is
+    held to ``read_bvh``'s rules (BVHError naming the file and line); the rows of values
+    are not read."""
+    path = _bvh_path(path)
+    lines = _header_lines(path)
+    _, _, motion_line = _parse_hierarchy(path, lines)
+    n_frames, frame_time, _ = _motion_header(path, lines, motion_line)
+    return n_frames * frame_time
 
 
 def load_motion(path: str | os.PathLike, scale: float = 1.0, up: str = "y") -> Motion:
@@ -168,16 +190,7 @@ def load_motion(path: str | os.PathLike, scale: float = 1.0, up: str = "y") -> M
 def read_bvh_skeleton(path: str | os.PathLike) -> Skeleton:
     """The skeleton of a BVH file, read from its hierarchy only (fast on long files)."""
     path = _bvh_path(path)
-    lines = []
-    try:
-        with open(path) as f:
-            for raw in f:
-                lines.append(raw)
-                if raw.split()[:1] == ["MOTION"]:
-                    break
-    except UnicodeDecodeError as error:
-        raise BVHError(path, f"not a text file ({error.reason})") from None
-    return _parse_hierarchy(path, lines)[0]
+    return _parse_hierarchy(path, _header_lines(path))[0]
 
 
 def _floats(path: Path, tokens: list[str], count: int, what: str, line: int) -> list[float]:
@@ -294,8 +307,8 @@ def _parse_hierarchy(path: Path, lines: list[str]):
     raise BVHError(path, what, len(lines) if lines else None)
 
 
-def _parse_motion(path: Path, lines: list[str], motion_line: int, n_channels: int):
-    """Parse the MOTION section: frame count, frame time and the value rows."""
+def _motion_header(path: Path, lines: list[str], motion_line: int) -> tuple[int, float, int]:
+    """The MOTION section's frame count and frame time, and the index of the first row."""
     header: dict[str, str] = {}
     header_line: dict[str, int] = {}
     row_start = len(lines)
@@ -325,7 +338,12 @@ def _parse_motion(path: Path, lines: list[str], motion_line: int, n_channels: in
         raise BVHError(path, f"Frame Time {header['Frame Time']} s is outside {MIN_FRAME_TIME:g} to "
                              f"{MAX_FRAME_TIME:g} s ({1 / MIN_FRAME_TIME:g} to {1 / MAX_FRAME_TIME:g} frames per second)",
                        header_line["Frame Time"])
+    return n_frames, frame_time, row_start
 
+
+def _parse_motion(path: Path, lines: list[str], motion_line: int, n_channels: int):
+    """Parse the MOTION section: frame count, frame time and the value rows."""
+    n_frames, frame_time, row_start = _motion_header(path, lines, motion_line)
     row_lines = [i for i in range(row_start, len(lines)) if lines[i].strip()]
     rows = [lines[i] for i in row_lines]
     if len(rows) < n_frames:
@@ -419,14 +437,16 @@ def scale_lengths(bvh: BVH, factor: float) -> BVH:
 
 
 def motion_to_bvh(motion: Motion, rotation_order: str = "ZXY", unit: str = "cm") -> BVH:
-    """A BVH for any motion, its lengths in ``unit`` (a key of ``units.UNITS``; the
-    motion itself is in centimetres).
+    """A rotation BVH for any motion, its lengths in ``unit`` (a key of
+    ``measures.units.UNITS``; the motion itself is in centimetres).
 
-    With joint rotations, every joint gets rotation channels in ``rotation_order`` and
-    joints whose translation is animated also get position channels. A position-only
-    motion (MoGlow and its baselines) gets position channels only: each joint's
-    translation from its parent with identity rotations, which reproduces the positions
-    exactly in any BVH reader.
+    Every joint gets rotation channels in ``rotation_order`` (the Bandai-Namco rigs'
+    own, ZXY, by default), its angles continuous over time
+    (``rotations.matrix_to_continuous_euler``), and joints whose translation is animated
+    (the root) also get position channels. A position-only motion (MoGlow and its
+    baselines) gets its rotations by inverse kinematics on its skeleton first
+    (``ik.with_rotations``): the file holds the rig's bone lengths, every bone pointing
+    where the motion's does.
     """
     if unit not in UNITS:
         raise ValueError(f"BVH unit must be one of {', '.join(UNITS)}, got {unit!r}")
@@ -435,16 +455,10 @@ def motion_to_bvh(motion: Motion, rotation_order: str = "ZXY", unit: str = "cm")
 
 
 def _motion_to_bvh_cm(motion: Motion, rotation_order: str) -> BVH:
+    motion = with_rotations(motion)
     offsets = motion.skeleton.offsets
     channels, columns = [], []
-    if motion.rotations is None:
-        parents = motion.skeleton.parents
-        for j in range(motion.skeleton.n_joints):
-            parent = motion.positions[:, parents[j]] if parents[j] >= 0 else 0.0
-            channels.append(("Xposition", "Yposition", "Zposition"))
-            columns.append(motion.positions[:, j] - parent)
-        return BVH(motion.skeleton, tuple(channels), 1.0 / motion.fps, np.concatenate(columns, axis=1))
-    euler = np.degrees(matrix_to_euler(quat_to_matrix(motion.rotations), rotation_order))
+    euler = np.degrees(matrix_to_continuous_euler(quat_to_matrix(motion.rotations), rotation_order))
     for j in range(motion.skeleton.n_joints):
         translation = motion.translations[:, j]
         animated = j == 0 or not np.allclose(translation, offsets[j], atol=1e-6)

@@ -45,6 +45,8 @@ from .units import detect_up
 
 FORMAT_VERSION = 1  # bump when the cached arrays change meaning
 SPLITS = ("train", "validation", "test")
+# The contents path-controlled models are trained on unless told otherwise (train --contents).
+LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right")
 MAX_FPS = 1000.0  # motion capture runs at hundreds of frames per second at most
 
 
@@ -201,11 +203,16 @@ class MotionDataset:
             result += [getattr(clip, kind)] * n
         return result
 
+    def training_windows(self) -> int:
+        """How many windows the training clips give (augmented clips included)."""
+        return sum(window_count(c.stop - c.start, self.options.window_frames, self.options.hop_frames)
+                   for c in self.select("train"))
+
     def require_training_windows(self) -> int:
         """How many training windows there are; ValueError when there are none (every
         training take shorter than one window), rather than a model trained on nothing."""
         train = self.select("train")
-        count = sum(window_count(c.stop - c.start, self.options.window_frames, self.options.hop_frames) for c in train)
+        count = self.training_windows()
         if count == 0:
             longest = max((c.stop - c.start for c in train), default=0)
             raise ValueError(
@@ -313,19 +320,24 @@ def label_name_file(folder: Path, kind: str) -> Path | None:
     return None
 
 
-def _label_names(folder: Path, kind: str) -> list[str] | None:
+def _label_names(folder: Path, kind: str) -> tuple[Path, list[str]] | None:
+    """The ``{kind}_label.txt`` that covers ``folder`` and its labels, or None."""
     path = label_name_file(folder, kind)
     if path is None:
         return None
-    lines = [line.strip() for line in path.read_text().splitlines() if line.strip()]
+    try:
+        lines = [line.strip() for line in path.read_text(encoding="utf-8").splitlines() if line.strip()]
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{path}: not UTF-8 text (byte {error.start})") from None
     # Drop a shared "dataset-1_" style prefix, up to its last underscore.
     prefix = os.path.commonprefix(lines)
     cut = prefix.rfind("_") + 1 if len(lines) > 1 else 0
-    return [line[cut:] for line in lines]
+    return path, [line[cut:] for line in lines]
 
 
 def read_labels(bvh_path: Path) -> tuple[str | None, str | None]:
-    """(content, style) of a clip from its JSON side file, or (None, None)."""
+    """(content, style) of a clip from its JSON side file, or (None, None). Where a label
+    list covers the folder, a label is one of its lines, by index or by name."""
     side = bvh_path.with_suffix(".json")
     if not side.is_file():
         return None, None
@@ -335,20 +347,32 @@ def read_labels(bvh_path: Path) -> tuple[str | None, str | None]:
         raise ValueError(f"{side}: not UTF-8 text (byte {error.start})") from None
     except json.JSONDecodeError as error:
         raise ValueError(f"{side}:{error.lineno}: invalid JSON ({error.msg})") from None
+    except (ValueError, RecursionError) as error:  # a number of thousands of digits, arrays nested thousands deep
+        raise ValueError(f"{side}: not a label file ({error})") from None
     if not isinstance(data, dict):
         raise ValueError(f"{side}: expected a JSON object with 'content' and 'style', got a {type(data).__name__}")
     result = []
     for kind in ("content", "style"):
         index = data.get(kind)
-        names = _label_names(bvh_path.parent, kind)
+        listed = _label_names(bvh_path.parent, kind)
         if index is None:
             result.append(None)
         elif isinstance(index, bool) or not isinstance(index, int | str):
             raise ValueError(f"{side}: {kind!r} must be a label index or name, got {index!r}")
-        elif names is not None and isinstance(index, int) and 0 <= index < len(names):
-            result.append(names[index])
-        else:  # a label given by name, or a number no names file covers
+        elif listed is None:  # no label list: the label as given
             result.append(str(index))
+        elif isinstance(index, int):
+            names_file, names = listed
+            if not 0 <= index < len(names):
+                raise ValueError(f"{side}: {kind!r} is {index}, but {names_file} lists {len(names)} labels "
+                                 f"(0 to {len(names) - 1})")
+            result.append(names[index])
+        else:
+            names_file, names = listed
+            if not any(content_matches(index, name) for name in names):
+                shown = ", ".join(names[:10]) + (f" and {len(names) - 10} more" if len(names) > 10 else "")
+                raise ValueError(f"{side}: {kind!r} is {index!r}, which is not a label of {names_file} ({shown})")
+            result.append(index)
     return result[0], result[1]
 
 
@@ -428,6 +452,40 @@ def default_cache_dir() -> Path:
     return Path(os.environ.get("MOTION_CACHE_DIR", Path(os.environ.get("STUDYAPP_VAR_DIR", "var")) / "cache"))
 
 
+def choose_files(folder: str | os.PathLike | Sequence[str | os.PathLike], contents: tuple[str, ...] | None
+                 ) -> tuple[list[Path], dict[Path, tuple[str | None, str | None]]]:
+    """The BVH files of ``folder`` (or several, pooled) whose content is one of
+    ``contents`` (all where None), and every file's (content, style) labels."""
+    files = find_bvh_files(folder)
+    labels = {f: read_labels(f) for f in files}
+    if contents is not None:
+        files = [f for f in files if any(content_matches(labels[f][0], c) for c in contents)]
+        if not files:
+            folders = ", ".join(str(f) for f in motion_folders(folder))
+            raise ValueError(f"no clips in {folders} have content in {list(contents)}")
+    return files, labels
+
+
+def with_units(files: list[Path], options: DatasetOptions, progress: bool = False) -> DatasetOptions:
+    """``options`` with the unit and up axis it leaves open (None) detected from
+    ``files``; the choice is printed when ``progress`` is on."""
+    choice = choose_units(files, options.scale, options.up, options.root)  # reads no file where both are given
+    if progress:
+        print(choice.description)
+    return dataclasses.replace(options, scale=choice.units.scale, up=choice.units.up)
+
+
+def take_splits(files: list[Path], labels: dict[Path, tuple[str | None, str | None]],
+                options: DatasetOptions) -> dict[str, str]:
+    """The split ("train", "validation" or "test") of each file's take: a seeded
+    fraction of each content's takes held out for testing, then of the others for
+    validation (``split_takes``)."""
+    takes = [(take_of(f.stem), labels[f][0]) for f in files]
+    held_out = split_takes(takes, options.holdout_fraction, options.seed)
+    validation = split_takes([t for t in takes if t[0] not in held_out], options.validation_fraction, options.seed + 1)
+    return {take: "test" if take in held_out else "validation" if take in validation else "train" for take, _ in takes}
+
+
 def build_dataset(
     folder: str | os.PathLike | Sequence[str | os.PathLike],
     options: DatasetOptions = DatasetOptions(),
@@ -440,26 +498,15 @@ def build_dataset(
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     if cache.exists() and not cache.is_dir():
         raise ValueError(f"the cache folder {cache} is a file; name a folder (or none, for {default_cache_dir()})")
-    files = find_bvh_files(folder)
-    labels = {f: read_labels(f) for f in files}
-    if options.contents is not None:
-        files = [f for f in files if any(content_matches(labels[f][0], c) for c in options.contents)]
-        if not files:
-            folders = ", ".join(str(f) for f in motion_folders(folder))
-            raise ValueError(f"no clips in {folders} have content in {list(options.contents)}")
+    files, labels = choose_files(folder, options.contents)
     detect_up_axis = options.up is None
-    choice = choose_units(files, options.scale, options.up, options.root)  # reads no file where both are given
-    options = dataclasses.replace(options, scale=choice.units.scale, up=choice.units.up)
-    if progress:
-        print(choice.description)
+    options = with_units(files, options, progress)
     key = fingerprint(files, options)
     cached = cache / f"dataset-{cache_key(key, files)[:20]}.npz"
     if cached.is_file():
         return MotionDataset.load(cached)
 
-    takes = [(take_of(f.stem), labels[f][0]) for f in files]
-    held_out = split_takes(takes, options.holdout_fraction, options.seed)
-    validation = split_takes([t for t in takes if t[0] not in held_out], options.validation_fraction, options.seed + 1)
+    splits = take_splits(files, labels, options)
     skeleton = spec = None
     clips, parts = [], {"pose": [], "control": [], "angles": []}
     rows, other_up = 0, []
@@ -474,8 +521,7 @@ def build_dataset(
                 raise ValueError(f"{path}: its skeleton differs from the first file's; one dataset needs one skeleton")
             if detect_up_axis and detect_up(body) != "y":
                 other_up.append(path.name)
-            take = take_of(path.stem)
-            split = "test" if take in held_out else "validation" if take in validation else "train"
+            split = splits[take_of(path.stem)]
             for augmentation, motion in _augmented(body, options, split == "train"):
                 encoded = encode_positions(motion, options.root)
                 angles = encode_angles(motion, spec).values if motion.rotations is not None else np.full((motion.n_frames, spec.size), np.nan)
@@ -496,7 +542,8 @@ def build_dataset(
         for key in arrays
     }
     dataset = MotionDataset(options, skeleton, spec, clips, arrays, stats, key)
-    dataset.save(cached)
+    if dataset.training_windows():  # else no model can learn from it: the command refusing it leaves no cache behind
+        dataset.save(cached)
     return dataset
 
 
@@ -518,14 +565,23 @@ def load_body_motion(path: str | os.PathLike, fps: float, seconds: float | None 
     """A BVH clip as the models see it: in centimetres with y up (from the file's unit
     ``scale`` and ``up`` axis), resampled to ``fps``, reduced to the body (the hips and
     below), and cut (positions only) to the ``seconds`` after ``start`` seconds into the
-    take when given. Frames are counted as ``round(seconds * fps)``, as controls count them."""
+    take when given (``cut_motion``)."""
     motion = resample(load_motion(path, scale, up), fps)
     motion = subtree_motion(motion, hips_index(motion.skeleton, root.hips))
+    return cut_motion(motion, seconds, start, path)
+
+
+def cut_motion(motion: Motion, seconds: float | None = None, start: float = 0.0,
+               source: str | os.PathLike = "the take") -> Motion:
+    """The positions of the ``seconds`` after ``start`` seconds into a take (the whole
+    take where neither is given). Frames are counted as ``round(seconds * fps)``, as
+    controls count them; ``source`` names the take in the error for a start past its end."""
     if seconds is None and not start:
         return motion
+    fps = motion.fps
     first = int(round(start * fps))
     if first >= motion.n_frames:
-        raise ValueError(f"{path}: the take lasts {motion.n_frames} frames at {fps:g} fps and so ends "
+        raise ValueError(f"{source}: the take lasts {motion.n_frames} frames at {fps:g} fps and so ends "
                          f"before {start:g} s into it")
     last = motion.n_frames if seconds is None else first + int(round(seconds * fps))
     return Motion(motion.positions[first:last], motion.fps, motion.skeleton)

@@ -132,11 +132,13 @@ def hips_alignment(skeleton: Skeleton, hips: int, pairs: dict[str, str] | None =
     """The canonical body frame (columns: left, up, forward) in the hips' local axes.
 
     Rigs disagree on which local axis of the hips points up or forward; the rest pose
-    below the hips tells: the legs' across vector gives left, the spine gives up.
+    below the hips tells: the legs' across vector gives left, the spine gives up. The
+    spine's first joints may sit on the hips (CMU's ``lowerback`` has ``OFFSET 0 0 0``),
+    so "up" points to the first joint up the spine that stands apart from them.
     """
     sided = {j for pair in left_right_pairs(skeleton.names, pairs) for j in pair}
     legs = [(l, r) for l, r in limb_root_pairs(skeleton, pairs) if _limb_base(skeleton, l, sided) == hips]
-    spine = [j for j in range(skeleton.n_joints) if skeleton.parents[j] == hips and j not in sided]
+    spine = _spine(skeleton, hips, sided)
     if not legs or not spine:
         raise ValueError(
             f"cannot align the hips {skeleton.names[hips]!r}: it needs a spine and a pair of legs below it "
@@ -145,9 +147,27 @@ def hips_alignment(skeleton: Skeleton, hips: int, pairs: dict[str, str] | None =
     rest = _rest_below(skeleton, hips)
     left = sum(rest[l] - rest[r] for l, r in legs)
     left = left / np.linalg.norm(left)
-    up = skeleton.offsets[spine[0]] - np.dot(skeleton.offsets[spine[0]], left) * left
-    up = up / np.linalg.norm(up)
-    return np.column_stack([left, up, np.cross(left, up)])
+    size = max(float(np.linalg.norm(skeleton.offsets, axis=-1).max()), 1e-12)
+    for joint in spine:
+        up = rest[joint] - np.dot(rest[joint], left) * left
+        if np.linalg.norm(up) > 1e-6 * size:
+            up = up / np.linalg.norm(up)
+            return np.column_stack([left, up, np.cross(left, up)])
+    raise ValueError(
+        f"cannot align the hips {skeleton.names[hips]!r}: no joint of its spine "
+        f"({', '.join(skeleton.names[j] for j in spine)}) stands above it at rest (their offsets are zero "
+        "or point sideways), so the rig gives no up direction"
+    )
+
+
+def _spine(skeleton: Skeleton, hips: int, sided: set[int]) -> list[int]:
+    """The chain up from the hips through the first child that belongs to neither side."""
+    chain, joint = [], hips
+    while True:
+        joint = next((j for j in range(skeleton.n_joints) if skeleton.parents[j] == joint and j not in sided), None)
+        if joint is None:
+            return chain
+        chain.append(joint)
 
 
 def _limb_base(skeleton: Skeleton, j: int, sided: set[int]) -> int:

@@ -34,6 +34,8 @@ class Skeleton:
         object.__setattr__(self, "parents", parents)
         object.__setattr__(self, "offsets", offsets)
         n = len(self.names)
+        if n == 0:  # everything that walks a skeleton starts at its root
+            raise ValueError("a skeleton needs at least one joint, its root")
         if parents.shape != (n,) or offsets.shape != (n, 3):
             raise ValueError(
                 f"skeleton of {n} joints needs parents of shape ({n},) and offsets of "

@@ -9,9 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
+from measures.units import HUMAN_HEIGHT_CM, UNITS, unit_for_height
+
 from .bvh import load_motion, read_bvh_skeleton
 from .root import RootOptions
-from .units import HUMAN_SIZE_CM, UNITS, Units, detect_up, skeleton_size, unit_for_size
+from .units import Units, detect_up, skeleton_size
 
 
 @dataclass(frozen=True)
@@ -52,7 +54,7 @@ def _detect_scale(files: list[Path], root: RootOptions) -> tuple[float, str]:
             sizes[path] = skeleton_size(skeleton, root.hips, root.pairs)
         except ValueError as error:
             raise ValueError(f"{path}: {error}") from None
-        units[path] = unit_for_size(sizes[path])
+        units[path] = unit_for_height(sizes[path])
     counts = Counter(units.values())
     unit, _ = counts.most_common(1)[0]
     outliers = [p for p in files if units[p] != unit]
@@ -68,6 +70,6 @@ def _detect_scale(files: list[Path], root: RootOptions) -> tuple[float, str]:
     size = float(np.median(list(sizes.values())))
     if unit is None:
         return 1.0, (f"the skeleton measures {size:.4g} units from foot to head, which no common unit "
-                     f"makes human-sized ({HUMAN_SIZE_CM[0]:g}-{HUMAN_SIZE_CM[1]:g} cm): assumed centimetres, "
+                     f"makes human-sized ({HUMAN_HEIGHT_CM[0]:g}-{HUMAN_HEIGHT_CM[1]:g} cm): assumed centimetres, "
                      "give --scale otherwise")
     return UNITS[unit], f"unit detected from the skeleton's size, {size:.4g} {unit} from foot to head"

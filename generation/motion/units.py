@@ -1,35 +1,26 @@
-"""Length units and up axes of motion capture, and the conversion to centimetres, y up.
+"""The unit and up axis of a BVH file's skeleton and motion, and their conversion to
+centimetres, y up.
 
 A BVH file states neither its unit nor its up axis. The unit follows from the size of
 the skeleton: the chain from the tip of a foot through the hips to the head
-(``skeleton_size``) measures 1.2-2.1 m in an adult human (it leaves out the skull
-above the head joint, so it is a little less than the person's height whatever the
-pose), and each common unit puts a human rig in that range at a different number, so at
-most one unit fits. The up axis follows from the floor: along it the hips stay high
-above the lowest joint of the body (a foot on the floor) all the time; along a
-horizontal axis they do not.
+(``skeleton_size``) is a little less than the person's height whatever the pose, and
+``measures.units.unit_for_height`` (the rule ``analysis`` reads motion arrays by) names
+the one unit that makes it a human's. The up axis follows from the floor: along it the
+hips stay high above the lowest joint of the body (a foot on the floor) all the time;
+along a horizontal axis they do not.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from measures.units import UP_AXES, check_scale, unit_name
+
 from .root import hips_index
 from .symmetry import left_right_pairs
 from .types import Motion, Skeleton
-
-# Centimetres per file unit. "cmu" is the CMU motion-capture database's unit (the ASF
-# length 0.45 of an inch: 5.64 cm), in which its BVH conversions are written.
-UNITS = {"mm": 0.1, "cm": 1.0, "in": 2.54, "cmu": 2.54 / 0.45, "ft": 30.48, "m": 100.0}
-UNIT_NAMES = {"mm": "millimetres", "cm": "centimetres", "in": "inches", "cmu": "CMU units", "ft": "feet",
-              "m": "metres"}
-HUMAN_SIZE_CM = (120.0, 210.0)  # ``skeleton_size`` of an adult, 1.4-2.1 m tall
-UP_AXES = ("y", "z")
-# Rotates a z-up world into the project's y-up one: (x, y, z) -> (x, z, -y).
-Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
 @dataclass(frozen=True)
@@ -41,36 +32,12 @@ class Units:
     up: str = "y"
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.scale) and self.scale > 0):
-            raise ValueError(f"scale must be a positive number of centimetres per file unit, got {self.scale}")
+        check_scale(self.scale)
         if self.up not in UP_AXES:
             raise ValueError(f"up axis must be one of {', '.join(UP_AXES)}, got {self.up!r}")
 
     def describe(self) -> str:
         return f"{unit_name(self.scale)}, {self.up} up"
-
-
-def unit_name(scale: float) -> str:
-    """'metres (x100 to cm)' for a known unit's scale, else the bare factor."""
-    for key, factor in UNITS.items():
-        if math.isclose(scale, factor, rel_tol=1e-9):
-            return UNIT_NAMES[key] if key == "cm" else f"{UNIT_NAMES[key]} (x{factor:g} to cm)"
-    return f"x{scale:g} to cm"
-
-
-def parse_scale(text: str) -> float | None:
-    """A command-line scale: 'auto' (None), a unit name (m, cm, in, ...) or a factor to cm."""
-    text = text.strip().lower()
-    if text == "auto":
-        return None
-    if text in UNITS:
-        return UNITS[text]
-    try:
-        scale = float(text)
-    except ValueError:
-        raise ValueError(f"scale must be auto, a unit ({', '.join(UNITS)}) or a number, got {text!r}") from None
-    Units(scale=scale)  # validates
-    return scale
 
 
 def skeleton_size(skeleton: Skeleton, hips: str | None = None, pairs: dict[str, str] | None = None) -> float:
@@ -108,13 +75,6 @@ def skeleton_size(skeleton: Skeleton, hips: str | None = None, pairs: dict[str, 
             "(name them with _L/_R, Left/Right, ... or give the scale)"
         )
     return leg + spine
-
-
-def unit_for_size(size: float) -> str | None:
-    """The one unit that makes a skeleton of ``size`` file units human-sized, or None."""
-    fits = [name for name, factor in UNITS.items()
-            if HUMAN_SIZE_CM[0] <= size * factor <= HUMAN_SIZE_CM[1]]
-    return fits[0] if len(fits) == 1 else None
 
 
 def detect_up(motion: Motion, hips: str | None = None) -> str:

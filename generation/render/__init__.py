@@ -2,6 +2,7 @@
 
     from generation.render import Camera, Style, render_video, contact_sheet
     render_video(motion, "clip.mp4", camera=Camera(azimuth=60), size=(640, 480), fps=20)
+    render_video(motion, "asked.mp4", control_path=control.path().xz)  # the path it was asked for
 
 One ``Camera`` and one ``Style`` per study (both serialise with ``to_dict``/``from_dict``)
 so every system is drawn identically.

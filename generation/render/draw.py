@@ -1,4 +1,4 @@
-"""Drawing one frame: floor grid, root path, shadow and stick figure, as RGB pixels.
+"""Drawing one frame: floor grid, control path, root path, shadow and stick figure, as RGB pixels.
 
 ``FrameDrawer`` does the per-clip work once (projecting every joint of every output frame
 in one vectorised step, sorting bones by depth, drawing the floor grid when the camera
@@ -37,15 +37,20 @@ def floor_path(motion: Motion, root_path: np.ndarray | None = None) -> np.ndarra
     """The character's floor trajectory (T, 2) as x, z: ``root_path`` or the body root's."""
     if root_path is None:
         return motion.positions[:, body_root_index(motion.skeleton)][:, [0, 2]]
-    root_path = np.asarray(root_path, dtype=np.float64)
-    if root_path.ndim != 2 or len(root_path) != motion.n_frames or root_path.shape[1] not in (2, 3):
+    return floor_points(root_path, motion.n_frames, "root_path")
+
+
+def floor_points(points: np.ndarray, n_frames: int, name: str) -> np.ndarray:
+    """A path given per motion frame as (T, 2) x, z or (T, 3) x, y, z -> (T, 2) x, z."""
+    points = np.asarray(points, dtype=np.float64)
+    if points.ndim != 2 or len(points) != n_frames or points.shape[1] not in (2, 3):
         raise ValueError(
-            f"root_path must have shape ({motion.n_frames}, 2) as x, z or ({motion.n_frames}, 3) "
-            f"as x, y, z, got {root_path.shape}"
+            f"{name} must have shape ({n_frames}, 2) as x, z or ({n_frames}, 3) "
+            f"as x, y, z, one point per frame of the motion, got {points.shape}"
         )
-    if not np.isfinite(root_path).all():
-        raise ValueError("root_path contains NaN or infinity")
-    return root_path if root_path.shape[1] == 2 else root_path[:, [0, 2]]
+    if not np.isfinite(points).all():
+        raise ValueError(f"{name} contains NaN or infinity")
+    return points if points.shape[1] == 2 else points[:, [0, 2]]
 
 
 def on_floor(xz: np.ndarray) -> np.ndarray:
@@ -54,7 +59,14 @@ def on_floor(xz: np.ndarray) -> np.ndarray:
 
 
 class FrameDrawer:
-    """Draws the frames of one motion for one camera, size, frame rate and style."""
+    """Draws the frames of one motion for one camera, size, frame rate and style.
+
+    ``control_path`` (T, 2) x, z, one point per motion frame, is the floor path a control
+    asks for (``PathControl.path().xz``), drawn under the root path. With it the camera
+    tracks the control's path instead of the figure, so every system's clip of one
+    control is filmed from the same places and draws the control identically: only
+    the figure differs, and a figure that strays from its path is seen to stray.
+    """
 
     def __init__(
         self,
@@ -64,6 +76,7 @@ class FrameDrawer:
         fps: float | None = None,
         root_path: np.ndarray | None = None,
         style: Style = Style(),
+        control_path: np.ndarray | None = None,
     ) -> None:
         width, height = size
         if width < 1 or height < 1:
@@ -81,8 +94,13 @@ class FrameDrawer:
         self.source = frame_indices(motion.n_frames, motion.fps, self.fps)
         path = floor_path(motion, root_path)
         self.path = on_floor(path)  # every source frame, so the drawn path stays smooth
-        body_root = motion.positions[:, body_root_index(motion.skeleton)]
-        self.targets = camera.targets(body_root[:, [0, 2]], motion.fps)[self.source]
+        if control_path is None:
+            self.control = None
+            tracked = motion.positions[:, body_root_index(motion.skeleton)][:, [0, 2]]
+        else:
+            tracked = floor_points(control_path, motion.n_frames, "control_path")
+            self.control = on_floor(tracked)
+        self.targets = camera.targets(tracked, motion.fps)[self.source]
 
         skeleton = motion.skeleton
         colours = {LEFT: style.bone_left, RIGHT: style.bone_right}
@@ -120,9 +138,12 @@ class FrameDrawer:
         style, target, now = self.style, self.targets[k], int(self.source[k])
         canvas = self._floor(target) if self.camera.follow else self.background.copy()
         draw = ImageDraw.Draw(canvas)
+        if self.control is not None:  # whole, as the task it sets: the part due by now darker
+            self._draw_path(draw, self.control[now:], target, style.control_future, style.control_width)
+            self._draw_path(draw, self.control[: now + 1], target, style.control_past, style.control_width)
         if style.draw_future_path:
-            self._draw_path(draw, self.path[now:], target, style.path_future)
-        self._draw_path(draw, self.path[: now + 1], target, style.path_past)
+            self._draw_path(draw, self.path[now:], target, style.path_future, style.path_width)
+        self._draw_path(draw, self.path[: now + 1], target, style.path_past, style.path_width)
         self._draw_figure(canvas, k)
         return canvas
 
@@ -147,7 +168,8 @@ class FrameDrawer:
         floor.putpalette(self.grid_palette)  # turns the "L" coverage into a "P" image
         return floor.convert("RGB")
 
-    def _draw_path(self, draw: ImageDraw.ImageDraw, points: np.ndarray, target: np.ndarray, colour) -> None:
+    def _draw_path(self, draw: ImageDraw.ImageDraw, points: np.ndarray, target: np.ndarray, colour,
+                   width: float) -> None:
         if len(points) < 2:
             return
         segments = self._segments_px(np.stack([points[:-1], points[1:]], axis=1), target)
@@ -157,7 +179,7 @@ class FrameDrawer:
             lines = segments.tolist()
         # A half-tone rim one pixel wider softens the staircase of an aliased line cheaply.
         rim = tuple((np.add(colour, self.style.background) + 1) // 2)
-        width = self._px(self.style.path_width)
+        width = self._px(width)
         for line_width, line_colour in ((width + 1, rim), (width, colour)):
             for line in lines:
                 draw.line(line, fill=line_colour, width=line_width)

@@ -27,11 +27,13 @@ def contact_sheet(
     size: tuple[int, int] = (320, 240),
     root_path: np.ndarray | None = None,
     style: Style = Style(),
+    control_path: np.ndarray | None = None,
 ) -> Path:
-    """Write a PNG strip of ``n`` frames (each ``size``), first to last, and return the path."""
+    """Write a PNG strip of ``n`` frames (each ``size``), first to last, and return the path;
+    ``root_path`` and ``control_path`` as in ``render_video``."""
     if n < 1:
         raise ValueError(f"n must be at least 1, got {n}")
-    drawer = FrameDrawer(motion, camera, size, None, root_path, style)
+    drawer = FrameDrawer(motion, camera, size, None, root_path, style, control_path)
     picks = np.linspace(0, len(drawer) - 1, n).round().astype(int)
     width, height = drawer.size
     sheet = Image.new("RGB", (width * n, height), style.background)

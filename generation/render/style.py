@@ -28,6 +28,11 @@ class Style:
     path_future: RGB = (180, 200, 228)  # floor path still to come
     draw_future_path: bool = True
     path_width: float = 3.0
+    # A control's path (drawn only when given): wider than the root path, which runs on
+    # top of it, and warm where the root path is cool, so the two never blend.
+    control_past: RGB = (214, 128, 38)  # the control's path up to the current frame
+    control_future: RGB = (238, 196, 146)  # the control's path still to come
+    control_width: float = 9.0
     supersample: int = 2  # the figure is drawn at this multiple, then box-filtered down (antialiasing)
 
     def __post_init__(self) -> None:

@@ -36,11 +36,14 @@ def render_video(
     crf: int = 20,
     preset: str = "veryfast",
     x264_params: str = "me=dia:subme=1",
+    control_path: np.ndarray | None = None,
 ) -> Path:
     """Render ``motion`` as a stick-figure MP4 at ``path`` and return the path.
 
     ``fps`` None keeps the motion's rate; another rate picks the nearest frame in time.
     ``root_path`` (T, 2) x, z or (T, 3) overrides the floor path drawn under the figure.
+    ``control_path`` (T, 2) draws the path a control asks for, the camera following it
+    (``FrameDrawer``): the same for every system's clip of that control.
     ``crf``, ``preset`` and ``x264_params`` are libx264's quality and speed settings. The
     default params pick the cheapest motion search: a following camera slides the whole
     floor every frame, and on 2 cores this measured ~1.5x faster encoding than plain
@@ -49,7 +52,7 @@ def render_video(
     width, height = size
     if width % 2 or height % 2:
         raise ValueError(f"H.264 in yuv420p needs even frame dimensions, got {width}x{height}")
-    drawer = FrameDrawer(motion, camera, size, fps, root_path, style)
+    drawer = FrameDrawer(motion, camera, size, fps, root_path, style, control_path)
     path = Path(path)
     with atomic_output(path) as tmp:
         _encode(drawer, tmp, path, crf, preset, x264_params)

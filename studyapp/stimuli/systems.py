@@ -142,6 +142,14 @@ def add_checkpoint_system(study: Study, name: str, upload: File, role: str = Sys
     twin = study.systems.filter(checkpoint_digest=stored.digest, role=role, temperature=temperature).first()
     if twin is not None:
         raise UploadRefused(f"this checkpoint is already system {twin.name!r} at temperature {temperature:g}")
+    # A study without checkpoints may have controls already (for submitted motion and NAT): a model
+    # trained at another frame rate could follow none of them.
+    fps = stored.meta.features["dataset_options"]["fps"]
+    other = [control.name for control in study.controls.all() if abs(control.control["fps"] - fps) > 1e-6]
+    if other:
+        raise UploadRefused(f"this checkpoint was trained at {fps:g} fps and cannot follow the study's controls at "
+                            f"another frame rate ({', '.join(other[:3])}{' ...' if len(other) > 3 else ''}); remove "
+                            "them first")
     return System.objects.create(
         study=study, name=name, role=role, checkpoint=stored.relative_path, checkpoint_digest=stored.digest,
         kind=stored.meta.kind, metadata=checkpoint_metadata(stored, Path(upload.name).name), temperature=temperature)
