@@ -128,7 +128,10 @@ class ExclusionRules:
             expected = {"str": str, "float": (int, float), "bool": bool}[known[name].type]
             if not isinstance(value, expected) or (known[name].type == "float" and isinstance(value, bool)):
                 raise AnalysisInputError(f"{source}: {name} must be a {known[name].type}, not {value!r}")
-        return cls(**data)
+        try:
+            return cls(**data)
+        except AnalysisInputError as exc:
+            raise AnalysisInputError(f"{source}: {exc}") from None
 
 
 def scaled_threshold(threshold: float, scale_min: int | pd.Series, scale_max: int | pd.Series):

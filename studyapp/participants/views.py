@@ -1,7 +1,7 @@
 """The participant's views: the entry link, the one page they are on, and each step's form.
 
 The steps themselves (what each page shows, what its form does, in which order) are
-declared in ``participant_path.PATH``; this module finds the participant of the browser's
+declared in ``participants.path.PATH``; this module finds the participant of the browser's
 cookie and guards each step with ``participant_access``. Each form posts to its step's
 URL and redirects back to the one page URL.
 """

@@ -1,8 +1,8 @@
 """Forms of the researcher's pages: the study itself, its systems, controls and generation.
 
 The forms only collect input; what it means (and every check of an upload's content)
-lives in the service modules ``systems``, ``controls`` and ``stimuli``, which the
-management commands call too.
+lives in the service modules ``stimuli.systems``, ``stimuli.controls`` and
+``stimuli.clips``, which the management commands call too.
 """
 
 from __future__ import annotations

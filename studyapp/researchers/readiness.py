@@ -4,7 +4,8 @@ A study opens only with clips to rate and with what its crowd platform needs to 
 participants who finish: Prolific a completion code or URL, and a screen-out code where
 screening questions can turn participants away (Prolific allows in-study screening only
 with its fixed screen-out payment); MTurk its frame over HTTPS (the participant's link
-brings the submit target, which ``participant_views`` checks on entry). The monitor's open button lists the reasons; the open view refuses on them.
+brings the submit target, which ``participants.views`` checks on entry). The monitor's
+open button lists the reasons; the open view refuses on them.
 """
 
 from __future__ import annotations

@@ -2,8 +2,8 @@
 
 Every page needs a login, and a researcher reaches only their own studies: another
 researcher's study answers 404, as if it did not exist. Forms post back to their page;
-what a form means is done by the service modules (``systems``, ``controls``,
-``stimuli``, ``monitor``), which the management commands share.
+what a form means is done by the service modules (``stimuli.systems``, ``stimuli.controls``,
+``stimuli.clips``, ``monitor``, ``export``), which the management commands share.
 """
 
 from __future__ import annotations
@@ -52,6 +52,13 @@ PROLIFIC_PLACEHOLDERS = "PROLIFIC_PID={{%PROLIFIC_PID%}}&STUDY_ID={{%STUDY_ID%}}
 
 def _study(request: HttpRequest, pk: int) -> Study:
     return get_object_or_404(Study, pk=pk, owner=request.user)
+
+
+def _download(body: bytes | str, content_type: str, filename: str) -> HttpResponse:
+    """``body`` as a file the browser saves as ``filename``."""
+    response = HttpResponse(body, content_type=content_type)
+    response["Content-Disposition"] = f'attachment; filename="{filename}"'
+    return response
 
 
 @login_required
@@ -167,9 +174,7 @@ def study_controls_download(request: HttpRequest, pk: int) -> HttpResponse:
     except (ControlError, ValueError, FileNotFoundError) as error:
         messages.error(request, f"No download: {error}")
         return redirect("study-controls", pk=study.pk)
-    response = HttpResponse(data, content_type="application/zip")
-    response["Content-Disposition"] = f'attachment; filename="controls-study-{study.pk}.zip"'
-    return response
+    return _download(data, "application/zip", f"controls-study-{study.pk}.zip")
 
 
 @login_required
@@ -361,9 +366,7 @@ def study_questions(request: HttpRequest, pk: int) -> HttpResponse:
 @require_safe
 def study_participants_csv(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
-    response = HttpResponse(participants_csv(study), content_type="text/csv")
-    response["Content-Disposition"] = f'attachment; filename="participants-study-{study.pk}.csv"'
-    return response
+    return _download(participants_csv(study), "text/csv", f"participants-study-{study.pk}.csv")
 
 
 @login_required
@@ -387,9 +390,7 @@ def study_open(request: HttpRequest, pk: int) -> HttpResponse:
 def study_export(request: HttpRequest, pk: int) -> HttpResponse:
     """The ratings table as a CSV download."""
     study = _study(request, pk)
-    response = HttpResponse(ratings_csv(study, for_spreadsheets=True), content_type="text/csv")
-    response["Content-Disposition"] = f'attachment; filename="ratings-study-{study.pk}.csv"'
-    return response
+    return _download(ratings_csv(study, for_spreadsheets=True), "text/csv", f"ratings-study-{study.pk}.csv")
 
 
 @never_cache
@@ -398,9 +399,7 @@ def study_export(request: HttpRequest, pk: int) -> HttpResponse:
 def study_rules(request: HttpRequest, pk: int) -> HttpResponse:
     """The exclusion rules of the ratings table, for ``python -m analysis report --rules``."""
     study = _study(request, pk)
-    response = HttpResponse(rules_json(study), content_type="application/json")
-    response["Content-Disposition"] = f'attachment; filename="rules-study-{study.pk}.json"'
-    return response
+    return _download(rules_json(study), "application/json", f"rules-study-{study.pk}.json")
 
 
 @never_cache
@@ -417,9 +416,7 @@ def study_motion_download(request: HttpRequest, pk: int) -> HttpResponse:
     except ValueError as error:
         messages.error(request, f"No download: {error}")
         return redirect("study-monitor", pk=study.pk)
-    response = HttpResponse(data, content_type="application/zip")
-    response["Content-Disposition"] = f'attachment; filename="motion-study-{study.pk}.zip"'
-    return response
+    return _download(data, "application/zip", f"motion-study-{study.pk}.zip")
 
 
 @login_required
