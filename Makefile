@@ -21,10 +21,14 @@ $(INSTALLED): pyproject.toml
 	$(BIN)/pip install --quiet -e '.[dev]'
 	@touch $@
 
+# The whole suite on SQLite (the embedded default, whatever DATABASE_URL says), then the
+# database tests again on PostgreSQL: the server DATABASE_URL names, or a throwaway
+# cluster (tests/postgres_pass.py; PostgreSQL is installed when missing).
 test: $(INSTALLED)
 	scripts/ensure-redis.sh
 	scripts/ensure-chromium.sh
-	$(BIN)/python -m pytest
+	DATABASE_URL= $(BIN)/python -m pytest
+	$(BIN)/python -m tests.postgres_pass
 
 demo: $(INSTALLED)
 	$(BIN)/python -m studyapp.server.demo

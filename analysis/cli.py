@@ -1,6 +1,6 @@
 """Command line (or ``motion-analysis``):
 
-    python -m analysis report RATINGS.csv --out report/ [--motion DIR ...]
+    python -m analysis report RATINGS.csv --out report/ [--rules RULES.json] [--motion DIR ...]
     python -m analysis objective DIR ... --out objective/ [--appropriateness RATINGS.csv]
     python -m analysis hvrnn-scores OUTPUTS.npz --out scores/
 """
@@ -60,16 +60,22 @@ def _parser() -> argparse.ArgumentParser:
                              "analysis/motion_io.py); a subfolder or file stem names the system")
     report.add_argument("--systems", help="comma-separated list of expected systems; any other "
                                           "system in the ratings is an error")
-    report.add_argument("--natural", default="NAT", help="name of the natural-motion system")
-    report.add_argument("--attention", default="BAD", help="name of the attention-check system")
-    report.add_argument("--bad-threshold", type=float, default=4.0,
-                        help="exclude a participant rating any attention clip at or above this "
-                             "(on a 1-5 scale, rescaled for others; default 4)")
-    report.add_argument("--nat-threshold", type=float, default=2.0,
-                        help="exclude a participant rating any natural clip below this "
-                             "(on a 1-5 scale; default 2)")
-    report.add_argument("--keep-early", action="store_true",
-                        help="do not discard ratings given before the clip ended")
+    rules = report.add_argument_group(
+        "exclusion rules", "as options, or all at once with --rules (the study app's rules.json, which "
+                           "reproduces its report); not both")
+    rules.add_argument("--rules", metavar="RULES.json",
+                       help="the exclusion rules as JSON: natural_system, attention_system, "
+                            "bad_at_or_above, natural_below, discard_early")
+    rules.add_argument("--natural", help="name of the natural-motion system (default NAT)")
+    rules.add_argument("--attention", help="name of the attention-check system (default BAD)")
+    rules.add_argument("--bad-threshold", type=float,
+                       help="exclude a participant rating any attention clip at or above this "
+                            "(on a 1-5 scale, rescaled for others; default 4)")
+    rules.add_argument("--nat-threshold", type=float,
+                       help="exclude a participant rating any natural clip below this "
+                            "(on a 1-5 scale; default 2)")
+    rules.add_argument("--keep-early", action="store_true",
+                       help="do not discard ratings given before the clip ended")
     report.add_argument("--compare-attention-checks", action="store_true",
                         help="include the attention-check system in the comparisons")
     report.add_argument("--foot-joints", help="comma-separated foot joint names (default: "
@@ -221,6 +227,23 @@ def _mean_scores(args: argparse.Namespace) -> pd.Series:
     return appropriateness_pages(kept).groupby("system")["score"].mean()
 
 
+def _rules(args: argparse.Namespace) -> ExclusionRules:
+    """The exclusion rules of the options, or of the --rules file."""
+    options = {"natural_system": args.natural, "attention_system": args.attention,
+               "bad_at_or_above": args.bad_threshold, "natural_below": args.nat_threshold,
+               "discard_early": False if args.keep_early else None}
+    given = {name: value for name, value in options.items() if value is not None}
+    if args.rules is None:
+        return ExclusionRules(**given)
+    if given:
+        raise AnalysisInputError("give the exclusion rules with --rules or as options, not both")
+    try:
+        text = Path(args.rules).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise AnalysisInputError(f"cannot read --rules {args.rules}: {exc.strerror}") from None
+    return ExclusionRules.from_json(text, source=args.rules)
+
+
 def _split(text: str | None) -> list[str] | None:
     return [t.strip() for t in text.split(",") if t.strip()] if text else None
 
@@ -247,9 +270,7 @@ def _run(args: argparse.Namespace) -> int:
         for note in notes:
             print(f"note: {note}")
         return 0
-    rules = ExclusionRules(natural_system=args.natural, attention_system=args.attention,
-                           bad_at_or_above=args.bad_threshold, natural_below=args.nat_threshold,
-                           discard_early=not args.keep_early)
+    rules = _rules(args)
     with staged_output(out) as work:
         ratings = read_ratings(args.ratings)
         if args.motion:

@@ -33,7 +33,7 @@ from analysis.appropriateness import appropriateness_scores, matched_preference,
 from analysis.bradley_terry import bradley_terry_scale
 from analysis.designs import APPROPRIATENESS, PAGE, PAIRWISE, SIDE_BY_SIDE, table_design
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import (ExclusionRules, apply_exclusions, exclusion_notes,
+from analysis.exclusions import (ExclusionRules, apply_exclusions, compared_ratings, exclusion_notes,
                                  exclusion_summary, removed_by_reason, scaled_threshold)
 from analysis.mixed import mixed_model_means
 from analysis.pairwise import preference_pages, preference_pairs, side_bias
@@ -83,11 +83,7 @@ def build_design_report(ratings: pd.DataFrame, reference: str | None = None,
     notes = exclusion_notes(flagged, rules)
     kept = flagged[flagged["kept"]]
     if not compare_attention_checks:
-        drop = kept["system"] == rules.attention_system
-        if design == PAIRWISE:  # a side-by-side page keeps its other clips, a pair has none
-            check_pages = kept.loc[drop, list(PAGE)].set_index(list(PAGE)).index
-            drop |= kept.set_index(list(PAGE)).index.isin(check_pages)
-        kept = kept[~drop]
+        kept = compared_ratings(kept, rules)
     if kept.empty:
         raise AnalysisInputError("no ratings are left after the exclusions; nothing to analyse")
     if reference is None and rules.natural_system in set(kept["system"]):

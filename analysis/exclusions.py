@@ -22,12 +22,18 @@ obviously does not follow. Preferring the mismatched clip on one excludes.
 Nothing is deleted. Each rating gets ``excluded_participant``, ``discarded_early``,
 ``kept`` and ``exclusion_reason``; a rating that breaks both rules is counted under the
 participant exclusion, so ratings collected = discarded by each reason + kept.
+
+Each rule is written once, as a method of `ExclusionRules` that takes a whole table's
+columns or one answer's values alike: the study app flags a participant with the same
+methods as their answers arrive, and writes the rules it applied as JSON
+(``ExclusionRules.to_json``), which ``python -m analysis report --rules`` reads back.
 """
 
 from __future__ import annotations
 
+import json
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, fields
 
 import pandas as pd
 
@@ -54,6 +60,79 @@ class ExclusionRules:
                 raise AnalysisInputError(f"the exclusion threshold {name} must be a finite number, "
                                          f"got {getattr(self, name)}")
 
+    # The rules themselves. Each takes a table's columns (Series) or one answer's values.
+
+    def rated_attention_high(self, system, value, scale_min, scale_max):
+        """Rule 1: an attention-check clip rated at or above the (rescaled) BAD threshold."""
+        return (system == self.attention_system) & (
+            value >= scaled_threshold(self.bad_at_or_above, scale_min, scale_max))
+
+    def rated_natural_low(self, system, value, scale_min, scale_max):
+        """Rule 1: a natural clip rated below the (rescaled) NAT threshold."""
+        return (system == self.natural_system) & (
+            value < scaled_threshold(self.natural_below, scale_min, scale_max))
+
+    def preferred_attention(self, system, answer, side):
+        """Rule 1 on pairwise pages: the attention-check clip is the one preferred."""
+        return (system == self.attention_system) & (answer == side)
+
+    def preferred_mismatched_attention(self, system, answer, side, matched):
+        """Rule 1 on appropriateness pages: on a check page (both clips the attention-check
+        system's), the clip made for another control is the one preferred."""
+        return self.preferred_attention(system, answer, side) & ~matched
+
+    @property
+    def attention_reason(self) -> str:
+        return f"rated a {self.attention_system} clip high"
+
+    @property
+    def natural_reason(self) -> str:
+        return f"rated a {self.natural_system} clip low"
+
+    @property
+    def preference_reason(self) -> str:
+        return f"preferred a {self.attention_system} clip"
+
+    @property
+    def mismatch_reason(self) -> str:
+        return f"preferred the mismatched clip of a {self.attention_system} page"
+
+    def described(self) -> list[str]:
+        """The rules in words, as a report states them."""
+        return [
+            f"A participant is excluded who rates any {self.attention_system} clip {self.bad_at_or_above:g} or "
+            f"higher or any {self.natural_system} clip below {self.natural_below:g} (on a 1-5 scale, rescaled "
+            f"linearly to others), or who prefers a {self.attention_system} clip on a pairwise page.",
+            "A rating given before its clip had finished playing is discarded (on a pairwise page, the page)."
+            if self.discard_early else "Ratings given before their clip had finished playing are kept.",
+        ]
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), indent=2) + "\n"
+
+    @classmethod
+    def from_json(cls, text: str, source: str = "the rules") -> ExclusionRules:
+        """Rules written by ``to_json`` (the study app's rules.json); AnalysisInputError
+        naming ``source`` and the field for anything else."""
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise AnalysisInputError(f"{source} is not JSON: {exc}") from None
+        if not isinstance(data, dict):
+            raise AnalysisInputError(f"{source} must be a JSON object of exclusion rules")
+        known = {f.name: f for f in fields(cls)}
+        if unknown := sorted(set(data) - set(known)):
+            raise AnalysisInputError(f"{source}: unknown field(s) {', '.join(unknown)}; the rules are "
+                                     f"{', '.join(known)}")
+        for name, value in data.items():
+            expected = {"str": str, "float": (int, float), "bool": bool}[known[name].type]
+            if not isinstance(value, expected) or (known[name].type == "float" and isinstance(value, bool)):
+                raise AnalysisInputError(f"{source}: {name} must be a {known[name].type}, not {value!r}")
+        try:
+            return cls(**data)
+        except AnalysisInputError as exc:
+            raise AnalysisInputError(f"{source}: {exc}") from None
+
 
 def scaled_threshold(threshold: float, scale_min: int | pd.Series, scale_max: int | pd.Series):
     """Map a threshold on the 1-5 reference scale onto another rating scale."""
@@ -71,52 +150,49 @@ def apply_exclusions(ratings: pd.DataFrame, rules: ExclusionRules = ExclusionRul
     BAD clip"``), appropriateness tables theirs (``"preferred the mismatched clip of a
     BAD page"``).
     """
+    df = ratings.copy()
+    reason = pd.Series("", index=df.index, dtype=object)
+    design = table_design(ratings)
+    if design == APPROPRIATENESS:
+        failed = [(rules.preferred_mismatched_attention(df["system"], df["answer"], df["side"], df["matched"]),
+                   rules.mismatch_reason)]
+    elif design in PREFERENCE_DESIGNS:
+        failed = [(rules.preferred_attention(df["system"], df["answer"], df["side"]), rules.preference_reason)]
+    else:
+        scale = (df["value"], df["scale_min"], df["scale_max"])
+        failed = [(rules.rated_attention_high(df["system"], *scale), rules.attention_reason),
+                  (rules.rated_natural_low(df["system"], *scale), rules.natural_reason)]
+    for failing, why in reversed(failed):  # the first rule a participant failed names their reason
+        reason[df["participant"].isin(set(df.loc[failing, "participant"]))] = why
+    df["excluded_participant"] = reason != ""
+    df["discarded_early"] = early_discards(df, rules, df["excluded_participant"])
+    df["kept"] = ~(df["excluded_participant"] | df["discarded_early"])
+    reason[df["discarded_early"]] = "answered before clip end"
+    df["exclusion_reason"] = reason
+    return df
+
+
+def early_discards(ratings: pd.DataFrame, rules: ExclusionRules, excluded: pd.Series) -> pd.Series:
+    """Rule 2 for a table: the ratings discarded for an answer before a clip's end (not
+    counted again where ``excluded`` already removes them). On a pairwise page the one
+    answer covers both clips, so an early answer discards the page."""
+    if not rules.discard_early or "answered_before_end" not in ratings.columns:
+        return pd.Series(False, index=ratings.index)
+    early = ratings["answered_before_end"].astype(bool)
     if table_design(ratings) in PREFERENCE_DESIGNS:
-        return _apply_preference_exclusions(ratings, rules)
-    df = ratings.copy()
-    failed_bad = (df["system"] == rules.attention_system) & (
-        df["value"] >= scaled_threshold(rules.bad_at_or_above, df["scale_min"], df["scale_max"])
-    )
-    failed_nat = (df["system"] == rules.natural_system) & (
-        df["value"] < scaled_threshold(rules.natural_below, df["scale_min"], df["scale_max"])
-    )
-    bad_participants = set(df.loc[failed_bad, "participant"])
-    nat_participants = set(df.loc[failed_nat, "participant"]) - bad_participants
-    by_bad = df["participant"].isin(bad_participants)
-    by_nat = df["participant"].isin(nat_participants)
-    df["excluded_participant"] = by_bad | by_nat
-    if rules.discard_early and "answered_before_end" in df.columns:
-        df["discarded_early"] = df["answered_before_end"] & ~df["excluded_participant"]
-    else:
-        df["discarded_early"] = False
-    df["kept"] = ~(df["excluded_participant"] | df["discarded_early"])
-    reason = pd.Series("", index=df.index, dtype=object)
-    reason[by_bad] = f"rated a {rules.attention_system} clip high"
-    reason[by_nat] = f"rated a {rules.natural_system} clip low"
-    reason[df["discarded_early"]] = "answered before clip end"
-    df["exclusion_reason"] = reason
-    return df
+        early = early.groupby([ratings[column] for column in PAGE], sort=False).transform("any")
+    return early & ~excluded
 
 
-def _apply_preference_exclusions(ratings: pd.DataFrame, rules: ExclusionRules) -> pd.DataFrame:
-    df = ratings.copy()
-    preferred_bad = (df["system"] == rules.attention_system) & (df["answer"] == df["side"])
-    appropriateness = table_design(ratings) == APPROPRIATENESS
-    if appropriateness:  # both clips of a check page are BAD's: the wrong one is the mismatched
-        preferred_bad &= ~df["matched"]
-    df["excluded_participant"] = df["participant"].isin(set(df.loc[preferred_bad, "participant"]))
-    if rules.discard_early and "answered_before_end" in df.columns:
-        early_page = df.groupby(list(PAGE), sort=False)["answered_before_end"].transform("any")
-        df["discarded_early"] = early_page & ~df["excluded_participant"]
-    else:
-        df["discarded_early"] = False
-    df["kept"] = ~(df["excluded_participant"] | df["discarded_early"])
-    reason = pd.Series("", index=df.index, dtype=object)
-    reason[df["excluded_participant"]] = (f"preferred the mismatched clip of a {rules.attention_system} page"
-                                          if appropriateness else f"preferred a {rules.attention_system} clip")
-    reason[df["discarded_early"]] = "answered before clip end"
-    df["exclusion_reason"] = reason
-    return df
+def compared_ratings(kept: pd.DataFrame, rules: ExclusionRules) -> pd.DataFrame:
+    """The kept ratings that the comparisons of systems use: the attention-check system's
+    rows left out, and on a pairwise page the whole page showing it (a check page
+    compares nothing)."""
+    drop = kept["system"] == rules.attention_system
+    if table_design(kept) in PREFERENCE_DESIGNS:
+        check_pages = kept.loc[drop, list(PAGE)].set_index(list(PAGE)).index
+        drop |= kept.set_index(list(PAGE)).index.isin(check_pages)
+    return kept[~drop]
 
 
 def exclusion_notes(flagged: pd.DataFrame, rules: ExclusionRules = ExclusionRules()) -> list[str]:

@@ -25,7 +25,7 @@ from analysis.design_report import (POWER, DesignReport, build_design_report,
                                     design_summary_text, write_design_report)
 from analysis.designs import SINGLE, table_design
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import (ExclusionRules, apply_exclusions, exclusion_notes,
+from analysis.exclusions import (ExclusionRules, apply_exclusions, compared_ratings, exclusion_notes,
                                  exclusion_summary, removed_by_reason)
 from analysis.mixed import mixed_model_means
 from analysis.motion_io import SystemClips
@@ -122,7 +122,7 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
     notes = exclusion_notes(flagged, rules)
     kept = flagged[flagged["kept"]]
     if not compare_attention_checks:
-        kept = kept[kept["system"] != rules.attention_system]
+        kept = compared_ratings(kept, rules)
     if kept.empty:
         raise AnalysisInputError("no ratings are left after the exclusions; nothing to analyse")
     too_few = too_few_ratings(kept)

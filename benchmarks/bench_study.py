@@ -43,8 +43,6 @@ import math
 import os
 import re
 import resource
-import shutil
-import socket
 import statistics
 import subprocess
 import sys
@@ -66,6 +64,7 @@ try:
     from studyapp.participants.simulated import Outcome, longest_clip_s, percentile, run_participants  # noqa: E402
 except ImportError:  # a reference checkout from before the study app was split into subpackages
     from studyapp.simulated_participants import Outcome, longest_clip_s, percentile, run_participants  # noqa: E402
+from tests.throwaway_postgres import free_port, throwaway_postgres  # noqa: E402
 
 TARGET_STEP_MS = 10.0  # server time of one rating step (POST and next page), median
 TARGET_P95_S = 0.1  # a watching participant should not notice the wait for the next clip
@@ -76,50 +75,6 @@ PARTICIPANTS_PER_PROCESS = 125  # simulated participants (threads) per client pr
 PARTS = ("server-time", "crowd", "large")
 # compose.yaml's web service, the configuration the README recommends.
 GUNICORN = ["--workers", "3", "--worker-class", "gthread", "--threads", "8"]
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def postgres_bin() -> Path:
-    """The folder of initdb and pg_ctl: on PATH, or Debian's versioned folder."""
-    found = shutil.which("pg_ctl")
-    if found and shutil.which("initdb"):
-        return Path(found).resolve().parent
-    versions = sorted(Path("/usr/lib/postgresql").glob("*/bin/pg_ctl"))
-    if not versions:
-        subprocess.check_call([str(REPO / "scripts" / "apt-install.sh"), "postgresql"])
-        versions = sorted(Path("/usr/lib/postgresql").glob("*/bin/pg_ctl"))
-    return versions[-1].parent
-
-
-@contextlib.contextmanager
-def throwaway_postgres() -> Iterator[tuple[str, Path]]:
-    """A PostgreSQL cluster on 127.0.0.1 for the length of the block; yields its database
-    URL and its postmaster.pid file.
-
-    PostgreSQL refuses to run as root, so as root the cluster belongs to the postgres user.
-    """
-    binaries, port = postgres_bin(), free_port()
-    folder = Path(tempfile.mkdtemp(prefix="bench-pg-"))
-    as_owner: list[str] = []
-    if os.geteuid() == 0:
-        shutil.chown(folder, "postgres")
-        as_owner = ["runuser", "-u", "postgres", "--"]
-    data = folder / "data"
-    run = lambda *args: subprocess.run([*as_owner, *args], check=True, capture_output=True)  # noqa: E731
-    run(str(binaries / "initdb"), "-D", str(data), "-U", "postgres", "--auth=trust", "--no-sync")
-    run(str(binaries / "pg_ctl"), "-D", str(data), "-l", str(folder / "log"), "-w", "start", "-o",
-        f"-p {port} -k {folder} -c listen_addresses=127.0.0.1 -c max_connections=200 -c fsync=on")
-    try:
-        run(str(binaries / "createdb"), "-h", "127.0.0.1", "-p", str(port), "-U", "postgres", "study")
-        yield f"postgres://postgres@127.0.0.1:{port}/study", data / "postmaster.pid"
-    finally:
-        run(str(binaries / "pg_ctl"), "-D", str(data), "-m", "fast", "-w", "stop")
-        shutil.rmtree(folder, ignore_errors=True)
 
 
 def django_step(env: dict, *args: str, code: Path = REPO) -> str:

@@ -16,11 +16,11 @@ from django.conf import settings
 from django.core.exceptions import ValidationError
 from django.db import models
 
-from analysis.exclusions import scaled_threshold
 from generation.control import Control, control_from_dict
 from generation.motion.dataset import DatasetOptions
 from generation.render.camera import Camera
 from studyapp.bounds import Within, storable_json
+from studyapp.designs import registry as designs
 
 NATURAL_NAME, ATTENTION_NAME = "NAT", "BAD"  # the names the analysis expects for these roles
 
@@ -111,7 +111,6 @@ def camera_problem(data: object) -> str | None:
 
 # The bounds of a study's numbers (``studyapp.bounds``), where they are shared or checked together.
 SCALE_END = Within(-1000, 1000, "the ratings table's range")
-MAX_BUTTON_POINTS = 11  # a single-clip page shows a button per scale point: 0-10 at most
 CHECKS = Within(0, 50)
 THRESHOLD = Within(0, 6, "on the 1-5 scale; 0 or 6, beyond its ends, turns the check off")
 SCREEN_SIDE = Within(0, 7680, "CSS pixels of an 8K screen")
@@ -122,12 +121,6 @@ MAX_VIDEO_PIXELS = 3840 * 2160
 
 class Study(models.Model):
     """One rating study: its question, scale, design, protocol and crowd platform."""
-
-    class Design(models.TextChoices):
-        # The names the ratings table's design column uses (analysis.designs).
-        SINGLE = "single", "single clip per page, rated on the scale"
-        SIDE_BY_SIDE = "side-by-side", "side by side: every system's clip of one control on a page, each on a slider"
-        PAIRWISE = "pairwise", "pairwise: two systems' clips of one control, which is better"
 
     class Platform(models.TextChoices):
         PROLIFIC = "prolific", "Prolific"
@@ -150,14 +143,16 @@ class Study(models.Model):
         "This study is part of research on computer-generated motion. Taking part is voluntary and you "
         "may stop at any time. We record your ratings, the time you take, and the id your crowd "
         "platform gives you; nothing else about you."))
-    design = models.CharField(max_length=12, choices=Design.choices, default=Design.SINGLE)
+    # A registered design's name (studyapp.designs.registry), as the ratings table's design column says it.
+    design = models.CharField(max_length=12, choices=designs.choices, default=designs.DEFAULT)
     clips_per_participant = models.PositiveSmallIntegerField(
-        default=20, help_text="rated clips, attention checks included", validators=[Within(1, 200, "one sitting")])
+        default=20, help_text="single design: clips each participant rates, attention and instructed checks included",
+        validators=[Within(1, 200, "one sitting")])
     ratings_per_stimulus = models.PositiveSmallIntegerField(
         default=10, help_text="target number of ratings of each stimulus", validators=[Within(1, 1000)])
     pages_per_participant = models.PositiveSmallIntegerField(
-        default=8, help_text="side-by-side and pairwise: pages each participant answers, attention checks included",
-        validators=[Within(0, 100, "one sitting")])
+        default=8, help_text="side-by-side and pairwise: pages each participant answers, attention and instructed "
+                             "checks included", validators=[Within(0, 100, "one sitting")])
     abx = models.BooleanField(
         default=False, help_text="pairwise: show the control's natural clip as the reference X above A and B, and ask "
                                  "which of them is closer to it (held-out controls only; NAT is then not paired)")
@@ -175,8 +170,8 @@ class Study(models.Model):
     natural_threshold = models.FloatField(
         default=2.0, help_text="on the 1-5 scale: rating a NAT clip below this excludes", validators=[THRESHOLD])
     instructed_checks = models.PositiveSmallIntegerField(
-        default=0, help_text="pages per participant that tell them which answer to give (not analysed)",
-        validators=[CHECKS])
+        default=0, help_text="pages per participant, among their pages, that tell them which answer to give "
+                             "(not analysed)", validators=[CHECKS])
     stop_after_failed_checks = models.PositiveSmallIntegerField(
         default=0, help_text="end a participant's session politely after this many failed instructed checks (0: never)",
         validators=[CHECKS])
@@ -195,6 +190,16 @@ class Study(models.Model):
                                                          validators=[SCREEN_SIDE])
     platform = models.CharField(max_length=10, choices=Platform.choices, default=Platform.LINK)
     completion_code = models.CharField(max_length=100, blank=True)
+    # Participants who do not finish the ratings still leave with a code of their own, so
+    # the platform pays them as its rules say (Prolific: a fixed screen-out payment) and
+    # the researcher sees why they stopped, instead of being asked to return the study.
+    screen_out_code = models.CharField(
+        max_length=100, blank=True, help_text="given to participants a screening question turns away (Prolific: a "
+                                              "code of type 'screened out' with its fixed payment; empty: they are "
+                                              "asked to return the study)")
+    stopped_code = models.CharField(
+        max_length=100, blank=True, help_text="given to participants stopped after failed instructed checks (empty: "
+                                              "they are asked to return the study)")
     redirect_url = models.URLField(blank=True, help_text="where finished participants are sent (Prolific: its completion URL)")
     camera = models.JSONField(default=default_camera, validators=[storable_json])
     video_width = models.PositiveSmallIntegerField(default=640, validators=[VIDEO_SIDE])
@@ -220,29 +225,21 @@ class Study(models.Model):
     def clean(self) -> None:
         if self.scale_min >= self.scale_max:
             raise ValidationError({"scale_max": f"the scale must rise: {self.scale_min} to {self.scale_max} does not"})
-        if self.design == self.Design.SINGLE and len(self.scale) > MAX_BUTTON_POINTS:
-            raise ValidationError({"scale_max": f"a single-clip page shows a button per point: at most "
-                                                f"{MAX_BUTTON_POINTS} points, not {len(self.scale)}"})
         if self.video_width % 2 or self.video_height % 2:
             raise ValidationError({"video_width": "H.264 video needs an even width and height"})
         if self.video_width * self.video_height > MAX_VIDEO_PIXELS:
             raise ValidationError({"video_width": f"{self.video_width}×{self.video_height} is past 4K video: at most "
                                                   f"{MAX_VIDEO_PIXELS:,} pixels a frame (3840×2160)"})
-        if self.design == self.Design.SINGLE and self.bad_checks + self.natural_checks >= self.clips_per_participant:
-            raise ValidationError({"clips_per_participant": "leave room for rated clips besides the attention checks"})
-        if self.design == self.Design.PAIRWISE and self.bad_checks >= self.pages_per_participant:
-            raise ValidationError({"pages_per_participant": "leave room for rated pages besides the BAD-versus-NAT checks"})
-        if self.abx and self.design != self.Design.PAIRWISE:
-            raise ValidationError({"abx": "a reference X goes with the pairwise design"})
-        if self.design != self.Design.SINGLE and self.pages_per_participant == 0:
-            raise ValidationError({"pages_per_participant": "a participant needs at least one page"})
-        if self.design == self.Design.SIDE_BY_SIDE and self.bad_checks > self.pages_per_participant:
-            raise ValidationError({"bad_checks": f"BAD joins at most one page each: at most {self.pages_per_participant} "
-                                                 f"for {self.pages_per_participant} pages"})
-        pages = self.clips_per_participant if self.design == self.Design.SINGLE else self.pages_per_participant
-        if self.instructed_checks > pages:
-            raise ValidationError({"instructed_checks": f"at most one instructed check per page: at most {pages} for "
-                                                        f"{pages} {'clips' if self.design == self.Design.SINGLE else 'pages'}"})
+        try:
+            design = designs.design_of(self)
+        except KeyError as unknown:
+            raise ValidationError({"design": unknown.args[0]}) from None
+        if problems := design.problems(self):
+            raise ValidationError(problems)
+        for name, owners in designs.foreign_settings(self.design).items():
+            if getattr(self, name) is True:  # a switch of another design's, turned on
+                raise ValidationError({name: f"{self._meta.get_field(name).verbose_name} goes with the "
+                                             f"{' or '.join(owners)} design"})
         if self.stop_after_failed_checks > self.instructed_checks:
             raise ValidationError({"stop_after_failed_checks": f"a participant meets {self.instructed_checks} "
                                                                f"instructed check(s): stopping after "
@@ -259,16 +256,9 @@ class Study(models.Model):
     def strengths(self) -> range:
         return range(1, self.preference_strengths + 1)
 
-    def bad_cutoff(self) -> float:
-        return scaled_threshold(self.bad_threshold, self.scale_min, self.scale_max)
-
-    def natural_cutoff(self) -> float:
-        return scaled_threshold(self.natural_threshold, self.scale_min, self.scale_max)
-
 
 # Past 10 the noise swamps what a model learnt; the models take any finite temperature.
 TEMPERATURE = Within(0.0001, 10, "the sampling temperature")
-SEED = Within(0, 2**31 - 1, "a 32-bit seed")
 
 
 class System(models.Model):
@@ -307,7 +297,7 @@ class System(models.Model):
     @property
     def export_name(self) -> str:
         """The name in the ratings table: NAT and BAD for their roles, so the analysis finds them."""
-        return {self.Role.NATURAL: NATURAL_NAME, self.Role.BAD: ATTENTION_NAME}.get(self.role, self.name)
+        return export_name(self.role, self.name)
 
     @property
     def source_kind(self) -> str:
@@ -327,13 +317,6 @@ class System(models.Model):
             return DatasetOptions.from_dict(data)
         except (KeyError, TypeError, ValueError, AttributeError) as error:
             raise StoredDataError(self, "metadata", f"holds no readable dataset_options ({error!r})") from None
-
-    def control_type(self) -> str:
-        """"path" or "attributes": what the checkpoint's controls are."""
-        kind = json_object(self, "metadata").get("control", "path")
-        if kind not in ("path", "attributes"):
-            raise StoredDataError(self, "metadata", f"names the control {kind!r}, neither 'path' nor 'attributes'")
-        return kind
 
     def labels(self) -> dict[str, list[str]] | None:
         """The actions and styles a label-controlled checkpoint knows (None for a path-controlled one)."""
@@ -355,10 +338,14 @@ class System(models.Model):
             json_object(self, "metadata")
             if self.checkpoint:  # every reader of a checkpoint's metadata can read it
                 self.dataset_options()
-                self.control_type()
                 self.labels()
         except StoredDataError as error:
             raise ValidationError({"metadata": str(error)}) from None
+
+
+def export_name(role: str, name: str) -> str:
+    """The name in the ratings table of a system of ``role`` called ``name``."""
+    return {System.Role.NATURAL: NATURAL_NAME, System.Role.BAD: ATTENTION_NAME}.get(role, name)
 
 
 class ControlSignal(models.Model):
@@ -374,6 +361,10 @@ class ControlSignal(models.Model):
     control = models.JSONField(help_text="generation.control's to_dict() form", validators=[storable_json])
     # For held-out control: the natural clip it came from, which NAT stimuli show.
     source_clip = models.CharField(max_length=200, blank=True)
+    # For held-out control: where its take was found and how it is read (``stimuli.natural.NaturalSource``).
+    natural = models.JSONField(default=dict, blank=True, validators=[storable_json],
+                               help_text="held-out: the folders its take was found in and the dataset options it is "
+                                         "read with")
     seconds = models.FloatField()
 
     class Meta:
@@ -392,6 +383,18 @@ class ControlSignal(models.Model):
         except (KeyError, TypeError, ValueError, AttributeError, IndexError) as error:
             detail = f"lacks {error}" if isinstance(error, KeyError) else str(error)
             raise StoredDataError(self, "control", f"is no control description ({detail})") from None
+
+    def recorded_options(self) -> DatasetOptions | None:
+        """The dataset options a held-out control's take was read with, as recorded when it
+        was added (None where none were: controls made before they were recorded)."""
+        if not self.natural:
+            return None
+        try:
+            return DatasetOptions.from_dict(json_object(self, "natural")["options"])
+        except StoredDataError:
+            raise
+        except (KeyError, TypeError, ValueError, AttributeError) as error:
+            raise StoredDataError(self, "natural", f"holds no readable dataset options ({error!r})") from None
 
     @property
     def lead_in_seconds(self) -> float:
@@ -427,10 +430,13 @@ class Stimulus(models.Model):
         DONE = "done", "done"
         FAILED = "failed", "failed"
 
+    # ``seed`` is a 32-bit column, which PostgreSQL enforces (SQLite would store more).
+    MAX_SEED = 2**31 - 1
+
     study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="stimuli")
     system = models.ForeignKey(System, on_delete=models.CASCADE, related_name="stimuli")
     control = models.ForeignKey(ControlSignal, on_delete=models.CASCADE, related_name="stimuli", null=True, blank=True)
-    seed = models.IntegerField(default=0, validators=[SEED])
+    seed = models.IntegerField(default=0)
     content_key = models.CharField(max_length=64)
     token = models.CharField(max_length=32, unique=True, default=new_token, editable=False)
     status = models.CharField(max_length=10, choices=Status.choices, default=Status.PENDING)
@@ -503,12 +509,20 @@ class Participant(models.Model):
     def __str__(self) -> str:
         return f"{self.platform_id} in {self.study}"
 
+    def practice_ids(self) -> list[int]:
+        """The ids of the practice stimuli, in order (StoredDataError if ``training`` holds anything else)."""
+        if not (isinstance(self.training, list) and all(type(pk) is int for pk in self.training)):
+            raise StoredDataError(self, "training", "must be a JSON list of stimulus ids")
+        return self.training
+
     def clean(self) -> None:
         for field in ("answers", "platform_data"):
             if not isinstance(getattr(self, field), dict):
                 raise ValidationError({field: "must be a JSON object"})
-        if not (isinstance(self.training, list) and all(type(pk) is int for pk in self.training)):
-            raise ValidationError({"training": "must be a JSON list of stimulus ids"})
+        try:
+            self.practice_ids()
+        except StoredDataError:
+            raise ValidationError({"training": "must be a JSON list of stimulus ids"}) from None
 
 
 ANSWER_BOUND = Within(-1e9, 1e9, "a number a participant types")
@@ -627,3 +641,38 @@ class Rating(models.Model):
 
     class Meta:
         ordering = ["answered_at"]
+
+
+class PlatformAction(models.Model):
+    """One request sent to a crowd platform's API for a study (``studyapp.platforms``): the
+    log of what was approved, rejected, asked back or paid, and the record that makes a
+    retry send only what has not been done.
+
+    ``key`` names what the request does to whom (``approve:<submission>``); a key with a
+    ``done`` row is never sent again. The request is kept as it was sent, never with the
+    researcher's credentials.
+    """
+
+    class Outcome(models.TextChoices):
+        DONE = "done", "done"
+        FAILED = "failed", "failed"
+
+    study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="platform_actions")
+    participant = models.ForeignKey(Participant, on_delete=models.SET_NULL, null=True, blank=True,
+                                    related_name="platform_actions")
+    researcher = models.ForeignKey(settings.AUTH_USER_MODEL, on_delete=models.SET_NULL, null=True, blank=True)
+    platform = models.CharField(max_length=10, choices=Study.Platform.choices)
+    key = models.CharField(max_length=200)
+    action = models.CharField(max_length=30)
+    request = models.JSONField(help_text="what was sent: method or operation, address, body")
+    outcome = models.CharField(max_length=10, choices=Outcome.choices)
+    response = models.JSONField(default=dict, blank=True, help_text="the platform's answer, or its error")
+    sent_at = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["study", "sent_at", "pk"]
+        constraints = [models.UniqueConstraint(fields=["study", "key"], condition=models.Q(outcome="done"),
+                                               name="one_done_platform_action_per_key")]
+
+    def __str__(self) -> str:
+        return f"{self.action} {self.key} [{self.outcome}]"

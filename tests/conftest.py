@@ -42,3 +42,17 @@ def motion_data_2() -> Path:
 def clip_path(motion_data):
     """Path of a named clip, e.g. clip_path('walk-left_normal_001')."""
     return lambda name: motion_data / "data" / f"dataset-1_{name}.bvh"
+
+
+@pytest.fixture(autouse=True)
+def fast_password_hashing():
+    """Passwords made in tests are hashed with one round of MD5: the real hasher's million
+    rounds cost 0.7 s a password on this machine, and no test measures them. Hashes made
+    by the real hasher (in a subprocess's createsuperuser) still check. (Not through the
+    ``settings`` fixture: some tests have a parameter of that name.)"""
+    from django.conf import settings
+    from django.test import override_settings
+
+    hashers = ["django.contrib.auth.hashers.MD5PasswordHasher", *(h for h in settings.PASSWORD_HASHERS if "MD5" not in h)]
+    with override_settings(PASSWORD_HASHERS=hashers):
+        yield

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from studyapp.models import Participant, Rating, Study
+from studyapp.models import Participant, Rating
 from studyapp.participants.simulated import main, run_participants
 from tests.study_fixtures import make_study
 
@@ -21,7 +21,7 @@ def test_simulated_participants_play_every_clip_to_its_end_locked_or_not(live_se
 
 
 @pytest.mark.django_db(transaction=True)
-@pytest.mark.parametrize("design", [Study.Design.SIDE_BY_SIDE, Study.Design.PAIRWISE])
+@pytest.mark.parametrize("design", ["side-by-side", "pairwise"])
 def test_simulated_participants_play_every_clip_of_a_page_to_its_end(live_server, design):
     study = make_study(design=design, controls=2, pages_per_participant=2, bad_checks=0, training_clips=0,
                        clip_seconds=0.5, scale_min=0, scale_max=100, bad_threshold=6.0, natural_threshold=0.0)

@@ -10,7 +10,7 @@ import pytest
 from django.test import Client
 from django.urls import reverse
 
-from studyapp.designs.ratings import current_assignment
+from tests.study_fixtures import current_clip
 from studyapp.models import Participant, Stimulus
 from studyapp.participants import views as participant_views
 from tests.study_fixtures import make_study
@@ -71,7 +71,7 @@ def test_each_clip_page_fetches_the_next_clip_ahead():
         expected = order[index + 1].stimulus.video_url if index + 1 < len(order) else None
         assert prefetched(client, study) == expected
         rate_current(client, study, participant, 3)
-    assert current_assignment(participant) is None
+    assert current_clip(participant) is None
 
 
 def test_the_completion_page_offers_to_copy_the_code():

@@ -13,7 +13,7 @@ from django.utils import timezone
 from scipy import stats
 
 from studyapp.models import Assignment, Participant, Question, Rating, Study
-from studyapp.researchers.checklist import study_steps
+from studyapp.researchers.checklist import checklist
 from studyapp.researchers.forms import StudyForm
 from studyapp.researchers.monitor import study_monitor
 from tests.study_fixtures import make_study
@@ -21,14 +21,14 @@ from tests.study_fixtures import make_study
 pytestmark = pytest.mark.django_db
 
 
-def test_the_steps_say_what_is_done_and_what_is_missing():
+def test_the_checklist_says_what_is_done_and_what_is_missing():
     study = make_study(is_open=False, completion_code="")
     empty = Study.objects.create(owner=study.owner, title="Empty")
-    assert [(s.name, s.done) for s in study_steps(empty)] == [
+    assert [(s.name, s.done) for s in checklist(empty)] == [
         ("Settings", True), ("Systems", False), ("Controls", False), ("Stimuli", False), ("Preview", False),
         ("Open", False)]
-    assert [s.note for s in study_steps(empty)][1:4] == ["no model system yet", "none yet", "none generated"]
-    steps = study_steps(study)
+    assert [s.note for s in checklist(empty)][1:4] == ["no model system yet", "none yet", "none generated"]
+    steps = checklist(study)
     assert [s.done for s in steps] == [True, True, True, True, True, False]
     assert steps[3].note == "12 of 12 clips finished" and "completion code" in steps[5].note  # why it cannot open
     client = Client()
@@ -52,8 +52,8 @@ def test_the_preview_shows_every_page_in_order_and_records_nothing():
         if "Next page" not in page:
             break
         url = page.split('<a href="')[1].split('"')[0]
-    assert names == ["1 of 7 (device check)", "2 of 7 (consent)", "3 of 7 (screening)", "4 of 7 (instructions)",
-                     "5 of 7 (a clip to rate)", "6 of 7 (closing questions)", "7 of 7 (completion)"]
+    assert names == ["1 of 8 (device check)", "2 of 8 (consent)", "3 of 8 (screening)", "4 of 8 (instructions)",
+                     "5 of 8 (practice)", "6 of 8 (a page to rate)", "7 of 8 (closing questions)", "8 of 8 (completion)"]
     assert "C0MPL3TE" in page
     assert (Participant.objects.count(), Assignment.objects.count(), Rating.objects.count()) == (0, 0, 0)
     stranger = Client()
@@ -144,3 +144,20 @@ def test_systems_and_controls_can_be_removed_with_their_clips_until_someone_star
     stranger.force_login(User.objects.create(username="stranger"))
     assert stranger.post(reverse("study-remove", args=[study.pk, "systems", moglow.pk])).status_code == 404
     assert client.post(reverse("study-remove", args=[study.pk, "studies", moglow.pk])).status_code == 404
+
+
+@pytest.mark.parametrize("fields, per_page_s, pages, practice", [
+    # single: 8 clips of 6 s, 4 practice clips; a clip and a rating (5 s) a page
+    ({"clips_per_participant": 8, "training_clips": 4}, 6 + 5, 8, 4),
+    # pairwise: 8 pages of 2 clips and one choice; 4 practice clips make 2 practice pages
+    ({"design": "pairwise", "pages_per_participant": 8, "training_clips": 4}, 2 * 6 + 5, 8, 2),
+], ids=["single", "pairwise"])
+def test_the_settings_card_says_how_long_to_advertise_and_how_it_was_reckoned(fields, per_page_s, pages, practice):
+    study = make_study(clip_seconds=6.0, controls=4, **fields)
+    Question.objects.create(study=study, part=Question.Part.AFTER, name="c", text="Comments?", kind="text")
+    seconds = (pages + practice) * per_page_s + 60 + 15  # and a minute to start, 15 s a question
+    note = checklist(study)[0].note
+    assert f"advertise about {math.ceil(seconds / 60)} min" in note
+    assert f"{pages} " in note and f"and {practice} practice" in note and "6.0 s" in note
+    assert ("scale 1–5" in note) is (study.design == "single")  # a preference has no scale
+

@@ -127,10 +127,10 @@ def _steps_done(participant: Participant, through: str) -> dict:
 
 
 def on_step(step: str) -> OnStep:
-    design = {"rate-page": {"design": Study.Design.SIDE_BY_SIDE, "scale_min": 0, "scale_max": 100,
-                            "pages_per_participant": 2},
-              "compare": {"design": Study.Design.PAIRWISE, "pages_per_participant": 4, "bad_checks": 0,
-                          "preference_strengths": 3}}.get(step, {})
+    design = {"rate (side-by-side)": {"design": "side-by-side", "scale_min": 0, "scale_max": 100,
+                                      "pages_per_participant": 2},
+              "rate (pairwise)": {"design": "pairwise", "pages_per_participant": 4, "bad_checks": 0,
+                                  "preference_strengths": 3}}.get(step, {})
     study = make_study(device_check=step == "device", min_screen_width=800, min_screen_height=600, **design)
     before = {"screening": "consented_at", "device": "", "consent": "device_checked_at"}
     Question.objects.create(study=study, part=Question.Part.BEFORE, name="language", text="English first?",
@@ -161,19 +161,20 @@ def on_step(step: str) -> OnStep:
         "screening": {"q-language": "yes", "q-age": "30"},
         "instructions": {},
         "practice": {"index": "0", "value": "3"},
-        "rate": {"assignment": "<token>", "value": "4", **times},
-        "rate-page": {"page": "<token>", **{f"value-{slot}": "50" for slot in slots},
-                      **{f"{name}-{slot}": value for slot in slots for name, value in times.items()}},
-        "compare": {"page": "<token>", "answer": "left", "strength": "2",
-                    **{f"{name}-{slot}": value for slot in slots for name, value in times.items()}},
+        "rate (single)": {"assignment": "<token>", "value": "4", **times},
+        "rate (side-by-side)": {"page": "<token>", **{f"value-{slot}": "50" for slot in slots},
+                                **{f"{name}-{slot}": value for slot in slots for name, value in times.items()}},
+        "rate (pairwise)": {"page": "<token>", "answer": "left", "strength": "2",
+                            **{f"{name}-{slot}": value for slot in slots for name, value in times.items()}},
         "survey": {"q-hours": "12", "q-notes": "fine"},
     }[step]
-    return OnStep(_browser(participant), reverse(f"participant-{step}", args=[study.key]), valid,
+    url_step = step.split(" ")[0]  # every design's pages post to one step, "rate"
+    return OnStep(_browser(participant), reverse(f"participant-{url_step}", args=[study.key]), valid,
                   {"<token>": first.token if first else ""})
 
 
-PARTICIPANT_STEPS = ["device", "consent", "screening", "instructions", "practice", "rate", "rate-page", "compare",
-                     "survey"]
+PARTICIPANT_STEPS = ["device", "consent", "screening", "instructions", "practice", "rate (single)",
+                     "rate (side-by-side)", "rate (pairwise)", "survey"]
 
 
 @pytest.fixture

@@ -179,7 +179,7 @@ NESTED = "[" * 100_000 + "]" * 100_000
 
 @pytest.mark.django_db
 @pytest.mark.parametrize("data, message", [
-    (_framed(NESTED.encode()), "model.safetensors: not a safetensors file (its header is nested too deeply)"),
+    (_framed(NESTED.encode()), "model.safetensors: not a readable safetensors file"),
     (_framed(json.dumps({"__metadata__": {FORMAT_KEY: NESTED, "digest": "0"}}).encode()),
      "model.safetensors: the checkpoint&#x27;s JSON header is nested too deeply"),
 ], ids=["the safetensors header", "the checkpoint's description"])

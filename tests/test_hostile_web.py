@@ -219,8 +219,8 @@ def test_a_hostile_control_file_is_a_400_naming_the_field_and_adds_nothing(name,
                                                                            researcher):
     study = Study.objects.create(owner=researcher, title="Gait", video_width=160, video_height=120)
     # A checkpoint system as far as the controls need one: the data options it was trained on.
-    System.objects.create(study=study, name="MoGlow", checkpoint="model.safetensors",
-                          metadata={"dataset_options": DatasetOptions().to_dict(), "control": "path"})
+    System.objects.create(study=study, name="MoGlow", checkpoint="model.safetensors", kind="moglow",
+                          metadata={"dataset_options": DatasetOptions().to_dict()})
     response = client.post(f"/studies/{study.pk}/controls/",
                            {"action": "file", "description": SimpleUploadedFile(name, content)})
     assert response.status_code == 400
@@ -285,3 +285,12 @@ def test_study_commands_refuse_bad_input_with_exit_status_2(command, tmp_path):
     with pytest.raises(CommandError, match="no study with id 9999") as refused:
         call_command(*[word.format(tmp=tmp_path) for word in command])
     assert refused.value.returncode == 2
+
+
+@pytest.mark.django_db
+def test_a_checkpoint_of_a_kind_the_registry_does_not_know_is_named_on_the_controls_page(client, researcher):
+    study = Study.objects.create(owner=researcher, title="Gait", video_width=160, video_height=120)
+    System.objects.create(study=study, name="Old model", checkpoint="model.safetensors", kind="uninstalled-kind",
+                          metadata={"dataset_options": DatasetOptions().to_dict()})
+    page = client.get(f"/studies/{study.pk}/controls/").content.decode()
+    assert "Old model is a &#x27;uninstalled-kind&#x27; model, a kind this server does not know" in page

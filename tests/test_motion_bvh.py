@@ -161,13 +161,15 @@ def test_a_failed_write_leaves_no_partial_file(small_bvh, tmp_path, monkeypatch)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["small.bvh"]
 
 
-def test_position_only_motion_writes_a_bvh_that_reproduces_its_positions(clip_path, tmp_path):
+def test_position_only_motion_writes_a_rotation_bvh_that_reproduces_its_positions(clip_path, tmp_path):
     from generation.motion import Motion
+    from generation.motion.dataset import load_body_motion
 
-    motion = load_motion(clip_path("walk_normal_001"))
+    motion = load_body_motion(clip_path("walk_normal_001"), 30.0)  # the body, as models give it
     positions_only = Motion(motion.positions, motion.fps, motion.skeleton)
-    again = load_motion(write_bvh(motion_to_bvh(positions_only), tmp_path / "positions.bvh"))
-    np.testing.assert_allclose(again.positions, motion.positions, atol=1e-5)
+    written = read_bvh(write_bvh(motion_to_bvh(positions_only), tmp_path / "positions.bvh"))
+    assert [len(names) for names in written.channels] == [6] + [3] * (motion.skeleton.n_joints - 1)
+    np.testing.assert_allclose(written.to_motion().positions, motion.positions, atol=1e-4)
 
 
 @pytest.mark.parametrize("unit", ["m", "in"])
@@ -175,11 +177,12 @@ def test_position_only_motion_writes_a_bvh_that_reproduces_its_positions(clip_pa
 def test_motion_written_in_another_unit_reads_back_as_the_same_centimetres_with_the_unit_detected(
         clip_path, tmp_path, unit, kind):
     from generation.motion import Motion
+    from generation.motion.dataset import load_body_motion
     from generation.motion.unit_detection import choose_units
     from generation.motion.units import Units
     from measures.units import UNITS
 
-    motion = load_motion(clip_path("walk_normal_001"))
+    motion = load_body_motion(clip_path("walk_normal_001"), 30.0)
     if kind == "positions only":  # as MoGlow and its baselines write it
         motion = Motion(motion.positions, motion.fps, motion.skeleton)
     path = write_bvh(motion_to_bvh(motion, unit=unit), tmp_path / f"{unit}.bvh")

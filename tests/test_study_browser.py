@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from django.urls import reverse
 
-from studyapp.designs.ratings import current_assignment
+from tests.study_fixtures import current_clip
 from studyapp.models import Participant, Rating, System
 from tests.study_fixtures import make_study, render_clip_video
 
@@ -77,7 +77,7 @@ def take_part(browser, live_server, study, pid: str, value_for, early_at: int | 
         page.get_by_role("button", name="3", exact=True).click()
     if phone:  # everything fits the width of a phone: no sideways scrolling
         assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth")
-    while (assignment := current_assignment(participant)) is not None:
+    while (assignment := current_clip(participant)) is not None:
         page.wait_for_selector("#clip")
         if assignment.position != early_at:
             wait_for_clip_end(page)

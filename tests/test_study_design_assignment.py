@@ -10,7 +10,7 @@ from datetime import timedelta
 import pytest
 from django.utils import timezone
 
-from studyapp.designs.page_assignment import page_loads
+from studyapp.designs.multi_clip import page_loads
 from studyapp.models import Assignment, Participant, Rating, Stimulus, Study, System
 from studyapp.participants.assignment import StudyFull, enrol
 from studyapp.participants.simulated import run_participants
@@ -58,7 +58,7 @@ def test_single_design_gives_each_participant_every_system_evenly():
 
 @pytest.mark.django_db
 def test_side_by_side_pages_reach_their_target_never_pass_it_and_positions_are_counterbalanced():
-    study = make_study(design=Study.Design.SIDE_BY_SIDE, scale_min=0, scale_max=100, controls=3,
+    study = make_study(design="side-by-side", scale_min=0, scale_max=100, controls=3,
                        pages_per_participant=2, ratings_per_stimulus=6, bad_checks=0)
     enrolled = enrol_until_full(study)
     assert len(enrolled) == 3 * 6 // 2
@@ -76,7 +76,7 @@ def test_side_by_side_pages_reach_their_target_never_pass_it_and_positions_are_c
 @pytest.mark.django_db
 def test_pairwise_pairs_reach_their_target_sides_balance_and_each_participant_sees_systems_evenly():
     # 3 controls x 3 pairs of (MoGlow, RNN, NAT) x 2 answers = 18 pages; 3 rated pages each (+1 BAD-vs-NAT check).
-    study = make_study(design=Study.Design.PAIRWISE, controls=3, pages_per_participant=4, ratings_per_stimulus=2,
+    study = make_study(design="pairwise", controls=3, pages_per_participant=4, ratings_per_stimulus=2,
                        bad_checks=1)
     enrolled = enrol_until_full(study)
     assert len(enrolled) == 18 // 3
@@ -97,12 +97,12 @@ def test_pairwise_pairs_reach_their_target_sides_balance_and_each_participant_se
 @pytest.mark.django_db(transaction=True)
 @pytest.mark.parametrize("design, pages, expected", [
     # 4 controls x 3 systems on one page each, 3 answers each, 2 pages a participant: 6 fit.
-    (Study.Design.SIDE_BY_SIDE, 2, 6),
+    ("side-by-side", 2, 6),
     # 4 controls x 3 pairs, 2 answers each, 3 pages a participant: 8 fit.
-    (Study.Design.PAIRWISE, 3, 8),
+    ("pairwise", 3, 8),
 ])
 def test_simultaneous_participants_never_pass_a_page_target_and_lose_no_answer(live_server, design, pages, expected):
-    target = 3 if design == Study.Design.SIDE_BY_SIDE else 2
+    target = 3 if design == "side-by-side" else 2
     study = make_study(design=design, controls=4, pages_per_participant=pages, ratings_per_stimulus=target,
                        bad_checks=0, training_clips=0, clip_seconds=0.01, scale_min=0, scale_max=100,
                        bad_threshold=6.0, natural_threshold=0.0)
@@ -114,7 +114,7 @@ def test_simultaneous_participants_never_pass_a_page_target_and_lose_no_answer(l
     assert all("The study is full" in o.final_page for o in outcomes if not o.finished)
     assert not Rating.objects.filter(answered_before_end=True).exists()
     assert set(page_loads(study, an_hour_ago()).values()) == {target}
-    clips_per_page = 3 if design == Study.Design.SIDE_BY_SIDE else 2
+    clips_per_page = 3 if design == "side-by-side" else 2
     assert Rating.objects.count() == expected * pages * clips_per_page
 
 
@@ -122,7 +122,7 @@ def test_simultaneous_participants_never_pass_a_page_target_and_lose_no_answer(l
 def test_an_idle_participant_back_after_their_page_was_filled_by_others_loses_only_that_page():
     from studyapp.participants.assignment import renew_reservations
 
-    study = make_study(design=Study.Design.SIDE_BY_SIDE, scale_min=0, scale_max=100, controls=2,
+    study = make_study(design="side-by-side", scale_min=0, scale_max=100, controls=2,
                        pages_per_participant=2, ratings_per_stimulus=1, bad_checks=0, reservation_minutes=30)
     idle = enrol(study, "idle", {})
     with pytest.raises(StudyFull):

@@ -11,11 +11,11 @@ from django.test import Client
 from django.utils import timezone
 
 from analysis.ratings import read_ratings
-from studyapp.designs.page_assignment import page_loads
-from studyapp.designs.page_ratings import current_page
-from studyapp.designs.ratings import current_assignment
-from studyapp.models import Participant, Rating, Study, System
-from studyapp.researchers.monitor import ratings_csv
+from studyapp.designs.multi_clip import page_loads
+from tests.study_fixtures import current_clip, current_page
+from studyapp.designs.rules import StudyRules
+from studyapp.models import Participant, Rating, System
+from studyapp.researchers.export import ratings_csv
 from tests.study_fixtures import make_study
 from tests.test_study_designs import PAIRWISE, SIDE_BY_SIDE, compare, page_html, rate_page, through_practice
 from tests.test_study_participant import post, rate_current
@@ -68,19 +68,19 @@ def test_an_instructed_check_on_a_single_clip_counts_failures_and_is_never_expor
     participant = through_single_practice(client, study)
     checks = participant.assignments.exclude(expected="")
     assert checks.count() == 1 and checks.get().position > 0  # never the first page
-    while not current_assignment(participant).expected:
+    while not current_clip(participant).expected:
         rate_current(client, study, participant, 3)
-    expected = int(current_assignment(participant).expected)
+    expected = int(current_clip(participant).expected)
     assert f"please answer {expected}." in page_html(client, study)
     wrong = study.scale_min if expected != study.scale_min else study.scale_max
     rate_current(client, study, participant, wrong)
     participant.refresh_from_db()
     assert participant.failed_checks == 1 and participant.stopped_at is None and not participant.excluded
-    while current_assignment(participant):
+    while current_clip(participant):
         rate_current(client, study, participant, 3)
     assert "C0MPL3TE" in page_html(client, study)  # one failure, no limit set: the session goes on
     table = read_ratings(io.StringIO(ratings_csv(study).decode()))
-    assert len(table) == Rating.objects.count() - 1 == 4
+    assert len(table) == Rating.objects.count() - 1 == 3  # the check is one of the 4 clips
 
 
 @pytest.mark.parametrize("settings, answer_well", [
@@ -88,7 +88,8 @@ def test_an_instructed_check_on_a_single_clip_counts_failures_and_is_never_expor
     (PAIRWISE, lambda page: page[0].expected),
 ])
 def test_instructed_checks_of_side_by_side_and_pairwise_pass_when_followed(settings, answer_well):
-    study = make_study(**{**settings, "bad_checks": 0, "instructed_checks": 2, "stop_after_failed_checks": 1})
+    study = make_study(**{**settings, "pages_per_participant": 4, "bad_checks": 0, "instructed_checks": 2,
+                          "stop_after_failed_checks": 1})
     client = Client()
     participant = through_practice(client, study)
     while current_page(participant):
@@ -97,11 +98,11 @@ def test_instructed_checks_of_side_by_side_and_pairwise_pass_when_followed(setti
         if page[0].expected:
             assert "Attention check" in html
             good = answer_well(page)
-            response = (rate_page(client, study, participant, good) if study.design == Study.Design.SIDE_BY_SIDE
+            response = (rate_page(client, study, participant, good) if study.design == "side-by-side"
                         else compare(client, study, participant, good))
         else:
             assert "Attention check" not in html
-            response = (rate_page(client, study, participant) if study.design == Study.Design.SIDE_BY_SIDE
+            response = (rate_page(client, study, participant) if study.design == "side-by-side"
                         else compare(client, study, participant, "none"))
         assert response.status_code == 302
     participant.refresh_from_db()
@@ -124,7 +125,7 @@ def test_a_session_ends_politely_after_the_studys_number_of_failed_instructed_ch
     assert participant.failed_checks == 2 and participant.stopped_at and participant.finished_at
     html = page_html(client, study)
     assert "Thank you for your time" in html and "C0MPL3TE" not in html
-    assert post(client, study, "compare", page="0" * 32, answer="left").status_code == 409
+    assert post(client, study, "rate", page="0" * 32, answer="left").status_code == 409
     # Their unanswered pages no longer hold places: only the pages they answered count.
     answered = participant.assignments.filter(rating__isnull=False, expected="").values("page").distinct().count()
     assert participant.assignments.filter(rating__isnull=True).exists()
@@ -134,10 +135,9 @@ def test_a_session_ends_politely_after_the_studys_number_of_failed_instructed_ch
 @pytest.mark.parametrize("settings", [SIDE_BY_SIDE, PAIRWISE])
 def test_the_analysis_recomputes_the_apps_flags_of_each_design_and_agrees(settings):
     from analysis.exclusions import apply_exclusions, exclusion_notes
-    from studyapp.researchers.monitor import exclusion_rules
 
     study = make_study(**{**settings, "bad_checks": 1, "instructed_checks": 1})
-    side_by_side = study.design == Study.Design.SIDE_BY_SIDE
+    side_by_side = study.design == "side-by-side"
     for pid, careful, hasty in (("careful", True, False), ("careless", False, False), ("hasty", True, True)):
         client = Client()
         participant = through_practice(client, study, pid)
@@ -156,6 +156,22 @@ def test_the_analysis_recomputes_the_apps_flags_of_each_design_and_agrees(settin
             first = False
     flags = {p.platform_id: p.excluded for p in Participant.objects.filter(study=study)}
     assert flags == {"careful": False, "careless": True, "hasty": False}
-    flagged = apply_exclusions(read_ratings(io.StringIO(ratings_csv(study).decode())), exclusion_rules(study))
-    assert not [note for note in exclusion_notes(flagged, exclusion_rules(study)) if "disagrees" in note]
+    flagged = apply_exclusions(read_ratings(io.StringIO(ratings_csv(study).decode())), StudyRules.of(study).exclusion)
+    assert not [note for note in exclusion_notes(flagged, StudyRules.of(study).exclusion) if "disagrees" in note]
     assert flagged["discarded_early"].any() and flagged["excluded_participant"].any()
+
+
+@pytest.mark.parametrize("settings, heading", [
+    ({"clips_per_participant": 8}, "Clip 1 of 8"),
+    ({**SIDE_BY_SIDE, "pages_per_participant": 8}, "Page 1 of 8"),
+    ({**PAIRWISE, "pages_per_participant": 8}, "Page 1 of 8"),
+], ids=["single", "side-by-side", "pairwise"])
+def test_instructed_checks_are_counted_among_the_pages_a_participant_answers(settings, heading):
+    study = make_study(**settings, controls=8, instructed_checks=1, training_clips=0)
+    client = Client()
+    participant = through_practice(client, study)
+    pages = participant.assignments.values_list("page", flat=True).distinct().count()
+    instructed = participant.assignments.exclude(expected="").values_list("page", flat=True).distinct().count()
+    assert (pages, instructed) == (8, 1)
+    assert heading in page_html(client, study)
+

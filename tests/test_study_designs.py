@@ -11,17 +11,16 @@ from django.test import Client
 from django.urls import reverse
 
 from analysis.ratings import read_ratings
-from studyapp.designs.page_ratings import current_page
-from studyapp.models import Participant, Rating, Study, System
+from studyapp.models import Participant, Rating, Stimulus, Study, System
+from studyapp.researchers.export import ratings_csv
 from studyapp.researchers.forms import StudyForm
-from studyapp.researchers.monitor import ratings_csv
-from tests.study_fixtures import make_study
+from tests.study_fixtures import current_page, make_study
 from tests.test_study_participant import enter, make_shown_long_ago, post
 
 pytestmark = pytest.mark.django_db
 
-SIDE_BY_SIDE = {"design": Study.Design.SIDE_BY_SIDE, "scale_min": 0, "scale_max": 100, "pages_per_participant": 2}
-PAIRWISE = {"design": Study.Design.PAIRWISE, "pages_per_participant": 4}
+SIDE_BY_SIDE = {"design": "side-by-side", "scale_min": 0, "scale_max": 100, "pages_per_participant": 2}
+PAIRWISE = {"design": "pairwise", "pages_per_participant": 4}
 
 
 def watched(slots) -> dict:
@@ -54,13 +53,13 @@ def rate_page(client: Client, study: Study, participant: Participant, value_of=l
     page = current_page(participant)
     make_shown_long_ago(participant)
     values = {f"value-{a.slot}": value_of(a) for a in page}
-    return post(client, study, "rate-page", page=page_token(html), **{**values, **watched(a.slot for a in page), **extra})
+    return post(client, study, "rate", page=page_token(html), **{**values, **watched(a.slot for a in page), **extra})
 
 
 def compare(client: Client, study: Study, participant: Participant, answer: str = "left", **extra):
     html = page_html(client, study)
     make_shown_long_ago(participant)
-    return post(client, study, "compare", page=page_token(html), answer=answer, **{**watched((1, 2)), **extra})
+    return post(client, study, "rate", page=page_token(html), answer=answer, **{**watched((1, 2)), **extra})
 
 
 def test_a_side_by_side_page_shows_every_system_of_one_control_under_neutral_labels():
@@ -81,14 +80,30 @@ def test_a_side_by_side_page_shows_every_system_of_one_control_under_neutral_lab
     assert "control-" not in html
 
 
-def test_practice_of_a_side_by_side_study_is_watched_not_rated():
-    study = make_study(**SIDE_BY_SIDE, controls=4)
+@pytest.mark.parametrize("settings, answer_field", [(SIDE_BY_SIDE, 'type="range"'), (PAIRWISE, 'name="answer"')])
+def test_practice_shows_the_designs_own_page_locked_until_played_and_records_nothing(settings, answer_field):
+    study = make_study(**settings, controls=4, training_clips=3, bad_checks=0)
     client = Client()
     enter(client, study)
     post(client, study, "consent", agree="yes")
     post(client, study, "instructions")
-    html = page_html(client, study)
-    assert ">Next</button>" in html and 'name="value"' not in html
+    participant = Participant.objects.get(study=study)
+    practice = Stimulus.objects.filter(pk__in=participant.training)
+    rated = {a.stimulus.control_id for a in participant.assignments.select_related("stimulus")}
+    pages = 0
+    while (participant := Participant.objects.get(pk=participant.pk)).training_done < len(participant.training):
+        html = page_html(client, study)
+        assert "Practice page" in html and "(not recorded)" in html and answer_field in html
+        assert re.search(r'<button type="submit"[^>]* disabled', html)  # until every clip has played
+        assert re.findall(r"<h2>Clip (\w)</h2>", html)[:2] == ["A", "B"]
+        assert post(client, study, "practice", index=participant.training_done, answer="left",
+                    **{"value-1": 50}).status_code == 302
+        pages += 1
+    # About training_clips clips in whole pages, none of a control (side by side) the participant rates.
+    assert pages == (1 if settings is SIDE_BY_SIDE else 2) and not Rating.objects.exists()
+    if settings is SIDE_BY_SIDE:
+        assert not {s.control_id for s in practice} & rated and practice.count() >= study.training_clips
+    assert "Practice" not in page_html(client, study)  # the rated pages follow
 
 
 def test_side_by_side_answers_are_stored_per_clip_and_export_in_the_schema():
@@ -118,13 +133,34 @@ def test_a_side_by_side_page_without_every_rating_or_off_the_scale_is_refused_an
     participant = through_practice(client, study)
     html = page_html(client, study)
     make_shown_long_ago(participant)
-    missing = post(client, study, "rate-page", page=page_token(html), **{"value-1": 50}, **watched((1,)))
+    missing = post(client, study, "rate", page=page_token(html), **{"value-1": 50}, **watched((1,)))
     assert missing.status_code == 400 and "needs a rating" in missing.content.decode()
     values = {f"value-{slot}": 50 for slot in (1, 2, 3)}
-    off = post(client, study, "rate-page", page=page_token(html), **{**values, "value-2": 101}, **watched((1, 2, 3)))
+    off = post(client, study, "rate", page=page_token(html), **{**values, "value-2": 101}, **watched((1, 2, 3)))
     assert off.status_code == 400 and "outside the scale" in off.content.decode()
-    assert post(client, study, "rate", assignment=page_token(html), value=3).status_code == 409  # not this design
+    assert post(client, study, "rate", assignment=page_token(html), value=3).status_code == 403  # names no page
     assert not Rating.objects.exists()
+
+
+@pytest.mark.parametrize("settings", [SIDE_BY_SIDE, PAIRWISE])
+def test_a_page_answered_sooner_than_its_clips_last_is_refused_with_409_and_counted(settings):
+    from studyapp.researchers.monitor import study_monitor
+
+    study = make_study(**settings, bad_checks=0)  # the full-play rule is on by default
+    client = Client()
+    participant = through_practice(client, study)
+    html = page_html(client, study)  # the server has just sent the page: its 4 s clips cannot have played
+    page = current_page(participant)
+    answer = {f"value-{a.slot}": 50 for a in page} if settings is SIDE_BY_SIDE else {"answer": "left"}
+    answer.update(watched(a.slot for a in page))  # whatever the browser claims
+    response = post(client, study, "rate", page=page_token(html), **answer)
+    assert response.status_code == 409 and "Please watch every clip to its end" in response.content.decode()
+    assert not Rating.objects.exists() and current_page(participant) == page
+    assert Participant.objects.get(pk=participant.pk).refused_early == 1
+    assert study_monitor(study).participants_early == 1
+    make_shown_long_ago(participant)
+    assert post(client, study, "rate", page=page_token(html), **answer).status_code == 302
+    assert not Rating.objects.filter(answered_before_end=True).exists()
 
 
 def test_a_pairwise_page_shows_two_systems_of_one_control_and_stores_the_answer_on_both():
@@ -159,7 +195,7 @@ def test_the_design_is_fixed_once_participants_start_and_side_by_side_rates_on_0
     study = make_study()
     shown = StudyForm(instance=study)
     camera = {name: shown.fields[name].initial for name in shown.camera_fields() if shown.fields[name].initial is not None}
-    form = StudyForm({**shown.initial, **camera, "design": Study.Design.SIDE_BY_SIDE,
+    form = StudyForm({**shown.initial, **camera, "design": "side-by-side",
                       "scale_min": study.scale_min, "scale_max": study.scale_max}, instance=study)
     assert form.is_valid(), form.errors
     assert (form.cleaned_data["scale_min"], form.cleaned_data["scale_max"]) == (0, 100)
@@ -173,7 +209,7 @@ def answer_everything(study: Study, pids: list[str], value_of=None) -> None:
         client = Client()
         participant = through_practice(client, study, pid)
         while current_page(participant):
-            if study.design == Study.Design.SIDE_BY_SIDE:
+            if study.design == "side-by-side":
                 rate_page(client, study, participant, value_of)
             else:  # the left clip, or the other one where it is BAD (an attention check)
                 bad_left = current_page(participant)[0].stimulus.system.role == System.Role.BAD
@@ -243,9 +279,9 @@ def test_made_up_clips_and_numbers_in_a_page_form_are_refused_with_a_message():
     token = page_token(page_html(client, study))
     values = {f"value-{slot}": 50 for slot in (1, 2, 3)}
     for extra in ({"value-99999999999": 50}, {"value-2": "fifty"}, {"started_s-1": "soon"}):
-        response = post(client, study, "rate-page", page=token, **{**values, **watched((1, 2, 3)), **extra})
+        response = post(client, study, "rate", page=token, **{**values, **watched((1, 2, 3)), **extra})
         assert response.status_code == 400, extra
-    assert post(client, study, "rate-page", page="f" * 32, **values).status_code == 403
+    assert post(client, study, "rate", page="f" * 32, **values).status_code == 403
     assert not Rating.objects.exists() and current_page(participant)
 
 

@@ -14,8 +14,9 @@ import pytest
 from django.utils import timezone
 from scipy import stats
 
-from studyapp.designs.ratings import EXPORT_COLUMNS
+from analysis.exclusions import scaled_threshold
 from studyapp.models import Assignment, Participant, Rating, Stimulus
+from studyapp.researchers.export import EXPORT_COLUMNS
 from studyapp.researchers.monitor import study_monitor
 from tests.study_fixtures import make_study
 
@@ -37,7 +38,7 @@ def store_ratings(study) -> None:
             assignment = Assignment.objects.create(participant=participant, stimulus=stimulus, position=position, page=position,
                                                    shown_at=now)
             Rating.objects.create(assignment=assignment, value=value, answered_before_end=early)
-            if system == "BAD" and value >= study.bad_cutoff():
+            if system == "BAD" and value >= scaled_threshold(study.bad_threshold, study.scale_min, study.scale_max):
                 participant.excluded, participant.exclusion_reason = True, "rated a BAD clip high"
         participant.save()
     Participant.objects.create(study=study, platform_id="p5", refused_early=2)  # started, refused twice, not finished

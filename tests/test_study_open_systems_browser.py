@@ -24,7 +24,7 @@ from generation.generator import Generator
 from generation.motion.bvh import bvh_text, motion_to_bvh
 from generation.motion.dataset import DatasetOptions, build_dataset
 from generation.train import TrainOptions, train
-from studyapp.designs.ratings import current_assignment
+from tests.study_fixtures import current_clip
 from studyapp.models import Participant, Stimulus, Study, System
 from studyapp.stimuli.clips import plan_stimuli, render_stimulus
 from studyapp.stimuli.control_export import control_id
@@ -85,7 +85,7 @@ def take_part(browser, live_server, study: Study, pid: str) -> list[str]:
         pages.append(page.content())
         wait_for_clip_end(page)
         page.get_by_role("button", name="3", exact=True).click()
-    while (assignment := current_assignment(participant)) is not None:
+    while (assignment := current_clip(participant)) is not None:
         page.wait_for_selector("#clip")
         pages.append(page.content())
         wait_for_clip_end(page)

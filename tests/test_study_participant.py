@@ -12,10 +12,12 @@ from django.test import Client
 from django.urls import reverse
 from django.utils import timezone
 
-from studyapp.designs.ratings import ClientTimes, current_assignment, ratings_rows
+from studyapp.designs.rules import StudyRules
+from studyapp.designs.single import stimulus_loads
 from studyapp.models import Assignment, Participant, Rating, Stimulus, Study, System
-from studyapp.participants.assignment import StudyFull, enrol, stimulus_loads
-from tests.study_fixtures import make_study
+from studyapp.participants.assignment import StudyFull, enrol
+from studyapp.researchers.export import ratings_rows
+from tests.study_fixtures import current_clip, make_study
 
 pytestmark = pytest.mark.django_db
 
@@ -195,7 +197,7 @@ def test_attention_checks_flag_the_participant(role, value, excluded):
     study = make_study()
     client = Client()
     participant = through_practice(client, study)
-    while (current := current_assignment(participant)) is not None:
+    while (current := current_clip(participant)) is not None:
         is_target = current.stimulus.system.role == role
         rate_current(client, study, participant, value if is_target else 3)
     participant.refresh_from_db()
@@ -205,7 +207,9 @@ def test_attention_checks_flag_the_participant(role, value, excluded):
 
 def test_on_a_ten_point_scale_the_thresholds_are_rescaled():
     study = make_study(scale_min=1, scale_max=10)
-    assert (study.bad_cutoff(), study.natural_cutoff()) == (7.75, 3.25)
+    rules = StudyRules.of(study).exclusion  # BAD at 7.75 or above, NAT below 3.25
+    assert [bool(rules.rated_attention_high("BAD", value, 1, 10)) for value in (7, 8)] == [False, True]
+    assert [bool(rules.rated_natural_low("NAT", value, 1, 10)) for value in (3, 4)] == [True, False]
 
 
 def test_an_answer_sooner_than_the_clip_lasts_is_refused_and_counted():
@@ -309,7 +313,7 @@ def test_nothing_on_the_participant_pages_names_a_system():
     for index in range(len(participant.training)):
         post(client, study, "practice", index=index)
     pages.append(client.get(reverse("participant-page", args=[study.key])).content.decode())  # rating
-    stimulus = current_assignment(participant).stimulus
+    stimulus = current_clip(participant).stimulus
     assert f"/media/stimuli/{stimulus.token}.mp4" in pages[-1]
     for page in pages:
         for system in System.objects.filter(study=study):
@@ -361,7 +365,7 @@ def test_the_export_has_one_row_per_rating_with_the_flags():
     study = make_study(clips_per_participant=3, bad_checks=1, natural_checks=1)
     client = Client()
     participant = through_practice(client, study)
-    while (current := current_assignment(participant)) is not None:
+    while (current := current_clip(participant)) is not None:
         rate_current(client, study, participant, 5 if current.stimulus.system.role == System.Role.BAD else 3)
     rows = ratings_rows(study)
     assert len(rows) == 3
@@ -408,7 +412,7 @@ def test_a_rating_step_costs_a_few_queries(django_assert_max_num_queries):
     assert Rating.objects.filter(assignment__token=token).count() == 1
     statements = [query["sql"].split()[0] for query in queries.captured_queries]
     assert statements.count("INSERT") + statements.count("UPDATE") == 2 and statements[-2:] == ["SELECT", "SELECT"]
-    on_screen = current_assignment(participant)
+    on_screen = current_clip(participant)
     assert on_screen.shown_at is not None and on_screen.token in page.content.decode()
 
 

@@ -1,4 +1,4 @@
-"""Motion data: BVH in and out, forward kinematics, features, augmentation, datasets."""
+"""Motion data: BVH in and out, forward and inverse kinematics, features, augmentation, datasets."""
 
 from .bvh import BVH, BVHError, load_motion, motion_to_bvh, read_bvh, write_bvh
 from .types import Motion, Skeleton

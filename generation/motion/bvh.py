@@ -26,8 +26,9 @@ import numpy as np
 from measures.units import UNITS, Z_UP_TO_Y_UP
 
 from ..files import write_atomic
+from .ik import with_rotations
 from .kinematics import forward_kinematics
-from .rotations import euler_to_matrix, matrix_to_euler, matrix_to_quat, quat_to_matrix
+from .rotations import euler_to_matrix, matrix_to_continuous_euler, matrix_to_quat, quat_to_matrix
 from .types import Motion, Skeleton
 from .units import Units
 
@@ -436,14 +437,16 @@ def scale_lengths(bvh: BVH, factor: float) -> BVH:
 
 
 def motion_to_bvh(motion: Motion, rotation_order: str = "ZXY", unit: str = "cm") -> BVH:
-    """A BVH for any motion, its lengths in ``unit`` (a key of ``measures.units.UNITS``; the
-    motion itself is in centimetres).
+    """A rotation BVH for any motion, its lengths in ``unit`` (a key of
+    ``measures.units.UNITS``; the motion itself is in centimetres).
 
-    With joint rotations, every joint gets rotation channels in ``rotation_order`` and
-    joints whose translation is animated also get position channels. A position-only
-    motion (MoGlow and its baselines) gets position channels only: each joint's
-    translation from its parent with identity rotations, which reproduces the positions
-    exactly in any BVH reader.
+    Every joint gets rotation channels in ``rotation_order`` (the Bandai-Namco rigs'
+    own, ZXY, by default), its angles continuous over time
+    (``rotations.matrix_to_continuous_euler``), and joints whose translation is animated
+    (the root) also get position channels. A position-only motion (MoGlow and its
+    baselines) gets its rotations by inverse kinematics on its skeleton first
+    (``ik.with_rotations``): the file holds the rig's bone lengths, every bone pointing
+    where the motion's does.
     """
     if unit not in UNITS:
         raise ValueError(f"BVH unit must be one of {', '.join(UNITS)}, got {unit!r}")
@@ -452,16 +455,10 @@ def motion_to_bvh(motion: Motion, rotation_order: str = "ZXY", unit: str = "cm")
 
 
 def _motion_to_bvh_cm(motion: Motion, rotation_order: str) -> BVH:
+    motion = with_rotations(motion)
     offsets = motion.skeleton.offsets
     channels, columns = [], []
-    if motion.rotations is None:
-        parents = motion.skeleton.parents
-        for j in range(motion.skeleton.n_joints):
-            parent = motion.positions[:, parents[j]] if parents[j] >= 0 else 0.0
-            channels.append(("Xposition", "Yposition", "Zposition"))
-            columns.append(motion.positions[:, j] - parent)
-        return BVH(motion.skeleton, tuple(channels), 1.0 / motion.fps, np.concatenate(columns, axis=1))
-    euler = np.degrees(matrix_to_euler(quat_to_matrix(motion.rotations), rotation_order))
+    euler = np.degrees(matrix_to_continuous_euler(quat_to_matrix(motion.rotations), rotation_order))
     for j in range(motion.skeleton.n_joints):
         translation = motion.translations[:, j]
         animated = j == 0 or not np.allclose(translation, offsets[j], atol=1e-6)

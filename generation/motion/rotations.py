@@ -41,6 +41,29 @@ def matrix_to_euler(matrix: np.ndarray, order: str) -> np.ndarray:
     return flat.reshape(shape + (3,))
 
 
+def matrix_to_continuous_euler(matrix: np.ndarray, order: str) -> np.ndarray:
+    """Rotation matrices over time (frames, ..., 3, 3) to intrinsic Euler angles (frames,
+    ..., 3) in radians that move continuously from frame to frame.
+
+    Every rotation has two Euler triples, (a, b, c) and (a + pi, pi - b, c + pi), each
+    also in whole turns more or less. Each frame takes, of these, the triple nearest the
+    previous frame's, so an angle neither wraps at +-180 degrees nor jumps to the other
+    triple where the middle angle passes +-90 degrees (a canonical choice of triple
+    jumps there); the first frame takes the triple whose middle angle is within +-90.
+    """
+    first = matrix_to_euler(matrix, order)
+    second = first + np.pi * np.array([1.0, 0.0, 1.0])
+    second[..., 1] = np.pi - first[..., 1]
+    result = np.empty_like(first)
+    result[0] = first[0]
+    for t in range(1, len(first)):
+        candidates = np.stack([first[t], second[t]])
+        candidates += 2 * np.pi * np.round((result[t - 1] - candidates) / (2 * np.pi))
+        nearest = np.argmin(np.abs(candidates - result[t - 1]).sum(axis=-1), axis=0)
+        result[t] = np.take_along_axis(candidates, nearest[None, ..., None], axis=0)[0]
+    return result
+
+
 def matrix_to_quat(matrix: np.ndarray) -> np.ndarray:
     """Matrices (..., 3, 3) to unit quaternions (..., 4), w first, w >= 0."""
     shape = matrix.shape[:-2]

@@ -11,8 +11,8 @@ import math
 
 from django.http import QueryDict
 
-from studyapp.designs.ratings import RatingRejected
 from studyapp.models import Question, Study
+from studyapp.participants.refusal import AnswerRefused
 
 MAX_ANSWER_LENGTH = 2000
 
@@ -29,7 +29,7 @@ def field_name(question: Question) -> str:
 def _answer(question: Question, text: str) -> str | int | float:
     if question.kind == Question.Kind.CHOICE:
         if text not in question.choice_list:
-            raise RatingRejected(f"“{question.text}”: please choose one of the answers")
+            raise AnswerRefused(f"“{question.text}”: please choose one of the answers")
         return text
     if question.kind == Question.Kind.NUMBER:
         return _number(question, text)
@@ -50,19 +50,19 @@ def _number(question: Question, text: str) -> int | float:
     except ValueError:
         value = math.nan
     if not (math.isfinite(value) and question.minimum <= value <= question.maximum) or (whole and value != int(value)):
-        raise RatingRejected(f"“{question.text}”: please give {wanted}, not {text[:20]!r}")
+        raise AnswerRefused(f"“{question.text}”: please give {wanted}, not {text[:20]!r}")
     return int(value) if whole else value
 
 
 def read_answers(asked: list[Question], form: QueryDict) -> dict[str, str | float]:
-    """The answers to ``asked`` in ``form``, or RatingRejected (400) naming the first
+    """The answers to ``asked`` in ``form``, or AnswerRefused (400) naming the first
     question left out or answered wrongly."""
     answers: dict[str, str | float] = {}
     for question in asked:
         text = form.get(field_name(question), "").strip()
         if not text:
             if question.required:
-                raise RatingRejected(f"“{question.text}”: please answer this question")
+                raise AnswerRefused(f"“{question.text}”: please answer this question")
             continue
         answers[question.name] = _answer(question, text)
     return answers

@@ -36,7 +36,7 @@ _SLIDER = re.compile(r'<input type="range" form="page-form" id="[^"]+" name="(va
 _ANSWER = re.compile(r'<button type="submit" name="answer" value="(\w+)"')
 _STRENGTH = re.compile(r'<input type="radio" name="strength" value="(\d+)"')
 _PLAY = re.compile(r'data-play="(\d+)"')
-_RATING_STEPS = ("/rate/", "/rate-page/", "/compare/")
+_RATING_STEP = "/rate/"
 _CLIP_SECONDS = re.compile(r'<video [^>]*data-seconds="([0-9.]+)"')
 
 
@@ -106,7 +106,7 @@ class SimulatedParticipant:
                             answered_s="0.6", played_until_s="0.45")
             else:
                 data.update(self._page_answer(body, sliders, answers, _STRENGTH.findall(form)))
-        if action.endswith(_RATING_STEPS):
+        if action.endswith(_RATING_STEP):
             start = time.perf_counter()
             next_page = self._rate(url, data)
             self.outcome.ratings += 1

@@ -1,7 +1,7 @@
 """The participant's views: the entry link, the one page they are on, and each step's form.
 
 The steps themselves (what each page shows, what its form does, in which order) are
-declared in ``participant_path.PATH``; this module finds the participant of the browser's
+declared in ``participants.path.PATH``; this module finds the participant of the browser's
 cookie and guards each step with ``participant_access``. Each form posts to its step's
 URL and redirects back to the one page URL.
 """
@@ -21,10 +21,10 @@ from django.urls import reverse
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
-from studyapp.designs.ratings import RatingRejected
 from studyapp.models import Participant, StoredDataError, Study, json_object, new_token
 from studyapp.participants.assignment import StudyFull, StudyNotReady, enrol, renew_reservations
 from studyapp.participants.path import Step, current_step, may_post, message, mturk_submit_url, stage
+from studyapp.participants.refusal import AnswerRefused
 from studyapp.participants.study_cache import current_study
 
 # The query parameters each platform adds to the entry link; the first one is the id.
@@ -140,7 +140,7 @@ def participant_access(step: Step | None = None) -> Callable[[ParticipantView], 
     """Decorate a view of this browser's participant (its cookie); it is called with
     (request, study, participant). Without a participant: 403. With ``step``: only while
     the participant may send that step's form (409 otherwise), and a step that refuses
-    (RatingRejected) answers with its 4xx and a message, having changed nothing."""
+    (AnswerRefused) answers with its 4xx and a message, having changed nothing."""
     def decorate(view: ParticipantView) -> Callable[..., HttpResponse]:
         @wraps(view)
         def guarded(request: HttpRequest, key: str) -> HttpResponse:
@@ -152,10 +152,10 @@ def participant_access(step: Step | None = None) -> Callable[[ParticipantView], 
                 return _framed(study, view(request, study, participant))
             try:
                 if not may_post(step, participant):
-                    raise RatingRejected(f"this step is not the current one (expected {step.name}, "
+                    raise AnswerRefused(f"this step is not the current one (expected {step.name}, "
                                          f"at {stage(participant)})", status=409)
                 response = view(request, study, participant)
-            except RatingRejected as rejection:
+            except AnswerRefused as rejection:
                 response = message(request, "That did not work", str(rejection),
                                    rejection.status, back=reverse("participant-page", args=[key]))
             return _framed(study, response)
@@ -233,7 +233,7 @@ def page(request: HttpRequest, study: Study, participant: Participant) -> HttpRe
     context = {"study": study, **step.page(study, participant)}
     # Names this page among the participant's, so that another tab still on an earlier one moves on.
     context["page_id"] = "-".join([step.name, *map(str, context.get("form", {}).values())])
-    return render(request, f"studyapp/participant/{step.template}", context)
+    return render(request, f"studyapp/participant/{step.template_for(study)}", context)
 
 
 @never_cache

@@ -2,14 +2,15 @@
 
 Everything is computed from the exported ratings table (the CSV a researcher
 downloads), read back through ``analysis.ratings`` and flagged by
-``analysis.exclusions`` with the study's own thresholds, so the page agrees with the
-analysis report. Means and 95 % confidence intervals are over kept ratings (excluded
-participants and early answers left out, as the papers report them).
+``analysis.exclusions`` with the study's own rules (``designs.rules``), so the page
+agrees with the analysis report. Means and 95 % confidence intervals are over kept
+ratings (excluded participants and early answers left out, as the papers report them),
+where the design's answers are on a scale; the design adds its own summary
+(``Design.monitor_tables``).
 """
 
 from __future__ import annotations
 
-import csv
 import io
 from dataclasses import dataclass
 
@@ -17,38 +18,15 @@ import pandas as pd
 from django.db.models import Q
 from django.utils.safestring import SafeString
 
-from analysis.exclusions import ExclusionRules, apply_exclusions
-from analysis.pairwise import preference_pairs
+from analysis.exclusions import apply_exclusions, compared_ratings
 from analysis.power import more_ratings_for_power
 from analysis.ratings import read_ratings
-from analysis.side_by_side import median_and_mean
 from analysis.stats import system_means
-from analysis.tables import spreadsheet_safe
-from studyapp.designs.ratings import export_columns, ratings_rows
-from studyapp.models import ATTENTION_NAME, NATURAL_NAME, Stimulus, Study
+from studyapp.designs.registry import design_of
+from studyapp.designs.rules import StudyRules
+from studyapp.models import Stimulus, Study
+from studyapp.researchers.export import export_columns, ratings_csv
 from studyapp.researchers.reports import html_table
-
-
-def ratings_csv(study: Study, for_spreadsheets: bool = False) -> bytes:
-    """The study's ratings table (docs/ratings-schema.md) as CSV.
-
-    ``for_spreadsheets``: text a spreadsheet would run as a formula (a system named
-    ``=HYPERLINK(...)``) gets a leading apostrophe, for the file a researcher downloads.
-    """
-    rows = ratings_rows(study)
-    if for_spreadsheets:
-        rows = ({column: spreadsheet_safe(value) for column, value in row.items()} for row in rows)
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=export_columns(study), lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    return buffer.getvalue().encode()
-
-
-def exclusion_rules(study: Study) -> ExclusionRules:
-    return ExclusionRules(natural_system=NATURAL_NAME, attention_system=ATTENTION_NAME,
-                          bad_at_or_above=study.bad_threshold, natural_below=study.natural_threshold,
-                          discard_early=study.discard_early)
 
 
 def flagged_ratings(study: Study) -> pd.DataFrame:
@@ -56,7 +34,7 @@ def flagged_ratings(study: Study) -> pd.DataFrame:
     csv_bytes = ratings_csv(study)
     if csv_bytes.count(b"\n") < 2:
         return pd.DataFrame(columns=[*export_columns(study), "kept"])
-    return apply_exclusions(read_ratings(io.StringIO(csv_bytes.decode())), exclusion_rules(study))
+    return apply_exclusions(read_ratings(io.StringIO(csv_bytes.decode())), StudyRules.of(study).exclusion)
 
 
 @dataclass(frozen=True)
@@ -119,30 +97,16 @@ def system_mean_rows(kept: pd.DataFrame, systems: list[str], scale: tuple[int, i
     return rows
 
 
-def compared_ratings(study: Study, kept: pd.DataFrame) -> pd.DataFrame:
-    """The kept ratings of the compared systems: BAD's rows left out, and on pairwise pages
-    the whole page showing BAD (a BAD-versus-NAT check compares nothing)."""
-    if study.design != Study.Design.PAIRWISE:
-        return kept[kept["system"] != ATTENTION_NAME]
-    checks = kept.loc[kept["system"] == ATTENTION_NAME, ["participant", "page"]].drop_duplicates()
-    on_check = kept.merge(checks, on=["participant", "page"], how="left", indicator=True)["_merge"] == "both"
-    return kept[~on_check.to_numpy()]
-
-
 def analysis_tables(study: Study, kept: pd.DataFrame) -> list[tuple[str, SafeString]]:
-    """What the analysis says so far: the design's summary (side-by-side: medians and means;
-    pairwise: preference shares) and, for every design, the ratings needed for 80 % power."""
-    compared = compared_ratings(study, kept)
+    """What the analysis says so far: the design's summary and, for every design, the
+    ratings needed for 80 % power (once two systems have two compared ratings each)."""
+    compared = compared_ratings(kept, StudyRules.of(study).exclusion) if len(kept) else kept
     counts = compared.groupby("system").size()
     compared = compared[compared["system"].isin(counts.index[counts >= 2])]
     if compared["system"].nunique() < 2:
         return []
-    tables = []
-    if study.design == Study.Design.SIDE_BY_SIDE:
-        tables.append(("Median and mean per system (95 % CIs)", median_and_mean(compared)))
-    elif study.design == Study.Design.PAIRWISE:
-        tables.append(("Preference per pair (Wilson 95 % CI, sign test, Holm)", preference_pairs(compared)))
-    tables.append(("How many more ratings give 80 % power per pair (at alpha 0.05)", more_ratings_for_power(compared)))
+    tables = [*design_of(study).monitor_tables(compared),
+              ("How many more ratings give 80 % power per pair (at alpha 0.05)", more_ratings_for_power(compared))]
     return [(title, html_table(table)) for title, table in tables]
 
 
@@ -155,6 +119,7 @@ def study_monitor(study: Study) -> StudyMonitor:
     kept_counts = kept.groupby("stimulus").size().reindex(done, fill_value=0)
     systems = sorted({s.export_name for s in study.systems.all()})
     scale = (study.scale_min, study.scale_max)
+    on_scale = design_of(study).on_scale
     return StudyMonitor(
         participants_started=participants.count(),
         participants_finished=participants.filter(finished_at__isnull=False).count(),
@@ -168,14 +133,13 @@ def study_monitor(study: Study) -> StudyMonitor:
         per_stimulus_max=int(collected.max()) if done else 0,
         kept_per_stimulus_min=int(kept_counts.min()) if done else 0,
         kept_per_stimulus_max=int(kept_counts.max()) if done else 0,
-        # Pairwise pages carry preferences, not values: their summary is the analysis report's.
-        means=system_mean_rows(kept, systems, scale) if study.design != Study.Design.PAIRWISE else [],
+        # Preferences (pairwise) have no means: their summary is the design's table.
+        means=system_mean_rows(kept, systems, scale) if on_scale else [],
         means_by_class={name: system_mean_rows(group, systems, scale)
-                        for name, group in kept.groupby("control_class", sort=True)}
-        if study.design != Study.Design.PAIRWISE else {},
+                        for name, group in kept.groupby("control_class", sort=True)} if on_scale else {},
         failed_instructed_checks=participants.filter(failed_checks__gt=0).count(),
         tables=analysis_tables(study, kept),
     )
 
 
-__all__ = ["StudyMonitor", "SystemMean", "flagged_ratings", "ratings_csv", "study_monitor"]
+__all__ = ["StudyMonitor", "SystemMean", "flagged_ratings", "study_monitor"]

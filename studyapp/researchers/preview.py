@@ -1,18 +1,22 @@
 """The researcher's preview: the participant's pages of a study, in order, as a participant
 sees them, with nothing recorded.
 
-The pages are the path's own templates and contexts (``participant_path``) with no
-participant behind them: no one is enrolled, no clip is reserved, no answer is stored. A
-banner says it is a preview, and each form leads to the next page instead of posting
-(were it posted anyway, no participant cookie goes with it, so it would change nothing).
+The pages are the participant's path itself (``participants.path.PATH``): each step says
+what it shows in a preview (``Step.preview_pages``: its page where a new participant
+meets it, the design's own pages for practice and rating), so a step added to the path is
+in the preview too. No participant stands behind them: no one is enrolled, no clip is
+reserved, no answer is stored. A banner says it is a preview, and each form leads to the
+next page instead of posting (were it posted anyway, no participant cookie goes with it,
+so it would change nothing).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from studyapp.models import Participant, Question, Stimulus, Study, System
-from studyapp.participants.path import clip_page, completion_page, questions_page
+from studyapp.designs.pages import preview_clip
+from studyapp.models import Study
+from studyapp.participants import path
 
 
 @dataclass(frozen=True)
@@ -23,29 +27,11 @@ class PreviewPage:
 
 
 def preview_pages(study: Study) -> list[PreviewPage]:
-    """The pages a participant of ``study`` meets, with a finished clip of a rated system
-    standing for every clip (empty when there is none yet)."""
-    clip = (Stimulus.objects.filter(study=study, status=Stimulus.Status.DONE)
-            .exclude(system__role=System.Role.BAD).order_by("pk").first())
-    if clip is None:
+    """The pages a participant of ``study`` meets (empty without a finished clip to rate)."""
+    if preview_clip(study) is None:
         return []
-    nobody = Participant(study=study)  # unsaved: it only lets the completion page say where to go
-    parts = set(study.questions.values_list("part", flat=True))
-    pages = []
-    if study.device_check:
-        pages.append(PreviewPage("device check", "device.html", {
-            "video_url": clip.video_url, "min_width": study.min_screen_width, "min_height": study.min_screen_height}))
-    pages.append(PreviewPage("consent", "consent.html", {}))
-    if Question.Part.BEFORE in parts:
-        pages.append(PreviewPage("screening", "questions.html", questions_page(Question.Part.BEFORE)(study, nobody)))
-    pages.append(PreviewPage("instructions", "instructions.html", {}))
-    total = study.clips_per_participant
-    pages.append(PreviewPage("a clip to rate", "clip.html", clip_page(
-        study, clip, "participant-rate", {"assignment": "preview"}, f"Clip 1 of {total}", 0, total, None)))
-    if Question.Part.AFTER in parts:
-        pages.append(PreviewPage("closing questions", "questions.html", questions_page(Question.Part.AFTER)(study, nobody)))
-    pages.append(PreviewPage("completion", "done.html", completion_page(study, nobody)))
-    return pages
+    return [PreviewPage(step.title or step.name, step.template_for(study), context)
+            for step in path.PATH for context in step.preview_pages(study)]
 
 
 __all__ = ["PreviewPage", "preview_pages"]

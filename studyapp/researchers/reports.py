@@ -1,9 +1,11 @@
 """Analysis reports in the study app: a ratings CSV in, the report folder and its tables out.
 
 The app runs exactly the ``analysis`` package's report (the same tables and figures as
-``python -m analysis report``). A report lives in ``MEDIA_ROOT/reports/<digest>/``, named
-by the SHA-256 of the researcher and the ratings file, so the same upload twice is the
-same report. A report belongs to the researcher who made it (``owner.txt``): only they
+``python -m analysis report``), with the exclusion rules it is given (a study's own, for
+the study's report), which the folder keeps as rules.json and the page states; the
+design of the table says which tables the page shows (``Design.report_tables``). A
+report lives in ``MEDIA_ROOT/reports/<digest>/``, named by the SHA-256 of the
+researcher, the ratings file and the rules, so the same upload twice is the same report. A report belongs to the researcher who made it (``owner.txt``): only they
 see its page and files, since it holds their participants' ratings. The folder is built
 under a temporary name and renamed into place, so a failed analysis leaves nothing
 behind and a half-written report is never served.
@@ -21,14 +23,18 @@ from django.utils.html import escape
 from django.utils.safestring import SafeString, mark_safe
 
 from analysis.design_report import DesignReport
+from analysis.designs import table_design
 from analysis.errors import AnalysisInputError
+from analysis.exclusions import ExclusionRules
 from analysis.ratings import read_ratings
 from analysis.report import Report, build_report, summary_text, write_report
 from generation.files import atomic_folder
+from studyapp.designs.registry import design_named
 
 REPORTS_FOLDER = "reports"
 RATINGS_NAME = "ratings.csv"
 REFERENCE_NAME = "reference.txt"
+RULES_NAME = "rules.json"
 OWNER_NAME = "owner.txt"
 
 
@@ -38,6 +44,7 @@ class ReportPage:
 
     digest: str
     summary: list[SafeString]  # paragraphs
+    rules: list[str]  # the exclusion rules applied, in words
     tables: list[tuple[str, SafeString]]  # (title, HTML table)
     figures: list[str]  # paths relative to MEDIA_ROOT
     files: list[str]  # every table file (CSV, Markdown, LaTeX, JSON), relative to MEDIA_ROOT
@@ -58,18 +65,21 @@ def report_owner(media_root: Path, digest: str) -> int | None:
         return None
 
 
-def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, owner_id: int) -> str:
-    """Analyse an uploaded ratings CSV into its report folder, owned by ``owner_id``; returns the digest.
+def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, owner_id: int,
+                  rules: ExclusionRules = ExclusionRules()) -> str:
+    """Analyse a ratings CSV with ``rules`` into its report folder, owned by ``owner_id``; returns the digest.
 
     Raises AnalysisInputError (naming what is wrong) for a table that cannot be analysed.
     """
-    digest = hashlib.sha256(f"{owner_id}\0".encode() + ratings_csv + f"\0{reference or ''}".encode()).hexdigest()
+    digest = hashlib.sha256(f"{owner_id}\0".encode() + ratings_csv + f"\0{reference or ''}\0".encode()
+                            + rules.to_json().encode()).hexdigest()
     final = report_folder(media_root, digest)
     if final.is_dir():
         return digest
     with atomic_folder(final) as work:
         (work / RATINGS_NAME).write_bytes(ratings_csv)
         (work / REFERENCE_NAME).write_text(reference or "")
+        (work / RULES_NAME).write_text(rules.to_json())
         (work / OWNER_NAME).write_text(str(owner_id))
         try:
             report = _analyse(work)
@@ -79,9 +89,15 @@ def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, o
     return digest
 
 
+def _rules(folder: Path) -> ExclusionRules:
+    """The rules a report was made with (reports made before rules were kept used the defaults)."""
+    path = folder / RULES_NAME
+    return ExclusionRules.from_json(path.read_text(), RULES_NAME) if path.is_file() else ExclusionRules()
+
+
 def _analyse(folder: Path) -> Report | DesignReport:
     reference = (folder / REFERENCE_NAME).read_text() or None
-    return build_report(read_ratings(folder / RATINGS_NAME), reference=reference)
+    return build_report(read_ratings(folder / RATINGS_NAME), reference=reference, rules=_rules(folder))
 
 
 def _paragraphs(markdown: str) -> list[SafeString]:
@@ -109,26 +125,12 @@ def report_page(media_root: Path, digest: str, owner_id: int) -> ReportPage:
     if report_owner(media_root, digest) != owner_id or not (folder / RATINGS_NAME).is_file():
         raise FileNotFoundError(digest)
     report = _analyse(folder)
-    if isinstance(report, DesignReport):  # side-by-side and pairwise: their own tables
-        tables = [("Exclusions", html_table(report.exclusions))]
-        tables += [(title, html_table(table)) for title, table in report.tables.values() if len(table)]
-    else:
-        tables = _single_design_tables(report)
+    tables = [(title, html_table(table))
+              for title, table in design_named(table_design(report.flagged)).report_tables(report)]
     figures = sorted(str(p.relative_to(media_root)) for p in (folder / "figures").glob("*.svg"))
     files = sorted(str(p.relative_to(media_root)) for p in (folder / "tables").iterdir())
-    return ReportPage(digest, _paragraphs(summary_text(report)), tables, figures, files, report.notes)
-
-
-def _single_design_tables(report: Report) -> list[tuple[str, SafeString]]:
-    tables = [("Mean ratings ± 95 % CI (MoGlow Table 2 layout)", html_table(report.significance_display)),
-              ("Exclusions", html_table(report.exclusions)),
-              ("One-way ANOVA", html_table(report.anova)),
-              ("Tukey HSD, all pairs", html_table(report.tukey)),
-              ("Linear mixed model (participant random intercept)", html_table(report.mixed))]
-    tables += [(f"Adjusted p-values, {task} · {cc}", html_table(m)) for (task, cc), m in report.pvalues_display.items()]
-    if report.power is not None and len(report.power):
-        tables.append(("Ratings needed for 80 % power per pair", html_table(report.power)))
-    return tables
+    return ReportPage(digest, _paragraphs(summary_text(report)), report.rules.described(), tables, figures, files,
+                      report.notes)
 
 
 __all__ = ["AnalysisInputError", "ReportPage", "create_report", "html_table", "report_folder", "report_owner",

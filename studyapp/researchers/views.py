@@ -2,8 +2,8 @@
 
 Every page needs a login, and a researcher reaches only their own studies: another
 researcher's study answers 404, as if it did not exist. Forms post back to their page;
-what a form means is done by the service modules (``systems``, ``controls``,
-``stimuli``, ``monitor``), which the management commands share.
+what a form means is done by the service modules (``stimuli.systems``, ``stimuli.controls``,
+``stimuli.clips``, ``monitor``, ``export``), which the management commands share.
 """
 
 from __future__ import annotations
@@ -20,13 +20,16 @@ from django.urls import reverse
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
-from studyapp.models import NATURAL_NAME, ControlSignal, Question, Stimulus, Study, System
+from generation import registry
+from studyapp.designs.rules import StudyRules
+from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.participants.views import PLATFORM_PARAMETERS
 from studyapp.researchers.editing import EditRefused, edit_system, rename_control
+from studyapp.researchers.export import ratings_csv, rules_json
 from studyapp.researchers.forms import (CheckpointSystemForm, ControlEditForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
                             LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, QuestionRemovalForm, StudyForm,
                             SubmittedMotionSystemForm, SystemEditForm, VideoSystemForm)
-from studyapp.researchers.monitor import ratings_csv, study_monitor
+from studyapp.researchers.monitor import study_monitor
 from studyapp.researchers.participant_list import participant_rows, participants_csv, question_names
 from studyapp.researchers.preview import preview_pages
 from studyapp.researchers.readiness import open_problems
@@ -40,7 +43,7 @@ from studyapp.stimuli.controls import (ControlError, add_control_file, add_held_
                                add_preset_controls, control_kind, study_labels)
 from studyapp.stimuli.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
 from studyapp.stimuli.motion_export import exported_stimuli, motion_zip
-from studyapp.stimuli.submissions import add_submitted_upload
+from studyapp.stimuli.submissions import Reading, add_submitted_upload
 from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
 
 # Prolific fills these placeholders in a study URL; MTurk appends its own ids.
@@ -49,6 +52,13 @@ PROLIFIC_PLACEHOLDERS = "PROLIFIC_PID={{%PROLIFIC_PID%}}&STUDY_ID={{%STUDY_ID%}}
 
 def _study(request: HttpRequest, pk: int) -> Study:
     return get_object_or_404(Study, pk=pk, owner=request.user)
+
+
+def _download(body: bytes | str, content_type: str, filename: str) -> HttpResponse:
+    """``body`` as a file the browser saves as ``filename``."""
+    response = HttpResponse(body, content_type=content_type)
+    response["Content-Disposition"] = f'attachment; filename="{filename}"'
+    return response
 
 
 @login_required
@@ -118,7 +128,8 @@ def study_systems(request: HttpRequest, pk: int) -> HttpResponse:
         "checkpoint": lambda data: "Registered {}.".format(add_checkpoint_system(
             study, data["name"], data["checkpoint"], data["role"], data["temperature"]).name),
         "natural": lambda data: f"Registered {add_natural_system(study, data['name']).name}.",
-        "motion": lambda data: _submitted(add_submitted_upload(study, data["name"], data["motion"], data["role"])),
+        "motion": lambda data: _submitted(add_submitted_upload(study, data["name"], data["motion"], data["role"], Reading(
+            data["unit"], data["up"], data["keep_root"]))),
         "videos": lambda data: "Registered {} with {} video(s).".format(
             add_video_system(study, data["name"], data["videos"], data["role"]).name, len(data["videos"])),
     }
@@ -132,22 +143,24 @@ def study_controls(request: HttpRequest, pk: int) -> HttpResponse:
         kind = control_kind(study)
     except ControlError as error:
         messages.error(request, str(error))
-        kind = "path"
-    forms: dict = {"held_out": partial(HeldOutControlsForm, paths=kind == "path")}
-    if kind == "path":
+        kind = registry.PATH
+    trained = study.systems.exclude(checkpoint="").exists()
+    forms: dict = {"held_out": partial(HeldOutControlsForm, paths=kind == registry.PATH, trained=trained)}
+    if kind == registry.PATH:
         forms.update(presets=PresetControlsForm, file=ControlFileForm)
     else:
         forms["labels"] = partial(LabelControlsForm, labels=study_labels(study))
     actions = {
-        "held_out": lambda data: "{} held-out control(s).".format(
-            len(add_held_out_controls(study, data["seconds"], data["count"], data.get("lead_in") or 0.0))),
+        "held_out": lambda data: "{} held-out control(s).".format(len(add_held_out_controls(
+            study, data["seconds"], data["count"], data.get("lead_in") or 0.0, takes=data["takes"],
+            scale=data.get("unit"), up=data.get("up")))),
         "presets": lambda data: f"{len(add_preset_controls(study, data['presets']))} synthetic control(s).",
         "file": lambda data: f"{len(add_control_file(study, data['description']))} control(s) from the file.",
         "labels": lambda data: "{} label control(s).".format(
             len(add_label_controls(study, data["actions"], data["styles"], data["seconds"]))),
     }
     return _forms_page(request, study, "controls", forms, actions, ControlError,
-                       {"controls": study.controls.all(), "kind": kind})
+                       {"controls": study.controls.all(), "kind": kind, "trained": trained})
 
 
 @never_cache
@@ -161,9 +174,7 @@ def study_controls_download(request: HttpRequest, pk: int) -> HttpResponse:
     except (ControlError, ValueError, FileNotFoundError) as error:
         messages.error(request, f"No download: {error}")
         return redirect("study-controls", pk=study.pk)
-    response = HttpResponse(data, content_type="application/zip")
-    response["Content-Disposition"] = f'attachment; filename="controls-study-{study.pk}.zip"'
-    return response
+    return _download(data, "application/zip", f"controls-study-{study.pk}.zip")
 
 
 @login_required
@@ -182,7 +193,7 @@ def study_stimuli(request: HttpRequest, pk: int) -> HttpResponse:
             messages.success(request, f"{result.total} stimuli ({result.created} new); {result.queued} sent to the workers.")
             return redirect("study-stimuli", pk=study.pk)
     elif request.method == "POST":
-        status = 400
+        status = 400  # the form, with what is wrong with it
     state = progress(study)
     # Queued clips with nobody to make them: say so rather than let the bar sit still.
     waiting = state["counts"]["queued"] + state["counts"]["running"]
@@ -288,7 +299,8 @@ def entry_link(request: HttpRequest, study: Study) -> str:
 def study_monitor_page(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
     context = {"study": study, "entry_link": entry_link(request, study),
-               "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study)}
+               "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study),
+               "rules": StudyRules.of(study).described()}
     try:
         context["monitor"] = study_monitor(study)
     except AnalysisInputError as error:  # rows changed outside the study pages (a rating without its value)
@@ -360,9 +372,7 @@ def study_questions(request: HttpRequest, pk: int) -> HttpResponse:
 @require_safe
 def study_participants_csv(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
-    response = HttpResponse(participants_csv(study), content_type="text/csv")
-    response["Content-Disposition"] = f'attachment; filename="participants-study-{study.pk}.csv"'
-    return response
+    return _download(participants_csv(study), "text/csv", f"participants-study-{study.pk}.csv")
 
 
 @login_required
@@ -386,9 +396,16 @@ def study_open(request: HttpRequest, pk: int) -> HttpResponse:
 def study_export(request: HttpRequest, pk: int) -> HttpResponse:
     """The ratings table as a CSV download."""
     study = _study(request, pk)
-    response = HttpResponse(ratings_csv(study, for_spreadsheets=True), content_type="text/csv")
-    response["Content-Disposition"] = f'attachment; filename="ratings-study-{study.pk}.csv"'
-    return response
+    return _download(ratings_csv(study, for_spreadsheets=True), "text/csv", f"ratings-study-{study.pk}.csv")
+
+
+@never_cache
+@login_required
+@require_safe
+def study_rules(request: HttpRequest, pk: int) -> HttpResponse:
+    """The exclusion rules of the ratings table, for ``python -m analysis report --rules``."""
+    study = _study(request, pk)
+    return _download(rules_json(study), "application/json", f"rules-study-{study.pk}.json")
 
 
 @never_cache
@@ -405,9 +422,7 @@ def study_motion_download(request: HttpRequest, pk: int) -> HttpResponse:
     except ValueError as error:
         messages.error(request, f"No download: {error}")
         return redirect("study-monitor", pk=study.pk)
-    response = HttpResponse(data, content_type="application/zip")
-    response["Content-Disposition"] = f'attachment; filename="motion-study-{study.pk}.zip"'
-    return response
+    return _download(data, "application/zip", f"motion-study-{study.pk}.zip")
 
 
 @login_required
@@ -416,9 +431,10 @@ def study_report(request: HttpRequest, pk: int) -> HttpResponse:
     """The analysis report of the ratings so far (the analysis pages' report)."""
     study = _study(request, pk)
     try:
-        has_natural = study.systems.filter(role=System.Role.NATURAL).exists()
-        digest = create_report(settings.MEDIA_ROOT, ratings_csv(study), NATURAL_NAME if has_natural else None,
-                               request.user.pk)
+        # As `python -m analysis report ratings.csv --rules rules.json` makes it: the study's
+        # rules, and NAT as the reference where it was rated.
+        digest = create_report(settings.MEDIA_ROOT, ratings_csv(study), None, request.user.pk,
+                               StudyRules.of(study).exclusion)
     except AnalysisInputError as error:
         messages.error(request, f"No report yet: {error}")
         return redirect("study-monitor", pk=study.pk)

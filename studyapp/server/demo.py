@@ -188,7 +188,7 @@ def ensure_side_by_side_study(single):
 
     with transaction.atomic():
         study, _ = Study.objects.get_or_create(owner=single.owner, title=SIDE_BY_SIDE_STUDY, defaults={
-            "design": Study.Design.SIDE_BY_SIDE, "scale_min": 0, "scale_max": 100, "pages_per_participant": 6,
+            "design": "side-by-side", "scale_min": 0, "scale_max": 100, "pages_per_participant": 6,
             "ratings_per_stimulus": 10, "training_clips": 3, "bad_checks": 2, "instructed_checks": 1,
             "instructions": SIDE_BY_SIDE_INSTRUCTIONS, "completion_code": "DEMO-DONE", "camera": single.camera,
             "video_width": single.video_width, "video_height": single.video_height})

@@ -30,7 +30,6 @@ from django.utils import timezone
 
 from generation.render import Camera, render_video
 from generation.render.video_check import VideoError, check_rendered_video
-from studyapp.bounds import check_field
 from studyapp.models import ControlSignal, Stimulus, Study, System
 from studyapp.stimuli.sources import source_of
 
@@ -66,8 +65,6 @@ def _pairs(study: Study) -> list[tuple[System, ControlSignal]]:
 
 def plan_stimuli(study: Study, seed: int = 0) -> tuple[list[Stimulus], int]:
     """The rows of every (system, control) pair, created where missing; (rows, how many were new)."""
-    if problem := check_field(Stimulus, "seed", seed):
-        raise ValueError(problem)
     stimuli, created = [], 0
     with transaction.atomic():
         for system, control in _pairs(study):
@@ -148,7 +145,9 @@ def claim(stimulus_id: int, task_id: str) -> Stimulus | None:
     the row is gone, done, or was sent again since this task's message (another task
     id), in which case the later task does the work."""
     with transaction.atomic():
-        stimulus = (Stimulus.objects.select_for_update().select_related("study", "system", "control")
+        # Only the row itself is locked: PostgreSQL refuses to lock the nullable side
+        # (control) of the outer join, and the study and system need no lock.
+        stimulus = (Stimulus.objects.select_for_update(of=("self",)).select_related("study", "system", "control")
                     .filter(pk=stimulus_id).first())
         if stimulus is None or stimulus.task_id != task_id:
             return None

@@ -1,9 +1,9 @@
 """Sending a study's stimuli to the Celery workers: queueing, broker errors and re-sending.
 
-``generate_stimuli`` plans the rows (``stimuli.plan_stimuli``) and queues those not done.
+``generate_stimuli`` plans the rows (``clips.plan_stimuli``) and queues those not done.
 ``queue_stimuli`` checks the broker first with a bounded wait, so a stopped broker is a
 clear message, not a hung page, and re-sends rows whose task was lost. The domain logic
-(what a stimulus is, how it is rendered) stays in ``stimuli``, which knows nothing of
+(what a stimulus is, how it is rendered) stays in ``clips``, which knows nothing of
 Celery; this module and ``tasks`` are its only links to the queue.
 """
 
@@ -96,7 +96,7 @@ def queue_stimuli(stimuli: list[Stimulus], timeout_s: float | None = None) -> in
     Rows whose source samples a model go, all of one system in one message, to the
     sampling queue, whose task sends each on to the rendering queue; the others go to
     the rendering queue directly. Each send gives the row a new task id and only the
-    task with the row's current id may work on it (``stimuli.claim``), so a row sent
+    task with the row's current id may work on it (``clips.claim``), so a row sent
     twice (two clicks, a stuck row re-sent) is rendered once. Raises BrokerUnavailable,
     with the rows not sent left as they were, when the broker does not answer within
     ``timeout_s`` (default: settings.HEALTH_TIMEOUT_S).

@@ -10,7 +10,7 @@ So every worker beats a heart: each ``HEARTBEAT_S`` it touches (``updated``) the
 the tasks it holds, prefetched or running. A queued or running row untouched for
 ``LOST_AFTER_S`` whose message is not waiting in the broker's queue has lost its task;
 the same beat finds such rows and sends them again. Sending gives a row a new task id,
-so the old message, should it ever come back, is ignored (``stimuli.claim``). Where the
+so the old message, should it ever come back, is ignored (``clips.claim``). Where the
 broker's queue cannot be listed, nothing is judged lost and the half-hour rule of
 ``dispatch.queue_stimuli`` remains.
 """

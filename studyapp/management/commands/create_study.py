@@ -4,6 +4,7 @@ from django.contrib.auth import get_user_model
 from django.core.exceptions import ValidationError
 from django.core.management.base import BaseCommand
 
+from studyapp.designs import registry as designs
 from studyapp.models import Study
 
 from ._study import InputError
@@ -26,9 +27,9 @@ class Command(BaseCommand):
     def add_arguments(self, parser):
         parser.add_argument("owner", help="username of the researcher who owns it")
         parser.add_argument("title")
-        parser.add_argument("--design", choices=Study.Design.values, default=Study.Design.SINGLE)
+        parser.add_argument("--design", choices=list(designs.DESIGNS), default=designs.DEFAULT)
         parser.add_argument("--scale", nargs=2, type=int, metavar=("MIN", "MAX"),
-                            help="default 1 5 (side-by-side: 0 100)")
+                            help="default 1 5, or the design's own (side-by-side: 0 100)")
         parser.add_argument("--clips", type=int, default=20, help="clips per participant, attention checks included")
         parser.add_argument("--pages", type=int, default=8, help="side-by-side and pairwise: pages per participant")
         parser.add_argument("--ratings-per-stimulus", type=int, default=10)
@@ -41,7 +42,7 @@ class Command(BaseCommand):
         owner = get_user_model().objects.filter(username=options["owner"]).first()
         if owner is None:
             raise InputError(f"no user named {options['owner']!r} (create one with createsuperuser)")
-        scale = options["scale"] or ((0, 100) if options["design"] == Study.Design.SIDE_BY_SIDE else (1, 5))
+        scale = options["scale"] or designs.design_named(options["design"]).default_scale or (1, 5)
         study = create_study(
             owner, options["title"], design=options["design"], scale_min=scale[0], scale_max=scale[1],
             clips_per_participant=options["clips"], pages_per_participant=options["pages"], ratings_per_stimulus=options["ratings_per_stimulus"],

@@ -4,6 +4,7 @@ import time
 
 from django.core.management.base import BaseCommand
 
+from studyapp.models import Stimulus
 from studyapp.stimuli.clips import progress
 from studyapp.stimuli.dispatch import BrokerUnavailable, generate_stimuli
 
@@ -21,9 +22,11 @@ class Command(BaseCommand):
 
     def handle(self, *args, **options):
         study = study_by_id(options["study_id"])
+        if not 0 <= options["seed"] <= Stimulus.MAX_SEED:
+            raise InputError(f"--seed {options['seed']}: a seed is a whole number from 0 to {Stimulus.MAX_SEED}")
         try:
             result = generate_stimuli(study, options["seed"])
-        except (BrokerUnavailable, ValueError) as error:
+        except BrokerUnavailable as error:
             raise InputError(str(error)) from None
         self.stdout.write(f"{result.total} stimuli ({result.created} new), {result.queued} queued")
         if not options["wait"]:

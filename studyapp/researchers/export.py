@@ -1,0 +1,103 @@
+"""The study's ratings table (docs/ratings-schema.md) and the rules it was collected under.
+
+One row per rating, with the columns every design shares and, in front, the page
+structure its design adds (``Design.export_columns``); designs whose answers are not on
+a scale (pairwise) carry no value or scale columns. Instructed checks are left out: their
+answers were dictated, not given. Each row carries the live flags: the participant's
+exclusion as it was set when their answers arrived, and the early-answer discard, the
+analysis's own rule (``analysis.exclusions.early_discards``) with the study's rules.
+
+``rules_json`` is those rules as ``python -m analysis report --rules`` reads them.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+
+import pandas as pd
+
+from analysis.exclusions import early_discards
+from analysis.tables import spreadsheet_safe
+from studyapp.designs.registry import design_of
+from studyapp.designs.rules import StudyRules
+from studyapp.models import Rating, Study
+
+EXPORT_COLUMNS = (
+    "participant", "system", "stimulus", "task", "control_class", "value", "scale_min", "scale_max",
+    "clip_duration_s", "shown_at", "answered_at", "client_started_s", "client_ended_s", "client_answered_s",
+    "played_until_s", "answered_before_end",
+    "excluded_participant", "discarded_early", "exclusion_reason",
+)
+SCALE_COLUMNS = ("value", "scale_min", "scale_max")
+
+
+def export_columns(study: Study) -> tuple[str, ...]:
+    """The columns of the study's ratings table, by its design."""
+    design = design_of(study)
+    shared = EXPORT_COLUMNS if design.on_scale else tuple(c for c in EXPORT_COLUMNS if c not in SCALE_COLUMNS)
+    return (*design.export_columns, *shared)
+
+
+def ratings_rows(study: Study) -> list[dict]:
+    """The study's ratings in the schema of docs/ratings-schema.md, one dict per rating."""
+    design = design_of(study)
+    ratings = (Rating.objects.filter(assignment__participant__study=study, assignment__expected="")
+               .select_related("assignment__participant", "assignment__stimulus__system",
+                               "assignment__stimulus__control")
+               .order_by("answered_at", "pk"))
+    columns = export_columns(study)
+    rows = []
+    for rating in ratings:
+        assignment = rating.assignment
+        participant, stimulus = assignment.participant, assignment.stimulus
+        row = {
+            **design.export_fields(assignment, rating),
+            "participant": participant.code,
+            "system": stimulus.system.export_name,
+            "stimulus": stimulus.token,
+            "task": "all",
+            "control_class": stimulus.control_class,
+            "value": rating.value,
+            "scale_min": study.scale_min,
+            "scale_max": study.scale_max,
+            "clip_duration_s": stimulus.duration_s,
+            "shown_at": assignment.shown_at.isoformat() if assignment.shown_at else "",
+            "answered_at": rating.answered_at.isoformat(),
+            "client_started_s": rating.client_started_s,
+            "client_ended_s": rating.client_ended_s,
+            "client_answered_s": rating.client_answered_s,
+            "played_until_s": rating.played_until_s,
+            "answered_before_end": rating.answered_before_end,
+            "excluded_participant": participant.excluded,
+            "exclusion_reason": participant.exclusion_reason,
+        }
+        rows.append({column: row.get(column) for column in columns})
+    if rows:
+        table = pd.DataFrame(rows)
+        discarded = early_discards(table, StudyRules.of(study).exclusion, table["excluded_participant"])
+        for row, early in zip(rows, discarded.tolist()):
+            row["discarded_early"] = early
+            row["exclusion_reason"] = row["exclusion_reason"] or ("answered before clip end" if early else "")
+    return rows
+
+
+def ratings_csv(study: Study, for_spreadsheets: bool = False) -> bytes:
+    """The study's ratings table as CSV.
+
+    ``for_spreadsheets``: text a spreadsheet would run as a formula (a system named
+    ``=HYPERLINK(...)``) gets a leading apostrophe, for the file a researcher downloads.
+    """
+    rows = ratings_rows(study)
+    if for_spreadsheets:
+        rows = [{column: spreadsheet_safe(value) for column, value in row.items()} for row in rows]
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=export_columns(study), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return buffer.getvalue().encode()
+
+
+def rules_json(study: Study) -> str:
+    """The study's exclusion rules as ``python -m analysis report --rules`` reads them."""
+    return StudyRules.of(study).exclusion.to_json()
