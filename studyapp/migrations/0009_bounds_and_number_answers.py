@@ -5,6 +5,13 @@ import studyapp.models
 from django.db import migrations, models
 
 
+def keep_what_number_questions_took(apps, schema_editor):
+    """Number questions made before they had a range took any number: they keep taking any
+    finite one (a running study's questions are fixed), where new ones default to an age."""
+    apps.get_model("studyapp", "Question").objects.filter(kind="number").update(
+        minimum=-1e9, maximum=1e9, whole_numbers=False)
+
+
 class Migration(migrations.Migration):
 
     dependencies = [
@@ -27,6 +34,7 @@ class Migration(migrations.Migration):
             name='whole_numbers',
             field=models.BooleanField(default=True, help_text='number questions: only whole numbers (as ages)'),
         ),
+        migrations.RunPython(keep_what_number_questions_took, migrations.RunPython.noop),
         migrations.AlterField(
             model_name='controlsignal',
             name='control',
