@@ -18,7 +18,7 @@ summary.md, tables/<name>.{csv,md,tex,json}, figures/<name>.{png,svg}.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import pandas as pd
@@ -27,8 +27,9 @@ from analysis import design_plots, plots
 from analysis.bradley_terry import bradley_terry_scale
 from analysis.designs import PAGE, PAIRWISE, SIDE_BY_SIDE, table_design
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import (ExclusionRules, apply_exclusions, exclusion_notes,
-                                 exclusion_summary, removed_by_reason, scaled_threshold)
+from analysis.exclusions import (ExclusionRules, apply_exclusions, attention_rule_text,
+                                 compared_ratings, exclusion_notes, exclusion_summary,
+                                 removed_by_reason)
 from analysis.mixed import mixed_model_means
 from analysis.pairwise import preference_pages, preference_pairs, side_bias
 from analysis.power import more_ratings_for_power, power_summary
@@ -73,15 +74,11 @@ def build_design_report(ratings: pd.DataFrame, reference: str | None = None,
         raise AnalysisInputError(
             f"reference system {reference!r} does not exist in the ratings; systems: "
             f"{', '.join(sorted(set(ratings['system'])))}")
+    if compare_attention_checks:
+        rules = replace(rules, attention_rule=False)
     flagged = apply_exclusions(ratings, rules)
     notes = exclusion_notes(flagged, rules)
-    kept = flagged[flagged["kept"]]
-    if not compare_attention_checks:
-        drop = kept["system"] == rules.attention_system
-        if design == PAIRWISE:  # a side-by-side page keeps its other clips, a pair has none
-            check_pages = kept.loc[drop, list(PAGE)].set_index(list(PAGE)).index
-            drop |= kept.set_index(list(PAGE)).index.isin(check_pages)
-        kept = kept[~drop]
+    kept = compared_ratings(flagged, rules)
     if kept.empty:
         raise AnalysisInputError("no ratings are left after the exclusions; nothing to analyse")
     if reference is None and rules.natural_system in set(kept["system"]):
@@ -146,8 +143,7 @@ def _exclusion_sentence(report: DesignReport, row) -> str:
     removed = report.removed[report.removed["task"] == row.task]
     reasons = ", ".join(f"{r.participants} {r.reason}" for r in removed.itertuples(index=False))
     if report.design == PAIRWISE:
-        rule = (f"a participant was removed who preferred a {rules.attention_system} clip on any "
-                f"page showing one")
+        rule = attention_rule_text(rules, PAIRWISE)
         # both rows of a pairwise page share its flags, so pages are rows / 2
         collected, by_participant, early, kept = (
             n // 2 for n in (row.ratings_collected, row.discarded_participant,
@@ -156,10 +152,7 @@ def _exclusion_sentence(report: DesignReport, row) -> str:
     else:
         in_task = report.flagged[report.flagged["task"] == row.task].iloc[0]
         lo, hi = int(in_task["scale_min"]), int(in_task["scale_max"])
-        rule = (f"a participant was removed who rated any {rules.attention_system} clip "
-                f"{scaled_threshold(rules.bad_at_or_above, lo, hi):g} or higher or any "
-                f"{rules.natural_system} clip below {scaled_threshold(rules.natural_below, lo, hi):g} "
-                f"(on the {lo}-{hi} scale)")
+        rule = attention_rule_text(rules, SIDE_BY_SIDE, (lo, hi))
         collected, by_participant, early, kept = (
             row.ratings_collected, row.discarded_participant, row.discarded_early, row.ratings_kept)
         pages = report.flagged[report.flagged["task"] == row.task].groupby(list(PAGE)).ngroups

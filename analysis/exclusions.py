@@ -17,6 +17,10 @@ versus NAT page in the studies this project runs) is excluded; "no preference" t
 does not exclude. Rule 2 discards a page, both its rows, when either clip was answered
 before it finished playing.
 
+When the attention-check system is itself compared (``--compare-attention-checks``),
+``attention_rule`` is off: its ratings exclude nobody, and the summaries say which rule
+was applied (`attention_rule_text`).
+
 Nothing is deleted. Each rating gets ``excluded_participant``, ``discarded_early``,
 ``kept`` and ``exclusion_reason``; a rating that breaks both rules is counted under the
 participant exclusion, so ratings collected = discarded by each reason + kept.
@@ -44,6 +48,7 @@ class ExclusionRules:
     bad_at_or_above: float = 4.0
     natural_below: float = 2.0
     discard_early: bool = True
+    attention_rule: bool = True  # off when the attention-check system is compared as a system
 
     def __post_init__(self) -> None:
         # NaN compares false with every rating, which would silently exclude nobody.
@@ -71,7 +76,7 @@ def apply_exclusions(ratings: pd.DataFrame, rules: ExclusionRules = ExclusionRul
     if table_design(ratings) == PAIRWISE:
         return _apply_preference_exclusions(ratings, rules)
     df = ratings.copy()
-    failed_bad = (df["system"] == rules.attention_system) & (
+    failed_bad = rules.attention_rule & (df["system"] == rules.attention_system) & (
         df["value"] >= scaled_threshold(rules.bad_at_or_above, df["scale_min"], df["scale_max"])
     )
     failed_nat = (df["system"] == rules.natural_system) & (
@@ -97,7 +102,7 @@ def apply_exclusions(ratings: pd.DataFrame, rules: ExclusionRules = ExclusionRul
 
 def _apply_preference_exclusions(ratings: pd.DataFrame, rules: ExclusionRules) -> pd.DataFrame:
     df = ratings.copy()
-    preferred_bad = (df["system"] == rules.attention_system) & (df["answer"] == df["side"])
+    preferred_bad = rules.attention_rule & (df["system"] == rules.attention_system) & (df["answer"] == df["side"])
     df["excluded_participant"] = df["participant"].isin(set(df.loc[preferred_bad, "participant"]))
     if rules.discard_early and "answered_before_end" in df.columns:
         early_page = df.groupby(list(PAGE), sort=False)["answered_before_end"].transform("any")
@@ -138,12 +143,44 @@ def exclusion_notes(flagged: pd.DataFrame, rules: ExclusionRules = ExclusionRule
                 f"The web app's discarded_early flag disagrees with the recomputed rule on "
                 f"{differ} rating(s); the recomputed flags were used."
             )
-    ruled = ((rules.attention_system,) if table_design(flagged) == PAIRWISE
-             else (rules.attention_system, rules.natural_system))
-    for system in ruled:
+    ruled = (() if table_design(flagged) == PAIRWISE else (rules.natural_system,))
+    for system in ((rules.attention_system,) if rules.attention_rule else ()) + ruled:
         if not (flagged["system"] == system).any():
             notes.append(f"No ratings of {system} clips: its attention rule excluded nobody.")
     return notes
+
+
+def attention_rule_text(rules: ExclusionRules, design: str,
+                        scale: tuple[int, int] | None = None) -> str:
+    """The attention rules applied, as a report states them ("a participant was removed
+    who ..."), on ``scale`` (default: the 1-5 reference scale, rescaled for others)."""
+    checked = rules.attention_system
+    if design == PAIRWISE:
+        if not rules.attention_rule:
+            return f"no attention check was applied ({checked} was compared as a system)"
+        return f"a participant was removed who preferred a {checked} clip on any page showing one"
+    lo, hi = scale or REFERENCE_SCALE
+    where = f"on the {lo}-{hi} scale" if scale else "on a 1-5 scale; scaled linearly on others"
+    natural = f"any {rules.natural_system} clip below {scaled_threshold(rules.natural_below, lo, hi):g}"
+    if not rules.attention_rule:
+        return (f"a participant was removed who rated {natural} ({where}); {checked} was compared "
+                "as a system, not used as an attention check")
+    return (f"a participant was removed who rated any {checked} clip "
+            f"{scaled_threshold(rules.bad_at_or_above, lo, hi):g} or higher or {natural} ({where})")
+
+
+def compared_ratings(flagged: pd.DataFrame, rules: ExclusionRules) -> pd.DataFrame:
+    """The kept ratings that enter the comparisons: without the attention-check system's
+    ratings unless it is compared (``rules.attention_rule`` off). A pairwise page showing
+    it goes whole: without its attention clip a pair compares nothing."""
+    kept = flagged[flagged["kept"]]
+    if not rules.attention_rule:
+        return kept
+    drop = kept["system"] == rules.attention_system
+    if table_design(kept) == PAIRWISE:
+        check_pages = kept.loc[drop, list(PAGE)].set_index(list(PAGE)).index
+        drop |= kept.set_index(list(PAGE)).index.isin(check_pages)
+    return kept[~drop]
 
 
 def exclusion_summary(flagged: pd.DataFrame) -> pd.DataFrame:

@@ -14,7 +14,7 @@ The study app calls the same two functions and shows the same tables and figures
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import pandas as pd
@@ -25,8 +25,9 @@ from analysis.design_report import (POWER, DesignReport, build_design_report,
                                     design_summary_text, write_design_report)
 from analysis.designs import SINGLE, table_design
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import (ExclusionRules, apply_exclusions, exclusion_notes,
-                                 exclusion_summary, removed_by_reason)
+from analysis.exclusions import (ExclusionRules, apply_exclusions, attention_rule_text,
+                                 compared_ratings, exclusion_notes, exclusion_summary,
+                                 removed_by_reason)
 from analysis.mixed import mixed_model_means
 from analysis.motion_io import SystemClips
 from analysis.objective import METRIC_COLUMNS, objective_metrics
@@ -105,7 +106,7 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
     ``reference`` marks significance in Table 2 (default NAT when rated). ``systems``,
     when given, lists the systems expected; any other system in the ratings is an error.
     BAD clips are attention checks, left out of the comparisons unless
-    ``compare_attention_checks``.
+    ``compare_attention_checks``, which compares BAD as a system and excludes nobody on it.
     """
     rated = set(ratings["system"].unique())
     if systems is not None:
@@ -116,13 +117,13 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
                 f"{', '.join(systems)}")
     if motion:
         require_single_design(ratings)
+    if compare_attention_checks:
+        rules = replace(rules, attention_rule=False)
     if table_design(ratings) != SINGLE:
         return build_design_report(ratings, reference, rules, compare_attention_checks)
     flagged = apply_exclusions(ratings, rules)
     notes = exclusion_notes(flagged, rules)
-    kept = flagged[flagged["kept"]]
-    if not compare_attention_checks:
-        kept = kept[kept["system"] != rules.attention_system]
+    kept = compared_ratings(flagged, rules)
     if kept.empty:
         raise AnalysisInputError("no ratings are left after the exclusions; nothing to analyse")
     too_few = too_few_ratings(kept)
@@ -212,10 +213,8 @@ def summary_text(report: Report | DesignReport) -> str:
         reasons = ", ".join(f"{r.participants} {r.reason}" for r in removed.itertuples(index=False))
         text = (f"**{row.task}.** Of {row.participants_total} participants, "
                 f"{row.participants_removed} were removed for failing attention checks"
-                f"{f' ({reasons})' if reasons else ''}; a participant was removed who rated "
-                f"any {rules.attention_system} clip {rules.bad_at_or_above:g} or higher or any "
-                f"{rules.natural_system} clip below {rules.natural_below:g} (on a 1-5 scale; "
-                f"scaled linearly on others). {row.ratings_collected} ratings were collected; "
+                f"{f' ({reasons})' if reasons else ''}; {attention_rule_text(rules, SINGLE)}. "
+                f"{row.ratings_collected} ratings were collected; "
                 f"{row.discarded_participant} were discarded with the removed participants and "
                 f"{row.discarded_early} because they were given before the clip had finished "
                 f"playing, leaving {row.ratings_kept} ratings, {row.ratings_per_stimulus_min} to "
