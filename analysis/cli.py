@@ -18,8 +18,8 @@ from pathlib import Path
 
 from analysis import plots
 from analysis.attribute_scores import write_scores
+from analysis.cli_options import add_exclusion_arguments, exclusion_rules
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import ExclusionRules
 from analysis.motion_io import SystemClips, load_motion_sets
 from analysis.objective import objective_metrics
 from analysis.ratings import read_ratings
@@ -52,18 +52,7 @@ def _parser() -> argparse.ArgumentParser:
                              "analysis/motion_io.py); a subfolder or file stem names the system")
     report.add_argument("--systems", help="comma-separated list of expected systems; any other "
                                           "system in the ratings is an error")
-    report.add_argument("--natural", default="NAT", help="name of the natural-motion system")
-    report.add_argument("--attention", default="BAD", help="name of the attention-check system")
-    report.add_argument("--bad-threshold", type=float, default=4.0,
-                        help="exclude a participant rating any attention clip at or above this "
-                             "(on a 1-5 scale, rescaled for others; default 4)")
-    report.add_argument("--nat-threshold", type=float, default=2.0,
-                        help="exclude a participant rating any natural clip below this "
-                             "(on a 1-5 scale; default 2)")
-    report.add_argument("--keep-early", action="store_true",
-                        help="do not discard ratings given before the clip ended")
-    report.add_argument("--compare-attention-checks", action="store_true",
-                        help="include the attention-check system in the comparisons")
+    add_exclusion_arguments(report)
     report.add_argument("--foot-joints", help="comma-separated foot joint names (default: "
                                               "found by name)")
     report.add_argument("--foot-kind", choices=("heel", "toe"), default="heel",
@@ -172,9 +161,7 @@ def _run(args: argparse.Namespace) -> int:
         for note in notes:
             print(f"note: {note}")
         return 0
-    rules = ExclusionRules(natural_system=args.natural, attention_system=args.attention,
-                           bad_at_or_above=args.bad_threshold, natural_below=args.nat_threshold,
-                           discard_early=not args.keep_early)
+    rules = exclusion_rules(args)
     with staged_output(out) as work:
         ratings = read_ratings(args.ratings)
         if args.motion:
