@@ -3,6 +3,8 @@
     python -m analysis report RATINGS.csv --out report/ [--motion DIR ...]
     python -m analysis objective DIR ... --out objective/
     python -m analysis hvrnn-scores OUTPUTS.npz --out scores/
+    python -m analysis leaderboard RATINGS.csv --out leaderboard/   (and the other commands
+        of `analysis.rankings_cli`)
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from analysis.cli_options import add_exclusion_arguments, exclusion_rules
 from analysis.errors import AnalysisInputError
 from analysis.motion_io import SystemClips, load_motion_sets
 from analysis.objective import objective_metrics
+from analysis.rankings_cli import add_commands as add_ranking_commands
 from analysis.ratings import read_ratings
 from analysis.report import build_report, require_single_design, write_report
 from analysis.tables import objective_table, to_markdown, write_table
@@ -65,6 +68,7 @@ def _parser() -> argparse.ArgumentParser:
                     "write the IS/FID table and a t-SNE figure per classifier.")
     scores.add_argument("outputs", help="classifier outputs (.npz)")
     scores.add_argument("--out", required=True, help="folder to write tables and figures into")
+    add_ranking_commands(commands)
     return parser
 
 
@@ -150,6 +154,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     out = Path(args.out)
+    if hasattr(args, "write"):  # the commands of analysis.rankings_cli
+        with staged_output(out) as work:
+            lines = args.write(args, work)
+        print("\n".join(lines))
+        return 0
     if args.command == "hvrnn-scores":
         with staged_output(out) as work:
             table = write_scores(args.outputs, work)

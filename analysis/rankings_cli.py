@@ -1,0 +1,99 @@
+"""The ranking commands of ``python -m analysis`` (registered by `analysis.cli`):
+
+    python -m analysis leaderboard RATINGS.csv --out DIR [--anchor NAT] [--model davidson]
+
+Each command writes into a folder that `analysis.cli` stages (a failure leaves the
+folder as it was) and returns the lines to print.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pandas as pd
+
+from analysis.cli_options import add_exclusion_arguments, exclusion_rules
+from analysis.designs import PAIRWISE, table_design
+from analysis.errors import AnalysisInputError
+from analysis.exclusions import apply_exclusions, compared_ratings, exclusion_notes
+from analysis.leaderboard import MODELS, RESAMPLES
+from analysis.leaderboard_report import build_leaderboard, leaderboard_text, write_leaderboard
+from analysis.ratings import read_ratings
+from analysis.tables import to_markdown
+
+
+def _count(minimum: int):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
+        return value
+    return parse
+
+
+def add_commands(commands) -> None:
+    """Add the ranking commands to the ``python -m analysis`` subparsers."""
+    board = commands.add_parser(
+        "leaderboard", help="rank the systems of a pairwise study on an Elo scale",
+        description="Read a pairwise ratings CSV (docs/ratings-schema.md), apply the exclusion "
+                    "rules, and rank the systems per task and control class with a weighted "
+                    "Bradley-Terry model (GENEA leaderboard weights: a clear preference counts "
+                    "4 wins, a slight one 2, a plain left/right answer 4, 'no preference' 1 "
+                    "for each side) or Davidson's tie model, on an Elo scale with 95 %% "
+                    "intervals from a seeded bootstrap over participants. Writes the "
+                    "leaderboard, battle counts, win fractions and side-bias test as tables "
+                    "(CSV, Markdown, LaTeX, JSON), the heat maps (PNG, SVG) and summary.md.")
+    board.add_argument("ratings", help="pairwise ratings CSV file")
+    board.add_argument("--out", required=True, help="folder to write the leaderboard into")
+    board.add_argument("--anchor", help="system fixed at Elo 1000 (default: the natural "
+                                        "system where compared, else the systems' mean)")
+    board.add_argument("--model", choices=MODELS, default=MODELS[0],
+                       help="bradley-terry (ties count one win for each side; default) or "
+                            "davidson (ties an outcome of their own)")
+    board.add_argument("--resamples", type=_count(1), default=RESAMPLES,
+                       help="bootstrap resamples of the participants (default %(default)s)")
+    board.add_argument("--seed", type=int, default=0, help="the bootstrap's seed (default 0)")
+    add_exclusion_arguments(board, thresholds=False)
+    board.set_defaults(write=leaderboard_command)
+
+
+def _compared(args: argparse.Namespace, designs: tuple[str, ...]) -> tuple[pd.DataFrame, list[str]]:
+    """The ratings file's compared rows (kept, attention checks removed unless compared)
+    and the exclusion notes; refuses a table of another design."""
+    ratings = read_ratings(args.ratings)
+    design = table_design(ratings)
+    if design not in designs:
+        raise AnalysisInputError(f"{args.command} analyses {' and '.join(designs)} tables; "
+                                 f"{args.ratings} is {design}")
+    rules = exclusion_rules(args)
+    flagged = apply_exclusions(ratings, rules)
+    kept = compared_ratings(flagged, rules)
+    if kept.empty:
+        raise AnalysisInputError("no ratings are left after the exclusions; nothing to analyse")
+    return kept, exclusion_notes(flagged, rules)
+
+
+def _summary(folder: Path, title: str, text: str, notes: list[str]) -> Path:
+    listed = "".join(f"- {n}\n" for n in notes) or "- None: everything was computed.\n"
+    path = folder / "summary.md"
+    path.write_text(f"# {title}\n\n{text}\n\n## Notes (what was not computed, and why)\n\n{listed}",
+                    encoding="utf-8")
+    return path
+
+
+def leaderboard_command(args: argparse.Namespace, out: Path) -> list[str]:
+    kept, notes = _compared(args, (PAIRWISE,))
+    report = build_leaderboard(kept, args.anchor, args.model, args.resamples, args.seed,
+                               natural=args.natural)
+    if report.board.empty:
+        raise AnalysisInputError("no cell has a leaderboard: " + " ".join(report.notes))
+    notes += report.notes
+    written = [_summary(out, "Leaderboard", leaderboard_text(report), notes),
+               *write_leaderboard(report, out)]
+    shown = report.board[["task", "control_class", "rank", "system", "elo", "ci_low", "ci_high", "pages"]]
+    return [to_markdown(shown.round(1)), f"wrote {len(written)} files",
+            *(f"note: {n}" for n in notes)]
