@@ -90,10 +90,15 @@ def vote_pages(kept: pd.DataFrame, groupby: Sequence[str] = CELL) -> pd.DataFram
         pages = pages.merge(left, on=keys, how="left")
     else:
         pages["strength"] = pd.array([pd.NA] * len(pages), dtype="Int64")
-    tie = pages["answer"] == NO_PREFERENCE
-    weight = pages["strength"].map(WIN_WEIGHT, na_action="ignore").astype("float64").fillna(PLAIN_WIN_WEIGHT)
-    pages["weight"] = np.where(tie, TIE_WEIGHT, weight)
+    pages["weight"] = vote_weights(pages["answer"], pages["strength"])
     return pages
+
+
+def vote_weights(answer: pd.Series, strength: pd.Series) -> np.ndarray:
+    """The wins a page credits to its preferred system (4 clear or without a strength, 2
+    slight), or to each side when answered ``none`` (1)."""
+    weight = pd.Series(strength).map(WIN_WEIGHT, na_action="ignore").astype("float64").fillna(PLAIN_WIN_WEIGHT)
+    return np.where(pd.Series(answer).to_numpy() == NO_PREFERENCE, TIE_WEIGHT, weight.to_numpy())
 
 
 @dataclass(frozen=True)
@@ -149,12 +154,11 @@ def pair_votes(pages: pd.DataFrame, systems: Sequence[str] | None = None) -> Pai
     return PairVotes(systems, first, second, **arrays)
 
 
-def _incidence(votes: PairVotes) -> np.ndarray:
-    """(pairs, systems - 1): d = b_first - b_second in the free strengths (system 0 fixed at 0)."""
-    k = len(votes.systems)
-    a = np.zeros((len(votes.first), k))
-    a[np.arange(len(a)), votes.first] = 1.0
-    a[np.arange(len(a)), votes.second] = -1.0
+def _incidence(first: np.ndarray, second: np.ndarray, k: int) -> np.ndarray:
+    """(pairs, k - 1): d = b_first - b_second in the free strengths (system 0 fixed at 0)."""
+    a = np.zeros((len(first), k))
+    a[np.arange(len(a)), first] = 1.0
+    a[np.arange(len(a)), second] = -1.0
     return a[:, 1:]
 
 
@@ -309,7 +313,7 @@ def fit_votes(votes: PairVotes, model: str = BRADLEY_TERRY, resamples: int = RES
     participants. Raises AnalysisInputError when the full data's maximum does not exist."""
     if model not in MODELS:
         raise AnalysisInputError(f"model must be one of {', '.join(MODELS)}; got {model!r}")
-    incidence = _incidence(votes)
+    incidence = _incidence(votes.first, votes.second, len(votes.systems))
     totals = [t[None] for t in votes.totals()]
     if not _estimable(model, votes, *totals)[0]:
         raise AnalysisInputError(_not_estimable_reason(model, votes))
@@ -325,6 +329,18 @@ def fit_votes(votes: PairVotes, model: str = BRADLEY_TERRY, resamples: int = RES
         resampled = np.concatenate([np.zeros((len(refit), 1)), refit[:, :free]], axis=1)
     return Fit(votes.systems, model, np.r_[0.0, theta[:free]],
                float(np.exp(theta[free])) if model == DAVIDSON else np.nan, resampled, resamples)
+
+
+def bradley_terry_log_strengths(wins: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
+    """Weighted Bradley-Terry log-strengths (system 0 at 0) from ``wins[i, j]``, the
+    weighted wins of i over j, ties' credits included; ``start`` (system 0 at 0) is where
+    Newton's method begins. The maximum must exist (see the module's docstring)."""
+    k = len(wins)
+    first, second = np.triu_indices(k, 1)
+    begin = np.zeros((1, k - 1)) if start is None else np.asarray(start, dtype=np.float64)[None, 1:]
+    theta = _fit_batch(BRADLEY_TERRY, _incidence(first, second, k), wins[first, second][None],
+                       wins[second, first][None], np.zeros((1, len(first))), begin)
+    return np.r_[0.0, theta[0]]
 
 
 def elo(log_strength: np.ndarray, anchor: int | None) -> np.ndarray:
