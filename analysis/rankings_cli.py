@@ -2,6 +2,7 @@
 
     python -m analysis leaderboard RATINGS.csv --out DIR [--anchor NAT] [--model davidson]
     python -m analysis simulate-pairing --out DIR [--studies 200] [--workers 4]
+    python -m analysis rater-models RATINGS.csv --out DIR [--reference NAT]
 
 Each command writes into a folder that `analysis.cli` stages (a failure leaves the
 folder as it was) and returns the lines to print.
@@ -16,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.cli_options import add_exclusion_arguments, exclusion_rules
-from analysis.designs import PAIRWISE, table_design
+from analysis.designs import PAIRWISE, SIDE_BY_SIDE, SINGLE, table_design
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import apply_exclusions, compared_ratings, exclusion_notes
 from analysis.leaderboard import MODELS, RESAMPLES
@@ -24,6 +25,7 @@ from analysis.leaderboard_report import build_leaderboard, leaderboard_text, wri
 from analysis.pairing import EXPLORATION
 from analysis.pairing_simulation import (DEFAULT_ELO, DEFAULT_VOTES, Scenario, compare_designs,
                                          write_pairing_simulation)
+from analysis.rater_models import build_rater_models, rater_models_text, write_rater_models
 from analysis.ratings import read_ratings
 from analysis.tables import to_markdown
 
@@ -91,6 +93,21 @@ def add_commands(commands) -> None:
     simulate.add_argument("--workers", type=_count(1), default=1,
                           help="processes to run studies in (default 1; the result does not depend on it)")
     simulate.set_defaults(write=simulate_pairing_command)
+    models = commands.add_parser(
+        "rater-models", help="crossed mixed models and rater agreement of single or side-by-side ratings",
+        description="Read a single or side-by-side ratings CSV, apply the exclusion rules, and fit "
+                    "per task and control class the linear mixed model value ~ system + "
+                    "(1|participant) + (1|stimulus) by REML (system means, variance components, "
+                    "contrasts against the reference with Holm), the cumulative link (logit) mixed "
+                    "model by the Laplace approximation on Likert scales of up to 11 points "
+                    "(thresholds, effects, random-effect standard deviations), and Krippendorff's "
+                    "alpha. Writes the tables (CSV, Markdown, LaTeX, JSON) and summary.md.")
+    models.add_argument("ratings", help="single or side-by-side ratings CSV file")
+    models.add_argument("--out", required=True, help="folder to write the tables into")
+    models.add_argument("--reference", help="system the contrasts are against (default: the natural "
+                                            "system where rated, else the first in sorted order)")
+    add_exclusion_arguments(models)
+    models.set_defaults(write=rater_models_command)
 
 
 def _elo(text: str) -> dict[str, float]:
@@ -166,3 +183,16 @@ def simulate_pairing_command(args: argparse.Namespace, out: Path) -> list[str]:
     results = compare_designs(scenario, args.studies, args.votes, args.seed, args.workers)
     written, text = write_pairing_simulation(scenario, results, out, args.studies, args.seed)
     return [text, f"wrote {len(written)} files"]
+
+
+def rater_models_command(args: argparse.Namespace, out: Path) -> list[str]:
+    kept, notes = _compared(args, (SINGLE, SIDE_BY_SIDE))
+    if args.reference is not None and args.reference not in set(kept["system"]):
+        raise AnalysisInputError(f"reference system {args.reference!r} has no compared ratings; "
+                                 f"systems: {', '.join(sorted(set(kept['system'])))}")
+    reference = args.reference or (args.natural if args.natural in set(kept["system"]) else None)
+    models = build_rater_models(kept, reference)
+    notes += models.notes
+    written = [_summary(out, "Rater- and clip-aware models", rater_models_text(models), notes),
+               *write_rater_models(models, out)]
+    return [rater_models_text(models), f"wrote {len(written)} files", *(f"note: {n}" for n in notes)]

@@ -1,0 +1,361 @@
+"""The cumulative link (logit) mixed model of Likert ratings, as R's ordinal::clmm fits
+``value ~ system + (1 | participant) + (1 | stimulus)`` by the Laplace approximation.
+
+Model. A rating y in the ordered categories c_1 < ... < c_J (the values used) with
+
+    P(y <= c_j) = F(alpha_j - eta),   eta = beta[system] + s_p u[participant] + s_s v[stimulus],
+
+F the logistic distribution function, u, v ~ N(0, 1), alpha_1 < ... < alpha_{J-1} the
+thresholds, beta = 0 for the reference system (treatment coding), so beta_k is the shift
+of system k's latent rating against the reference in logits: exp(beta_k) is the odds
+ratio of a higher rating. s_p and s_s are the random intercepts' standard deviations
+(the latent residual's is pi / sqrt(3)).
+
+Laplace approximation. With w = (u, v) (q = q_p + q_s of them), Lambda = diag(s_p I,
+s_s I) and g(w) = sum_i log pi_i(eta_i) - |w|^2 / 2, the log-likelihood is
+``log integral exp(g) dw - q/2 log 2 pi``, approximated as
+
+    L = g(w*) - 1/2 log|H|,   H = I + Lambda Z' D Z Lambda,   D_i = -d^2 log pi_i / d eta^2,
+
+at the mode w* of g, found by Newton's method (g is concave: log pi is concave in eta for
+the logit link). H has the crossed block structure of `analysis.crossed_design`, so it
+is factorised through the Schur complement of its smaller block. Writing the random
+effects as Lambda w keeps L defined at s = 0: a variance component estimated at zero
+sits on its bound (``at_boundary``) and the fit does not fail.
+
+Gradient. L is maximised over theta = (alpha, beta, s_p, s_s) by L-BFGS-B (s >= 0;
+the thresholds through alpha_1 and the logs of their increments, which keeps them in
+order) with the exact gradient of the approximation: at the mode dg/dw = 0, so
+
+    dL/dtheta = dg/dtheta|_w* - 1/2 tr(H^-1 dH/dtheta),
+
+where dH/dtheta holds D's change (directly, and through eta with the mode's own change
+dw*/dtheta = H^-1 d(dg/dw)/dtheta) and, for s, Lambda's. With per-rating derivatives of
+log pi up to the third order, every term is a sum over ratings or a solve with H; the
+tests compare it with finite differences.
+
+Standard errors: from the inverse of the numerical Hessian (central differences of the
+exact gradient) of -L in (alpha, beta) and the standard deviations that are not on
+their bound, as ordinal does for clmm's fixed effects.
+
+The tests check the fit against statsmodels' OrderedModel when the random effects are
+left out, the Laplace approximation against one computed independently with dense
+matrices and scipy, and, with one random factor, the estimates against the exact
+marginal likelihood integrated numerically.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy import optimize
+from scipy import stats as sps
+from scipy.special import expit
+
+from analysis.crossed_design import (CrossedBlocks, CrossedLayout, contrasts_against_reference,
+                                     crossed_layout)
+from analysis.errors import AnalysisInputError
+from analysis.stats import CELL, iter_cells
+
+RANDOM_FACTORS = ("participant", "stimulus")
+_MODE_TOLERANCE = 1e-10
+_MAX_MODE_STEPS = 100
+_MAX_SD = 20.0
+
+
+@dataclass(frozen=True)
+class _Link:
+    """Per rating: log pi and its derivatives in eta, and in the rating's upper and lower
+    threshold (a = alpha_y - eta, b = alpha_{y-1} - eta)."""
+
+    log_pi: np.ndarray
+    psi: np.ndarray  # d log pi / d eta
+    d: np.ndarray  # -d2 log pi / d eta2
+    d_eta: np.ndarray  # dD / d eta
+    upper: tuple[np.ndarray, np.ndarray, np.ndarray]  # d/da of (log pi, psi, D)
+    lower: tuple[np.ndarray, np.ndarray, np.ndarray]  # d/db of (log pi, psi, D)
+
+
+def _density_terms(x: np.ndarray) -> tuple[np.ndarray, ...]:
+    """F, f, f', f'' of the logistic at x (infinite x: F = 0 or 1, the rest 0)."""
+    big = np.isinf(x)
+    s = expit(np.where(big, 0.0, x))
+    f = np.where(big, 0.0, s * (1 - s))
+    return np.where(big, (x > 0).astype(float), s), f, f * (1 - 2 * s), f * (1 - 6 * s + 6 * s**2)
+
+
+def _link(eta: np.ndarray, upper_alpha: np.ndarray, lower_alpha: np.ndarray) -> _Link:
+    a, b = upper_alpha - eta, lower_alpha - eta
+    Fa, fa, fa1, fa2 = _density_terms(a)
+    Fb, fb, fb1, fb2 = _density_terms(b)
+    # both ends in the upper tail: S(b) - S(a) with S = 1 - F keeps the digits F(a) - F(b) loses
+    upper_tail = np.isfinite(b) & (b > 0)
+    survival_b = expit(-np.where(upper_tail, b, 0.0))
+    survival_a = np.where(np.isfinite(a), expit(-np.where(np.isfinite(a), a, 0.0)), 0.0)
+    pi = np.maximum(np.where(upper_tail, survival_b - survival_a, Fa - Fb), 1e-300)
+    g1, g2, g3 = (fa - fb) / pi, (fa1 - fb1) / pi, (fa2 - fb2) / pi
+    d = g1**2 - g2
+    d_eta = 2 * g1**3 - 3 * g1 * g2 + g3
+    g1_a, g2_a = (fa1 - g1 * fa) / pi, (fa2 - g2 * fa) / pi
+    g1_b, g2_b = (-fb1 + g1 * fb) / pi, (-fb2 + g2 * fb) / pi
+    return _Link(np.log(pi), -g1, d, d_eta,
+                 (fa / pi, -g1_a, 2 * g1 * g1_a - g2_a),
+                 (-fb / pi, -g1_b, 2 * g1 * g1_b - g2_b))
+
+
+@dataclass
+class _Data:
+    layout: CrossedLayout
+    category: np.ndarray  # 0 .. J-1
+    levels: int  # J
+    free: tuple[bool, bool]  # which random factors are in the model
+
+    @property
+    def k(self) -> int:
+        return len(self.layout.systems)
+
+
+def _split(theta: np.ndarray, data: _Data):
+    j = data.levels - 1
+    return theta[:j], np.r_[0.0, theta[j:j + data.k - 1]], theta[j + data.k - 1:]
+
+
+def _threshold_ends(alpha: np.ndarray, category: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    ends = np.r_[-np.inf, alpha, np.inf]
+    return ends[category + 1], ends[category]
+
+
+@dataclass
+class _Laplace:
+    value: float
+    mode: tuple[np.ndarray, np.ndarray]
+    link: _Link
+    eta: np.ndarray
+    blocks: CrossedBlocks
+
+
+def _laplace(theta: np.ndarray, data: _Data, start: tuple[np.ndarray, np.ndarray] | None = None) -> _Laplace:
+    """The Laplace approximation of the log-likelihood at natural parameters ``theta``
+    (alpha, beta without the reference, s_p, s_s), with the mode of the random effects."""
+    alpha, beta, (s_p, s_s) = _split(theta, data)
+    lay = data.layout
+    q_p, q_s = lay.q
+    upper, lower = _threshold_ends(alpha, data.category)
+    fixed = beta[lay.system]
+    u, v = start if start is not None else (np.zeros(q_p), np.zeros(q_s))
+
+    def at(u, v):
+        eta = fixed + s_p * u[lay.participant] + s_s * v[lay.stimulus]
+        link = _link(eta, upper, lower)
+        return eta, link, link.log_pi.sum() - 0.5 * (u @ u + v @ v)
+
+    eta, link, g = at(u, v)
+    for _ in range(_MAX_MODE_STEPS):
+        d_p, d_s, d_ps = lay.sums(link.d)
+        blocks = CrossedBlocks(1 + s_p**2 * d_p, s_p * s_s * d_ps, 1 + s_s**2 * d_s)
+        psi_p, psi_s, _ = lay.sums(link.psi)
+        step_u, step_v = blocks.solve(s_p * psi_p - u, s_s * psi_s - v)
+        scale = 1.0
+        for _ in range(50):
+            new = at(u + scale * step_u, v + scale * step_v)
+            if new[2] >= g - 1e-12 * abs(g):
+                break
+            scale /= 2
+        u, v = u + scale * step_u, v + scale * step_v
+        eta, link, g = new
+        if max(np.abs(step_u).max(initial=0), np.abs(step_v).max(initial=0)) * scale < _MODE_TOLERANCE:
+            break
+    d_p, d_s, d_ps = lay.sums(link.d)
+    blocks = CrossedBlocks(1 + s_p**2 * d_p, s_p * s_s * d_ps, 1 + s_s**2 * d_s)
+    return _Laplace(g - 0.5 * blocks.logdet(), (u, v), link, eta, blocks)
+
+
+def _gradient(theta: np.ndarray, data: _Data, fit: _Laplace) -> np.ndarray:
+    """dL/dtheta in the natural parameters (alpha, beta without the reference, s_p, s_s)."""
+    alpha, beta, (s_p, s_s) = _split(theta, data)
+    lay, link = data.layout, fit.link
+    q_p, q_s = lay.q
+    u, v = fit.mode
+    n, j, k = len(link.psi), data.levels - 1, data.k
+    at_upper = data.category < j  # the rating has an upper threshold alpha_category
+    at_lower = data.category > 0
+    p_idx, s_idx = lay.participant, lay.stimulus
+    count = j + (k - 1) + 2
+    direct_eta = np.zeros((n, count))  # d eta / d theta at a fixed mode
+    direct_eta[np.arange(n)[lay.system > 0], j + lay.system[lay.system > 0] - 1] = 1.0
+    direct_eta[:, -2], direct_eta[:, -1] = u[p_idx], v[s_idx]
+    # threshold derivatives, per rating and threshold: (log pi, psi, D)
+    thresholds = [np.zeros((n, count)) for _ in range(3)]
+    rows = np.arange(n)
+    for which, mask, shift in ((link.upper, at_upper, 0), (link.lower, at_lower, -1)):
+        column = data.category[mask] + shift
+        for target, values in zip(thresholds, which):
+            target[rows[mask], column] = values[mask]
+    log_pi_theta, psi_theta, d_theta = thresholds
+    # the mode's change: H dw/dtheta = sum_i (dpsi_i - D_i deta_i) w_i + sum_i psi_i dw_i/ds
+    rhs = psi_theta - link.d[:, None] * direct_eta
+    c_p = np.zeros((q_p, count))
+    c_s = np.zeros((q_s, count))
+    np.add.at(c_p, p_idx, s_p * rhs)
+    np.add.at(c_s, s_idx, s_s * rhs)
+    psi_p, psi_s, _ = lay.sums(link.psi)
+    c_p[:, -2] += psi_p
+    c_s[:, -1] += psi_s
+    du, dv = fit.blocks.solve(c_p, c_s)
+    eta_theta = direct_eta + s_p * du[p_idx] + s_s * dv[s_idx]
+    d_total = d_theta + link.d_eta[:, None] * eta_theta
+    h_p, h_s, h_ps = fit.blocks.inverse_blocks()
+    cross = h_ps[p_idx, s_idx]
+    leverage = s_p**2 * h_p[p_idx] + s_s**2 * h_s[s_idx] + 2 * s_p * s_s * cross
+    trace = leverage @ d_total
+    trace[-2] += 2 * link.d @ (s_p * h_p[p_idx] + s_s * cross)
+    trace[-1] += 2 * link.d @ (s_s * h_s[s_idx] + s_p * cross)
+    direct = log_pi_theta.sum(axis=0) + link.psi @ direct_eta  # dg/dtheta at the fixed mode
+    return direct - 0.5 * trace
+
+
+def _to_natural(phi: np.ndarray, data: _Data) -> np.ndarray:
+    j = data.levels - 1
+    alpha = phi[0] + np.r_[0.0, np.cumsum(np.exp(phi[1:j]))]
+    return np.r_[alpha, phi[j:]]
+
+
+def _natural_gradient_to_phi(gradient: np.ndarray, phi: np.ndarray, data: _Data) -> np.ndarray:
+    j = data.levels - 1
+    out = gradient.copy()
+    # alpha_m = phi_0 + sum_{l=1..m} exp(phi_l): d/dphi_0 sums all, d/dphi_l those from l on
+    tail_sums = np.cumsum(gradient[:j][::-1])[::-1]
+    out[0] = tail_sums[0]
+    out[1:j] = np.exp(phi[1:j]) * tail_sums[1:j]
+    return out
+
+
+@dataclass(frozen=True)
+class OrdinalFit:
+    """One cell's fit: categories, systems (reference first), thresholds, system effects
+    (the reference's 0 first), their covariance (alpha then beta), random-effect sds."""
+
+    categories: list
+    systems: list[str]
+    thresholds: np.ndarray
+    effects: np.ndarray
+    covariance: np.ndarray
+    participant_sd: float
+    stimulus_sd: float
+    log_likelihood: float
+    converged: bool
+
+
+def _start(data: _Data) -> np.ndarray:
+    shares = np.bincount(data.category, minlength=data.levels).cumsum()[:-1] / len(data.category)
+    alpha = np.log(shares / (1 - shares))
+    phi_alpha = np.r_[alpha[0], np.log(np.maximum(np.diff(alpha), 1e-3))]
+    return np.r_[phi_alpha, np.zeros(data.k - 1), [0.5 if free else 0.0 for free in data.free]]
+
+
+def fit_ordinal(y: np.ndarray, layout: CrossedLayout,
+                random: Sequence[str] = RANDOM_FACTORS) -> OrdinalFit:
+    """Laplace fit of one cell's ratings (see the module docstring); ``random`` names the
+    random factors kept (participant, stimulus; none gives the plain cumulative logit)."""
+    categories, category = np.unique(y, return_inverse=True)
+    if len(categories) < 2:
+        raise AnalysisInputError("every rating has the same value; a cumulative link model needs two or more")
+    data = _Data(layout, category.astype(np.int64), len(categories),
+                 tuple(name in random for name in RANDOM_FACTORS))
+    memo = {}
+
+    def evaluate(phi):
+        theta = _to_natural(phi, data)
+        fit = _laplace(theta, data, memo.get("mode"))
+        memo["mode"] = fit.mode
+        return -fit.value, -_natural_gradient_to_phi(_gradient(theta, data, fit), phi, data)
+
+    j = data.levels - 1
+    bounds = ([(None, None)] * (j + data.k - 1)
+              + [(0.0, _MAX_SD) if free else (0.0, 0.0) for free in data.free])
+    found = optimize.minimize(evaluate, _start(data), jac=True, method="L-BFGS-B", bounds=bounds,
+                              options={"ftol": 1e-15, "gtol": 1e-7, "maxiter": 2000})
+    theta = _to_natural(found.x, data)
+    theta[-2:] = np.where(theta[-2:] < 1e-6, 0.0, theta[-2:])  # a hair above the bound is the bound
+    covariance = _covariance(theta, data)
+    alpha, beta, (s_p, s_s) = _split(theta, data)
+    return OrdinalFit(list(categories), layout.systems, alpha, beta, covariance, float(s_p), float(s_s),
+                      _laplace(theta, data).value, bool(found.success))
+
+
+def _covariance(theta: np.ndarray, data: _Data) -> np.ndarray:
+    """Inverse of -L's Hessian by central differences of the exact gradient, over the
+    thresholds, the effects and the sds off their bound; returned for (alpha, beta)."""
+    j, k = data.levels - 1, data.k
+    free = list(range(j + k - 1)) + [j + k - 1 + i for i in range(2) if theta[j + k - 1 + i] > 0]
+    hessian = np.zeros((len(free), len(free)))
+    for column, index in enumerate(free):
+        step = 1e-5 * max(1.0, abs(theta[index]))
+        sides = []
+        for sign in (1, -1):
+            moved = theta.copy()
+            moved[index] += sign * step
+            sides.append(_gradient(moved, data, _laplace(moved, data)))
+        hessian[:, column] = -(sides[0] - sides[1])[free] / (2 * step)
+    hessian = (hessian + hessian.T) / 2
+    return np.linalg.inv(hessian)[: j + k - 1, : j + k - 1]
+
+
+@dataclass
+class OrdinalModelTables:
+    """The cumulative link mixed model of every cell as tidy tables."""
+
+    thresholds: pd.DataFrame
+    effects: pd.DataFrame
+    random_effects: pd.DataFrame
+    notes: list[str] = field(default_factory=list)
+
+
+def ordinal_mixed_model(data: pd.DataFrame, reference: str | None = None, dv: str = "value",
+                        between: str = "system", participant: str = "participant",
+                        stimulus: str = "stimulus", groupby: Sequence[str] = CELL,
+                        alpha: float = 0.05, confidence: float = 0.95) -> OrdinalModelTables:
+    """Fit ``ordered(dv) ~ between + (1 | participant) + (1 | stimulus)`` per cell.
+
+    ``thresholds``: *groupby, threshold ("1|2", ...), estimate, se.
+    ``effects``: *groupby, system, reference, difference (log-odds of a higher rating than
+    the reference), se, ci_low, ci_high, z, p, p_holm, reject, odds_ratio.
+    ``random_effects``: *groupby, component, levels, sd, at_boundary, log_likelihood
+    (Laplace), converged.
+    """
+    thresholds, effects, random_effects, notes = [], [], [], []
+    for key, frame in iter_cells(data, groupby):
+        where = " · ".join(map(str, key.values())) or "all ratings"
+        chosen = reference if reference in set(frame[between]) else None
+        layout = crossed_layout(frame, chosen, between, participant, stimulus)
+        try:
+            fit = fit_ordinal(frame[dv].to_numpy(), layout)
+        except (AnalysisInputError, np.linalg.LinAlgError) as exc:
+            notes.append(f"No cumulative link mixed model for {where}: {exc}.")
+            continue
+        j = len(fit.thresholds)
+        se = np.sqrt(np.diag(fit.covariance))
+        names = [f"{a}|{b}" for a, b in zip(fit.categories[:-1], fit.categories[1:])]
+        thresholds.append(pd.DataFrame({**key, "threshold": names, "estimate": fit.thresholds, "se": se[:j]}))
+        effect_covariance = np.zeros((len(fit.systems), len(fit.systems)))
+        effect_covariance[1:, 1:] = fit.covariance[j:, j:]
+        table = contrasts_against_reference(fit.effects, effect_covariance, fit.systems, alpha,
+                                            confidence, effects=True).assign(**key)
+        effects.append(table.assign(odds_ratio=np.exp(table["difference"])))
+        random_effects.append(pd.DataFrame({
+            **key, "component": [participant, stimulus], "levels": list(layout.q),
+            "sd": [fit.participant_sd, fit.stimulus_sd],
+            "at_boundary": [fit.participant_sd == 0, fit.stimulus_sd == 0],
+            "log_likelihood": fit.log_likelihood, "converged": fit.converged}))
+        if not fit.converged:
+            notes.append(f"Cumulative link mixed model, {where}: the optimiser stopped before "
+                         "converging; treat its estimates with care.")
+    joined = [pd.concat(t, ignore_index=True) if t else pd.DataFrame()
+              for t in (thresholds, effects, random_effects)]
+    if len(joined[1]):
+        joined[1] = joined[1][[*groupby, "system", "reference", "difference", "se", "ci_low", "ci_high",
+                               "z", "p", "p_holm", "reject", "odds_ratio"]]
+    return OrdinalModelTables(*joined, notes)
