@@ -56,6 +56,9 @@ def _parser() -> argparse.ArgumentParser:
     report.add_argument("--systems", help="comma-separated list of expected systems; any other "
                                           "system in the ratings is an error")
     add_exclusion_arguments(report)
+    report.add_argument("--continuity-correction", action="store_true",
+                        help="correct the normal approximation of the side-by-side Wilcoxon tests by "
+                             "half a unit, as R's wilcox.test does (default: no correction, as scipy)")
     report.add_argument("--foot-joints", help="comma-separated foot joint names (default: "
                                               "found by name)")
     report.add_argument("--foot-kind", choices=("heel", "toe"), default="heel",
@@ -179,6 +182,7 @@ def _run(args: argparse.Namespace) -> int:
         report = build_report(ratings, motion, reference=args.reference, rules=rules,
                               systems=_split(args.systems),
                               compare_attention_checks=args.compare_attention_checks,
+                              continuity_correction=args.continuity_correction,
                               foot_joints=_split(args.foot_joints), foot_kind=args.foot_kind)
         written = [out / path.relative_to(work) for path in write_report(report, work)]
     print(f"wrote {len(written)} files to {out} (summary: {written[0]})")

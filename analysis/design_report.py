@@ -56,6 +56,7 @@ class DesignReport:
     rules: ExclusionRules
     alpha: float
     notes: list[str] = field(default_factory=list)
+    continuity_correction: bool = False  # of the Wilcoxon tests' normal approximation
 
     def table(self, name: str) -> pd.DataFrame:
         return self.tables[name][1]
@@ -64,8 +65,9 @@ class DesignReport:
 def build_design_report(ratings: pd.DataFrame, reference: str | None = None,
                         rules: ExclusionRules = ExclusionRules(),
                         compare_attention_checks: bool = False,
-                        alpha: float = 0.05) -> DesignReport:
-    """Run the analysis of a validated side-by-side or pairwise ratings table."""
+                        alpha: float = 0.05, continuity_correction: bool = False) -> DesignReport:
+    """Run the analysis of a validated side-by-side or pairwise ratings table;
+    ``continuity_correction`` applies to the Wilcoxon tests' normal approximation."""
     design = table_design(ratings)
     if design not in (SIDE_BY_SIDE, PAIRWISE):
         raise AnalysisInputError(f"build_design_report analyses side-by-side and pairwise "
@@ -83,15 +85,16 @@ def build_design_report(ratings: pd.DataFrame, reference: str | None = None,
         raise AnalysisInputError("no ratings are left after the exclusions; nothing to analyse")
     if reference is None and rules.natural_system in set(kept["system"]):
         reference = rules.natural_system
-    build = _side_by_side_tables if design == SIDE_BY_SIDE else _pairwise_tables
-    tables = build(kept, alpha, notes)
+    tables = (_side_by_side_tables(kept, alpha, notes, continuity_correction) if design == SIDE_BY_SIDE
+              else _pairwise_tables(kept, alpha, notes))
     power = more_ratings_for_power(kept, alpha, POWER)
     tables["power_more_ratings"] = (f"Ratings needed for {POWER * 100:g} % power per pair", power)
     return DesignReport(design, flagged, exclusion_summary(flagged), removed_by_reason(flagged),
-                        tables, reference, rules, alpha, notes)
+                        tables, reference, rules, alpha, notes, continuity_correction)
 
 
-def _side_by_side_tables(kept: pd.DataFrame, alpha: float, notes: list[str]) -> dict:
+def _side_by_side_tables(kept: pd.DataFrame, alpha: float, notes: list[str],
+                         continuity_correction: bool) -> dict:
     too_few = too_few_ratings(kept)
     notes += [f"Not computed for {r.system} in {r.task} · {r.control_class}: only {r.n} kept "
               "rating (two or more needed)." for r in too_few.itertuples(index=False)]
@@ -99,7 +102,7 @@ def _side_by_side_tables(kept: pd.DataFrame, alpha: float, notes: list[str]) -> 
         too_few.set_index([*CELL, "system"]).index)]
     if usable.empty:
         raise AnalysisInputError("no system has two or more kept ratings in any cell")
-    pairs = signed_rank_pairs(usable, alpha=alpha)
+    pairs = signed_rank_pairs(usable, alpha=alpha, continuity=continuity_correction)
     untested = pairs[pairs["method"] == "not computed"] if len(pairs) else pairs
     notes += [f"No Wilcoxon test of {r.system_a} and {r.system_b} in {r.task} · {r.control_class}: "
               "no page rated them differently." for r in untested.itertuples(index=False)]
@@ -189,8 +192,11 @@ def _side_by_side_sentence(report: DesignReport, task: str, cc: str) -> str:
     higher = [f"{r.higher} > {r.system_b if r.higher == r.system_a else r.system_a}"
               for r in pairs[pairs["reject"]].itertuples(index=False)]
     same = [f"{r.system_a} and {r.system_b}" for r in pairs[~pairs["reject"]].itertuples(index=False)]
+    correction = "with" if report.continuity_correction else "without"
     text += (f" Two-sided Wilcoxon signed-rank tests on the per-page rating differences "
-            f"of each pair of systems, Holm-Bonferroni corrected over the {len(pairs)} pairs "
+            f"of each pair of systems (exact up to 50 pages without tied differences, else the "
+            f"normal approximation {correction} continuity correction), Holm-Bonferroni "
+            f"corrected over the {len(pairs)} pairs "
             f"(family-wise α = {report.alpha:g}), found {len(higher)} significant difference(s)")
     text += f", the first system rated higher: {'; '.join(higher)}" if higher else ""
     text += f". No significant difference between {'; '.join(same)}." if same else "."

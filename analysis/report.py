@@ -96,7 +96,7 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
                  reference: str | None = None, rules: ExclusionRules = ExclusionRules(),
                  systems: Sequence[str] | None = None, compare_attention_checks: bool = False,
                  foot_joints: Sequence[str] | None = None,
-                 foot_kind: str = "heel") -> Report | DesignReport:
+                 foot_kind: str = "heel", continuity_correction: bool = False) -> Report | DesignReport:
     """Run the whole analysis on a validated ratings table (see `analysis.ratings`).
 
     Side-by-side and pairwise tables (their ``design`` column) get their own analysis,
@@ -105,7 +105,8 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
 
     ``reference`` marks significance in Table 2 (default NAT when rated). ``systems``,
     when given, lists the systems expected; any other system in the ratings is an error.
-    BAD clips are attention checks, left out of the comparisons unless
+    ``continuity_correction`` applies to the side-by-side Wilcoxon tests' normal
+    approximation. BAD clips are attention checks, left out of the comparisons unless
     ``compare_attention_checks``, which compares BAD as a system and excludes nobody on it.
     """
     rated = set(ratings["system"].unique())
@@ -120,7 +121,8 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
     if compare_attention_checks:
         rules = replace(rules, attention_rule=False)
     if table_design(ratings) != SINGLE:
-        return build_design_report(ratings, reference, rules, compare_attention_checks)
+        return build_design_report(ratings, reference, rules, compare_attention_checks,
+                                   continuity_correction=continuity_correction)
     flagged = apply_exclusions(ratings, rules)
     notes = exclusion_notes(flagged, rules)
     kept = compared_ratings(flagged, rules)
