@@ -24,7 +24,7 @@ from pathlib import Path
 import pandas as pd
 
 from analysis import design_plots, plots
-from analysis.bradley_terry import bradley_terry_scale
+from analysis.bradley_terry import bradley_terry_covariance, bradley_terry_scale
 from analysis.designs import PAGE, PAIRWISE, SIDE_BY_SIDE, table_design
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import (ExclusionRules, apply_exclusions, attention_rule_text,
@@ -86,7 +86,7 @@ def build_design_report(ratings: pd.DataFrame, reference: str | None = None,
     if reference is None and rules.natural_system in set(kept["system"]):
         reference = rules.natural_system
     tables = (_side_by_side_tables(kept, alpha, notes, continuity_correction) if design == SIDE_BY_SIDE
-              else _pairwise_tables(kept, alpha, notes))
+              else _pairwise_tables(kept, alpha, notes, reference))
     power = more_ratings_for_power(kept, alpha, POWER)
     tables["power_more_ratings"] = (f"Ratings needed for {POWER * 100:g} % power per pair", power)
     return DesignReport(design, flagged, exclusion_summary(flagged), removed_by_reason(flagged),
@@ -120,19 +120,23 @@ def _side_by_side_tables(kept: pd.DataFrame, alpha: float, notes: list[str],
     }
 
 
-def _pairwise_tables(kept: pd.DataFrame, alpha: float, notes: list[str]) -> dict:
+def _pairwise_tables(kept: pd.DataFrame, alpha: float, notes: list[str], reference: str | None) -> dict:
     pairs = preference_pairs(kept, alpha=alpha)
     if pairs.empty:
         raise AnalysisInputError("no page compares two analysed systems; nothing to analyse")
     undecided = pairs[pairs["wins_a"] + pairs["wins_b"] == 0]
     notes += [f"No sign test of {r.system_a} and {r.system_b} in {r.task} · {r.control_class}: "
               "every page was answered 'no preference'." for r in undecided.itertuples(index=False)]
-    scale, scale_notes = bradley_terry_scale(preference_pages(kept))
+    pages = preference_pages(kept)
+    scale, scale_notes = bradley_terry_scale(pages, reference=reference)
     notes += scale_notes
     return {
         "preference_pairs": ("Preference shares (Wilson 95 % intervals) and sign tests, Holm "
                              "corrected; 'no preference' left out of share and test", pairs),
-        "bradley_terry": ("Bradley-Terry strengths (log-odds, centred) with 95 % intervals", scale),
+        "bradley_terry": ("Bradley-Terry strengths (log-odds, centred) with 95 % intervals, and "
+                          "each against the reference with its standard error", scale),
+        "bradley_terry_covariance": ("Covariance of the centred Bradley-Terry strengths",
+                                     bradley_terry_covariance(pages)),
         "side_bias": ("Share of preferences for the left clip", side_bias(kept)),
     }
 
