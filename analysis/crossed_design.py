@@ -7,10 +7,11 @@ indicator matrices of the two factors, any matrix ``Z' W Z`` (W diagonal) is
     [[diag(w_p), C], [C', diag(w_s)]],
 
 its diagonal blocks diagonal (the sums of w per participant and per stimulus) and C the
-q_p x q_s sums of w per participant and stimulus. `CrossedBlocks` factorises such a
-matrix (plus the identity, scaled by the relative standard deviations) through the Schur
-complement on its smaller block: a dense Cholesky of min(q_p, q_s) rows, whatever the
-number of ratings. `analysis.crossed_mixed` (linear) and `analysis.ordinal_mixed`
+q_p x q_s sums of w per participant and stimulus, sparse: nonzero only where the
+participant rated the stimulus. `CrossedBlocks` factorises such a matrix (plus the
+identity, scaled by the relative standard deviations) through the Schur complement on
+its smaller block: a dense Cholesky of min(q_p, q_s) rows and sparse products with C,
+whatever the number of ratings. `analysis.crossed_mixed` (linear) and `analysis.ordinal_mixed`
 (cumulative link) build on it.
 """
 
@@ -18,10 +19,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import pandas as pd
-from scipy import linalg
+from scipy import linalg, sparse
 from scipy import stats as sps
 
 from analysis.errors import AnalysisInputError
@@ -31,7 +33,8 @@ from analysis.multiple_comparisons import holm_adjusted
 @dataclass(frozen=True)
 class CrossedLayout:
     """One cell's ratings as integer codes: ``system`` (0 .. k-1, the reference first),
-    ``participant`` and ``stimulus`` (0 .. q-1), with their labels."""
+    ``participant`` and ``stimulus`` (0 .. q-1), with their labels, and ``pair``, the
+    index of the rating's (participant, stimulus) among those that occur."""
 
     systems: list[str]
     participants: np.ndarray
@@ -39,16 +42,31 @@ class CrossedLayout:
     system: np.ndarray
     participant: np.ndarray
     stimulus: np.ndarray
+    pair: np.ndarray
+    pair_participant: np.ndarray
+    pair_stimulus: np.ndarray
 
     @property
     def q(self) -> tuple[int, int]:
         return len(self.participants), len(self.stimuli)
 
     def sums(self, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Sums of ``weight`` per participant, per stimulus, and per (participant, stimulus)."""
+        """Sums of ``weight`` per participant, per stimulus, and per occurring pair."""
         q_p, q_s = self.q
         return (np.bincount(self.participant, weight, q_p), np.bincount(self.stimulus, weight, q_s),
-                np.bincount(self.participant * q_s + self.stimulus, weight, q_p * q_s).reshape(q_p, q_s))
+                np.bincount(self.pair, weight, len(self.pair_participant)))
+
+    def cross(self, per_pair: np.ndarray) -> sparse.csr_matrix:
+        """The q_p x q_s sparse matrix holding ``per_pair`` at the occurring pairs."""
+        return sparse.csr_matrix((per_pair, (self.pair_participant, self.pair_stimulus)), shape=self.q)
+
+    @cached_property
+    def indicators(self) -> tuple[sparse.csr_matrix, sparse.csr_matrix]:
+        """Z_p' and Z_s' (levels x ratings), to sum the columns of a matrix per level."""
+        rows = np.arange(len(self.participant))
+        ones = np.ones(len(rows))
+        return (sparse.csr_matrix((ones, (self.participant, rows)), shape=(self.q[0], len(rows))),
+                sparse.csr_matrix((ones, (self.stimulus, rows)), shape=(self.q[1], len(rows))))
 
     def by_system(self, factor: np.ndarray, levels: int, weight: np.ndarray | None = None) -> np.ndarray:
         """(levels, systems) sums of ``weight`` (default 1) per level of ``factor`` and system."""
@@ -70,23 +88,26 @@ def crossed_layout(frame: pd.DataFrame, reference: str | None, between: str = "s
     code = {s: i for i, s in enumerate(systems)}
     participant_code, participants = pd.factorize(frame[participant], sort=True)
     stimulus_code, stimuli = pd.factorize(frame[stimulus], sort=True)
+    occurring, pair = np.unique(participant_code.astype(np.int64) * len(stimuli) + stimulus_code,
+                                return_inverse=True)
     return CrossedLayout(systems, np.asarray(participants), np.asarray(stimuli),
                          frame[between].map(code).to_numpy(dtype=np.int64),
-                         participant_code.astype(np.int64), stimulus_code.astype(np.int64))
+                         participant_code.astype(np.int64), stimulus_code.astype(np.int64),
+                         pair.astype(np.int64), occurring // len(stimuli), occurring % len(stimuli))
 
 
 class CrossedBlocks:
-    """``M = [[diag(a), B], [B', diag(d)]]``, positive definite, factorised through the
-    Schur complement of its larger diagonal block: ``S = diag(a) - B diag(1/d) B'`` when
-    a is the smaller block (the blocks swap otherwise)."""
+    """``M = [[diag(a), B], [B', diag(d)]]``, positive definite with B sparse, factorised
+    through the Schur complement of its larger diagonal block: ``S = diag(a) - B diag(1/d)
+    B'`` when a is the smaller block (the blocks swap otherwise)."""
 
-    def __init__(self, a: np.ndarray, b: np.ndarray, d: np.ndarray):
+    def __init__(self, a: np.ndarray, b: sparse.csr_matrix, d: np.ndarray):
         self.swapped = len(d) < len(a)
         if self.swapped:
-            a, b, d = d, b.T, a
+            a, b, d = d, b.T.tocsr(), a
         self.a, self.b, self.d = a, b, d
-        self.b_over_d = b / d
-        schur = np.diag(a) - self.b_over_d @ b.T
+        self.b_over_d = b @ sparse.diags(1.0 / d)
+        schur = np.diag(a) - (self.b_over_d @ b.T).toarray()
         self.factor = linalg.cho_factor(schur, lower=True, check_finite=False)
 
     def logdet(self) -> float:
@@ -100,14 +121,16 @@ class CrossedBlocks:
         x_large = (large - self.b.T @ x_small) / d
         return (x_large, x_small) if self.swapped else (x_small, x_large)
 
-    def inverse_blocks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The diagonals of M^{-1}'s two blocks and its off-diagonal block (q_p x q_s)."""
+    def inverse_blocks(self, rows: np.ndarray, columns: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The diagonals of M^{-1}'s two blocks, and its off-diagonal (q_p x q_s) block's
+        entries at (``rows``, ``columns``)."""
         s_inverse = linalg.cho_solve(self.factor, np.eye(len(self.a)), check_finite=False)
-        cross = -s_inverse @ self.b_over_d
-        large_diagonal = 1.0 / self.d - (self.b_over_d * cross).sum(axis=0)
+        cross = -(self.b_over_d.T @ s_inverse).T  # -S^-1 B D^-1, dense small x large
+        large_diagonal = 1.0 / self.d - np.asarray(self.b_over_d.multiply(cross).sum(axis=0)).ravel()
+        small_diagonal = np.diag(s_inverse).copy()
         if self.swapped:
-            return large_diagonal, np.diag(s_inverse).copy(), cross.T
-        return np.diag(s_inverse).copy(), large_diagonal, cross
+            return large_diagonal, small_diagonal, cross[columns, rows]
+        return small_diagonal, large_diagonal, cross[rows, columns]
 
 
 def contrasts_against_reference(estimate: np.ndarray, covariance: np.ndarray, systems: Sequence[str],

@@ -69,7 +69,7 @@ class _Sums:
     xx: np.ndarray  # ratings per system
     zy: tuple[np.ndarray, np.ndarray]  # per participant, per stimulus
     zx: tuple[np.ndarray, np.ndarray]  # (levels, systems) counts
-    zz: tuple[np.ndarray, np.ndarray, np.ndarray]  # counts per participant, stimulus, both
+    zz: tuple[np.ndarray, np.ndarray, np.ndarray]  # counts per participant, stimulus, occurring pair
 
 
 def _sums(y: np.ndarray, layout: CrossedLayout) -> _Sums:
@@ -96,7 +96,7 @@ def _solve(t: np.ndarray, s: _Sums) -> _Solution:
     """The penalised least-squares solution and REML deviance at relative sds ``t``."""
     t_p, t_s = t
     n_p, n_s, n_ps = s.zz
-    blocks = CrossedBlocks(t_p**2 * n_p + 1.0, t_p * t_s * n_ps, t_s**2 * n_s + 1.0)
+    blocks = CrossedBlocks(t_p**2 * n_p + 1.0, s.layout.cross(t_p * t_s * n_ps), t_s**2 * n_s + 1.0)
     lzy = (t_p * s.zy[0], t_s * s.zy[1])
     lzx = (t_p * s.zx[0], t_s * s.zx[1])
     wy = blocks.solve(*lzy)

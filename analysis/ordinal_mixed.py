@@ -64,6 +64,7 @@ RANDOM_FACTORS = ("participant", "stimulus")
 _MODE_TOLERANCE = 1e-10
 _MAX_MODE_STEPS = 100
 _MAX_SD = 20.0
+_OUTER_END = 1e4
 
 
 @dataclass(frozen=True)
@@ -80,11 +81,10 @@ class _Link:
 
 
 def _density_terms(x: np.ndarray) -> tuple[np.ndarray, ...]:
-    """F, f, f', f'' of the logistic at x (infinite x: F = 0 or 1, the rest 0)."""
-    big = np.isinf(x)
-    s = expit(np.where(big, 0.0, x))
-    f = np.where(big, 0.0, s * (1 - s))
-    return np.where(big, (x > 0).astype(float), s), f, f * (1 - 2 * s), f * (1 - 6 * s + 6 * s**2)
+    """F, f, f', f'' of the logistic at x."""
+    s = expit(x)
+    f = s * (1 - s)
+    return s, f, f * (1 - 2 * s), f * (1 - 6 * s + 6 * s**2)
 
 
 def _link(eta: np.ndarray, upper_alpha: np.ndarray, lower_alpha: np.ndarray) -> _Link:
@@ -92,10 +92,7 @@ def _link(eta: np.ndarray, upper_alpha: np.ndarray, lower_alpha: np.ndarray) -> 
     Fa, fa, fa1, fa2 = _density_terms(a)
     Fb, fb, fb1, fb2 = _density_terms(b)
     # both ends in the upper tail: S(b) - S(a) with S = 1 - F keeps the digits F(a) - F(b) loses
-    upper_tail = np.isfinite(b) & (b > 0)
-    survival_b = expit(-np.where(upper_tail, b, 0.0))
-    survival_a = np.where(np.isfinite(a), expit(-np.where(np.isfinite(a), a, 0.0)), 0.0)
-    pi = np.maximum(np.where(upper_tail, survival_b - survival_a, Fa - Fb), 1e-300)
+    pi = np.maximum(np.where(b > 0, expit(-b) - expit(-a), Fa - Fb), 1e-300)
     g1, g2, g3 = (fa - fb) / pi, (fa1 - fb1) / pi, (fa2 - fb2) / pi
     d = g1**2 - g2
     d_eta = 2 * g1**3 - 3 * g1 * g2 + g3
@@ -124,7 +121,9 @@ def _split(theta: np.ndarray, data: _Data):
 
 
 def _threshold_ends(alpha: np.ndarray, category: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    ends = np.r_[-np.inf, alpha, np.inf]
+    """Each rating's upper and lower threshold; the outer ones at -/+ _OUTER_END, where the
+    logistic is 0 or 1 and its derivatives 0 in floating point, as at infinity."""
+    ends = np.r_[-_OUTER_END, alpha, _OUTER_END]
     return ends[category + 1], ends[category]
 
 
@@ -155,7 +154,7 @@ def _laplace(theta: np.ndarray, data: _Data, start: tuple[np.ndarray, np.ndarray
     eta, link, g = at(u, v)
     for _ in range(_MAX_MODE_STEPS):
         d_p, d_s, d_ps = lay.sums(link.d)
-        blocks = CrossedBlocks(1 + s_p**2 * d_p, s_p * s_s * d_ps, 1 + s_s**2 * d_s)
+        blocks = CrossedBlocks(1 + s_p**2 * d_p, lay.cross(s_p * s_s * d_ps), 1 + s_s**2 * d_s)
         psi_p, psi_s, _ = lay.sums(link.psi)
         step_u, step_v = blocks.solve(s_p * psi_p - u, s_s * psi_s - v)
         scale = 1.0
@@ -169,7 +168,7 @@ def _laplace(theta: np.ndarray, data: _Data, start: tuple[np.ndarray, np.ndarray
         if max(np.abs(step_u).max(initial=0), np.abs(step_v).max(initial=0)) * scale < _MODE_TOLERANCE:
             break
     d_p, d_s, d_ps = lay.sums(link.d)
-    blocks = CrossedBlocks(1 + s_p**2 * d_p, s_p * s_s * d_ps, 1 + s_s**2 * d_s)
+    blocks = CrossedBlocks(1 + s_p**2 * d_p, lay.cross(s_p * s_s * d_ps), 1 + s_s**2 * d_s)
     return _Laplace(g - 0.5 * blocks.logdet(), (u, v), link, eta, blocks)
 
 
@@ -197,18 +196,16 @@ def _gradient(theta: np.ndarray, data: _Data, fit: _Laplace) -> np.ndarray:
     log_pi_theta, psi_theta, d_theta = thresholds
     # the mode's change: H dw/dtheta = sum_i (dpsi_i - D_i deta_i) w_i + sum_i psi_i dw_i/ds
     rhs = psi_theta - link.d[:, None] * direct_eta
-    c_p = np.zeros((q_p, count))
-    c_s = np.zeros((q_s, count))
-    np.add.at(c_p, p_idx, s_p * rhs)
-    np.add.at(c_s, s_idx, s_s * rhs)
+    by_participant, by_stimulus = lay.indicators
+    c_p, c_s = s_p * (by_participant @ rhs), s_s * (by_stimulus @ rhs)
     psi_p, psi_s, _ = lay.sums(link.psi)
     c_p[:, -2] += psi_p
     c_s[:, -1] += psi_s
     du, dv = fit.blocks.solve(c_p, c_s)
     eta_theta = direct_eta + s_p * du[p_idx] + s_s * dv[s_idx]
     d_total = d_theta + link.d_eta[:, None] * eta_theta
-    h_p, h_s, h_ps = fit.blocks.inverse_blocks()
-    cross = h_ps[p_idx, s_idx]
+    h_p, h_s, h_ps = fit.blocks.inverse_blocks(lay.pair_participant, lay.pair_stimulus)
+    cross = h_ps[lay.pair]
     leverage = s_p**2 * h_p[p_idx] + s_s**2 * h_s[s_idx] + 2 * s_p * s_s * cross
     trace = leverage @ d_total
     trace[-2] += 2 * link.d @ (s_p * h_p[p_idx] + s_s * cross)
@@ -274,21 +271,28 @@ def fit_ordinal(y: np.ndarray, layout: CrossedLayout,
         return -fit.value, -_natural_gradient_to_phi(_gradient(theta, data, fit), phi, data)
 
     j = data.levels - 1
-    bounds = ([(None, None)] * (j + data.k - 1)
-              + [(0.0, _MAX_SD) if free else (0.0, 0.0) for free in data.free])
-    found = optimize.minimize(evaluate, _start(data), jac=True, method="L-BFGS-B", bounds=bounds,
+    fixed = [(None, None)] * (j + data.k - 1)
+    # the thresholds and effects without random effects first (no modes to find), then all
+    start = _start(data)
+    plain = optimize.minimize(evaluate, start, jac=True, method="L-BFGS-B",
+                              bounds=fixed + [(0.0, 0.0)] * 2, options={"gtol": 1e-5})
+    start[: j + data.k - 1] = plain.x[: j + data.k - 1]
+    memo.clear()
+    found = optimize.minimize(evaluate, start, jac=True, method="L-BFGS-B",
+                              bounds=fixed + [(0.0, _MAX_SD) if free else (0.0, 0.0) for free in data.free],
                               options={"ftol": 1e-15, "gtol": 1e-7, "maxiter": 2000})
     theta = _to_natural(found.x, data)
     theta[-2:] = np.where(theta[-2:] < 1e-6, 0.0, theta[-2:])  # a hair above the bound is the bound
-    covariance = _covariance(theta, data)
+    covariance = _covariance(theta, data, _laplace(theta, data, memo.get("mode")).mode)
     alpha, beta, (s_p, s_s) = _split(theta, data)
     return OrdinalFit(list(categories), layout.systems, alpha, beta, covariance, float(s_p), float(s_s),
                       _laplace(theta, data).value, bool(found.success))
 
 
-def _covariance(theta: np.ndarray, data: _Data) -> np.ndarray:
+def _covariance(theta: np.ndarray, data: _Data, mode: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """Inverse of -L's Hessian by central differences of the exact gradient, over the
-    thresholds, the effects and the sds off their bound; returned for (alpha, beta)."""
+    thresholds, the effects and the sds off their bound (the random effects' modes
+    starting from ``mode``); returned for (alpha, beta)."""
     j, k = data.levels - 1, data.k
     free = list(range(j + k - 1)) + [j + k - 1 + i for i in range(2) if theta[j + k - 1 + i] > 0]
     hessian = np.zeros((len(free), len(free)))
@@ -298,7 +302,7 @@ def _covariance(theta: np.ndarray, data: _Data) -> np.ndarray:
         for sign in (1, -1):
             moved = theta.copy()
             moved[index] += sign * step
-            sides.append(_gradient(moved, data, _laplace(moved, data)))
+            sides.append(_gradient(moved, data, _laplace(moved, data, mode)))
         hessian[:, column] = -(sides[0] - sides[1])[free] / (2 * step)
     hessian = (hessian + hessian.T) / 2
     return np.linalg.inv(hessian)[: j + k - 1, : j + k - 1]
