@@ -66,6 +66,7 @@ ELO_PER_LOG_ODDS = 400.0 / np.log(10.0)
 RESAMPLES = 10_000
 
 _STEP_TOLERANCE = 1e-10
+_CHUNK = 2_000
 _MAX_NEWTON_STEPS = 200
 
 
@@ -301,10 +302,18 @@ class Fit:
     resamples: int
 
 
-def participant_resamples(participants: int, resamples: int, seed: int) -> np.ndarray:
-    """(resamples, participants): how often each participant is drawn into each resample."""
+def resample_chunks(participants: int, resamples: int, seed: int):
+    """(chunk, participants) arrays, ``_CHUNK`` resamples at a time: how often each
+    participant is drawn into each resample (a chunk keeps memory small for many participants)."""
     rng = np.random.default_rng(seed)
-    return rng.multinomial(participants, np.full(participants, 1.0 / participants), size=resamples).astype(np.float64)
+    share = np.full(participants, 1.0 / participants)
+    for start in range(0, resamples, _CHUNK):
+        yield rng.multinomial(participants, share, size=min(_CHUNK, resamples - start)).astype(np.float64)
+
+
+def participant_resamples(participants: int, resamples: int, seed: int) -> np.ndarray:
+    """(resamples, participants): every chunk of `resample_chunks` at once."""
+    return np.vstack(list(resample_chunks(participants, resamples, seed)))
 
 
 def fit_votes(votes: PairVotes, model: str = BRADLEY_TERRY, resamples: int = RESAMPLES,
@@ -319,14 +328,15 @@ def fit_votes(votes: PairVotes, model: str = BRADLEY_TERRY, resamples: int = RES
         raise AnalysisInputError(_not_estimable_reason(model, votes))
     theta = _fit_batch(model, incidence, *totals, _start(model, votes, 1))[0]
     free = len(votes.systems) - 1
-    resampled = np.empty((0, free + 1))
-    if resamples:
-        counts = participant_resamples(len(votes.won), resamples, seed)
+    refits = [np.empty((0, free))]
+    for counts in resample_chunks(len(votes.won), resamples, seed):
         drawn = votes.totals(counts)
         usable = _estimable(model, votes, *drawn)
         refit = _fit_batch(model, incidence, *(t[usable] for t in drawn),
                            np.repeat(theta[None], usable.sum(), axis=0))
-        resampled = np.concatenate([np.zeros((len(refit), 1)), refit[:, :free]], axis=1)
+        refits.append(refit[:, :free])
+    refit = np.concatenate(refits)
+    resampled = np.concatenate([np.zeros((len(refit), 1)), refit], axis=1)
     return Fit(votes.systems, model, np.r_[0.0, theta[:free]],
                float(np.exp(theta[free])) if model == DAVIDSON else np.nan, resampled, resamples)
 
