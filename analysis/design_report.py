@@ -8,8 +8,9 @@ significance matrix, and the random-intercept mixed model on the slider values.
 
 Pairwise: exclusions, per pair the preference share with its Wilson interval and the
 share of "no preference", exact two-sided binomial (sign) tests on the pages with a
-preference, Holm-Bonferroni corrected, a Bradley-Terry scale with 95 % intervals, and a
-check of the raters' side bias.
+preference, Holm-Bonferroni corrected, a Bradley-Terry scale with 95 % intervals, a
+check of the raters' side bias, and the leaderboard (`analysis.leaderboard_report`:
+graded votes weighted, Elo with bootstrap intervals, win-fraction and battle heat maps).
 
 Both: how many more ratings would give 80 % power per pair (`analysis.power`), and a
 paragraph per task to paste into a paper. The folder layout is the single design's:
@@ -30,6 +31,8 @@ from analysis.errors import AnalysisInputError
 from analysis.exclusions import (ExclusionRules, apply_exclusions, attention_rule_text,
                                  compared_ratings, exclusion_notes, exclusion_summary,
                                  removed_by_reason)
+from analysis.leaderboard_report import (LeaderboardReport, build_leaderboard, leaderboard_tables,
+                                         leaderboard_text, write_heat_maps)
 from analysis.mixed import mixed_model_means
 from analysis.pairwise import preference_pages, preference_pairs, side_bias
 from analysis.power import more_ratings_for_power, power_summary
@@ -57,6 +60,7 @@ class DesignReport:
     alpha: float
     notes: list[str] = field(default_factory=list)
     continuity_correction: bool = False  # of the Wilcoxon tests' normal approximation
+    leaderboard: LeaderboardReport | None = None  # pairwise
 
     def table(self, name: str) -> pd.DataFrame:
         return self.tables[name][1]
@@ -87,10 +91,16 @@ def build_design_report(ratings: pd.DataFrame, reference: str | None = None,
         reference = rules.natural_system
     tables = (_side_by_side_tables(kept, alpha, notes, continuity_correction) if design == SIDE_BY_SIDE
               else _pairwise_tables(kept, alpha, notes, reference))
+    leaderboard = None
+    if design == PAIRWISE:
+        leaderboard = build_leaderboard(kept, reference if reference in set(kept["system"]) else None,
+                                        natural=rules.natural_system)
+        tables.update(leaderboard_tables(leaderboard))
+        notes += leaderboard.notes
     power = more_ratings_for_power(kept, alpha, POWER)
     tables["power_more_ratings"] = (f"Ratings needed for {POWER * 100:g} % power per pair", power)
     return DesignReport(design, flagged, exclusion_summary(flagged), removed_by_reason(flagged),
-                        tables, reference, rules, alpha, notes, continuity_correction)
+                        tables, reference, rules, alpha, notes, continuity_correction, leaderboard)
 
 
 def _side_by_side_tables(kept: pd.DataFrame, alpha: float, notes: list[str],
@@ -245,6 +255,8 @@ def design_summary_text(report: DesignReport) -> str:
         for cc in cells.loc[cells["task"] == row.task, "control_class"]:
             text += sentence(report, row.task, cc)
         out.append(text)
+    if report.leaderboard is not None:
+        out.append(leaderboard_text(report.leaderboard))
     out.append(power_summary(report.table("power_more_ratings"), report.alpha, POWER))
     return "\n\n".join(p for p in out if p) + "\n"
 
@@ -279,6 +291,8 @@ def write_design_report(report: DesignReport, folder: str | Path) -> list[Path]:
             written += plots.save_figure(design_plots.scale_plot(
                 scale, [("strength", "strength", "ci_low", "ci_high")],
                 "Bradley-Terry strength (log-odds, 95 % CI)", order), figures, "bradley_terry")
+        if report.leaderboard is not None:
+            written += write_heat_maps(report.leaderboard, figures)
     notes = "".join(f"- {n}\n" for n in report.notes) or "- None: everything was computed.\n"
     summary = folder / "summary.md"
     summary.write_text("# Summary\n\n" + design_summary_text(report)

@@ -99,21 +99,27 @@ def leaderboard_text(report: LeaderboardReport) -> str:
     return "\n\n".join(out)
 
 
+def leaderboard_tables(report: LeaderboardReport) -> dict[str, tuple[str, pd.DataFrame]]:
+    """File name -> (title, table) of the leaderboard and its battles."""
+    return {"leaderboard": (f"Leaderboard ({report.model}): Elo with {report.confidence * 100:g} % "
+                            "bootstrap intervals over participants", report.board),
+            "battles": ("Pages per ordered pair of systems: battles, wins of the row system, ties, "
+                        "and its share of the decided pages", report.battles)}
+
+
+def write_heat_maps(report: LeaderboardReport, figures: str | Path) -> list[Path]:
+    """The win-fraction and battle-count heat maps as figures/<name>.{png,svg}."""
+    if report.battles.empty:
+        return []
+    return [path for value in ("win_fraction", "battles")
+            for path in plots.save_figure(heat_map_plot(report.battles, report.board, value), figures, value)]
+
+
 def write_leaderboard(report: LeaderboardReport, folder: str | Path) -> list[Path]:
     """Write the tables (tables/<name>.{csv,md,tex,json}) and heat maps (figures/<name>.{png,svg})."""
     folder = Path(folder)
-    written = []
-    captions = {"leaderboard": f"Leaderboard ({report.model}): Elo with {report.confidence * 100:g} % "
-                               f"bootstrap intervals over participants.",
-                "battles": "Pages per ordered pair of systems: battles, wins of the row system, ties, "
-                           "and its share of the decided pages.",
-                "side_bias": "Share of stated preferences for the left clip."}
-    for name, table in (("leaderboard", report.board), ("battles", report.battles),
-                        ("side_bias", report.side_bias)):
-        if len(table):
-            written += write_table(table, folder / "tables", name, caption=captions[name])
-    if len(report.battles):
-        for value in ("win_fraction", "battles"):
-            written += plots.save_figure(heat_map_plot(report.battles, report.board, value),
-                                         folder / "figures", value)
-    return written
+    tables = {**leaderboard_tables(report),
+              "side_bias": ("Share of stated preferences for the left clip", report.side_bias)}
+    written = [path for name, (title, table) in tables.items() if len(table)
+               for path in write_table(table, folder / "tables", name, caption=f"{title}.")]
+    return written + write_heat_maps(report, folder / "figures")

@@ -224,3 +224,18 @@ def test_the_command_refuses_a_table_of_another_design_and_writes_nothing(tmp_pa
     assert main(["leaderboard", str(path), "--out", str(tmp_path / "board")]) == 2
     assert "leaderboard analyses pairwise tables" in capsys.readouterr().err
     assert not (tmp_path / "board").exists()
+
+
+def test_the_pairwise_report_gains_the_leaderboard_heat_maps_and_paragraph(graded, tmp_path):
+    path = tmp_path / "ratings.csv"
+    graded.to_csv(path, index=False)
+    out = tmp_path / "report"
+    assert main(["report", str(path), "--out", str(out)]) == 0
+    for name in ("leaderboard", "battles"):
+        assert (out / "tables" / f"{name}.csv").is_file()
+    for name in ("win_fraction", "battles"):
+        assert (out / "figures" / f"{name}.png").stat().st_size > 0
+    board = pd.read_csv(out / "tables" / "leaderboard.csv")
+    assert (board["resamples"] == 10_000).all() and set(board["anchor"]) == {"NAT"}
+    summary = (out / "summary.md").read_text()
+    assert "**Leaderboard, gesture · held-out.**" in summary and "weighted Bradley-Terry model" in summary
