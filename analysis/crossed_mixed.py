@@ -52,6 +52,7 @@ from scipy import stats as sps
 
 from analysis.crossed_design import (CrossedBlocks, CrossedLayout, contrasts_against_reference,
                                      crossed_layout)
+from analysis.blas import one_blas_thread
 from analysis.errors import AnalysisInputError
 from analysis.stats import CELL, iter_cells
 
@@ -191,7 +192,8 @@ def crossed_mixed_model(data: pd.DataFrame, reference: str | None = None, dv: st
                          "are against the first system in sorted order.")
         layout = crossed_layout(frame, chosen, between, participant, stimulus)
         try:
-            fit = fit_crossed(frame[dv].to_numpy(np.float64), layout)
+            with one_blas_thread():
+                fit = fit_crossed(frame[dv].to_numpy(np.float64), layout)
         except (AnalysisInputError, np.linalg.LinAlgError) as exc:
             notes.append(f"No crossed mixed model for {where}: {exc}.")
             continue

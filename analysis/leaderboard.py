@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from analysis.blas import one_blas_thread
 from analysis.designs import NO_PREFERENCE, PAGE
 from analysis.errors import AnalysisInputError
 from analysis.pairwise import preference_pages
@@ -380,7 +381,8 @@ def leaderboard(kept: pd.DataFrame, anchor: str | None = None, model: str = BRAD
         where = " · ".join(map(str, key.values())) or "all pages"
         votes = pair_votes(frame)
         try:
-            fit = fit_votes(votes, model, resamples, seed)
+            with one_blas_thread():
+                fit = fit_votes(votes, model, resamples, seed)
         except AnalysisInputError as exc:
             notes.append(f"No leaderboard for {where}: {exc}.")
             continue

@@ -57,6 +57,7 @@ from scipy.special import expit
 
 from analysis.crossed_design import (CrossedBlocks, CrossedLayout, contrasts_against_reference,
                                      crossed_layout)
+from analysis.blas import one_blas_thread
 from analysis.errors import AnalysisInputError
 from analysis.stats import CELL, iter_cells
 
@@ -336,7 +337,8 @@ def ordinal_mixed_model(data: pd.DataFrame, reference: str | None = None, dv: st
         chosen = reference if reference in set(frame[between]) else None
         layout = crossed_layout(frame, chosen, between, participant, stimulus)
         try:
-            fit = fit_ordinal(frame[dv].to_numpy(), layout)
+            with one_blas_thread():
+                fit = fit_ordinal(frame[dv].to_numpy(), layout)
         except (AnalysisInputError, np.linalg.LinAlgError) as exc:
             notes.append(f"No cumulative link mixed model for {where}: {exc}.")
             continue

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from analysis.blas import one_blas_thread
 from analysis.designs import NO_PREFERENCE
 from analysis.errors import AnalysisInputError
 from analysis.leaderboard import TIE_WEIGHT, bradley_terry_log_strengths, vote_weights
@@ -168,5 +169,6 @@ def next_pair(votes: pd.DataFrame, systems: Sequence[str], rng: np.random.Genera
     """
     state = pairing_state(votes, systems)
     fixed = state.systems.index(anchor) if anchor in state.systems else None
-    left, right = choose_pair(state, rng, exploration, fixed)
+    with one_blas_thread():
+        left, right = choose_pair(state, rng, exploration, fixed)
     return state.systems[left], state.systems[right]
