@@ -38,6 +38,7 @@ from scipy import optimize
 from scipy import stats as sps
 
 from analysis import plots
+from analysis.blas import one_blas_thread
 from analysis.errors import AnalysisInputError
 from analysis.graded_votes import draw_levels, level_answers
 from analysis.leaderboard import (ELO_PER_LOG_ODDS, TIE_WEIGHT, WIN_WEIGHT, elo, fit_votes,
@@ -134,9 +135,10 @@ def score_study(pages: pd.DataFrame, scenario: Scenario, checkpoints: Sequence[i
 def _one_study(job: tuple[Scenario, str, int, Sequence[int], int]) -> list[dict]:
     scenario, design, study, checkpoints, seed = job
     study_seed = int(np.random.SeedSequence([seed, study, DESIGNS.index(design)]).generate_state(1)[0])
-    pages = simulate_votes(scenario, design, max(checkpoints), study_seed)
-    return [{"design": design, "study": study, **row}
-            for row in score_study(pages, scenario, checkpoints, study_seed)]
+    with one_blas_thread():
+        pages = simulate_votes(scenario, design, max(checkpoints), study_seed)
+        rows = score_study(pages, scenario, checkpoints, study_seed)
+    return [{"design": design, "study": study, **row} for row in rows]
 
 
 def compare_designs(scenario: Scenario, studies: int, checkpoints: Sequence[int] = DEFAULT_VOTES,
@@ -230,19 +232,27 @@ def pairing_text(scenario: Scenario, summary: pd.DataFrame, saved: pd.DataFrame,
             f"{scenario.exploration:g}, seed {seed}; each scored with the leaderboard (weighted "
             f"Bradley-Terry, {scenario.resamples:,} bootstrap resamples of the participants, "
             f"{scenario.confidence * 100:g} % intervals).")
-    reached = saved.dropna(subset=["adaptive_votes"])
-    for row in reached.itertuples(index=False):
-        text += (f" Uniform pairing at {row.uniform_votes:,} votes: mean tau {row.uniform_tau:.3f}, "
-                 f"mean interval width {row.uniform_width:.0f} Elo; adaptive pairing reaches the "
-                 f"tau at {row.adaptive_votes_for_tau:,.0f} votes and the width at "
-                 f"{row.adaptive_votes_for_width:,.0f}, both with "
-                 f"{'at least ' if row.at_least else ''}{row.saving * 100:.0f} % fewer votes.")
+    first = summary["votes"].min()
+    for row in saved.itertuples(index=False):
+        text += (f" Uniform pairing at {row.uniform_votes:,} votes: mean tau {row.uniform_tau:.3f}, mean "
+                 f"interval width {row.uniform_width:.0f} Elo; adaptive pairing reaches the tau "
+                 f"{_votes_phrase(row.adaptive_votes_for_tau, row.uniform_votes, first)}, the width "
+                 f"{_votes_phrase(row.adaptive_votes_for_width, row.uniform_votes, first)}.")
     text += (f" The best fixed allocation for the true strengths would save {ceiling * 100:.0f} % "
              "of the votes at equal standard errors.")
     coverage = ", ".join(f"{r.design} at {r.votes:,} votes {r.coverage * 100:.1f} % "
                          f"(± {r.coverage_se * 100:.1f})" for r in summary.itertuples(index=False)
                          if r.votes == summary["votes"].max())
     return text + f" Coverage of the true Elo by the intervals: {coverage}."
+
+
+def _votes_phrase(votes: float, uniform_votes: int, first: int) -> str:
+    if np.isnan(votes):
+        return "not within the simulated votes"
+    if votes <= first:
+        return f"by its first checkpoint ({first:,} votes)"
+    change = 1 - votes / uniform_votes
+    return f"at {votes:,.0f} votes ({abs(change) * 100:.0f} % {'fewer' if change >= 0 else 'more'})"
 
 
 def write_pairing_simulation(scenario: Scenario, results: pd.DataFrame, folder: str | Path,
