@@ -4,7 +4,8 @@ does for the single design, which dispatches here on the table's design).
 Side-by-side (GENEA's analysis of HEMVIP pages): exclusions, per system the median and
 mean with 95 % intervals, two-sided Wilcoxon signed-rank tests on the per-page
 differences of every pair, Holm-Bonferroni corrected per task x control class, the
-significance matrix, and the random-intercept mixed model on the slider values.
+significance matrix, the random-intercept mixed model on the slider values, and the
+rater- and clip-aware models with rater agreement (`analysis.rater_models`).
 
 Pairwise: exclusions, per pair the preference share with its Wilson interval and the
 share of "no preference", exact two-sided binomial (sign) tests on the pages with a
@@ -36,6 +37,7 @@ from analysis.leaderboard_report import (LeaderboardReport, build_leaderboard, l
 from analysis.mixed import mixed_model_means
 from analysis.pairwise import preference_pages, preference_pairs, side_bias
 from analysis.power import more_ratings_for_power, power_summary
+from analysis.rater_models import RaterModels, build_rater_models, rater_models_text
 from analysis.side_by_side import median_and_mean, signed_rank_pairs
 from analysis.stats import CELL, comparable_cells, too_few_ratings
 from analysis.tables import system_order, write_table
@@ -61,6 +63,7 @@ class DesignReport:
     notes: list[str] = field(default_factory=list)
     continuity_correction: bool = False  # of the Wilcoxon tests' normal approximation
     leaderboard: LeaderboardReport | None = None  # pairwise
+    rater_models: RaterModels | None = None  # side-by-side
 
     def table(self, name: str) -> pd.DataFrame:
         return self.tables[name][1]
@@ -91,7 +94,11 @@ def build_design_report(ratings: pd.DataFrame, reference: str | None = None,
         reference = rules.natural_system
     tables = (_side_by_side_tables(kept, alpha, notes, continuity_correction) if design == SIDE_BY_SIDE
               else _pairwise_tables(kept, alpha, notes, reference))
-    leaderboard = None
+    leaderboard = rater_models = None
+    if design == SIDE_BY_SIDE:
+        rater_models = build_rater_models(kept, reference if reference in set(kept["system"]) else None, alpha)
+        tables.update(rater_models.tables())
+        notes += rater_models.notes
     if design == PAIRWISE:
         leaderboard = build_leaderboard(kept, reference if reference in set(kept["system"]) else None,
                                         natural=rules.natural_system)
@@ -100,7 +107,8 @@ def build_design_report(ratings: pd.DataFrame, reference: str | None = None,
     power = more_ratings_for_power(kept, alpha, POWER)
     tables["power_more_ratings"] = (f"Ratings needed for {POWER * 100:g} % power per pair", power)
     return DesignReport(design, flagged, exclusion_summary(flagged), removed_by_reason(flagged),
-                        tables, reference, rules, alpha, notes, continuity_correction, leaderboard)
+                        tables, reference, rules, alpha, notes, continuity_correction, leaderboard,
+                        rater_models)
 
 
 def _side_by_side_tables(kept: pd.DataFrame, alpha: float, notes: list[str],
@@ -257,6 +265,8 @@ def design_summary_text(report: DesignReport) -> str:
         out.append(text)
     if report.leaderboard is not None:
         out.append(leaderboard_text(report.leaderboard))
+    if report.rater_models is not None:
+        out.append(rater_models_text(report.rater_models))
     out.append(power_summary(report.table("power_more_ratings"), report.alpha, POWER))
     return "\n\n".join(p for p in out if p) + "\n"
 

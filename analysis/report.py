@@ -8,6 +8,9 @@ computed and why. `write_report` turns it into a folder:
     tables/<name>.{csv,md,tex,json}
     figures/<name>.{png,svg}
 
+Single-design reports include the rater- and clip-aware models (crossed LMM, cumulative
+link mixed model, rater agreement: `analysis.rater_models`).
+
 The study app calls the same two functions and shows the same tables and figures.
 """
 
@@ -32,6 +35,7 @@ from analysis.mixed import mixed_model_means
 from analysis.motion_io import SystemClips
 from analysis.objective import METRIC_COLUMNS, objective_metrics
 from analysis.power import more_ratings_for_power, power_summary
+from analysis.rater_models import RaterModels, build_rater_models, rater_models_text, write_rater_models
 from analysis.stats import (CELL, anova, comparable_cells, pvalue_matrix, system_means,
                             too_few_ratings, tukey_hsd)
 from analysis.tables import objective_table, pvalue_display, significance_table, slug, write_table
@@ -57,6 +61,7 @@ class Report:
     footstep_curves: pd.DataFrame | None = None
     correlation: pd.DataFrame | None = None
     power: pd.DataFrame | None = None  # more ratings for 80 % power per pair (analysis.power)
+    rater_models: RaterModels | None = None  # crossed LMM, CLMM, agreement (analysis.rater_models)
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -143,6 +148,8 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
     tukey_table = tukey_hsd(comparable) if len(comparable) else pd.DataFrame()
     mixed_table = mixed_model_means(comparable) if len(comparable) else pd.DataFrame()
     power_table = more_ratings_for_power(usable, power=POWER)
+    rater_models = build_rater_models(comparable, reference) if len(comparable) else None
+    notes += rater_models.notes if rater_models else []
     if len(mixed_table) and mixed_table["at_boundary"].any():
         where = mixed_table.loc[mixed_table["at_boundary"], list(CELL)].drop_duplicates()
         notes.append("Mixed model: participant variance estimated at zero in "
@@ -163,7 +170,7 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
         means=means, anova=anova_table, tukey=tukey_table, mixed=mixed_table,
         significance_display=significance_table(means, tukey_table, reference, too_few),
         pvalues_display=pvalues, reference=reference, rules=rules, notes=notes,
-        power=power_table)
+        power=power_table, rater_models=rater_models)
     if motion:
         _add_objective(report, motion, foot_joints, foot_kind)
     return report
@@ -228,6 +235,8 @@ def summary_text(report: Report | DesignReport) -> str:
     if report.reference:
         out.append("Table 2 reports means with 95 % confidence intervals; ** and * mark a "
                    f"significant difference from {report.reference} at p < 0.01 and p < 0.05.")
+    if report.rater_models is not None:
+        out.append(rater_models_text(report.rater_models))
     if report.power is not None and len(report.power):
         out.append(power_summary(report.power, power=POWER))
     return "\n\n".join(out) + "\n"
@@ -251,6 +260,8 @@ def write_report(report: Report | DesignReport, folder: str | Path) -> list[Path
     for (task, cc), matrix in report.pvalues_display.items():
         written += write_table(matrix, tables, f"pvalues_{slug(task, cc)}",
                                caption=f"Tukey HSD adjusted p-values, {task} · {cc}.")
+    if report.rater_models is not None:
+        written += write_rater_models(report.rater_models, folder)
     written += plots.save_figure(plots.means_plot(report.means, report.reference), figures, "means_ci")
     written += plots.save_figure(plots.distribution_plot(report.analysed, report.reference),
                                  figures, "rating_distributions")
