@@ -90,3 +90,17 @@ def test_the_command_refuses_a_pairwise_table_and_an_unknown_reference(tmp_path,
     assert "rater-models analyses single and side-by-side tables" in err
     assert "reference system 'Z' has no compared ratings" in err
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_single_and_side_by_side_reports_include_the_rater_models(tmp_path):
+    single = tmp_path / "single.csv"
+    simulate_ratings({"NAT": 4.1, "A": 3.4}, 600, control_classes=("c",), seed=2).to_csv(single, index=False)
+    assert main(["report", str(single), "--out", str(tmp_path / "a")]) == 0
+    for name in ("crossed_mixed_contrasts", "ordinal_mixed_effects", "rater_agreement"):
+        assert (tmp_path / "a" / "tables" / f"{name}.csv").is_file(), name
+    assert "crossed random intercepts for participants and clips" in (tmp_path / "a" / "summary.md").read_text()
+    sbs = tmp_path / "sbs.csv"
+    simulate_side_by_side({"NAT": 78, "A": 62, "BAD": 10}, n_participants=12, seed=2).to_csv(sbs, index=False)
+    assert main(["report", str(sbs), "--out", str(tmp_path / "b")]) == 0
+    assert (tmp_path / "b" / "tables" / "crossed_mixed_variance.csv").is_file()
+    assert not (tmp_path / "b" / "tables" / "ordinal_mixed_effects.csv").exists()
