@@ -70,36 +70,33 @@ _OUTER_END = 1e4
 
 @dataclass(frozen=True)
 class _Link:
-    """Per rating: log pi and its derivatives in eta, and in the rating's upper and lower
-    threshold (a = alpha_y - eta, b = alpha_{y-1} - eta)."""
+    """Per rating: log pi and its derivatives in eta; with ``full``, also the third and
+    those in the rating's upper and lower threshold (a = alpha_y - eta, b = alpha_{y-1} - eta)."""
 
     log_pi: np.ndarray
     psi: np.ndarray  # d log pi / d eta
     d: np.ndarray  # -d2 log pi / d eta2
-    d_eta: np.ndarray  # dD / d eta
-    upper: tuple[np.ndarray, np.ndarray, np.ndarray]  # d/da of (log pi, psi, D)
-    lower: tuple[np.ndarray, np.ndarray, np.ndarray]  # d/db of (log pi, psi, D)
+    d_eta: np.ndarray | None = None  # dD / d eta
+    upper: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # d/da of (log pi, psi, D)
+    lower: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # d/db of (log pi, psi, D)
 
 
-def _density_terms(x: np.ndarray) -> tuple[np.ndarray, ...]:
-    """F, f, f', f'' of the logistic at x."""
-    s = expit(x)
-    f = s * (1 - s)
-    return s, f, f * (1 - 2 * s), f * (1 - 6 * s + 6 * s**2)
-
-
-def _link(eta: np.ndarray, upper_alpha: np.ndarray, lower_alpha: np.ndarray) -> _Link:
+def _link(eta: np.ndarray, upper_alpha: np.ndarray, lower_alpha: np.ndarray, full: bool = False) -> _Link:
     a, b = upper_alpha - eta, lower_alpha - eta
-    Fa, fa, fa1, fa2 = _density_terms(a)
-    Fb, fb, fb1, fb2 = _density_terms(b)
+    Fa, Fb = expit(a), expit(b)
+    fa, fb = Fa * (1 - Fa), Fb * (1 - Fb)
+    fa1, fb1 = fa * (1 - 2 * Fa), fb * (1 - 2 * Fb)
     # both ends in the upper tail: S(b) - S(a) with S = 1 - F keeps the digits F(a) - F(b) loses
     pi = np.maximum(np.where(b > 0, expit(-b) - expit(-a), Fa - Fb), 1e-300)
-    g1, g2, g3 = (fa - fb) / pi, (fa1 - fb1) / pi, (fa2 - fb2) / pi
+    g1, g2 = (fa - fb) / pi, (fa1 - fb1) / pi
     d = g1**2 - g2
-    d_eta = 2 * g1**3 - 3 * g1 * g2 + g3
+    if not full:
+        return _Link(np.log(pi), -g1, d)
+    fa2, fb2 = fa * (1 - 6 * Fa + 6 * Fa**2), fb * (1 - 6 * Fb + 6 * Fb**2)
+    g3 = (fa2 - fb2) / pi
     g1_a, g2_a = (fa1 - g1 * fa) / pi, (fa2 - g2 * fa) / pi
     g1_b, g2_b = (-fb1 + g1 * fb) / pi, (-fb2 + g2 * fb) / pi
-    return _Link(np.log(pi), -g1, d, d_eta,
+    return _Link(np.log(pi), -g1, d, 2 * g1**3 - 3 * g1 * g2 + g3,
                  (fa / pi, -g1_a, 2 * g1 * g1_a - g2_a),
                  (-fb / pi, -g1_b, 2 * g1 * g1_b - g2_b))
 
@@ -170,48 +167,63 @@ def _laplace(theta: np.ndarray, data: _Data, start: tuple[np.ndarray, np.ndarray
             break
     d_p, d_s, d_ps = lay.sums(link.d)
     blocks = CrossedBlocks(1 + s_p**2 * d_p, lay.cross(s_p * s_s * d_ps), 1 + s_s**2 * d_s)
-    return _Laplace(g - 0.5 * blocks.logdet(), (u, v), link, eta, blocks)
+    return _Laplace(g - 0.5 * blocks.logdet(), (u, v), _link(eta, upper, lower, full=True), eta, blocks)
 
 
 def _gradient(theta: np.ndarray, data: _Data, fit: _Laplace) -> np.ndarray:
-    """dL/dtheta in the natural parameters (alpha, beta without the reference, s_p, s_s)."""
-    alpha, beta, (s_p, s_s) = _split(theta, data)
+    """dL/dtheta in the natural parameters (alpha, beta without the reference, s_p, s_s).
+
+    Each rating's eta depends on one threshold pair, one system and one participant and
+    stimulus, so every sum over ratings below is a bincount by threshold, system,
+    participant or stimulus, never a (ratings x parameters) matrix."""
+    _, _, (s_p, s_s) = _split(theta, data)
     lay, link = data.layout, fit.link
     q_p, q_s = lay.q
     u, v = fit.mode
-    n, j, k = len(link.psi), data.levels - 1, data.k
-    at_upper = data.category < j  # the rating has an upper threshold alpha_category
-    at_lower = data.category > 0
-    p_idx, s_idx = lay.participant, lay.stimulus
+    j, k = data.levels - 1, data.k
     count = j + (k - 1) + 2
-    direct_eta = np.zeros((n, count))  # d eta / d theta at a fixed mode
-    direct_eta[np.arange(n)[lay.system > 0], j + lay.system[lay.system > 0] - 1] = 1.0
-    direct_eta[:, -2], direct_eta[:, -1] = u[p_idx], v[s_idx]
-    # threshold derivatives, per rating and threshold: (log pi, psi, D)
-    thresholds = [np.zeros((n, count)) for _ in range(3)]
-    rows = np.arange(n)
-    for which, mask, shift in ((link.upper, at_upper, 0), (link.lower, at_lower, -1)):
-        column = data.category[mask] + shift
-        for target, values in zip(thresholds, which):
-            target[rows[mask], column] = values[mask]
-    log_pi_theta, psi_theta, d_theta = thresholds
+    p_idx, s_idx = lay.participant, lay.stimulus
+    # (rating, parameter) entries of d eta / d theta at a fixed mode and of the threshold
+    # derivatives of (log pi, psi, D): each rating touches its upper and lower threshold,
+    # its system's effect (none for the reference) and the two sds
+    up, low, eff = data.category < j, data.category > 0, lay.system > 0
+    rows = np.r_[np.flatnonzero(up), np.flatnonzero(low)]
+    columns = np.r_[data.category[up], data.category[low] - 1]
+    log_pi_a, psi_a, d_a = (np.r_[x[up], y[low]] for x, y in zip(link.upper, link.lower))
+    effect_rows, effect_columns = np.flatnonzero(eff), j + lay.system[eff] - 1
+
+    def per_level(factor: np.ndarray, levels: int, at_rows: np.ndarray, at_columns: np.ndarray,
+                  weights: np.ndarray) -> np.ndarray:
+        return np.bincount(factor[at_rows] * count + at_columns, weights, levels * count).reshape(levels, count)
+
     # the mode's change: H dw/dtheta = sum_i (dpsi_i - D_i deta_i) w_i + sum_i psi_i dw_i/ds
-    rhs = psi_theta - link.d[:, None] * direct_eta
-    by_participant, by_stimulus = lay.indicators
-    c_p, c_s = s_p * (by_participant @ rhs), s_s * (by_stimulus @ rhs)
+    changes = []
+    for factor, levels, sd in ((p_idx, q_p, s_p), (s_idx, q_s, s_s)):
+        c = (per_level(factor, levels, rows, columns, psi_a)
+             + per_level(factor, levels, effect_rows, effect_columns, -link.d[eff]))
+        c[:, -2] = -np.bincount(factor, link.d * u[p_idx], levels)
+        c[:, -1] = -np.bincount(factor, link.d * v[s_idx], levels)
+        changes.append(sd * c)
     psi_p, psi_s, _ = lay.sums(link.psi)
-    c_p[:, -2] += psi_p
-    c_s[:, -1] += psi_s
-    du, dv = fit.blocks.solve(c_p, c_s)
-    eta_theta = direct_eta + s_p * du[p_idx] + s_s * dv[s_idx]
-    d_total = d_theta + link.d_eta[:, None] * eta_theta
+    changes[0][:, -2] += psi_p
+    changes[1][:, -1] += psi_s
+    du, dv = fit.blocks.solve(*changes)
+    # tr(H^-1 dH/dtheta) = sum_i leverage_i dD_i/dtheta (+ Lambda's own change for the sds),
+    # dD_i = dD_i/dalpha + D'_i (deta_i/dtheta + w_i' dw/dtheta)
     h_p, h_s, h_ps = fit.blocks.inverse_blocks(lay.pair_participant, lay.pair_stimulus)
     cross = h_ps[lay.pair]
     leverage = s_p**2 * h_p[p_idx] + s_s**2 * h_s[s_idx] + 2 * s_p * s_s * cross
-    trace = leverage @ d_total
+    w = leverage * link.d_eta
+    w_p, w_s, _ = lay.sums(w)
+    trace = np.bincount(columns, leverage[rows] * d_a, count)
+    trace += np.bincount(effect_columns, w[eff], count)
+    trace[-2] += w_p @ u
+    trace[-1] += w_s @ v
+    trace += s_p * (w_p @ du) + s_s * (w_s @ dv)
     trace[-2] += 2 * link.d @ (s_p * h_p[p_idx] + s_s * cross)
     trace[-1] += 2 * link.d @ (s_s * h_s[s_idx] + s_p * cross)
-    direct = log_pi_theta.sum(axis=0) + link.psi @ direct_eta  # dg/dtheta at the fixed mode
+    direct = np.bincount(columns, log_pi_a, count) + np.bincount(effect_columns, link.psi[eff], count)
+    direct[-2], direct[-1] = psi_p @ u, psi_s @ v
     return direct - 0.5 * trace
 
 
