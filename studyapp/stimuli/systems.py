@@ -1,8 +1,9 @@
 """Registering a study's systems: uploaded checkpoints, natural motion (NAT) and BAD videos.
 
 Uploads are never trusted: a checkpoint must be a safetensors file of this project that
-loads completely (digest, kind, every tensor's name and shape) and can drive the
-Generator; a video must be an MP4 whose first frame decodes. Nothing is unpickled or
+loads completely (digest, kind, every tensor's name and shape), can drive the Generator
+and learnt from the data the study's other checkpoints learnt from, prepared the same
+way (``data_match``); a video must be an MP4 whose first frame decodes. Nothing is unpickled or
 executed, and a refused upload leaves nothing on disk. Accepted checkpoints are stored
 under ``CHECKPOINT_ROOT`` named by their SHA-256, so the same file uploaded twice is
 stored once; accepted videos become finished stimuli under ``MEDIA_ROOT/stimuli/``.
@@ -18,6 +19,7 @@ import struct
 import subprocess
 import tempfile
 from contextlib import ExitStack
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -29,6 +31,7 @@ from django.db import transaction
 
 from generation.files import atomic_output
 from studyapp.models import Stimulus, Study, System, new_token
+from studyapp.stimuli.data_match import data_mismatch
 
 if TYPE_CHECKING:  # torch-backed modules load only when a checkpoint is handled
     from generation.checkpoint import CheckpointMeta
@@ -106,8 +109,10 @@ def preset_name(meta: CheckpointMeta) -> str:
     return "/".join(matches) or "custom"
 
 
-def store_checkpoint(upload: File) -> StoredCheckpoint:
-    """Validate an uploaded checkpoint completely and store it by digest (UploadRefused if not)."""
+def store_checkpoint(upload: File, fits: Callable[[CheckpointMeta], str | None] = lambda meta: None) -> StoredCheckpoint:
+    """Validate an uploaded checkpoint completely and store it by digest (UploadRefused if
+    not); ``fits`` says why a valid checkpoint does not fit where it goes (None: it fits),
+    before anything is stored."""
     from generation.checkpoint import CheckpointError, load_checkpoint
     from generation.generator import Generator
 
@@ -131,6 +136,8 @@ def store_checkpoint(upload: File) -> StoredCheckpoint:
             Generator(model, meta)  # the features and statistics sampling needs are there
         except (KeyError, TypeError, ValueError, AttributeError) as error:
             raise UploadRefused(f"{name}: a {meta.kind} checkpoint that cannot drive sampling ({error!r})") from None
+        if (problem := fits(meta)) is not None:
+            raise UploadRefused(f"{name}: {problem}")
         parameters = sum(p.numel() for p in model.parameters())
         final = root / f"{digest}{CHECKPOINT_SUFFIX}"
         os.chmod(tmp, 0o644)
@@ -140,13 +147,18 @@ def store_checkpoint(upload: File) -> StoredCheckpoint:
     return StoredCheckpoint(final.name, digest, meta, parameters)
 
 
+def control_of(meta: CheckpointMeta) -> str:
+    """What a checkpoint's controls must be: "attributes" (action and style labels) or "path"."""
+    return "attributes" if meta.features.get("type") == "angles" else "path"
+
+
 def checkpoint_metadata(stored: StoredCheckpoint, original_name: str) -> dict:
     """What the systems page shows and generation needs about a stored checkpoint."""
     meta = stored.meta
-    labelled = meta.features.get("type") == "angles"
+    labelled = control_of(meta) == "attributes"
     labels = {"actions": meta.hyperparameters["actions"], "styles": meta.hyperparameters["styles"]} if labelled else None
     return {
-        "control": "attributes" if labelled else "path",  # what its controls must be
+        "control": control_of(meta),  # what its controls must be
         "labels": labels,
         "file": original_name,
         "preset": preset_name(meta),
@@ -175,7 +187,8 @@ def add_checkpoint_system(study: Study, name: str, upload: File, role: str = Sys
     if not temperature > 0:
         raise UploadRefused(f"the sampling temperature must be positive, got {temperature}")
     check_name(study, name)
-    stored = store_checkpoint(upload)
+    stored = store_checkpoint(upload, lambda meta: data_mismatch(
+        study, control_of(meta), meta.features["dataset_options"], meta.data_fingerprint))
     twin = study.systems.filter(checkpoint_digest=stored.digest, role=role, temperature=temperature).first()
     if twin is not None:
         raise UploadRefused(f"this checkpoint is already system {twin.name!r} at temperature {temperature:g}")
