@@ -10,15 +10,15 @@ The bundle (a folder, or the same files in a zip):
                         control's frame: a valid submission for that control (centimetres,
                         y up, as submissions must be; the README and index.json say so)
 
-A control's id is its name where the name is a plain file name, else ``control-<pk>``;
-submitted files are named by it (``studyapp.stimuli.submissions``).
+A control's id is the name it was created with where that is a plain file name, else
+``control-<pk>``, and renaming the control keeps it; submitted files are named by it
+(``studyapp.stimuli.submissions``).
 """
 
 from __future__ import annotations
 
 import io
 import json
-import re
 import zipfile
 from pathlib import Path
 
@@ -28,11 +28,10 @@ from generation.control import PathControl, control_from_dict
 from generation.motion.bvh import bvh_text, motion_to_bvh
 from generation.motion.root import root_trajectory, to_root_frame
 from generation.motion.types import Motion
-from studyapp.models import ControlSignal, Study
+from studyapp.models import SAFE_ID, ControlSignal, Study
 from studyapp.stimuli.controls import training_options
 from studyapp.stimuli.natural import natural_motion
 
-SAFE_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")
 
 # The rules a submission is held to (``studyapp.stimuli.submissions`` checks them, README.txt states them).
 # A person is 50-250 cm tall: a clip in metres (about 1.7) or millimetres (about 1700) is outside.
@@ -91,8 +90,9 @@ exactly as it renders the motion it samples itself.
 
 
 def control_id(control: ControlSignal) -> str:
-    """The file name stem of a control in an export and in a submission."""
-    return control.name if SAFE_ID.fullmatch(control.name) else f"control-{control.pk}"
+    """The file name stem of a control in an export and in a submission: its export id,
+    which a rename leaves as it was."""
+    return control.export_id or f"control-{control.pk}"
 
 
 def natural_in_control_frame(motion: Motion, root_options) -> Motion:
