@@ -29,12 +29,21 @@ def test_the_steps_say_what_is_done_and_what_is_missing():
         ("Open", False)]
     assert [s.note for s in study_steps(empty)][1:4] == ["no model system yet", "none yet", "none generated"]
     steps = study_steps(study)
-    assert [s.done for s in steps] == [True, True, True, True, True, False]
+    assert [s.done for s in steps] == [True, True, True, True, False, False]  # the preview is not seen yet
+    assert steps[0].note == "Prolific, scale 1–5" and steps[4].note == "see the pages as a participant"
     assert steps[3].note == "12 of 12 clips finished" and "completion code" in steps[5].note  # why it cannot open
     client = Client()
     client.force_login(study.owner)
     page = client.get(reverse("study-systems", args=[study.pk])).content.decode()
     assert '<ol class="steps"' in page and 'aria-current="page"' in page and "12 of 12 clips finished" in page
+    assert client.get(reverse("study-preview", args=[study.pk])).status_code == 200
+    study.refresh_from_db()
+    assert study_steps(study)[4].done and study_steps(study)[4].note == "seen"
+
+
+def test_the_settings_step_of_a_pairwise_study_names_no_scale():
+    study = make_study(design="pairwise", abx=True)
+    assert study_steps(study)[0].note == "Prolific, pairwise with ABX, no scale"
 
 
 def test_the_preview_shows_every_page_in_order_and_records_nothing():

@@ -24,6 +24,7 @@ from django.core.management.base import CommandError
 
 from analysis.motion_io import SystemClips
 from analysis.objective import objective_metrics
+from generation.motion.bvh import load_motion
 from generation.motion.dataset import load_body_motion
 from generation.motion.npz import load_motion_npz
 from generation.motion.types import Motion
@@ -101,16 +102,22 @@ def test_the_objective_metrics_of_an_exported_study_are_those_of_its_stored_moti
     np.testing.assert_allclose(table[numbers].to_numpy(float), direct[numbers].to_numpy(float), rtol=1e-9,
                                equal_nan=True)
 
-    # The monitor's download holds the same clips.
+    # Beside each .npz, the same clip as a rotation BVH: its frames, joints and root where the arrays have them.
+    bvh_files = sorted(out.rglob("*.bvh"))
+    assert [p.with_suffix(".npz") for p in bvh_files] == sorted(out.rglob("*.npz"))
+    for path in bvh_files:
+        arrays, rig = load_motion_npz(path.with_suffix(".npz")), load_motion(path)
+        assert rig.positions.shape == arrays.positions.shape and rig.fps == arrays.fps
+        np.testing.assert_allclose(rig.positions[:, 0], arrays.positions[:, 0], atol=1e-3)
+
+    # The monitor's download holds the same files.
     download = client.get(f"/studies/{study.pk}/motion.zip")
     assert download.status_code == 200 and download["Content-Type"] == "application/zip"
     with zipfile.ZipFile(io.BytesIO(download.content)) as archive:
         names = sorted(archive.namelist())
-        assert names == sorted(f"motion-study-{study.pk}/{p.relative_to(out).as_posix()}" for p in out.rglob("*.npz"))
+        assert names == sorted(f"motion-study-{study.pk}/{p.relative_to(out).as_posix()}" for p in out.rglob("*.*"))
         for name in names:
-            zipped_clip = load_motion_npz(io.BytesIO(archive.read(name)))
-            exported = load_motion_npz(out / name.split("/", 1)[1])
-            np.testing.assert_array_equal(zipped_clip.positions, exported.positions)
+            assert archive.read(name) == (out / name.split("/", 1)[1]).read_bytes()
 
 
 @pytest.mark.django_db

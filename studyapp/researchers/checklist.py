@@ -13,7 +13,8 @@ from django.db.models import Count, Q
 from django.urls import reverse
 
 from studyapp.models import Stimulus, Study, System
-from studyapp.researchers.readiness import open_problems
+from studyapp.designs.registry import design_of
+from studyapp.researchers.readiness import open_problems, open_warnings
 
 
 @dataclass(frozen=True)
@@ -30,22 +31,27 @@ def study_steps(study: Study) -> list[StudyStep]:
     stimuli = study.stimuli.aggregate(all=Count("pk"), done=Count("pk", filter=Q(status=Stimulus.Status.DONE)),
                                       failed=Count("pk", filter=Q(status=Stimulus.Status.FAILED)))
     problems = open_problems(study)
+    previewed = study.previewed_at is not None and stimuli["done"] > 0
 
     def url(name: str) -> str:
         return reverse(f"study-{name}", args=[study.pk])
 
+    design = design_of(study)
+    shown = f"scale {study.scale_min}–{study.scale_max}" if design.on_scale else \
+        f"{design.name}{' with ABX' if study.abx else ''}, no scale"
     stimuli_note = (f"{stimuli['done']} of {stimuli['all']} clips finished"
                     + (f", {stimuli['failed']} failed" if stimuli["failed"] else "")) if stimuli["all"] else "none generated"
     return [
-        StudyStep("Settings", url("edit"), True, f"{study.get_platform_display()}, scale {study.scale_min}–{study.scale_max}"),
+        StudyStep("Settings", url("edit"), True, f"{study.get_platform_display()}, {shown}"),
         StudyStep("Systems", url("systems"), systems["models"] > 0,
                   f"{systems['all']} system(s)" if systems["models"] else "no model system yet"),
         StudyStep("Controls", url("controls"), controls > 0, f"{controls} control(s)" if controls else "none yet"),
         StudyStep("Stimuli", url("stimuli"), stimuli["all"] > 0 and stimuli["done"] == stimuli["all"], stimuli_note),
-        StudyStep("Preview", url("preview"), stimuli["done"] > 0,
-                  "see the pages as a participant" if stimuli["done"] else "needs a finished clip"),
+        StudyStep("Preview", url("preview"), previewed,
+                  "seen" if previewed else "see the pages as a participant" if stimuli["done"] else "needs a finished clip"),
         StudyStep("Open", url("monitor"), study.is_open,
-                  "open" if study.is_open else ("ready to open" if not problems else problems[0])),
+                  "open" if study.is_open else problems[0] if problems else
+                  "ready to open, with a warning" if open_warnings(study) else "ready to open"),
     ]
 
 

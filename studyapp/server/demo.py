@@ -180,11 +180,12 @@ def _create_study(owner, checkpoints: dict[str, Path]):
 
 def ensure_side_by_side_study(single):
     """The side-by-side demo study: the single study's systems, controls and rendered clips
-    (each clip's file linked under a token of its own), so it needs no rendering of its
-    own; clips rendered since the last run are added."""
+    (``duplication.copy_contents``: each clip's file linked under a token of its own), so it
+    needs no rendering of its own; clips rendered since the last run are added."""
     from django.db import transaction
 
-    from studyapp.models import ControlSignal, Stimulus, Study, System
+    from studyapp.models import Stimulus, Study
+    from studyapp.researchers.duplication import copy_contents
 
     with transaction.atomic():
         study, _ = Study.objects.get_or_create(owner=single.owner, title=SIDE_BY_SIDE_STUDY, defaults={
@@ -192,19 +193,7 @@ def ensure_side_by_side_study(single):
             "ratings_per_stimulus": 10, "training_clips": 3, "bad_checks": 2, "instructed_checks": 1,
             "instructions": SIDE_BY_SIDE_INSTRUCTIONS, "completion_code": "DEMO-DONE", "camera": single.camera,
             "video_width": single.video_width, "video_height": single.video_height})
-        systems = {s.pk: System.objects.get_or_create(study=study, name=s.name, defaults={
-            "role": s.role, "checkpoint": s.checkpoint, "checkpoint_digest": s.checkpoint_digest, "kind": s.kind,
-            "metadata": s.metadata, "temperature": s.temperature})[0] for s in single.systems.all()}
-        controls = {c.pk: ControlSignal.objects.get_or_create(study=study, name=c.name, defaults={
-            "origin": c.origin, "control": c.control, "source_clip": c.source_clip, "seconds": c.seconds})[0]
-            for c in single.controls.all()}
-        copied = set(study.stimuli.values_list("content_key", flat=True))
-        for clip in single.stimuli.filter(status=Stimulus.Status.DONE).exclude(content_key__in=copied):
-            twin = Stimulus.objects.create(
-                study=study, system=systems[clip.system_id], control=controls.get(clip.control_id), seed=clip.seed,
-                content_key=clip.content_key, status=Stimulus.Status.DONE, duration_s=clip.duration_s)
-            twin.video_path().parent.mkdir(parents=True, exist_ok=True)
-            os.link(clip.video_path(), twin.video_path())
+        copy_contents(single, study)
         study.is_open = study.stimuli.filter(status=Stimulus.Status.DONE).exists()
         study.save(update_fields=["is_open"])
     return study

@@ -2,6 +2,10 @@
 
     OUT/<system>/<control id>.npz    positions (frames, joints, 3) cm, y up; fps; names;
                                      parents; offsets; system (analysis/motion_io.py's layout)
+    OUT/<system>/<control id>.bvh    the same clip as a rotation BVH (cm, y up), for animation
+                                     tools: motion that has positions only (MoGlow and its
+                                     baselines, submitted arrays) gets its rotations on its own
+                                     rig by inverse kinematics, as ``sample --bvh`` writes them
 
 Systems are named as in the ratings table (``System.export_name``: NAT and BAD for those
 roles, a model system by its name), in each file's ``system`` array and, where the name
@@ -26,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from generation.files import atomic_folder
+from generation.motion.bvh import motion_to_bvh, write_bvh
 from generation.motion.npz import save_motion_npz
 from studyapp.models import Stimulus, Study, System
 from studyapp.stimuli.control_export import SAFE_ID, control_id
@@ -38,10 +43,11 @@ def folder_name(system: System) -> str:
     return system.export_name if SAFE_ID.fullmatch(system.export_name) else f"system-{system.pk}"
 
 
-def clip_name(stimulus: Stimulus) -> str:
-    """The file a stimulus's motion is written to, inside its system's folder."""
-    name = control_id(stimulus.control)
-    return f"{name}.npz" if stimulus.seed == 0 else f"{name}-seed{stimulus.seed}.npz"
+def clip_name(stimulus: Stimulus, suffix: str = ".npz") -> str:
+    """The file a stimulus's motion (or, by ``suffix``, its video or BVH) is written to,
+    inside its system's folder."""
+    name = control_id(stimulus.control) if stimulus.control else f"video-{stimulus.pk}"
+    return f"{name}{suffix}" if stimulus.seed == 0 else f"{name}-seed{stimulus.seed}{suffix}"
 
 
 def exported_stimuli(study: Study) -> list[Stimulus]:
@@ -60,11 +66,13 @@ def write_motion(study: Study, out: Path) -> dict[str, int]:
     with atomic_folder(out) as work:
         for stimulus in exported_stimuli(study):
             system = stimulus.system.export_name
+            folder = work / folder_name(stimulus.system)
             try:
                 motion = source_of(stimulus.system).clip(stimulus).motion
+                save_motion_npz(motion, folder / clip_name(stimulus), system=np.array(system))
+                write_bvh(motion_to_bvh(motion), folder / clip_name(stimulus, ".bvh"))
             except (ValueError, FileNotFoundError) as error:
                 raise ValueError(f"the motion of {stimulus.system.name} for {stimulus.control.name}: {error}") from None
-            save_motion_npz(motion, work / folder_name(stimulus.system) / clip_name(stimulus), system=np.array(system))
             counts[system] = counts.get(system, 0) + 1
     return counts
 
@@ -76,7 +84,7 @@ def motion_zip(study: Study) -> bytes:
         write_motion(study, folder)
         buffer = io.BytesIO()
         with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
-            for path in sorted(folder.rglob("*.npz")):
+            for path in sorted(p for p in folder.rglob("*") if p.is_file()):
                 archive.write(path, path.relative_to(folder.parent).as_posix())
         return buffer.getvalue()
 
