@@ -6,11 +6,13 @@ looked at."""
 from __future__ import annotations
 
 import os
+import zipfile
 from pathlib import Path
 
 import pytest
 from django.urls import reverse
 
+from generation.motion.dataset import DatasetOptions
 from studyapp.models import Assignment, Participant, Question, Rating
 from tests.study_fixtures import make_study
 from tests.test_study_browser import PASSWORD, browser  # noqa: F401 (fixture)
@@ -78,3 +80,77 @@ def test_every_researcher_page_fits_the_screen(browser, live_server, settings, t
             too_wide[name] = width
     context.close()
     assert too_wide == {}
+
+
+def path_study_with_a_checkpoint_system():
+    """make_study with MoGlow as a checkpoint system (its dataset options are what submissions are checked by)."""
+    study = rated_study()
+    study.systems.filter(name="MoGlow").update(checkpoint="m.safetensors", kind="moglow", metadata={
+        "control": "path", "dataset_options": DatasetOptions().to_dict()})
+    return study
+
+
+@pytest.mark.django_db(transaction=True)
+def test_the_settings_show_what_the_chosen_design_reads_as_it_changes(browser, live_server):
+    study = make_study()
+    study.owner.set_password(PASSWORD)
+    study.owner.save()
+    context = browser.new_context(**DESKTOP)
+    page = log_in(context, live_server, study)
+    page.goto(f"{live_server.url}{reverse('study-edit', args=[study.pk])}")
+
+    def visible(label: str) -> bool:
+        return page.get_by_label(label, exact=True).is_visible()
+
+    assert visible("Clips per participant") and visible("Lowest rating") and not visible("Degrees of preference")
+    page.select_option("select[name=design]", "pairwise")
+    assert visible("Degrees of preference") and visible("Natural clip shown as a reference (ABX)")
+    assert not visible("Lowest rating") and not visible("Clips per participant") and not visible(
+        "Exclude who rates a BAD clip at or above")
+    page.get_by_label("Natural clip shown as a reference (ABX)").check()
+    page.select_option("select[name=design]", "side-by-side")  # the ABX switch hides, and is sent as off
+    assert not visible("Natural clip shown as a reference (ABX)") and visible("Pages per participant")
+    page.get_by_role("button", name="Save").click()
+    page.wait_for_url(f"**{reverse('study-systems', args=[study.pk])}")
+    study.refresh_from_db()
+    assert (study.design, study.abx, study.scale_min, study.scale_max) == ("side-by-side", False, 0, 100)
+    context.close()
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("device", ["desktop", "phone"])
+def test_an_upload_shows_its_progress_and_a_refusal_lists_its_problems_at_the_top(browser, live_server, tmp_path,
+                                                                                 device):
+    study = path_study_with_a_checkpoint_system()
+    upload = tmp_path / "other-lab.zip"
+    with zipfile.ZipFile(upload, "w") as archive:
+        archive.writestr("walk.bvh", "HIERARCHY\n")
+        archive.writestr("padding.txt", os.urandom(2_000_000))  # big enough to be sent in several parts
+    context = browser.new_context(**(PHONE if device == "phone" else DESKTOP))
+    page = log_in(context, live_server, study)
+    page.goto(f"{live_server.url}{reverse('study-systems', args=[study.pk])}")
+    # What the form shows while it sends, recorded as it changes (the answer then replaces the page).
+    page.evaluate("""() => {
+        window.seen = [];
+        const form = document.querySelector("input[name=action][value=motion]").form;
+        const bar = form.querySelector("progress"), status = form.querySelector(".upload-status");
+        const note = () => window.seen.push([status.textContent, bar.hidden, bar.value, bar.max,
+                                             form.querySelector("button[type=submit]").disabled]);
+        new MutationObserver(note).observe(form, {subtree: true, childList: true, characterData: true,
+                                                  attributes: true});
+    }""")
+    form = page.locator("form", has=page.locator("input[name=action][value=motion]"))
+    form.get_by_label("Name").fill("Other lab")
+    form.locator("input[type=file]").set_input_files(str(upload))
+    form.get_by_role("button", name="Upload motion").click()
+    page.wait_for_selector("#refused")
+    seen = page.evaluate("window.seen")
+    sent = [state for state in seen if state[0] == "Sent: the server is checking the file…"]
+    assert sent and all(not hidden and value == total > 2_000_000 and disabled for _, hidden, value, total, disabled in sent)
+    problems = page.locator("#refused li").all_inner_texts()
+    assert problems[0].startswith("walk.bvh: no control has the id 'walk'") and len(problems) == 2
+    assert problems[1] == "no file for the control(s) control-0, control-1"
+    refused_at = page.locator("#refused").bounding_box()["y"]
+    assert refused_at < page.get_by_role("heading", name="Systems").bounding_box()["y"] + 200  # at the top
+    assert page.evaluate("document.documentElement.scrollWidth") <= page.viewport_size["width"]
+    context.close()

@@ -144,7 +144,7 @@ class StudyForm(forms.ModelForm):
 
     class Meta:
         model = Study
-        exclude = ["owner", "camera"]
+        exclude = ["owner", "camera", "previewed_at"]
         labels = {
             "pages_per_participant": "Pages per participant",
             "abx": "Natural clip shown as a reference (ABX)",

@@ -97,6 +97,7 @@ def remove_study(study: Study) -> int:
     other study shares; returns how many clips went."""
     with transaction.atomic():
         stimuli = list(study.stimuli.all())
+        study.participants.all().delete()  # their assignments first: a rated clip is protected from deletion
         study.delete()
     delete_files(stimuli)
     return len(stimuli)

@@ -32,7 +32,8 @@
       event.preventDefault();
       const button = form.querySelector("button[type=submit]");
       const request = new XMLHttpRequest();
-      request.open("POST", form.action || location.href);
+      // getAttribute: these forms hold an input named "action", which form.action would be.
+      request.open("POST", form.getAttribute("action") || location.href);
       request.upload.addEventListener("progress", (progress) => {
         if (!progress.lengthComputable) return;
         bar.max = progress.total;
