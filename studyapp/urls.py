@@ -12,6 +12,7 @@ from studyapp.server import views as server_views
 
 urlpatterns = [
     path("", site_views.gallery, name="gallery"),
+    path("favicon.ico", server_views.favicon, name="favicon"),  # where browsers look without a page's link
     path("health/", server_views.health_page, name="health"),
     path("health.json", server_views.health_json, name="health-json"),
     path("analysis/", site_views.analysis_upload, name="analysis"),
