@@ -32,10 +32,13 @@ def rated_study():
                             text="Do you have normal or corrected-to-normal vision?", choices="yes\nno", accepted="yes")
     Question.objects.create(study=study, part=Question.Part.AFTER, name="comments", text="Any comments?",
                             kind=Question.Kind.TEXT, required=False)
-    for i, stimulus in enumerate(study.stimuli.order_by("pk")):
-        participant = Participant.objects.get_or_create(study=study, platform_id=f"6543a1b2c3d4e5f6{i % 3:08d}")[0]
-        assignment = Assignment.objects.create(participant=participant, stimulus=stimulus, position=i, page=i)
-        Rating.objects.create(assignment=assignment, value=1 + (i * 7) % 5, client_answered_s=5.0, played_until_s=4.0)
+    level = {"BAD": 1, "RNN": 2, "MoGlow": 3, "NAT": 4}
+    for k in range(4):  # four participants rate every clip
+        participant = Participant.objects.create(study=study, platform_id=f"6543a1b2c3d4e5f6{k:08d}")
+        for i, stimulus in enumerate(study.stimuli.select_related("system").order_by("pk")):
+            assignment = Assignment.objects.create(participant=participant, stimulus=stimulus, position=i, page=i)
+            value = min(5, level[stimulus.system.name] + (i + k) % 2)
+            Rating.objects.create(assignment=assignment, value=value, client_answered_s=5.0, played_until_s=4.0)
     return study
 
 
@@ -69,10 +72,14 @@ def test_every_researcher_page_fits_the_screen(browser, live_server, settings, t
     study = rated_study()
     context = browser.new_context(**(PHONE if device == "phone" else DESKTOP))
     page = log_in(context, live_server, study)
+    report = page.request.post(f"{live_server.url}{reverse('study-report', args=[study.pk])}", headers={
+        "X-CSRFToken": next(c["value"] for c in context.cookies() if c["name"] == "csrftoken"),
+        "Referer": live_server.url}, max_redirects=0)
+    assert report.status == 302, report.text()
     missing = []  # no page asks for a file that is not there (the icon included); the test's clips have no videos
     page.on("response", lambda r: missing.append(r.url) if r.status == 404 and "/media/" not in r.url else None)
     too_wide = {}
-    for name, url in researcher_urls(study).items():
+    for name, url in {**researcher_urls(study), "report": report.headers["location"]}.items():
         response = page.goto(f"{live_server.url}{url}")
         assert response.status == 200, name
         if SHOTS:
@@ -81,6 +88,10 @@ def test_every_researcher_page_fits_the_screen(browser, live_server, settings, t
         width = page.evaluate("document.documentElement.scrollWidth")
         if width > page.viewport_size["width"]:
             too_wide[name] = width
+        if name in ("study-monitor", "report") and device == "desktop":  # each table fits without scrolling
+            for box in page.locator(".table-scroll").all():
+                if box.evaluate("box => box.scrollWidth > box.clientWidth"):
+                    too_wide[f"{name}: {box.locator('xpath=preceding-sibling::h2[1]').inner_text()}"] = width
     context.close()
     assert too_wide == {} and missing == []
     icon = Client().get("/favicon.ico")

@@ -30,6 +30,7 @@ from studyapp.researchers.forms import (CheckpointSystemForm, ControlEditForm, C
                             LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, StudyForm,
                             SubmittedMotionSystemForm, SystemEditForm, VideoSystemForm)
 from studyapp.researchers.monitor import study_monitor
+from studyapp.researchers.monitor_figures import live_figures
 from studyapp.researchers.completion_time import completion_minutes
 from studyapp.researchers.participant_list import participant_rows, participants_csv, question_names
 from studyapp.researchers.preview import preview_pages
@@ -367,7 +368,7 @@ def study_monitor_page(request: HttpRequest, pk: int) -> HttpResponse:
     context = {
         "study": study, "monitor": study_monitor(study), "entry_link": entry_link(request, study),
         "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study),
-        "open_warnings": open_warnings(study),
+        "open_warnings": open_warnings(study), "figures": live_figures(study),
         "rules": StudyRules.of(study).described(),
     }
     return render(request, "studyapp/researcher/monitor.html", context)
