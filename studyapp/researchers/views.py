@@ -429,7 +429,9 @@ def study_questions(request: HttpRequest, pk: int) -> HttpResponse:
             messages.success(request, f"Added “{form.save().text}”.")
             return redirect("study-questions", pk=study.pk)
         status = 400
-    context = {"study": study, "form": form, "locked": locked, "questions": study.questions.all()}
+    # In the order participants meet them: the questions before the ratings first.
+    questions = study.questions.order_by("-part", "order", "created", "pk")
+    context = {"study": study, "form": form, "locked": locked, "questions": questions}
     return render(request, "studyapp/researcher/questions.html", context, status=status)
 
 
