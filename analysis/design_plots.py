@@ -104,8 +104,10 @@ def preference_plot(pairs: pd.DataFrame) -> Figure:
         # the Wilson interval of the share among decided pages, drawn on the page scale
         low = frame["share_ci_low"].to_numpy(dtype=float) * decided
         high = frame["share_ci_high"].to_numpy(dtype=float) * decided
-        ax.errorbar(a, y, xerr=np.nan_to_num(np.vstack([a - low, high - a])), fmt="none",
-                    ecolor="black", capsize=3)
+        # a and the interval's end are one number computed two ways where every decided page
+        # went one way: a rounding difference must not make an error bar negative.
+        error = np.clip(np.nan_to_num(np.vstack([a - low, high - a])), 0.0, None)
+        ax.errorbar(a, y, xerr=error, fmt="none", ecolor="black", capsize=3)
         ax.axvline(0.5, color="black", linewidth=0.6, linestyle=":")
         ax.set_xlim(0, 1)
         ax.set_title(plain_text(f"{cell[0]} · {cell[1]}"), fontsize="medium")

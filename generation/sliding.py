@@ -63,8 +63,9 @@ def sliding_ladder(generator: Generator, takes: Sequence[tuple[np.ndarray, np.nd
                                                 ("from the take's poses, T=1", 1.0, past[:, :tau]),
                                                 ("from the mean pose, T=1", 1.0, None)):
             n = samples if temperature > 0 else 1
+            noise = torch.Generator(device=generator.device).manual_seed(seed)  # the noise is drawn where the model runs
             sampled = model.generate(control_in.expand(n, -1, -1), None if context is None else context.expand(n, -1, -1),
-                                     temperature, torch.Generator().manual_seed(seed))
+                                     temperature, noise)
             clips[condition] += [_positions(generator, s, control)[settle:] for s in sampled]
         warmed = generator.sample(PathControl(control, fps), n=samples, seed=seed, precision="float32")
         clips["mean pose + warm-up, T=1"] += [motion.positions[settle:] for motion in warmed]

@@ -8,13 +8,18 @@ tensors do not match its digest or hold NaN or infinity is refused with a
 ``CheckpointError`` naming the file and the problem (and the tensor).
 
 Reading a header needs no torch, so the web app can list checkpoints cheaply; torch is
-imported only where tensors are read or written.
+imported only where tensors are read or written. ``keep`` stores a file that came from
+elsewhere (the study app's uploads) in a folder under its content digest: the SHA-256
+of its header, which holds its description and its tensors' digest, so the same tensors
+described otherwise are another file.
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 import os
+import shutil
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -27,6 +32,7 @@ if TYPE_CHECKING:
     import torch
 
 DIGEST_KEY = "digest"
+SUFFIX = ".safetensors"
 
 
 class CheckpointError(ValueError):
@@ -102,3 +108,25 @@ def stored_layout(path: str | os.PathLike, what: str = "checkpoint") -> dict[str
             return {name: (tuple(s.get_shape()), s.get_dtype()) for name, s in slices.items()}
     except (SafetensorError, OSError, ValueError) as error:
         raise CheckpointError(f"{path}: not a readable safetensors file ({error})") from None
+
+
+def content_digest(header: Mapping[str, str]) -> str:
+    """SHA-256 of a file's header: its description and, under ``digest``, its tensors' digest."""
+    return hashlib.sha256(json.dumps(dict(header), sort_keys=True).encode()).hexdigest()
+
+
+def keep(source: str | os.PathLike, folder: str | os.PathLike, what: str = "checkpoint") -> tuple[Path, str]:
+    """Store a copy of ``source`` in ``folder`` as ``<content digest>.safetensors``, written
+    atomically (a file of that digest is already the same file); its path and digest.
+
+    The file is read as ``read_tensors`` reads it, so only a file whose tensors match its
+    digest and are finite is kept (CheckpointError naming ``source`` otherwise).
+    """
+    _, header = read_tensors(source, what)
+    digest = content_digest(header)
+    target = Path(folder) / f"{digest}{SUFFIX}"
+    if not target.is_file():
+        with atomic_output(target) as tmp:
+            shutil.copyfile(source, tmp)
+    return target, digest
+

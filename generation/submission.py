@@ -4,15 +4,20 @@ A lab has a folder of BVH files as its tools write them: any unit, y or z up, st
 anywhere on the floor and facing anywhere. ``prepare_submission`` takes those files and
 the study's controls (``read_controls`` reads the bundle the study exports) and, in one
 pass, reports per control what it matched, converted and refused; ``submission_zip`` is
-then what the study's submitted-motion upload reads: one ``ID.bvh`` per control, in
-centimetres with y up, at the control's frame rate and length, starting at its start.
+then one ``ID.bvh`` per control, in centimetres with y up, at the control's frame rate
+and length, starting at its start. The study's own upload runs the same function on the
+files it is given, so it takes the lab's folder as it is.
 
 Matching: a control's file is named by the control's id, ``ID.bvh``, or as ``sample``
 names its clips, ``ID_NN.bvh`` (the lowest number is taken, the others are listed as left
-out). A file named after no control is listed and left out.
+out). ``ID.npz`` (``sample --npz``'s layout) matches as ``ID.bvh`` does, and of two files
+with the same name the first by suffix is taken. A file named after no control is listed
+and left out.
 
-Units: read as every command reads BVH (``unit_detection``): detected from the skeletons
-(all files must agree) and the first file's floor, unless ``scale`` and ``up`` are given.
+Units: BVH is read as every command reads it (``unit_detection``): detected from the
+skeletons (all files must agree) and the first file's floor, unless ``scale`` and ``up``
+are given. An ``.npz`` holds centimetres with y up by its layout. A body that is not
+MIN_HEIGHT_CM to MAX_HEIGHT_CM tall once read is refused: the unit was not centimetres.
 
 Alignment: the clip's root is measured where the study measures it, on the clip as the
 study keeps it (resampled to the control's frame rate, its first frames): the hips
@@ -41,17 +46,20 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 
 from .control import Control, PathControl, control_from_dict
-from .motion.bvh import BVHError, bvh_text, motion_to_bvh, read_bvh
+from .motion.bvh import BVH, BVHError, bvh_text, motion_to_bvh, read_bvh
 from .motion.kinematics import subtree_motion
+from .motion.npz import load_motion_npz
 from .motion.resample import resample
 from .motion.root import RootOptions, hips_index, root_trajectory
 from .motion.rotations import matrix_to_quat, quat_to_matrix, yaw_matrix
 from .motion.types import Motion
 from .motion.unit_detection import choose_units
 
-# The study's tolerance for a root off its control's path (studyapp.stimuli.control_export keeps
-# the same number; a test holds them equal).
+# Sampled models follow a commanded path loosely; a root farther than this has not followed it.
 PATH_TOLERANCE_CM = 100.0
+# A person is 50-250 cm tall: a clip read in the wrong unit (metres, millimetres) is outside.
+MIN_HEIGHT_CM, MAX_HEIGHT_CM = 50.0, 250.0
+MOTION_SUFFIXES = (".bvh", ".npz")
 # How ``sample`` names the clips of a control: the control's name, "_", a sample number.
 NUMBERED = re.compile(r"(?P<id>.+)[_-](?P<number>\d+)")
 
@@ -144,14 +152,16 @@ def _read_control(ident: str, file: str, data: bytes) -> Control:
 
 
 def match_files(files: Sequence[Path], ids: Sequence[str]) -> tuple[dict[str, list[Path]], list[Path]]:
-    """The files that match each control id, the chosen one first (``ID.bvh``, else the
-    lowest ``ID_NN.bvh``), and the files that match none."""
-    by_stem = {path.stem: path for path in files}
-    matched: dict[str, list[Path]] = {ident: [by_stem[ident]] if ident in by_stem else [] for ident in ids}
+    """The files that match each control id, the chosen one first (``ID.bvh``, then
+    ``ID.npz``, else the lowest ``ID_NN.bvh``), and the files that match none."""
+    matched: dict[str, list[Path]] = {ident: [] for ident in ids}
     numbered = []
-    for path in files:
+    for path in sorted(files, key=lambda p: (MOTION_SUFFIXES.index(p.suffix.lower())
+                                             if p.suffix.lower() in MOTION_SUFFIXES else len(MOTION_SUFFIXES))):
         found = NUMBERED.fullmatch(path.stem)
-        if path.stem not in matched and found and found["id"] in matched:
+        if path.stem in matched:
+            matched[path.stem].append(path)
+        elif found and found["id"] in matched:
             numbered.append((found["id"], int(found["number"]), path))
     for ident, _, path in sorted(numbered, key=lambda item: item[:2]):
         matched[ident].append(path)
@@ -164,32 +174,40 @@ def prepare_submission(files: Sequence[str | os.PathLike], controls: Mapping[str
                        align: bool = True, path_tolerance_cm: float = PATH_TOLERANCE_CM) -> SubmissionReport:
     """Match, convert and check a lab's BVH ``files`` for the study's ``controls`` (by id).
 
-    Units are detected unless ``scale`` (file units to cm) and ``up`` are given; ``root``
-    says how the study finds the root (its checkpoints' ``RootOptions``). Refusals are
-    per control; a folder whose files mix units is a ValueError, as for every command.
+    Units of BVH files are detected unless ``scale`` (file units to cm) and ``up`` are
+    given; ``.npz`` files are centimetres with y up. ``root`` says how the study finds the
+    root (its checkpoints' ``RootOptions``). Refusals are per control; a folder whose BVH
+    files mix units is a ValueError, as for every command.
     """
     files = [Path(f) for f in files]
     matched, unmatched = match_files(files, list(controls))
     chosen = {ident: paths[0] for ident, paths in matched.items() if paths}
-    readable, results = {}, {}
+    readable: dict[str, BVH | Motion] = {}
+    results = {}
     for ident, path in chosen.items():
         try:
-            readable[ident] = read_bvh(path)
-        except BVHError as error:
+            readable[ident] = load_motion_npz(path) if path.suffix.lower() == ".npz" else read_bvh(path)
+        except (BVHError, ValueError) as error:
             results[ident] = ControlResult(ident, path, None, refused=f"unreadable ({error})",
                                            left_out=tuple(matched[ident][1:]))
-    units = choose_units([chosen[ident] for ident in readable], scale, up, root) if readable else None
-    for ident, bvh in readable.items():
-        motion, steps, refused = _convert(bvh.to_motion(units.units.scale, units.units.up), controls[ident], root,
-                                          align, path_tolerance_cm)
-        results[ident] = ControlResult(ident, chosen[ident], motion, (f"read as {units.units.describe()}", *steps),
-                                       refused, tuple(matched[ident][1:]))
+    bvh_files = [chosen[ident] for ident, read in readable.items() if isinstance(read, BVH)]
+    units = choose_units(bvh_files, scale, up, root) if bvh_files else None
+    skeletons = {}
+    for ident, read in readable.items():
+        if isinstance(read, BVH):
+            motion, read_as = read.to_motion(units.units.scale, units.units.up), f"read as {units.units.describe()}"
+        else:
+            motion, read_as = read, "read as centimetres, y up (.npz)"
+        skeletons[ident] = (motion.skeleton.names, tuple(motion.skeleton.parents))
+        clip, steps, refused = _convert(motion, controls[ident], root, align, path_tolerance_cm)
+        results[ident] = ControlResult(ident, chosen[ident], clip, (read_as, *steps), refused,
+                                       tuple(matched[ident][1:]))
     for ident in controls:
         if ident not in results:
             results[ident] = ControlResult(ident, None, None, refused=f"no file named {ident}.bvh or {ident}_NN.bvh")
-    ordered = _one_skeleton([results[ident] for ident in controls])
-    return SubmissionReport(units.description if units else "motion units: no file was read", tuple(ordered),
-                            tuple(unmatched))
+    ordered = _one_skeleton([results[ident] for ident in controls], skeletons)
+    described = units.description if units else "motion units: no BVH file was read"
+    return SubmissionReport(described, tuple(ordered), tuple(unmatched))
 
 
 def _convert(motion: Motion, control: Control, root: RootOptions, align: bool,
@@ -207,15 +225,20 @@ def _convert(motion: Motion, control: Control, root: RootOptions, align: bool,
     steps.append(f"its first {control.n_frames} of {clip.n_frames} frames ({control.n_frames / control.fps:g} s)")
     clip = _first_frames(clip, control.n_frames)
     try:
-        start = _root(clip, root)
+        body = _body(clip, root)
+        start = root_trajectory(body, root)
     except ValueError as error:
         return None, [], str(error)
+    height = body_height(body)
+    if not MIN_HEIGHT_CM <= height <= MAX_HEIGHT_CM:
+        return None, steps, (f"the body is {height:.3g} cm tall as read; a body is {MIN_HEIGHT_CM:g}-"
+                             f"{MAX_HEIGHT_CM:g} cm tall: give the files' unit (BVH) or write centimetres (.npz)")
     if align:
         shift, turn = -start.xz[0], -float(start.yaw[0])
         clip = moved_on_floor(clip, shift, turn)
-        steps.append(f"moved {np.linalg.norm(shift) / 100:.2f} m and turned {math.degrees(turn):+.0f} degrees to "
+        steps.append(f"moved {np.linalg.norm(shift) / 100:.2f} m and turned {round(math.degrees(turn)):+d} degrees to "
                      "start at the origin facing +z")
-        start = _root(clip, root)
+        start = root_trajectory(_body(clip, root), root)
     else:
         steps.append("left where it is")
     if isinstance(control, PathControl):
@@ -228,9 +251,15 @@ def _convert(motion: Motion, control: Control, root: RootOptions, align: bool,
     return clip, steps, ""
 
 
-def _root(motion: Motion, options: RootOptions):
-    """The root trajectory as the study measures it: on the body (the hips and below)."""
-    return root_trajectory(subtree_motion(motion, hips_index(motion.skeleton, options.hips)), options)
+def _body(motion: Motion, options: RootOptions) -> Motion:
+    """The body, the hips and below, where the study measures the root (as the models' data does)."""
+    return subtree_motion(motion, hips_index(motion.skeleton, options.hips))
+
+
+def body_height(motion: Motion) -> float:
+    """The largest vertical extent of the body over the clip (about a person's height when standing)."""
+    y = motion.positions[..., 1]
+    return float((y.max(axis=1) - y.min(axis=1)).max())
 
 
 def _first_frames(motion: Motion, frames: int) -> Motion:
@@ -254,15 +283,14 @@ def moved_on_floor(motion: Motion, shift_xz: np.ndarray, turn: float) -> Motion:
     return Motion(positions, motion.fps, motion.skeleton, rotations, translations)
 
 
-def _one_skeleton(results: list[ControlResult]) -> list[ControlResult]:
-    """The results with clips on another skeleton than most share refused: a submission
-    is one skeleton."""
-    skeletons = {r.control: (r.motion.skeleton.names, tuple(r.motion.skeleton.parents)) for r in results if r.motion}
+def _one_skeleton(results: list[ControlResult], skeletons: dict[str, tuple]) -> list[ControlResult]:
+    """The results with clips on another skeleton (joint names and parents) than most
+    files read have refused: a submission is one skeleton."""
     if not skeletons:
         return results
     common, _ = Counter(skeletons.values()).most_common(1)[0]
-    example = next(r for r in results if r.motion and skeletons[r.control] == common)
-    return [ControlResult(r.control, r.file, None, (), f"its skeleton ({r.motion.skeleton.n_joints} joints) differs "
+    example = next(r for r in results if skeletons.get(r.control) == common)
+    return [ControlResult(r.control, r.file, None, (), f"its skeleton ({len(skeletons[r.control][0])} joints) differs "
                           f"from the one of {example.file.name} ({len(common[0])} joints)", r.left_out)
             if r.motion and skeletons[r.control] != common else r for r in results]
 

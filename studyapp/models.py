@@ -123,6 +123,16 @@ class Study(models.Model):
     min_screen_height = models.PositiveSmallIntegerField(default=0, help_text="CSS pixels the device check asks for (0: any)")
     platform = models.CharField(max_length=10, choices=Platform.choices, default=Platform.LINK)
     completion_code = models.CharField(max_length=100, blank=True)
+    # Participants who do not finish the ratings still leave with a code of their own, so
+    # the platform pays them as its rules say (Prolific: a fixed screen-out payment) and
+    # the researcher sees why they stopped, instead of being asked to return the study.
+    screen_out_code = models.CharField(
+        max_length=100, blank=True, help_text="given to participants a screening question turns away (Prolific: a "
+                                              "code of type 'screened out' with its fixed payment; empty: they are "
+                                              "asked to return the study)")
+    stopped_code = models.CharField(
+        max_length=100, blank=True, help_text="given to participants stopped after failed instructed checks (empty: "
+                                              "they are asked to return the study)")
     redirect_url = models.URLField(blank=True, help_text="where finished participants are sent (Prolific: its completion URL)")
     camera = models.JSONField(default=default_camera)
     video_width = models.PositiveSmallIntegerField(default=640)
@@ -151,9 +161,11 @@ class Study(models.Model):
             raise ValidationError({"scale_max": f"the scale must rise: {self.scale_min} to {self.scale_max} does not"})
         if self.video_width % 2 or self.video_height % 2:
             raise ValidationError({"video_width": "H.264 video needs an even width and height"})
-        if self.design not in designs.DESIGNS:
-            raise ValidationError({"design": f"not a rating design; choose one of {', '.join(designs.DESIGNS)}"})
-        if problems := designs.design_of(self).problems(self):
+        try:
+            design = designs.design_of(self)
+        except KeyError as unknown:
+            raise ValidationError({"design": unknown.args[0]}) from None
+        if problems := design.problems(self):
             raise ValidationError(problems)
         for name, owners in designs.foreign_settings(self.design).items():
             if getattr(self, name) is True:  # a switch of another design's, turned on
@@ -237,6 +249,10 @@ class ControlSignal(models.Model):
     control = models.JSONField(help_text="generation.control's to_dict() form")
     # For held-out control: the natural clip it came from, which NAT stimuli show.
     source_clip = models.CharField(max_length=200, blank=True)
+    # For held-out control: where its take was found and how it is read (``stimuli.natural.NaturalSource``).
+    natural = models.JSONField(default=dict, blank=True,
+                               help_text="held-out: the folders its take was found in and the dataset options it is "
+                                         "read with")
     seconds = models.FloatField()
     # The name other labs' files carry (``control_export.control_id``): the name the control
     # was created with, kept when it is renamed, so exported controls and submitted motion
@@ -459,3 +475,38 @@ class Rating(models.Model):
 
     class Meta:
         ordering = ["answered_at"]
+
+
+class PlatformAction(models.Model):
+    """One request sent to a crowd platform's API for a study (``studyapp.platforms``): the
+    log of what was approved, rejected, asked back or paid, and the record that makes a
+    retry send only what has not been done.
+
+    ``key`` names what the request does to whom (``approve:<submission>``); a key with a
+    ``done`` row is never sent again. The request is kept as it was sent, never with the
+    researcher's credentials.
+    """
+
+    class Outcome(models.TextChoices):
+        DONE = "done", "done"
+        FAILED = "failed", "failed"
+
+    study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="platform_actions")
+    participant = models.ForeignKey(Participant, on_delete=models.SET_NULL, null=True, blank=True,
+                                    related_name="platform_actions")
+    researcher = models.ForeignKey(settings.AUTH_USER_MODEL, on_delete=models.SET_NULL, null=True, blank=True)
+    platform = models.CharField(max_length=10, choices=Study.Platform.choices)
+    key = models.CharField(max_length=200)
+    action = models.CharField(max_length=30)
+    request = models.JSONField(help_text="what was sent: method or operation, address, body")
+    outcome = models.CharField(max_length=10, choices=Outcome.choices)
+    response = models.JSONField(default=dict, blank=True, help_text="the platform's answer, or its error")
+    sent_at = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["study", "sent_at", "pk"]
+        constraints = [models.UniqueConstraint(fields=["study", "key"], condition=models.Q(outcome="done"),
+                                               name="one_done_platform_action_per_key")]
+
+    def __str__(self) -> str:
+        return f"{self.action} {self.key} [{self.outcome}]"

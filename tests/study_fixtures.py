@@ -12,7 +12,6 @@ from pathlib import Path
 
 from django.contrib.auth.models import User
 
-from studyapp.designs.pages import current_page
 from studyapp.models import Assignment, ControlSignal, Participant, Stimulus, Study, System
 
 SYSTEMS = (("MoGlow", System.Role.MODEL), ("RNN", System.Role.MODEL), ("NAT", System.Role.NATURAL),
@@ -52,6 +51,14 @@ def make_study(owner_name: str = "researcher", controls: int = 3, video: Path | 
                 stimulus.video_path().parent.mkdir(parents=True, exist_ok=True)
                 shutil.copyfile(video, stimulus.video_path())
     return study
+
+
+def current_page(participant: Participant) -> list[Assignment]:
+    """The clips of the participant's page on screen, in slot order (empty once every page is answered)."""
+    first = participant.assignments.filter(rating__isnull=True).order_by("position").first()
+    if first is None:
+        return []
+    return list(participant.assignments.filter(page=first.page).select_related("stimulus__system").order_by("slot"))
 
 
 def current_clip(participant: Participant) -> Assignment | None:

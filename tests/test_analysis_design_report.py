@@ -108,3 +108,16 @@ def test_single_report_gains_the_power_table_and_paragraph(tmp_path):
     power = pd.read_csv(out / "tables" / "power_more_ratings.csv")
     assert set(power["unit"]) == {"ratings per system"} and len(power) == 6  # 3 pairs x 2 classes
     assert "**Power.**" in (out / "summary.md").read_text()
+
+
+def test_the_preference_plot_draws_a_pair_whose_decided_pages_all_went_one_way():
+    from analysis.design_plots import preference_plot
+    from analysis.pairwise import preference_pairs
+
+    # 5 pages: 1 preferring A, 4 without preference (1 - 4/5 is a hair under 1/5 in floating point).
+    rows = [{"task": "all", "control_class": "held-out", "participant": f"p{page}", "page": page, "system": system,
+             "side": side, "answer": "left" if page == 0 else "none"}
+            for page in range(5) for system, side in (("A", "left"), ("B", "right"))]
+    pairs = preference_pairs(pd.DataFrame(rows))
+    assert (pairs["wins_a"].item(), pairs["no_preference"].item()) == (1, 4) and preference_plot(pairs) is not None
+

@@ -136,8 +136,10 @@ def test_another_session_of_the_same_prolific_id_cannot_continue_and_the_researc
 
     context, page = log_in(browser, live_server, study.owner)
     page.goto(f"{live_server.url}{reverse('study-participants', args=[study.pk])}")
-    cells = page.locator("#participants tr").nth(1).locator("td").all_inner_texts()
-    assert cells[:3] == ["P1", "session-P1", "finished"] and cells[-1] == "approve"
+    headers = page.locator("#participants tr").nth(0).locator("th").all_inner_texts()
+    cells = dict(zip(headers, page.locator("#participants tr").nth(1).locator("td").all_inner_texts()))
+    assert [cells["Platform id"], cells["Session"], cells["Status"]] == ["P1", "session-P1", "finished"]
+    assert (cells["Analysis"], cells["Suggested payment"]) == ("kept", "approve")
     with page.expect_download() as download:
         page.get_by_role("link", name="Download as CSV").click()
     table = list(csv.DictReader(io.StringIO(Path(download.value.path()).read_text())))
@@ -290,10 +292,12 @@ def test_the_researcher_previews_as_a_participant_and_nothing_is_recorded(browse
     page.get_by_role("link", name="Preview").click()
     page.get_by_role("button", name="I agree to take part").click()
     page.get_by_role("button", name="Start").click()
-    wait_for_clip_end(page)
-    page.keyboard.press("4")
+    for name in ("practice", "a page to rate"):  # practice is the rating page too, not recorded
+        page.wait_for_selector(f"text=({name})")
+        wait_for_clip_end(page)
+        page.keyboard.press("4")
     page.wait_for_selector("text=You have finished the study")
-    assert "Preview 4 of 4" in page.inner_text(".preview-banner")
+    assert "Preview 5 of 5" in page.inner_text(".preview-banner")
     assert (Participant.objects.count(), Rating.objects.count()) == (0, 0)
     context.close()
 

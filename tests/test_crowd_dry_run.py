@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from studyapp.models import Participant, Rating, Study
+from studyapp.models import Participant, Rating
 from studyapp.participants.simulated import main, run_participants
 from tests.study_fixtures import make_study
 

@@ -120,8 +120,9 @@ def test_the_participant_list_suggests_approvals_and_its_csv_is_safe_in_a_spread
     assert (rows["good"].status, rows["good"].minutes_taken, rows["good"].ratings) == ("finished", 12.2, 2)
     assert (rows["good"].early_answers, rows["good"].suggested_action, rows["good"].session) == (1, "approve", "s-good")
     hostile = rows['=HYPERLINK("http://x")']
+    # Excluded from the analysis for a quality judgement, which is no ground for refusing payment.
     assert (hostile.early_answers, hostile.suggested_action, hostile.exclusion_reason) == (
-        3, "reject", "rated a BAD clip high")
+        3, "approve", "rated a BAD clip high")
     assert (rows["going"].status, rows["going"].suggested_action) == ("in progress", "")
     assert rows["gone"].status == "idle"
 

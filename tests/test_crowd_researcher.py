@@ -13,7 +13,7 @@ from django.utils import timezone
 from scipy import stats
 
 from studyapp.models import Assignment, Participant, Question, Rating, Study
-from studyapp.researchers.checklist import study_steps
+from studyapp.researchers.checklist import checklist
 from studyapp.researchers.forms import StudyForm
 from studyapp.researchers.monitor import study_monitor
 from tests.study_fixtures import make_study
@@ -21,16 +21,16 @@ from tests.study_fixtures import make_study
 pytestmark = pytest.mark.django_db
 
 
-def test_the_steps_say_what_is_done_and_what_is_missing():
+def test_the_checklist_says_what_is_done_and_what_is_missing():
     study = make_study(is_open=False, completion_code="")
     empty = Study.objects.create(owner=study.owner, title="Empty")
-    assert [(s.name, s.done) for s in study_steps(empty)] == [
+    assert [(s.name, s.done) for s in checklist(empty)] == [
         ("Settings", True), ("Systems", False), ("Controls", False), ("Stimuli", False), ("Preview", False),
         ("Open", False)]
-    assert [s.note for s in study_steps(empty)][1:4] == ["no model system yet", "none yet", "none generated"]
-    steps = study_steps(study)
+    assert [s.note for s in checklist(empty)][1:4] == ["no model system yet", "none yet", "none generated"]
+    steps = checklist(study)
     assert [s.done for s in steps] == [True, True, True, True, False, False]  # the preview is not seen yet
-    assert steps[0].note == "Prolific, scale 1–5" and steps[4].note == "see the pages as a participant"
+    assert steps[4].note == "see the pages as a participant"
     assert steps[3].note == "12 of 12 clips finished" and "completion code" in steps[5].note  # why it cannot open
     client = Client()
     client.force_login(study.owner)
@@ -38,12 +38,7 @@ def test_the_steps_say_what_is_done_and_what_is_missing():
     assert '<ol class="steps"' in page and 'aria-current="page"' in page and "12 of 12 clips finished" in page
     assert client.get(reverse("study-preview", args=[study.pk])).status_code == 200
     study.refresh_from_db()
-    assert study_steps(study)[4].done and study_steps(study)[4].note == "seen"
-
-
-def test_the_settings_step_of_a_pairwise_study_names_no_scale():
-    study = make_study(design="pairwise", abx=True)
-    assert study_steps(study)[0].note == "Prolific, pairwise with ABX, no scale"
+    assert checklist(study)[4].done and checklist(study)[4].note == "seen"
 
 
 def test_the_preview_shows_every_page_in_order_and_records_nothing():
@@ -153,3 +148,20 @@ def test_systems_and_controls_can_be_removed_with_their_clips_until_someone_star
     stranger.force_login(User.objects.create(username="stranger"))
     assert stranger.post(reverse("study-remove", args=[study.pk, "systems", moglow.pk])).status_code == 404
     assert client.post(reverse("study-remove", args=[study.pk, "studies", moglow.pk])).status_code == 404
+
+
+@pytest.mark.parametrize("fields, per_page_s, pages, practice", [
+    # single: 8 clips of 6 s, 4 practice clips; a clip and a rating (5 s) a page
+    ({"clips_per_participant": 8, "training_clips": 4}, 6 + 5, 8, 4),
+    # pairwise: 8 pages of 2 clips and one choice; 4 practice clips make 2 practice pages
+    ({"design": "pairwise", "pages_per_participant": 8, "training_clips": 4}, 2 * 6 + 5, 8, 2),
+], ids=["single", "pairwise"])
+def test_the_settings_card_says_how_long_to_advertise_and_how_it_was_reckoned(fields, per_page_s, pages, practice):
+    study = make_study(clip_seconds=6.0, controls=4, **fields)
+    Question.objects.create(study=study, part=Question.Part.AFTER, name="c", text="Comments?", kind="text")
+    seconds = (pages + practice) * per_page_s + 60 + 15  # and a minute to start, 15 s a question
+    note = checklist(study)[0].note
+    assert f"advertise about {math.ceil(seconds / 60)} min" in note
+    assert f"{pages} " in note and f"and {practice} practice" in note and "6.0 s" in note
+    assert ("scale 1–5" in note) is (study.design == "single")  # a preference has no scale
+

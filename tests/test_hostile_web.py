@@ -215,7 +215,7 @@ def test_a_hostile_control_file_is_a_400_naming_the_field_and_adds_nothing(name,
                                                                            researcher):
     study = Study.objects.create(owner=researcher, title="Gait", video_width=160, video_height=120)
     # A checkpoint system as far as the controls need one: the data options it was trained on.
-    System.objects.create(study=study, name="MoGlow", checkpoint="model.safetensors",
+    System.objects.create(study=study, name="MoGlow", checkpoint="model.safetensors", kind="moglow",
                           metadata={"dataset_options": DatasetOptions().to_dict(), "control": "path"})
     response = client.post(f"/studies/{study.pk}/controls/",
                            {"action": "file", "description": SimpleUploadedFile(name, content)})

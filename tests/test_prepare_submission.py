@@ -4,9 +4,12 @@ they came in, with a report per control of what was matched, converted and refus
 
 from __future__ import annotations
 
+import html
+import io
 import json
 import shutil
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,15 +20,19 @@ from generation.motion.bvh import load_motion, motion_to_bvh, write_bvh
 from generation.motion.rotations import matrix_to_quat, quat_to_matrix, yaw_matrix
 from generation.motion.takes import natural_takes
 from generation.motion.types import Motion
-from generation.submission import PATH_TOLERANCE_CM, match_files, prepare_submission
-from studyapp.stimuli.control_export import PATH_TOLERANCE_CM as STUDY_TOLERANCE
+from generation.submission import match_files, prepare_submission
 from studyapp.stimuli.control_export import bundle_zip, control_id, natural_in_control_frame
 from studyapp.stimuli.controls import training_options
 from studyapp.stimuli.natural import natural_clip, natural_motion
+from studyapp.models import Stimulus, System
+from studyapp.stimuli.clips import plan_stimuli
+from studyapp.stimuli.dispatch import queue_stimuli
 from studyapp.stimuli.submissions import check_submission, read_zip
 from tests.rig_variants import in_unit, z_up
 from tests.test_real_rigs import CMU, CMU_METRES
-from tests.test_study_researcher import files, new_study, researcher, site, upload_checkpoint  # noqa: F401 (fixtures)
+from tests.test_render import decode
+from tests.test_study_researcher import (files, new_study, queue, researcher, run_task, site,  # noqa: F401 (fixtures)
+                                         upload_checkpoint)
 from tests.test_study_submissions import upload_motion
 
 
@@ -121,35 +128,54 @@ def bundle_of(controls, folder):
     (folder / "index.json").write_text(json.dumps({"controls": entries}))
 
 
-def test_the_tolerance_is_the_studys():
-    assert PATH_TOLERANCE_CM == STUDY_TOLERANCE
-
-
-@pytest.mark.django_db
-def test_a_raw_bvh_submission_in_metres_z_up_starting_anywhere_is_accepted_as_the_same_motion_in_centimetres(
-        client, researcher, site, files, tmp_path, capsys):  # noqa: F811
-    study = new_study(researcher)
-    upload_checkpoint(client, study, files.good.read_bytes())
-    client.post(f"/studies/{study.pk}/controls/", {"action": "held_out", "seconds": "2", "count": ""})
-    controls = list(study.controls.all())
-    assert len(controls) == 2
-    bundle = tmp_path / "controls.zip"
-    bundle.write_bytes(bundle_zip(study))
+def as_a_lab_has_them(controls, tmp_path) -> tuple[Path, Path]:
+    """Two folders of the held-out controls' real takes: as captured (centimetres, y up,
+    30 fps, named by control id), and as another lab's tools would write them: turned and
+    moved elsewhere on the floor, in metres with z up, named as ``sample`` names clips,
+    with a second clip of one control."""
     centimetres, raw = tmp_path / "as-captured", tmp_path / "lab"
     centimetres.mkdir(), raw.mkdir()
     for turn, control in zip((140.0, -75.0), controls):
-        take = natural_clip(control.source_clip)  # the real take: centimetres, y up, 30 fps
+        take = natural_clip(control.source_clip)
         shutil.copy(take, centimetres / f"{control_id(control)}.bvh")
         elsewhere = placed_elsewhere(load_motion(take), turn, (350.0, -420.0))
         write_bvh(in_unit(motion_to_bvh(z_up(elsewhere), "XYZ"), 100.0), raw / f"{control_id(control)}_00.bvh")
     shutil.copy(raw / f"{control_id(controls[0])}_00.bvh", raw / f"{control_id(controls[0])}_01.bvh")
+    return centimetres, raw
+
+
+def zip_of(folder: Path) -> bytes:
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as archive:
+        for path in sorted(folder.iterdir()):
+            archive.write(path, f"{folder.name}/{path.name}")
+    return buffer.getvalue()
+
+
+def held_out_study(client, researcher, files):  # noqa: F811
+    study = new_study(researcher)
+    upload_checkpoint(client, study, files.good.read_bytes())
+    client.post(f"/studies/{study.pk}/controls/", {"action": "held_out", "seconds": "2", "count": ""})
+    assert study.controls.count() == 2
+    return study
+
+
+@pytest.mark.django_db
+def test_prepare_submission_makes_a_raw_bvh_folder_into_the_same_motion_as_in_centimetres(
+        client, researcher, site, files, tmp_path, capsys):  # noqa: F811
+    study = held_out_study(client, researcher, files)
+    controls = list(study.controls.all())
+    bundle = tmp_path / "controls.zip"
+    bundle.write_bytes(bundle_zip(study))
+    centimetres, raw = as_a_lab_has_them(controls, tmp_path)
 
     submitted = {}
     for folder in (centimetres, raw):
         out = tmp_path / f"{folder.name}.zip"
         assert main(["prepare-submission", str(folder), "--controls", str(bundle), "-o", str(out)]) == 0
         with out.open("rb") as stream:
-            submitted[folder.name] = {a.control.pk: a.motion for a in check_submission(study, read_zip(stream))}
+            accepted, _ = check_submission(study, read_zip(stream))
+        submitted[folder.name] = {a.control.pk: a.motion for a in accepted}
     said = capsys.readouterr().out
     assert "motion units: metres (x100 to cm), z up (unit detected" in said
     assert f"{control_id(controls[0])}_00.bvh (left out: {control_id(controls[0])}_01.bvh): read as metres" in said
@@ -163,5 +189,36 @@ def test_a_raw_bvh_submission_in_metres_z_up_starting_anywhere_is_accepted_as_th
         np.testing.assert_allclose(from_raw.positions, expected.positions, atol=1e-3)
     with zipfile.ZipFile(tmp_path / "lab.zip") as archive:
         assert sorted(archive.namelist()) == sorted(f"{control_id(c)}.bvh" for c in controls)
-    response = upload_motion(client, study, (tmp_path / "lab.zip").read_bytes())
-    assert response.status_code == 302, response.content.decode()[-2000:]
+
+
+@pytest.mark.django_db
+def test_a_raw_bvh_submission_in_metres_z_up_starting_anywhere_is_accepted_on_the_page_and_renders_like_centimetres(
+        client, researcher, site, files, queue, tmp_path):  # noqa: F811
+    study = held_out_study(client, researcher, files)
+    controls = list(study.controls.all())
+    centimetres, raw = as_a_lab_has_them(controls, tmp_path)
+    for name, folder in (("Centimetres", centimetres), ("Metres", raw)):
+        response = upload_motion(client, study, zip_of(folder), name)
+        assert response.status_code == 302, html.unescape(response.content.decode())[-3000:]
+    metres = System.objects.get(name="Metres")
+    page = html.unescape(client.get(f"/studies/{study.pk}/systems/").content.decode())
+    first = control_id(controls[0])
+    for line in metres.metadata["report"]:  # the report of what became of each file, on the systems page
+        assert line in page
+    assert metres.metadata["report"][0].startswith("motion units: metres (x100 to cm), z up (unit detected")
+    assert metres.metadata["report"][1].startswith(f"{first}: {first}_00.bvh (left out: {first}_01.bvh): read as "
+                                                   "metres (x100 to cm), z up; resampled from 30 to 20 fps")
+
+    stimuli, _ = plan_stimuli(study)
+    submitted = [s for s in stimuli if s.system.kind == "submitted"]
+    queue_stimuli(submitted)
+    for stimulus in submitted:
+        assert run_task(stimulus)["status"] == "done", Stimulus.objects.get(pk=stimulus.pk).error
+    for control in controls:
+        videos = [decode(Stimulus.objects.get(system__name=name, control=control).video_path())
+                  for name in ("Centimetres", "Metres")]
+        assert videos[0].shape == videos[1].shape == (40, 120, 160, 3)
+        # The same pictures: at most a pixel's edge differs where the files' rounding moves a bone.
+        differing = np.abs(videos[0].astype(int) - videos[1].astype(int)).max(axis=-1) > 24
+        assert differing.mean() < 0.002, differing.mean()
+        assert videos[0].std() > 10  # a figure was drawn, not a blank frame

@@ -13,6 +13,7 @@ import pytest
 from django.test import Client
 from django.urls import reverse
 
+from generation.control import preset_path
 from generation.motion.dataset import DatasetOptions
 from studyapp.models import Assignment, Participant, Question, Rating
 from tests.study_fixtures import make_study
@@ -102,7 +103,11 @@ def path_study_with_a_checkpoint_system():
     """make_study with MoGlow as a checkpoint system (its dataset options are what submissions are checked by)."""
     study = rated_study()
     study.systems.filter(name="MoGlow").update(checkpoint="m.safetensors", kind="moglow", metadata={
-        "control": "path", "dataset_options": DatasetOptions().to_dict()})
+        "dataset_options": DatasetOptions().to_dict()})
+    for control in study.controls.all():
+        path = preset_path("walk-straight")
+        control.control, control.seconds = {**path.to_dict(), "name": control.name}, path.n_frames / path.fps
+        control.save()
     return study
 
 
@@ -163,9 +168,11 @@ def test_an_upload_shows_its_progress_and_a_refusal_lists_its_problems_at_the_to
     seen = page.evaluate("window.seen")
     sent = [state for state in seen if state[0] == "Sent: the server is checking the file…"]
     assert sent and all(not hidden and value == total > 2_000_000 and disabled for _, hidden, value, total, disabled in sent)
-    problems = page.locator("#refused li").all_inner_texts()
-    assert problems[0].startswith("walk.bvh: no control has the id 'walk'") and len(problems) == 2
-    assert problems[1] == "no file for the control(s) control-0, control-1"
+    problems = page.locator("#refused li").all_inner_texts()  # one a line
+    assert problems[1:4] == ["control-0: no file: refused: no file named control-0.bvh or control-0_NN.bvh",
+                             "control-1: no file: refused: no file named control-1.bvh or control-1_NN.bvh",
+                             "named after no control, left out: walk.bvh"]
+    assert page.locator("#refused strong").inner_text() == "the submitted motion was not registered"
     refused_at = page.locator("#refused").bounding_box()["y"]
     assert refused_at < page.get_by_role("heading", name="Systems").bounding_box()["y"] + 200  # at the top
     assert page.evaluate("document.documentElement.scrollWidth") <= page.viewport_size["width"]

@@ -15,7 +15,7 @@ from django.core.management.base import CommandError
 from generation.motion.root import integrate
 from generation.motion.bvh import load_motion
 from generation.motion.root import root_trajectory
-from studyapp.stimuli.control_export import PATH_TOLERANCE_CM
+from generation.submission import PATH_TOLERANCE_CM
 from tests.test_study_researcher import files, new_study, researcher, site, upload_checkpoint  # noqa: F401 (fixtures)
 
 
@@ -74,7 +74,7 @@ def test_label_controls_are_exported_as_json(client, researcher, site, files, se
                                                   "seconds": "1"})
     call_command("export_controls", str(study.pk), "--out", str(tmp_path / "labels"), stdout=io.StringIO())
     index = json.loads((tmp_path / "labels" / "index.json").read_text())
-    assert index["kind"] == "attributes" and [c["file"] for c in index["controls"]] == ["labels/walk-happy-1s.json"]
+    assert index["kind"] == "labels" and [c["file"] for c in index["controls"]] == ["labels/walk-happy-1s.json"]
     label = json.loads((tmp_path / "labels" / "labels" / "walk-happy-1s.json").read_text())
     assert (label["action"], label["style"], label["frames"], label["fps"]) == ("walk", "happy", 30, 30.0)
 

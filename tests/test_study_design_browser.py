@@ -3,8 +3,9 @@
 For each design (and pairwise's ABX variant): a careful participant on a phone and one on a desktop (every clip
 played to its end, the instructed check followed), one who fails the checks (NAT rated
 low or BAD preferred, the instructed check ignored) and one who tries to answer before
-playing (the buttons stay disabled; forcing the form sends an answer the server flags
-as early). The export, read back by the analysis, must hold what each one did.
+playing (the buttons stay disabled; forcing the form sends an answer the server refuses
+as too soon, and counts). Practice is the design's own page, played and answered the
+same way. The export, read back by the analysis, must hold what each one did.
 """
 
 from __future__ import annotations
@@ -14,10 +15,9 @@ import io
 import pytest
 
 from analysis.ratings import read_ratings
-from studyapp.designs.pages import current_page
 from studyapp.models import Participant, Rating, Study, System
 from studyapp.researchers.export import ratings_csv
-from tests.study_fixtures import make_study
+from tests.study_fixtures import current_page, make_study
 from tests.test_study_browser import browser, clip_video  # noqa: F401 (fixtures)
 
 CLIP_SECONDS = 1.0
@@ -75,12 +75,13 @@ def careless_choice(clips) -> str:
 
 
 def answer_page(page, study: Study, clips, careful: bool) -> None:
+    """Answer the page of ``clips`` (none: a practice page, answered anyhow)."""
     if study.design == "side-by-side":
         for clip in clips:
             set_slider(page, clip.slot, (careful_value if careful else careless_value)(study, clip))
         page.get_by_role("button", name="Submit ratings").click()
         return
-    choice = (careful_choice if careful else careless_choice)(clips)
+    choice = (careful_choice if careful else careless_choice)(clips) if clips else "left"
     page.get_by_role("radio", name="slightly").check()
     verb = "closer" if study.abx else "better"
     page.get_by_role("button", name=f"{'A' if choice == 'left' else 'B'} is {verb}").click()
@@ -95,9 +96,12 @@ def take_part(browser, live_server, study: Study, pid: str, screen: dict, carefu
     page.get_by_role("button", name="I agree to take part").click()
     page.get_by_role("button", name="Start").click()
     participant = Participant.objects.get(study=study, platform_id=pid)
-    for _ in participant.training:  # watched, not rated
-        page.wait_for_function("() => document.getElementById('clip').ended", timeout=20_000)
-        page.get_by_role("button", name="Next").click()
+    while Participant.objects.get(pk=participant.pk).training_done < len(participant.training):
+        page.wait_for_selector("text=(not recorded)")
+        heading = page.inner_text("p.meta")
+        play_every_clip(page)
+        answer_page(page, study, [], careful=True)  # not recorded
+        page.wait_for_function(f"() => !document.body.innerText.includes({heading!r})")
     first = True
     while clips := current_page(participant):
         page.wait_for_selector("video[data-slot]")
@@ -109,11 +113,21 @@ def take_part(browser, live_server, study: Study, pid: str, screen: dict, carefu
             boxes = [page.locator(f'video[data-slot="{slot}"]').bounding_box() for slot in (1, 2)]
             stacked = boxes[1]["y"] >= boxes[0]["y"] + boxes[0]["height"]
             assert stacked is (screen is PHONE)  # one above the other on a phone, side by side on a desktop
+        answered = False
         if hasty and first:
             page.evaluate("document.querySelectorAll('#page-form button').forEach((b) => { b.disabled = false; })")
-        else:
+            answer_page(page, study, clips, careful)
+            # Sooner than the clips last by the server's clock: refused. Later (a slow
+            # machine), but with no clip seen to its end: taken, and flagged early.
+            page.wait_for_function(f"() => document.body.innerText.includes('Please watch every clip') "
+                                   f"|| !document.body.innerHTML.includes('{clips[0].token}')")
+            answered = "Please watch every clip" not in page.inner_text("body")
+            if not answered:
+                page.get_by_role("link", name="Back to the study").click()  # to the page, still to answer
+                page.wait_for_selector("video[data-slot]")
+        if not answered:
             play_every_clip(page)
-        answer_page(page, study, clips, careful)
+            answer_page(page, study, clips, careful)
         page.wait_for_function(f"() => !document.body.innerHTML.includes('{clips[0].token}')")
         first = False
     text = page.inner_text("body")
@@ -146,8 +160,10 @@ def test_careful_careless_and_hasty_participants_in_a_browser(browser, live_serv
     assert people["careless"].exclusion_reason == ("rated a NAT clip low" if design == "side-by-side"
                                                    else "preferred a BAD clip")
     early = Rating.objects.filter(answered_before_end=True)
-    assert {r.assignment.participant.platform_id for r in early} == {"hasty"}
-    assert len({r.assignment.page for r in early}) == 1  # the first page only
+    assert {r.assignment.participant.platform_id for r in early} <= {"hasty"}
+    # The forced answer, refused or flagged: one page.
+    assert sum(p.refused_early for p in people.values()) + len({r.assignment.page for r in early}) == 1
+    assert people["hasty"].refused_early + early.count() >= 1
 
     table = read_ratings(io.StringIO(ratings_csv(study).decode()))
     assert set(table["design"]) == {design}

@@ -12,10 +12,9 @@ from django.utils import timezone
 
 from analysis.ratings import read_ratings
 from studyapp.designs.multi_clip import page_loads
-from studyapp.designs.pages import current_page
-from tests.study_fixtures import current_clip
+from tests.study_fixtures import current_clip, current_page
 from studyapp.designs.rules import StudyRules
-from studyapp.models import Participant, Rating, Study, System
+from studyapp.models import Participant, Rating, System
 from studyapp.researchers.export import ratings_csv
 from tests.study_fixtures import make_study
 from tests.test_study_designs import PAIRWISE, SIDE_BY_SIDE, compare, page_html, rate_page, through_practice
@@ -160,3 +159,19 @@ def test_the_analysis_recomputes_the_apps_flags_of_each_design_and_agrees(settin
     flagged = apply_exclusions(read_ratings(io.StringIO(ratings_csv(study).decode())), StudyRules.of(study).exclusion)
     assert not [note for note in exclusion_notes(flagged, StudyRules.of(study).exclusion) if "disagrees" in note]
     assert flagged["discarded_early"].any() and flagged["excluded_participant"].any()
+
+
+@pytest.mark.parametrize("settings, heading", [
+    ({"clips_per_participant": 8}, "Clip 1 of 8"),
+    ({**SIDE_BY_SIDE, "pages_per_participant": 8}, "Page 1 of 8"),
+    ({**PAIRWISE, "pages_per_participant": 8}, "Page 1 of 8"),
+], ids=["single", "side-by-side", "pairwise"])
+def test_instructed_checks_are_counted_among_the_pages_a_participant_answers(settings, heading):
+    study = make_study(**settings, controls=8, instructed_checks=1, training_clips=0)
+    client = Client()
+    participant = through_practice(client, study)
+    pages = participant.assignments.values_list("page", flat=True).distinct().count()
+    instructed = participant.assignments.exclude(expected="").values_list("page", flat=True).distinct().count()
+    assert (pages, instructed) == (8, 1)
+    assert heading in page_html(client, study)
+

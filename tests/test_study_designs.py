@@ -11,11 +11,10 @@ from django.test import Client
 from django.urls import reverse
 
 from analysis.ratings import read_ratings
-from studyapp.designs.pages import current_page
 from studyapp.models import Participant, Rating, Stimulus, Study, System
 from studyapp.researchers.export import ratings_csv
 from studyapp.researchers.forms import StudyForm
-from tests.study_fixtures import make_study
+from tests.study_fixtures import current_page, make_study
 from tests.test_study_participant import enter, make_shown_long_ago, post
 
 pytestmark = pytest.mark.django_db
@@ -141,6 +140,27 @@ def test_a_side_by_side_page_without_every_rating_or_off_the_scale_is_refused_an
     assert off.status_code == 400 and "outside the scale" in off.content.decode()
     assert post(client, study, "rate", assignment=page_token(html), value=3).status_code == 403  # names no page
     assert not Rating.objects.exists()
+
+
+@pytest.mark.parametrize("settings", [SIDE_BY_SIDE, PAIRWISE])
+def test_a_page_answered_sooner_than_its_clips_last_is_refused_with_409_and_counted(settings):
+    from studyapp.researchers.monitor import study_monitor
+
+    study = make_study(**settings, bad_checks=0)  # the full-play rule is on by default
+    client = Client()
+    participant = through_practice(client, study)
+    html = page_html(client, study)  # the server has just sent the page: its 4 s clips cannot have played
+    page = current_page(participant)
+    answer = {f"value-{a.slot}": 50 for a in page} if settings is SIDE_BY_SIDE else {"answer": "left"}
+    answer.update(watched(a.slot for a in page))  # whatever the browser claims
+    response = post(client, study, "rate", page=page_token(html), **answer)
+    assert response.status_code == 409 and "Please watch every clip to its end" in response.content.decode()
+    assert not Rating.objects.exists() and current_page(participant) == page
+    assert Participant.objects.get(pk=participant.pk).refused_early == 1
+    assert study_monitor(study).participants_early == 1
+    make_shown_long_ago(participant)
+    assert post(client, study, "rate", page=page_token(html), **answer).status_code == 302
+    assert not Rating.objects.filter(answered_before_end=True).exists()
 
 
 def test_a_pairwise_page_shows_two_systems_of_one_control_and_stores_the_answer_on_both():

@@ -79,7 +79,7 @@ def test_a_label_controlled_study_is_offered_no_lead_in_and_refuses_one(client, 
     settings.MOTION_DATA = files.labelled
     study = new_study(researcher)
     upload_checkpoint(client, study, files.erd.read_bytes(), name="ERD")
-    assert System.objects.filter(study=study, metadata__control="attributes").exists()
+    assert System.objects.filter(study=study, kind="erd").exists()
     page = client.get(f"/studies/{study.pk}/controls/").content.decode()
     assert 'name="seconds"' in page and 'name="lead_in"' not in page
     with pytest.raises(ControlError, match="a lead-in is the path before the clip"):

@@ -26,6 +26,7 @@ from django.test import Client
 from django.utils import timezone
 from safetensors.torch import load_file, save_file
 
+from generation import registry
 from generation.checkpoint import FORMAT_KEY, load_checkpoint, read_meta
 from generation.render.camera import Camera
 from generation.store import tensor_digest
@@ -33,6 +34,7 @@ from studyapp.models import ControlSignal, Participant, Stimulus, Study, System
 from studyapp.server.celery import app as celery_app
 from studyapp.server.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
 from studyapp.stimuli.clips import plan_stimuli
+from studyapp.stimuli.controls import control_kind
 from studyapp.stimuli.dispatch import STALE_TASK_MINUTES, queue_stimuli
 from studyapp.tasks import generate_stimulus
 from tests.study_setup import CLIPS, link_clips, study_files
@@ -265,8 +267,8 @@ def tampered(data: bytes) -> bytes:
 
 BAD_UPLOADS = {
     "pickle renamed": (lambda f: pickle.dumps({"weights": [1.0, 2.0]}), "model.safetensors",
-                       "not a safetensors file"),
-    "torch.save renamed": (lambda f: _torch_saved(), "model.safetensors", "not a safetensors file"),
+                       "not a readable safetensors file"),
+    "torch.save renamed": (lambda f: _torch_saved(), "model.safetensors", "not a readable safetensors file"),
     "tampered": (lambda f: tampered(f.good.read_bytes()), "model.safetensors", "the tensors do not match"),
     "missing tensor": (lambda f: resaved(f.good, lambda t: t.pop(sorted(t)[0])), "model.safetensors",
                        "missing tensor"),
@@ -344,8 +346,6 @@ def test_bad_videos_become_finished_stimuli_and_a_fake_video_is_refused(client, 
 @pytest.mark.django_db
 def test_controls_come_from_held_out_clips_presets_and_files(client, researcher, site, files):
     study = new_study(researcher)
-    before = client.post(f"/studies/{study.pk}/controls/", {"action": "presets", "presets": ["walk-circle"]})
-    assert before.status_code == 400 and "register a model checkpoint first" in before.content.decode()
     upload_checkpoint(client, study, files.good.read_bytes())
 
     page = client.get(f"/studies/{study.pk}/controls/").content.decode()
@@ -390,7 +390,7 @@ def test_a_label_controlled_model_gets_label_controls_and_its_stimuli_render(cli
     study = new_study(researcher)
     assert upload_checkpoint(client, study, files.erd.read_bytes(), name="ERD").status_code == 302
     erd = System.objects.get(name="ERD")
-    assert erd.metadata["control"] == "attributes" and "walk" in erd.metadata["labels"]["actions"]
+    assert control_kind(study) == registry.LABELS and "walk" in erd.metadata["labels"]["actions"]
     assert client.post(f"/studies/{study.pk}/systems/", {"action": "natural", "name": "NAT"}).status_code == 302
     page = client.get(f"/studies/{study.pk}/controls/").content.decode()
     assert page.count("Add label controls") == 1 and "Add presets" not in page

@@ -105,3 +105,14 @@ def test_a_new_page_type_is_one_step_in_the_path_and_one_template(path_with_ques
     participant.refresh_from_db()
     assert participant.platform_data["age"] == "42" and stage(participant) == "instructions"
     assert client.post(reverse("participant-questionnaire", args=[study.key]), {"age": "7"}).status_code == 409
+
+
+@pytest.mark.django_db
+def test_a_step_added_to_the_path_is_in_the_preview_without_touching_the_preview(path_with_questionnaire):
+    from studyapp.researchers.preview import preview_pages
+
+    study = make_study(clips_per_participant=3, training_clips=0)
+    pages = preview_pages(study)
+    assert [page.name for page in pages] == ["consent", "questionnaire", "instructions", "a page to rate", "completion"]
+    assert pages[1].template == "questionnaire.html" and pages[1].context == {"suggested_age": 42}
+

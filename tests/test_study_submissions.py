@@ -8,6 +8,7 @@ tiny MoGlow trained on the real data, sampled outside the study, for the synthet
 
 from __future__ import annotations
 
+import html
 import io
 import zipfile
 from pathlib import Path
@@ -114,7 +115,7 @@ def test_submitted_motion_becomes_a_system_whose_clips_the_workers_render_like_s
 
 
 @pytest.mark.django_db
-def test_every_problem_of_a_submission_is_listed_at_once_and_nothing_is_stored(
+def test_every_control_of_a_refused_submission_is_reported_at_once_and_nothing_is_stored(
         client, researcher, site, files, tmp_path, settings):
     study = study_for_submissions(client, researcher, files)
     good = other_labs_motion(study, files, tmp_path)
@@ -135,9 +136,9 @@ def test_every_problem_of_a_submission_is_listed_at_once_and_nothing_is_stored(
     bad[ids[sidestep]] = npz_arrays(nan, motion_of(sidestep))  # a Motion refuses NaN, so the arrays directly
     short = motion_of(stand)
     bad[ids[stand]] = npz_bytes(Motion(short.positions[:30], short.fps, short.skeleton))
-    astray = motion_of(backward)
-    shifted = astray.positions + np.array([300.0, 0.0, 0.0])
-    bad[ids[backward]] = npz_bytes(Motion(shifted, astray.fps, astray.skeleton))
+    astray = motion_of(backward)  # drifting 300 cm sideways over the clip: moving its start does not bring it back
+    drift = np.linspace(0.0, 300.0, astray.n_frames)[:, None, None] * np.array([1.0, 0.0, 0.0])
+    bad[ids[backward]] = npz_bytes(Motion(astray.positions + drift, astray.fps, astray.skeleton))
     slow = motion_of(straight)
     bad[ids[straight]] = npz_bytes(Motion(slow.positions[::2], 10.0, slow.skeleton))
     natural = bvh_motion(good[ids[held_out[0]]], tmp_path)
@@ -146,18 +147,26 @@ def test_every_problem_of_a_submission_is_listed_at_once_and_nothing_is_stored(
 
     response = upload_motion(client, study, zipped(bad))
     assert response.status_code == 400
-    page = response.content.decode()
+    page = html.unescape(response.content.decode())
+    report = page[page.find("the submitted motion was not registered"):][:3000]
     for expected in [
-        f"no file for the control(s) {ramp}",
-        "lab/nobody.npz: no control has the id &#x27;nobody&#x27;",
-        f"lab/{circle}.npz: the body is", "lengths must be centimetres",
-        f"lab/{sidestep}.npz: positions: holds NaN or infinity (first at frame 5, joint 2)",
-        f"lab/{stand}.npz: 30 frames (1.50 s) at 20 fps, shorter than its control&#x27;s 80 frames (4.00 s)",
-        f"lab/{backward}.npz: the root strays 300 cm from the control&#x27;s path", "the tolerance is 100 cm",
-        f"lab/{straight}.npz: 10 fps is below the control&#x27;s 20 fps",
-        f"lab/{held_out[0]}.bvh: its skeleton (20 joints) differs from the one of 5 other file(s)",
+        "motion units: centimetres, y up (unit detected",
+        f"{ramp}: no file: refused: no file named {ramp}.bvh or {ramp}_NN.bvh",
+        "named after no control, left out: nobody.npz",
+        f"{circle}: {circle}.npz: refused: the body is 1.", "cm tall as read; a body is 50-250 cm tall",
+        f"{sidestep}: {sidestep}.npz: refused: unreadable ({sidestep}.npz: positions: holds NaN or infinity "
+        "(first at frame 5, joint 2))",
+        f"{stand}: {stand}.npz: refused: 30 frames (1.50 s) at 20 fps, shorter than its control's 80 frames (4.00 s)",
+        f"{backward}: {backward}.npz: refused: the root strays 3", "cm from the control's path (at frame 79); the "
+                                                                   "tolerance is 100 cm",
+        f"{straight}: {straight}.npz: refused: 10 fps is below the control's 20 fps",
+        f"{held_out[0]}: {held_out[0]}.bvh: refused: its skeleton (20 joints) differs from the one of "
+        f"{held_out[1]}.bvh (21 joints)",
+        f"{held_out[1]}: {held_out[1]}.bvh: read as centimetres, y up; its first 40 of 40 frames (2 s); moved 0.00 m "
+        "and turned +0 degrees to start at the origin facing +z; its root at most 2 cm from the path",
+        "1 of 8 controls ready, 7 refused: nothing written",
     ]:
-        assert expected in page, page[page.find("problem(s)"):][:3000]
+        assert expected in report, report
     assert not System.objects.filter(name="OtherLab").exists()
     stored = Path(settings.CHECKPOINT_ROOT) / "submitted"
     assert not stored.exists() or not any(stored.iterdir())
@@ -175,9 +184,14 @@ def test_zip_members_never_become_paths_and_a_zip_that_unpacks_past_the_cap_is_r
     study = study_for_submissions(client, researcher, files)
     good = other_labs_motion(study, files, tmp_path)
     slipping = {f"../../{Path(name).name}" if i == 0 else name: data for i, (name, data) in enumerate(good.items())}
+    first = next(iter(good))
+    twice = {**good, f"other/{Path(first).name}": good[first]}  # two files of one name: which is meant?
+    response = upload_motion(client, study, zipped(twice), name="Twice")
+    assert response.status_code == 400 and (f"{first} and other/{Path(first).name}: only a file&#x27;s name counts, "
+                                            "and these have the same") in response.content.decode()
     response = upload_motion(client, study, zipped(slipping))
     assert response.status_code == 302  # the name counts, never the path
-    assert not (Path(settings.CHECKPOINT_ROOT).parent / Path(next(iter(good))).name).exists()
+    assert not (Path(settings.CHECKPOINT_ROOT).parent / Path(first).name).exists()
 
     settings.MAX_MOTION_UPLOAD_BYTES = 100_000
     bomb = zipped({"lab/zeros.npz": bytes(5_000_000)})

@@ -22,7 +22,7 @@ from measures.units import UNIT_NAMES, UNITS
 
 from ..control import PRESETS, following_arrays, lead_in_frames, load_control_file, preset_path, take_paths
 from ..motion.bvh import motion_to_bvh, write_bvh
-from ..motion.dataset import DatasetOptions, build_dataset, contents_or_all
+from ..motion.dataset import LOCOMOTION, DatasetOptions, build_dataset, contents_or_all
 from ..motion.npz import save_motion_npz
 from ..motion.root import RootOptions, integrate, root_trajectory
 from ..motion.takes import natural_takes
@@ -31,7 +31,6 @@ from ..render import render_video
 from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, shown_control, warn
 
 
-LOCOMOTION = "walk,run,dash,walk-back,walk-left,walk-right"
 OWN_CONTROL = "own"  # --draw-control without a value: each clip's own control
 
 
@@ -54,7 +53,7 @@ def _contents(args: argparse.Namespace) -> tuple[str, ...] | None:
     """--contents, else the locomotion contents, or every clip of folders without labels."""
     if args.contents:
         return tuple(args.contents.split(","))
-    contents = contents_or_all(args.folder, tuple(LOCOMOTION.split(",")))
+    contents = contents_or_all(args.folder, LOCOMOTION)
     if contents is None:
         print("note: the clips have no content labels: all of them are used, as one content")
     return contents
@@ -65,8 +64,7 @@ def train_command(args: argparse.Namespace) -> int:
 
     from ..train import TrainOptions, train
 
-    if args.device.startswith("cuda") and not torch.cuda.is_available():
-        raise ValueError("--device cuda asked for, but torch sees no CUDA device (is a CUDA build of torch installed?)")
+    _require_device(args.device)
     _use_threads(args)
     attributes = model_kind(args.model).control == LABELS
     for option in ("classifiers", "denoiser"):
@@ -92,6 +90,14 @@ def train_command(args: argparse.Namespace) -> int:
     print(f"{args.out}: step {meta.step}, held-out loss {last['val_loss']:.4f}, "
           f"training loss {last['train_loss']:.4f}, {last['seconds']:.0f} s of training")
     return 0
+
+
+def _require_device(device: str) -> None:
+    """Refuse --device cuda up front where torch has no GPU, instead of a traceback from deep in torch."""
+    import torch
+
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        raise ValueError("--device cuda asked for, but torch sees no CUDA device (is a CUDA build of torch installed?)")
 
 
 def _setting(text: str) -> tuple[str, object]:
@@ -306,7 +312,8 @@ def sliding_command(args: argparse.Namespace) -> int:
     from ..motion.features import decode_positions
     from ..sliding import SETTLE_SECONDS, sliding_ladder
 
-    generator = Generator.load(args.checkpoint)
+    _require_device(args.device)
+    generator = Generator.load(args.checkpoint, args.device)
     meta = generator.meta
     if meta.kind != "moglow" or meta.features.get("control_layout"):
         raise ValueError(f"{args.checkpoint} is not a MoGlow of this project ({meta.kind}"
@@ -470,4 +477,7 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--samples", type=int, default=8, help="samples per take at T=1 (default %(default)s)")
     p.add_argument("--seed", type=int, default=1, help="of the free-running samples (default %(default)s)")
     p.add_argument("--cache-dir", help="dataset cache folder")
+    p.add_argument("--device", default="cpu",
+                   help="cpu or cuda: where the model predicts and samples; a paper-sized MoGlow wants a GPU "
+                        "(default %(default)s)")
     p.set_defaults(run=sliding_command)

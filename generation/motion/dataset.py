@@ -45,6 +45,8 @@ from .units import detect_up
 
 FORMAT_VERSION = 1  # bump when the cached arrays change meaning
 SPLITS = ("train", "validation", "test")
+# The contents path-controlled models are trained on unless told otherwise (train --contents).
+LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right")
 MAX_FPS = 1000.0  # motion capture runs at hundreds of frames per second at most
 
 

@@ -1,2 +1,5 @@
-"""The rating designs: single clips, side-by-side pages and pairwise pages, how their
-pages are planned and answered, their instructed checks and the ratings table."""
+"""The rating designs: one object per design (``single``, ``side_by_side``, ``pairwise``)
+owning everything that differs between them, named in ``registry``; what every design
+shares around them: storing an answer (``answers``), the pages' contexts (``pages``) and
+the study's rules (``rules``). The rest of the app asks ``registry.design_of(study)``.
+"""

@@ -16,6 +16,7 @@ send them as JSON as well as render them.
 
 from __future__ import annotations
 
+import math
 import random
 from collections import Counter
 from dataclasses import dataclass, field
@@ -153,6 +154,18 @@ class Design:
     def check_pages(self, study: Study) -> int:
         """A participant's pages that are attention checks of their own (not rated pages with an anchor)."""
         return 0
+
+    def clips_per_page(self, study: Study) -> float:
+        """How many clips a page shows, on average (for the study's expected duration)."""
+        return 1.0
+
+    def answers_per_page(self, study: Study) -> float:
+        """How many answers a page takes, on average (a rating, a slider, a choice)."""
+        return 1.0
+
+    def practice_page_count(self, study: Study) -> int:
+        """The practice pages a participant meets: ``training_clips`` clips in whole pages."""
+        return math.ceil(study.training_clips / self.clips_per_page(study))
 
     def problems(self, study: Study) -> dict[str, str]:
         """What makes ``study``'s settings unworkable for this design, by field."""

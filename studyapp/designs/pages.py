@@ -50,14 +50,6 @@ def rating_page(study: Study, participant: Participant) -> dict:
     return design.page_context(study, page)
 
 
-def current_page(participant: Participant) -> list[Assignment]:
-    """The clips of the participant's page on screen, in slot order (empty once every page is answered)."""
-    first = participant.assignments.filter(rating__isnull=True).order_by("position").first()
-    if first is None:
-        return []
-    return list(participant.assignments.filter(page=first.page).select_related("stimulus__system").order_by("slot"))
-
-
 def _practice_clips(study: Study, participant: Participant) -> list[Stimulus]:
     stimuli = Stimulus.objects.in_bulk(participant.training)
     if any(pk not in stimuli for pk in participant.training):

@@ -54,6 +54,12 @@ class Pairwise(MultiClip):
     def check_pages(self, study: Study) -> int:
         return study.bad_checks
 
+    def clips_per_page(self, study: Study) -> float:
+        return 2.0 + study.abx  # and the reference X
+
+    def practice_page_count(self, study: Study) -> int:
+        return math.ceil(study.training_clips / 2)  # pairs
+
     def _pairable(self, study: Study, rendered: list[Stimulus]) -> tuple[dict, dict, list[Stimulus]]:
         """Clips per control that pages pair, BAD clips per control, and the natural clips."""
         clips, bad = by_control(rendered)
@@ -99,7 +105,7 @@ class Pairwise(MultiClip):
 
     def practice(self, study: Study, rendered: list[Stimulus], planned: list[PlannedPage],
                  rng: random.Random) -> list[int]:
-        wanted = math.ceil(study.training_clips / 2)
+        wanted = self.practice_page_count(study)
         clips, bad, natural = self._pairable(study, rendered)
         pages = self._checks(natural, bad, min(wanted, 1), Counter(), rng)  # what broken motion looks like
         rated = {page.key for page in planned}

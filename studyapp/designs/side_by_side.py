@@ -25,7 +25,7 @@ from analysis.side_by_side import median_and_mean
 from studyapp.designs.answers import whole_number
 from studyapp.designs.base import (Answer, OnPage, Page, PlannedPage, clip_label, rated_clip_exclusion)
 from studyapp.designs.multi_clip import MultiClip, bad_for, by_control, key_of, page_orders
-from studyapp.models import Assignment, Rating, Stimulus, Study
+from studyapp.models import Assignment, Rating, Stimulus, Study, System
 from studyapp.participants.refusal import AnswerRefused
 
 MAX, ANY = "max", "any"  # an instructed check: the clip to push to the top, the others
@@ -67,6 +67,16 @@ class SideBySide(MultiClip):
     settings = ("pages_per_participant",)
     export_columns = ("design", "page", "position")
 
+    def clips_per_page(self, study: Study) -> float:
+        """Every rated system's clip, and a BAD anchor on ``bad_checks`` of the pages."""
+        systems = study.systems.exclude(role=System.Role.BAD).count()
+        anchors = min(study.bad_checks, study.pages_per_participant) if study.systems.filter(
+            role=System.Role.BAD).exists() else 0
+        return max(systems + anchors / max(study.pages_per_participant, 1), 1.0)
+
+    def answers_per_page(self, study: Study) -> float:
+        return self.clips_per_page(study)  # a slider each
+
     def _pages_with_anchor(self, study: Study, controls: list[list[Stimulus]], bad: dict, anchors: int,
                            rng: random.Random, orders: Counter) -> list[PlannedPage]:
         """A page per control, a BAD anchor on the first ``anchors`` of them, each in its Williams order."""
@@ -93,19 +103,12 @@ class SideBySide(MultiClip):
 
     def practice(self, study: Study, rendered: list[Stimulus], planned: list[PlannedPage],
                  rng: random.Random) -> list[int]:
-        if not study.training_clips:
-            return []
         clips, bad = by_control(rendered)
         rated = {s.control_id for page in planned for s in page.clips}
         pages = [page for control, page in clips.items() if len(page) >= 2]
         rng.shuffle(pages)
         pages.sort(key=lambda page: page[0].control_id in rated)  # controls the participant does not rate first
-        shown, chosen = 0, []
-        for page in pages:
-            if shown >= study.training_clips:
-                break
-            chosen.append(page)
-            shown += len(page) + bool(bad)
+        chosen = pages[:self.practice_page_count(study)]
         # With a BAD anchor, as the rated pages have, so that practice shows broken motion too.
         practice = self._pages_with_anchor(study, chosen, bad, len(chosen), rng, Counter())
         return [s.id for page in practice for s in page.clips]

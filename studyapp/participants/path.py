@@ -178,9 +178,16 @@ def _survey(request: HttpRequest, study: Study, participant: Participant) -> Htt
 
 
 def _screened_out_page(study: Study, participant: Participant) -> dict:
-    return {"title": "Thank you", "text": "Thank you for your answers. This study is looking for participants "
-            "with other answers, so it ends here for you. Please return it on your platform (do not submit it), "
-            "so that your place goes to someone else."}
+    """The end for a participant a screening answer turned away: the study's screen-out
+    code where it has one (Prolific pays it at its fixed screen-out rate), else a request
+    to return the study."""
+    ending = "Thank you for your answers. This study is looking for participants with other answers, so it ends here for you."
+    if not study.screen_out_code:
+        return {"heading": "Thank you", "text": f"{ending} Please return it on your platform (do not submit it), so "
+                                                "that your place goes to someone else."}
+    return {"heading": "Thank you", "text": f"{ending} The code below tells {study.get_platform_display()} that you "
+                                            "were screened out, so that you are paid for your time.",
+            **_leaving_with(study, participant, study.screen_out_code)}
 
 
 def _practice(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
@@ -216,7 +223,12 @@ def mturk_submit_url(platform_data: dict) -> str | None:
 
 def completion_page(study: Study, participant: Participant) -> dict:
     """Where a finished participant goes and what code they are given."""
-    code, target = study.completion_code, study.redirect_url
+    return _leaving_with(study, participant, study.completion_code, study.redirect_url)
+
+
+def _leaving_with(study: Study, participant: Participant, code: str, target: str = "") -> dict:
+    """The page context that hands the participant ``code`` and sends them back to their
+    platform: ``target``, else Prolific's completion URL with the code, or MTurk's submit form."""
     mturk_submit = None
     if study.platform == Study.Platform.PROLIFIC and code and not target:
         target = f"{PROLIFIC_COMPLETION_URL}?{urlencode({'cc': code})}"
@@ -226,10 +238,15 @@ def completion_page(study: Study, participant: Participant) -> dict:
 
 
 def _stopped_page(study: Study, participant: Participant) -> dict:
-    """The polite end of a session stopped by failed instructed checks (no completion code)."""
-    return {"title": "Thank you", "text": (
-        "Thank you for your time. Some answers did not follow the instructions shown on the page, so this "
-        "session has ended here. Please return the study on your platform.")}
+    """The polite end of a session stopped by failed instructed checks: the study's code
+    for those it stopped where it has one, else a request to return the study."""
+    ending = ("Thank you for your time. Some answers did not follow the instructions shown on the page, so this "
+              "session has ended here.")
+    if not study.stopped_code:
+        return {"heading": "Thank you", "text": f"{ending} Please return the study on your platform."}
+    return {"heading": "Thank you", "text": f"{ending} Please hand in the code below on "
+                                            f"{study.get_platform_display()}.",
+            **_leaving_with(study, participant, study.stopped_code)}
 
 
 def _design_template(study: Study) -> str:
@@ -237,7 +254,7 @@ def _design_template(study: Study) -> str:
 
 
 PATH: tuple[Step, ...] = (
-    Step("screened-out", "message.html", pending=lambda p: p.screened_out_at is not None, page=_screened_out_page),
+    Step("screened-out", "done.html", pending=lambda p: p.screened_out_at is not None, page=_screened_out_page),
     Step("device", "device.html", pending=lambda p: p.study.device_check and p.device_checked_at is None,
          page=_device_page, submit=_device_check, title="device check", preview=_device_preview),
     Step("consent", "consent.html", pending=lambda p: p.consented_at is None, submit=_consent),
@@ -249,7 +266,7 @@ PATH: tuple[Step, ...] = (
          submit=_practice, preview=preview_practice_pages),
     Step("rate", _design_template, pending=lambda p: p.finished_at is None, page=rating_page, submit=_rate,
          takes_late_posts=True, title="a page to rate", preview=preview_rating_pages),
-    Step("stopped", "message.html", pending=lambda p: p.stopped_at is not None, page=_stopped_page),
+    Step("stopped", "done.html", pending=lambda p: p.stopped_at is not None, page=_stopped_page),
     # Asked only once the ratings are done, so the query costs the rating pages nothing.
     Step("survey", "questions.html",
          pending=lambda p: p.surveyed_at is None and p.study.questions.filter(part=Question.Part.AFTER).exists(),

@@ -43,18 +43,21 @@ def copy_contents(source: Study, target: Study) -> int:
     return len(linked)
 
 
+def _fields(row: System | ControlSignal | Question) -> dict:
+    """What a copy of ``row`` in another study takes from it: every field but its id, its
+    study, its name (the copy is found by it) and when it was made."""
+    return {f.name: getattr(row, f.name) for f in type(row)._meta.concrete_fields
+            if f.name not in ("id", "study", "name", "created")}
+
+
 def _copy_rows(source: Study, target: Study, linked: list[Stimulus]) -> None:
     """The rows of ``copy_contents``; each clip whose video is linked is added to ``linked``."""
-    systems = {s.pk: System.objects.get_or_create(study=target, name=s.name, defaults={
-        "role": s.role, "checkpoint": s.checkpoint, "checkpoint_digest": s.checkpoint_digest, "kind": s.kind,
-        "metadata": s.metadata, "temperature": s.temperature})[0] for s in source.systems.all()}
-    controls = {c.pk: ControlSignal.objects.get_or_create(study=target, name=c.name, defaults={
-        "origin": c.origin, "control": c.control, "source_clip": c.source_clip, "seconds": c.seconds,
-        "export_id": c.export_id})[0] for c in source.controls.all()}
+    systems = {s.pk: System.objects.get_or_create(study=target, name=s.name, defaults=_fields(s))[0]
+               for s in source.systems.all()}
+    controls = {c.pk: ControlSignal.objects.get_or_create(study=target, name=c.name, defaults=_fields(c))[0]
+                for c in source.controls.all()}
     for question in source.questions.all():
-        Question.objects.get_or_create(study=target, name=question.name, defaults={
-            field: getattr(question, field) for field in ("part", "text", "kind", "choices", "accepted",
-                                                           "required", "order")})
+        Question.objects.get_or_create(study=target, name=question.name, defaults=_fields(question))
     copied = set(target.stimuli.values_list("content_key", flat=True))
     for clip in source.stimuli.filter(status=Stimulus.Status.DONE).exclude(content_key__in=copied):
         twin = Stimulus.objects.create(

@@ -14,6 +14,7 @@ from django.conf import settings
 
 from generation.control import PRESETS
 from generation.render.camera import Camera
+from measures.units import UNITS, parse_scale
 from studyapp.designs import registry as designs
 from studyapp.models import ControlSignal, Question, Study, System
 
@@ -67,7 +68,8 @@ class StudyForm(forms.ModelForm):
         ("Attention checks and early answers", ("bad_checks", "natural_checks", "bad_threshold", "natural_threshold",
                                                 "instructed_checks", "stop_after_failed_checks",
                                                 "require_full_play", "discard_early")),
-        ("Crowd platform", ("platform", "completion_code", "redirect_url", "is_open")),
+        ("Crowd platform", ("platform", "completion_code", "redirect_url", "screen_out_code", "stopped_code",
+                            "is_open")),
         ("Device check", ("device_check", "min_screen_width", "min_screen_height")),
         ("Video and camera", ("video_width", "video_height")),  # and every camera field
     )
@@ -245,11 +247,38 @@ class MultipleFileField(forms.FileField):
         return [super(MultipleFileField, self).clean(item, initial) for item in files]
 
 
-class SubmittedMotionSystemForm(forms.Form):
+class MotionUnitsForm(forms.Form):
+    """The BVH files' length unit and up axis, detected unless given, as every command of
+    ``python -m generation`` takes them (``--scale``, ``--up``). Cleaned, ``unit`` is the
+    factor to centimetres and ``up`` the axis, None where detected."""
+
+    unit = forms.CharField(required=False, initial="auto", max_length=30, label="Length unit",
+                           help_text=f"auto or empty (from the skeleton's size), {', '.join(UNITS)} "
+                                     "(CMU's 5.64 cm), or centimetres per unit")
+    up = forms.ChoiceField(required=False, choices=[("auto", "auto (from the floor)"), ("y", "y"), ("z", "z")],
+                           initial="auto", label="Up axis")
+
+    def clean_unit(self) -> float | None:
+        try:
+            return parse_scale(self.cleaned_data["unit"] or "auto")
+        except ValueError as error:
+            raise forms.ValidationError(str(error)) from None
+
+    def clean_up(self) -> str | None:
+        return self.cleaned_data["up"] if self.cleaned_data["up"] in ("y", "z") else None
+
+
+class SubmittedMotionSystemForm(MotionUnitsForm):
     name = forms.CharField(max_length=60, help_text="shown to you only; participants never see it")
     role = forms.ChoiceField(choices=[(System.Role.MODEL, "model"), (System.Role.BAD, "BAD")])
-    motion = forms.FileField(help_text="a .zip of one BVH or .npz per control, named by the control's id, "
+    motion = forms.FileField(help_text="a .zip of the lab's BVH files as they are (any unit, y or z up, starting "
+                                       "anywhere) or .npz, one per control named by its id (or ID_NN.bvh), "
                                        f"{_megabytes(settings.MAX_MOTION_UPLOAD_BYTES)}")
+    keep_root = forms.BooleanField(required=False, label="Keep the root where it is",
+                                   help_text="leave each clip where it was captured instead of moving its start to "
+                                             "the control's (the origin, facing +z)")
+
+    field_order = ["name", "role", "motion", "unit", "up", "keep_root"]
 
 
 class VideoSystemForm(forms.Form):
@@ -260,18 +289,28 @@ class VideoSystemForm(forms.Form):
     videos = MultipleFileField(help_text=f"MP4 files, each {_megabytes(settings.MAX_VIDEO_UPLOAD_BYTES)}")
 
 
-class HeldOutControlsForm(forms.Form):
+class HeldOutControlsForm(MotionUnitsForm):
     seconds = forms.FloatField(initial=4.0, min_value=0.5, max_value=60.0, help_text="each clip is cut to this")
     count = forms.IntegerField(required=False, min_value=1, initial=6,
                                help_text="how many held-out clips, spread over their content labels (empty: all)")
     lead_in = forms.FloatField(required=False, initial=1.0, min_value=0.0, max_value=60.0, label="Lead-in",
                                help_text="seconds of each take before its clip, which path-controlled models warm up "
                                          "on and NAT leaves out; 0 or empty starts at the take's first frame")
+    takes = forms.CharField(required=False, max_length=2000, label="Takes",
+                            help_text="these takes (file names without .bvh, separated by commas or spaces) instead "
+                                      "of those the seeded split holds out")
 
-    def __init__(self, *args, paths: bool = True, **kwargs):
+    field_order = ["seconds", "count", "lead_in", "takes", "unit", "up"]
+
+    def __init__(self, *args, paths: bool = True, trained: bool = True, **kwargs):
         super().__init__(*args, **kwargs)
         if not paths:  # a label-controlled model has no path to warm up on
             del self.fields["lead_in"]
+        if trained:  # the checkpoints read their data in the unit and up axis they were trained in
+            del self.fields["unit"], self.fields["up"]
+
+    def clean_takes(self) -> list[str]:
+        return self.cleaned_data["takes"].replace(",", " ").split()
 
 
 class PresetControlsForm(forms.Form):

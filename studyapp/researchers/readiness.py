@@ -1,11 +1,12 @@
 """Whether a study may open to participants, and if not, why.
 
 A study opens only with clips to rate and with what its crowd platform needs to pay the
-participants who finish: Prolific a completion code or URL; MTurk its frame over HTTPS
-(the participant's link brings the submit target, which ``participant_views`` checks on
-entry). The monitor's open button lists the reasons; the open view refuses on them.
-Warnings (attention checks without the system that makes them) do not stop it: the
-monitor shows them beside the button, and opening repeats them.
+participants who finish: Prolific a completion code or URL, and a screen-out code where
+screening questions can turn participants away (Prolific allows in-study screening only
+with its fixed screen-out payment); MTurk its frame over HTTPS (the participant's link
+brings the submit target, which ``participant_views`` checks on entry). The monitor's open button lists the reasons; the open view refuses on them.
+Warnings (attention checks without the system that makes them) do not stop it, once the
+researcher has seen them: the monitor shows them beside the button.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from __future__ import annotations
 from django.conf import settings
 
 from studyapp.designs.registry import design_of
-from studyapp.models import Stimulus, Study, System
+from studyapp.models import Question, Stimulus, Study, System
 
 
 def open_problems(study: Study) -> list[str]:
@@ -25,6 +26,11 @@ def open_problems(study: Study) -> list[str]:
     if study.platform == Study.Platform.PROLIFIC and not (study.completion_code or study.redirect_url):
         problems.append("Prolific pays only participants who bring back its completion code: "
                         "set the completion code (or the completion URL) in the settings")
+    screens = study.questions.filter(part=Question.Part.BEFORE).exclude(accepted="").exists()
+    if study.platform == Study.Platform.PROLIFIC and screens and not study.screen_out_code:
+        problems.append("Prolific lets a study screen participants out only with a screen-out completion code, "
+                        "which it pays at a fixed amount: set the screen-out code in the settings (and add it on "
+                        "Prolific as a 'screened out' code)")
     if study.platform == Study.Platform.MTURK and not settings.HTTPS:
         problems.append("MTurk shows the study in a frame of its HTTPS site, which needs this server "
                         "behind HTTPS with HTTPS=1 set")

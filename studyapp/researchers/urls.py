@@ -2,7 +2,7 @@
 
 from django.urls import path
 
-from studyapp.researchers import views
+from studyapp.researchers import platform_views, views
 
 urlpatterns = [
     path("", views.study_list, name="study-list"),
@@ -27,6 +27,10 @@ urlpatterns = [
     path("<int:pk>/questions/", views.study_questions, name="study-questions"),
     path("<int:pk>/participants/", views.study_participants, name="study-participants"),
     path("<int:pk>/participants.csv", views.study_participants_csv, name="study-participants-csv"),
+    path("<int:pk>/participants/platform/", platform_views.study_platform, name="study-platform"),
+    path("<int:pk>/participants/platform/dry-run/", platform_views.study_platform_dry_run, name="study-platform-dry-run"),
+    path("<int:pk>/participants/platform/apply/", platform_views.study_platform_apply, name="study-platform-apply"),
+    path("<int:pk>/participants/platform/read/", platform_views.study_platform_read, name="study-platform-read"),
     path("<int:pk>/open/", views.study_open, name="study-open"),
     path("<int:pk>/ratings.csv", views.study_export, name="study-export"),
     path("<int:pk>/rules.json", views.study_rules, name="study-rules"),

@@ -21,6 +21,7 @@ from django.views.decorators.cache import never_cache
 from django.utils import timezone
 from django.views.decorators.http import require_http_methods, require_POST, require_safe
 
+from generation import registry
 from studyapp.designs.rules import StudyRules
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.participants.views import PLATFORM_PARAMETERS
@@ -47,7 +48,7 @@ from studyapp.stimuli.controls import (ControlError, add_control_file, add_held_
                                add_preset_controls, control_kind, study_labels)
 from studyapp.stimuli.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
 from studyapp.stimuli.motion_export import exported_stimuli, motion_zip
-from studyapp.stimuli.submissions import add_submitted_upload
+from studyapp.stimuli.submissions import Reading, add_submitted_upload
 from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
 from studyapp.stimuli.video_export import finished_clips, stimuli_zip
 
@@ -119,7 +120,7 @@ def _forms_page(request: HttpRequest, study: Study, page: str, forms: dict, acti
 
 def _refusal(error: Exception) -> dict:
     """A refusal as the top of a page lists it: a title, then one problem a line."""
-    problems = getattr(error, "problems", None)
+    problems = getattr(error, "lines", None)  # a submission's report, one control a line
     if problems:
         return {"title": str(error).splitlines()[0].rstrip(":"), "problems": problems}
     return {"title": "Not done", "problems": [str(error)]}
@@ -138,7 +139,8 @@ def study_systems(request: HttpRequest, pk: int) -> HttpResponse:
         "checkpoint": lambda data: "Registered {}.".format(add_checkpoint_system(
             study, data["name"], data["checkpoint"], data["role"], data["temperature"]).name),
         "natural": lambda data: f"Registered {add_natural_system(study, data['name']).name}.",
-        "motion": lambda data: _submitted(add_submitted_upload(study, data["name"], data["motion"], data["role"])),
+        "motion": lambda data: _submitted(add_submitted_upload(study, data["name"], data["motion"], data["role"], Reading(
+            data["unit"], data["up"], data["keep_root"]))),
         "videos": lambda data: "Registered {} with {} video(s).".format(
             add_video_system(study, data["name"], data["videos"], data["role"]).name, len(data["videos"])),
     }
@@ -152,22 +154,24 @@ def study_controls(request: HttpRequest, pk: int) -> HttpResponse:
         kind = control_kind(study)
     except ControlError as error:
         messages.error(request, str(error))
-        kind = "path"
-    forms: dict = {"held_out": partial(HeldOutControlsForm, paths=kind == "path")}
-    if kind == "path":
+        kind = registry.PATH
+    trained = study.systems.exclude(checkpoint="").exists()
+    forms: dict = {"held_out": partial(HeldOutControlsForm, paths=kind == registry.PATH, trained=trained)}
+    if kind == registry.PATH:
         forms.update(presets=PresetControlsForm, file=ControlFileForm)
     else:
         forms["labels"] = partial(LabelControlsForm, labels=study_labels(study))
     actions = {
-        "held_out": lambda data: "{} held-out control(s).".format(
-            len(add_held_out_controls(study, data["seconds"], data["count"], data.get("lead_in") or 0.0))),
+        "held_out": lambda data: "{} held-out control(s).".format(len(add_held_out_controls(
+            study, data["seconds"], data["count"], data.get("lead_in") or 0.0, takes=data["takes"],
+            scale=data.get("unit"), up=data.get("up")))),
         "presets": lambda data: f"{len(add_preset_controls(study, data['presets']))} synthetic control(s).",
         "file": lambda data: f"{len(add_control_file(study, data['description']))} control(s) from the file.",
         "labels": lambda data: "{} label control(s).".format(
             len(add_label_controls(study, data["actions"], data["styles"], data["seconds"]))),
     }
     return _forms_page(request, study, "controls", forms, actions, ControlError,
-                       {"controls": study.controls.all(), "kind": kind})
+                       {"controls": study.controls.all(), "kind": kind, "trained": trained})
 
 
 @never_cache

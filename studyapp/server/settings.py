@@ -114,10 +114,12 @@ LOGOUT_REDIRECT_URL = "login"
 
 # Warnings and errors (a 500's traceback among them) go to stderr whatever DEBUG says:
 # Django alone would mail them to ADMINS when DEBUG is off, and a container has none.
+# What is sent to a crowd platform's API (approvals, rejections, bonuses) is logged too.
 LOGGING = {
     "version": 1,
     "disable_existing_loggers": False,
-    "handlers": {"stderr": {"class": "logging.StreamHandler", "level": "WARNING"}},
+    "handlers": {"stderr": {"class": "logging.StreamHandler", "level": "INFO"}},
+    "loggers": {"studyapp.platforms": {"level": "INFO"}},
     "root": {"handlers": ["stderr"], "level": "WARNING"},
 }
 
@@ -183,3 +185,9 @@ DATA_UPLOAD_MAX_MEMORY_SIZE = MAX_RATINGS_UPLOAD_BYTES
 
 # Bounds on each health probe, so a dead broker never holds a page for long.
 HEALTH_TIMEOUT_S = env_float("HEALTH_TIMEOUT_S", 1.0)
+
+# The crowd platforms' APIs (``studyapp.platforms``): Prolific's, and MTurk's requester
+# API, its sandbox used unless the researcher asks for the real one.
+PROLIFIC_API_URL = env_str("PROLIFIC_API_URL", "https://api.prolific.com")
+MTURK_API_URL = env_str("MTURK_API_URL", "https://mturk-requester.us-east-1.amazonaws.com")
+MTURK_SANDBOX_API_URL = env_str("MTURK_SANDBOX_API_URL", "https://mturk-requester-sandbox.us-east-1.amazonaws.com")

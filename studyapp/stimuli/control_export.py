@@ -7,8 +7,8 @@ The bundle (a folder, or the same files in a zip):
     paths/ID.npz        a path control (see PATH_ARRAYS)
     labels/ID.json      a label control: action, style, frames, fps
     natural/ID.bvh      optionally, the natural clip of a held-out control, placed in the
-                        control's frame: a valid submission for that control (centimetres,
-                        y up, as submissions must be; the README and index.json say so)
+                        control's frame: a valid submission for that control (in
+                        centimetres with y up, which the README and index.json say)
 
 A control's id is the name it was created with where that is a plain file name, else
 ``control-<pk>``, and renaming the control keeps it; submitted files are named by it
@@ -24,20 +24,16 @@ from pathlib import Path
 
 import numpy as np
 
+from generation import registry
 from generation.control import PathControl, control_from_dict
 from generation.motion.bvh import bvh_text, motion_to_bvh
 from generation.motion.root import root_trajectory, to_root_frame
 from generation.motion.types import Motion
+from generation.submission import MAX_HEIGHT_CM, MIN_HEIGHT_CM, PATH_TOLERANCE_CM
 from studyapp.models import SAFE_ID, ControlSignal, Study
-from studyapp.stimuli.controls import training_options
+from studyapp.stimuli.controls import natural_options, study_options
 from studyapp.stimuli.natural import natural_motion
 
-
-# The rules a submission is held to (``studyapp.stimuli.submissions`` checks them, README.txt states them).
-# A person is 50-250 cm tall: a clip in metres (about 1.7) or millimetres (about 1700) is outside.
-MIN_HEIGHT_CM, MAX_HEIGHT_CM = 50.0, 250.0
-# Sampled models follow a commanded path loosely; a root farther than this has not followed it.
-PATH_TOLERANCE_CM = 100.0
 
 UNITS = {"forward": "cm/s", "sideways": "cm/s, left positive", "yaw_velocity": "rad/s, counter-clockwise seen from above (left turn) positive",
          "root_path": "cm, (x, z) on the floor", "root_yaw": "rad, 0 faces +z", "fps": "frames per second",
@@ -60,30 +56,38 @@ PATH_ARRAYS = """\
 
 SUBMISSION_RULES = """\
 A submission is one file per control, named by the control's id (the "id" of index.json):
-ID.bvh or ID.npz, in a folder or a zip (folders inside the zip are ignored; only the file
-names count). Every control of index.json needs a file; a file named after no control is
-refused.
+ID.bvh or ID.npz, or ID_NN.bvh as `python -m generation sample` names its clips (the
+lowest NN is taken, the others are listed as left out), in a folder or a zip (folders
+inside the zip are ignored; only the file names count). Every control of index.json
+needs a file; a file named after no control is listed and left out.
 
 Motion files:
-  ID.bvh   any BVH file; lengths in centimetres.
+  ID.bvh   any BVH file as your tools write it: any length unit, y or z up, starting
+           anywhere on the floor and facing anywhere. The unit and the up axis are
+           detected from the files (all must agree), or given on upload.
   ID.npz   positions (frames, joints, 3) float, centimetres, y up; fps (scalar); names
            (joints,) strings; parents (joints,) integers, -1 for the root; optionally
            offsets (joints, 3). This is the layout `python -m generation sample --npz` writes.
 
-Rules, checked before anything is stored; every problem is listed at once:
-  - all files share one skeleton (the same joint names and parents);
-  - every value is finite;
-  - the frame rate is at least the control's fps (it is resampled down to it: frames are
-    never invented);
-  - after resampling, a clip has at least the control's frames; a longer clip keeps its
-    first `frames` frames and the rest is dropped;
-  - lengths are centimetres: the body is between {min_height:g} and {max_height:g} units tall
-    (a clip in metres or millimetres is refused);
-  - for path controls, the root (the hips projected on the floor, smoothed over
-    {sigma:g} s) starts where root_path does and stays within {tolerance:g} cm of it at every
-    frame (the largest distance is reported);
-  - y is up and the motion starts at the origin facing +z, as root_path does.
+What the study does with each file, reporting per control what it matched, converted
+and refused (every problem is listed at once; nothing is stored unless every control
+has its clip):
+  - it reads the file in its unit and up axis, into centimetres with y up;
+  - it resamples it to the control's fps (down only: the frame rate must be at least
+    the control's) and keeps its first `frames` frames (a shorter clip is refused);
+  - it moves the clip along the floor and turns it about the vertical so that its root
+    (the hips projected on the floor, smoothed over {sigma:g} s, facing the way the left
+    and right joints say) starts where root_path does: at the origin, facing +z. Heights,
+    bone lengths and the motion itself are unchanged. On upload, "keep the root where
+    it is" leaves the clip where it was captured;
+  - for path controls, it refuses a root more than {tolerance:g} cm from root_path at
+    some frame (the largest distance is reported);
+  - it refuses a body that is not {min_height:g}-{max_height:g} cm tall as read (a unit
+    not detected right: give it), values that are not finite, and files on another
+    skeleton (joint names and parents) than most of them.
 
+The same rules run before you upload with
+`python -m generation prepare-submission FOLDER --controls THIS_BUNDLE -o submission.zip`.
 The study renders accepted motion with its own renderer, camera, length and video size,
 exactly as it renders the motion it samples itself.
 """
@@ -116,8 +120,8 @@ def _path_npz(control: PathControl) -> bytes:
 
 
 def _readme(study: Study, kind: str) -> str:
-    sigma = training_options(study).root.position_sigma
-    controls = ("paths/ID.npz, one per path control, with these arrays:\n" + PATH_ARRAYS if kind == "path" else
+    sigma = study_options(study).root.position_sigma
+    controls = ("paths/ID.npz, one per path control, with these arrays:\n" + PATH_ARRAYS if kind == registry.PATH else
                 "labels/ID.json, one per label control: action, style, frames, fps")
     return (f"Controls of the study \"{study.title}\"\n\nUnits and axes: {AXES}.\n\n"
             f"index.json lists every control (id, name, origin, frames, fps, seconds, its file, the seconds\n"
@@ -146,26 +150,26 @@ def bundle_files(study: Study, natural: bool = False) -> dict[str, bytes]:
         if control.lead_in_seconds:
             entry["lead_in_seconds"] = control.lead_in_seconds
         if isinstance(signal, PathControl):
-            kinds.add("path")
+            kinds.add(registry.PATH)
             entry["file"] = f"paths/{ident}.npz"
             files[entry["file"]] = _path_npz(signal)
         else:
-            kinds.add("attributes")
+            kinds.add(registry.LABELS)
             entry["file"] = f"labels/{ident}.json"
             files[entry["file"]] = json.dumps({"id": ident, **signal.to_dict()}, indent=2).encode()
         if natural and control.origin == ControlSignal.Origin.HELD_OUT and control.source_clip:
             entry["natural"] = f"natural/{ident}.bvh"
-            files[entry["natural"]] = _natural_bvh(study, control).encode()
+            files[entry["natural"]] = _natural_bvh(control).encode()
         entries.append(entry)
-    kind = "path" if kinds == {"path"} else "attributes"
+    kind = registry.PATH if kinds == {registry.PATH} else registry.LABELS
     index = {"study": study.title, "kind": kind, "units": UNITS, "axes": AXES, "controls": entries}
     files["index.json"] = json.dumps(index, indent=2).encode()
     files["README.txt"] = _readme(study, kind).encode()
     return files
 
 
-def _natural_bvh(study: Study, control: ControlSignal) -> str:
-    options = training_options(study)
+def _natural_bvh(control: ControlSignal) -> str:
+    options = natural_options(control)
     motion = natural_motion(control, options)
     return bvh_text(motion_to_bvh(natural_in_control_frame(motion, options.root)))
 
@@ -190,4 +194,4 @@ def bundle_zip(study: Study, natural: bool = False) -> bytes:
     return buffer.getvalue()
 
 
-__all__ = ["AXES", "MAX_HEIGHT_CM", "MIN_HEIGHT_CM", "PATH_TOLERANCE_CM", "SAFE_ID", "bundle_files", "bundle_zip", "control_id", "natural_in_control_frame", "write_bundle"]
+__all__ = ["AXES", "SAFE_ID", "bundle_files", "bundle_zip", "control_id", "natural_in_control_frame", "write_bundle"]

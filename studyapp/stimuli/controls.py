@@ -2,16 +2,21 @@
 
 A study's checkpoints decide the kind of control: a path (MoGlow and its baselines) or an
 action and a style label (HVRNN, ERD, QuaterNet); one study holds one kind, since it
-holds models trained on one dataset.
+holds models trained on one dataset. A study without checkpoints (submitted motion and
+NAT only) is controlled by paths.
 
-Held-out controls come from the test split of the very dataset the study's checkpoints
-were trained on (same files, same options, so the same split): the models never saw
-these clips, and the NAT system shows the clip each one came from. A held-out path is
-the clip's own path; a held-out label control is the clip's action and style. Synthetic
-controls are ``generation.control``'s path presets or a JSON/YAML description, or
-chosen pairs of labels. All follow the frame rate the checkpoints were trained at.
-Adding a control again is harmless; adding a different control under a taken name is
-refused.
+Held-out controls come from real takes, which the NAT system shows. In a study with
+checkpoints they are the test split of the very dataset the checkpoints were trained on
+(same files, same options, so the same split; the data's fingerprint is checked): the
+models never saw these clips. A study without checkpoints takes them from any folder,
+no model trained on it: the takes that the seeded split ``train`` makes of the folder
+holds out (``generation.motion.takes``), read in the unit and up axis detected from the
+files or given. In either, the researcher may name the takes instead (with checkpoints,
+only takes they held out). A held-out path is the clip's own path; a held-out label
+control is the clip's action and style. Synthetic controls are ``generation.control``'s
+path presets or a JSON/YAML description, or chosen pairs of labels. All follow the frame
+rate of the study's motion (``study_options``). Adding a control again is harmless;
+adding a different control under a taken name is refused.
 """
 
 from __future__ import annotations
@@ -26,10 +31,13 @@ from django.conf import settings
 from django.core.files import File
 
 from generation.control import (AttributeControl, Control, held_out_attributes, held_out_paths, lead_in_frames,
-                                load_control_file, preset_path)
-from generation.motion.dataset import DatasetOptions, build_dataset, find_bvh_files
+                                load_control_file, preset_path, take_paths)
+from generation import registry
+from generation.motion.dataset import (LOCOMOTION, DatasetOptions, build_dataset, contents_or_all, find_bvh_files,
+                                       motion_folders)
+from generation.motion.takes import natural_takes
 from studyapp.models import ControlSignal, Study
-from studyapp.stimuli.natural import data_folders, source_name
+from studyapp.stimuli.natural import data_folders, natural_source, source_name
 
 CONTROL_FILE_SUFFIXES = (".json", ".yaml", ".yml")
 MAX_CONTROL_FILE_BYTES = 1_000_000
@@ -54,12 +62,36 @@ def training_options(study: Study) -> DatasetOptions:
     return DatasetOptions.from_dict(systems[0].metadata["dataset_options"])
 
 
+def study_options(study: Study) -> DatasetOptions:
+    """How the study's motion is read (its frame rate and where a body's root is): the
+    options its checkpoints were trained with; in a study without checkpoints, those
+    its first held-out takes were read with, else the defaults (20 fps)."""
+    if study.systems.exclude(checkpoint="").exists():
+        return training_options(study)
+    recorded = next((c.natural for c in study.controls.exclude(source_clip="") if c.natural), None)
+    return DatasetOptions.from_dict(recorded["options"]) if recorded else DatasetOptions()
+
+
+def natural_options(control: ControlSignal) -> DatasetOptions:
+    """The dataset options a held-out control's take is read with: those recorded when
+    it was added (controls added before they were recorded: the checkpoints')."""
+    if control.natural:
+        return DatasetOptions.from_dict(control.natural["options"])
+    return training_options(control.study)
+
+
 def control_kind(study: Study) -> str:
-    """"path" or "attributes": what the study's checkpoints are controlled by."""
-    kinds = {s.metadata.get("control", "path") for s in study.systems.exclude(checkpoint="")}
+    """What the study's checkpoints are controlled by, as the model registry says:
+    ``registry.PATH`` or ``registry.LABELS`` (a study without checkpoints takes paths)."""
+    kinds = set()
+    for system in study.systems.exclude(checkpoint=""):
+        if system.kind not in registry.MODELS:
+            raise ControlError(f"{system.name} is a {system.kind!r} model, a kind this server does not know "
+                               f"(known: {', '.join(registry.MODELS)})")
+        kinds.add(registry.MODELS[system.kind].control)
     if len(kinds) > 1:  # training_options refuses such a study too; say it in these words
         raise ControlError("the study mixes path-controlled and label-controlled models; one study needs one kind")
-    return kinds.pop() if kinds else "path"
+    return kinds.pop() if kinds else registry.PATH
 
 
 def study_labels(study: Study) -> tuple[list[str], list[str]]:
@@ -76,12 +108,13 @@ def study_labels(study: Study) -> tuple[list[str], list[str]]:
 
 def _require(study: Study, kind: str) -> None:
     if control_kind(study) != kind:
-        raise ControlError("this study's models follow a path: add held-out or synthetic paths" if kind == "attributes"
+        raise ControlError("this study's models follow a path: add held-out or synthetic paths" if kind == registry.LABELS
                            else "this study's models are controlled by action and style labels: add held-out or "
                                 "chosen label pairs, not paths")
 
 
-def _save(study: Study, control: Control, origin: str, source_clip: str = "") -> ControlSignal:
+def _save(study: Study, control: Control, origin: str, source_clip: str = "", natural: dict | None = None
+          ) -> ControlSignal:
     data = control.to_dict()
     existing = study.controls.filter(name=control.name).first()
     if existing is not None:
@@ -89,7 +122,8 @@ def _save(study: Study, control: Control, origin: str, source_clip: str = "") ->
             raise ControlError(f"this study already has a different control named {control.name!r}")
         return existing
     return ControlSignal.objects.create(study=study, name=control.name, origin=origin, control=data,
-                                        source_clip=source_clip, seconds=control.n_frames / control.fps)
+                                        source_clip=source_clip, natural=natural or {},
+                                        seconds=control.n_frames / control.fps)
 
 
 def _spread(controls: list[Control], contents: dict[str, str | None], count: int | None) -> list[Control]:
@@ -103,9 +137,17 @@ def _spread(controls: list[Control], contents: dict[str, str | None], count: int
     return interleaved[:count] if count else interleaved
 
 
-def add_held_out_controls(study: Study, seconds: float, count: int | None = None,
-                          lead_in: float = 0.0) -> list[ControlSignal]:
-    """Controls of the held-out clips of ``settings.MOTION_DATA`` cut to ``seconds`` (``count`` of them, or all).
+def add_held_out_controls(study: Study, seconds: float, count: int | None = None, lead_in: float = 0.0,
+                          folders: list[str] | None = None, takes: list[str] | None = None,
+                          scale: float | None = None, up: str | None = None) -> list[ControlSignal]:
+    """Controls of held-out takes cut to ``seconds`` (``count`` of them, or all), of the
+    ``folders`` (default: ``settings.MOTION_DATA``).
+
+    The takes are the held-out ones of the seeded split, or those ``takes`` names (file
+    names without .bvh). With checkpoints in the study, the folders must be the data
+    they were trained on, read with their options; without, the study's motion is read
+    at 20 fps in the unit and up axis detected from the files, unless ``scale`` (file
+    units to cm) and ``up`` are given.
 
     With a ``lead_in`` (path controls only) each clip starts that many seconds into its
     take, the models warm up on the take's control before it, and NAT shows the same
@@ -115,45 +157,81 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
     if not seconds > 0:
         raise ControlError(f"seconds must be positive, got {seconds}")
     kind = control_kind(study)
-    if lead_in and kind != "path":
+    if lead_in and kind != registry.PATH:
         raise ControlError("a lead-in is the path before the clip: this study's models are controlled by labels")
-    options = training_options(study)
+    trained = study.systems.exclude(checkpoint="").exists()
+    if trained and (scale is not None or up is not None):
+        raise ControlError("the study's checkpoints fix the unit and up axis their data is read in; a unit or an "
+                           "up axis is for the takes of a study without checkpoints")
+    options = training_options(study) if trained else DatasetOptions(scale=scale, up=up)
     try:
         lead = lead_in_frames(lead_in, options.fps) / options.fps  # refused before the data is read
     except ValueError as error:
         raise ControlError(str(error)) from None
-    where = settings.MOTION_DATA
+    where = " ".join(map(str, folders)) if folders else f"{settings.MOTION_DATA} (MOTION_DATA)"
+    wanted = [Path(name).stem if name.lower().endswith(".bvh") else name for name in takes or []]
     try:
-        folders = data_folders()
-        dataset = build_dataset(folders, options, cache_dir=Path(settings.VAR_DIR) / "cache", progress=False)
+        folders = motion_folders(folders) if folders else data_folders()
+        if trained:
+            held_out, contents = _trained_takes(study, folders, options, kind, wanted, seconds, lead, where)
+        else:
+            held_out, contents, options = _untrained_takes(folders, options, wanted, seconds, lead)
+    except ControlError:
+        raise
     except (FileNotFoundError, ValueError) as error:
-        raise ControlError(f"cannot read the motion data at {where} (MOTION_DATA): {error}") from None
+        raise ControlError(f"cannot read the motion data at {where}: {error}") from None
+    if lead and not held_out:
+        raise ControlError(f"no held-out take of {where} is longer than the lead-in of {lead:g} s")
+    files = {path.stem: path for path in find_bvh_files(folders)}
+    source = natural_source(folders, options)
+    result = []
+    for control in _spread(held_out, contents, count):
+        cut = f"{lead:g}s+{seconds:g}s" if lead else f"{seconds:g}s"
+        named = dataclasses.replace(control, name=f"{control.name}-{cut}")
+        result.append(_save(study, named, ControlSignal.Origin.HELD_OUT, source_name(files[control.name], folders),
+                            source))
+    return result
+
+
+def _trained_takes(study: Study, folders: list[Path], options: DatasetOptions, kind: str, wanted: list[str],
+                   seconds: float, lead: float, where: str) -> tuple[list[Control], dict[str, str | None]]:
+    """The held-out controls of the data the study's checkpoints were trained on, and
+    each take's content; ControlError where the folders are other data or a named take
+    was not held out."""
+    dataset = build_dataset(folders, options, cache_dir=Path(settings.VAR_DIR) / "cache", progress=False)
     trained_on = {s.metadata.get("data_fingerprint") for s in study.systems.exclude(checkpoint="")}
     if dataset.fingerprint not in trained_on:
-        raise ControlError(f"the motion data at {where} (MOTION_DATA) is not the data the checkpoints were trained on "
+        raise ControlError(f"the motion data at {where} is not the data the checkpoints were trained on "
                            f"(fingerprint {dataset.fingerprint[:12]}, checkpoints {', '.join(sorted(f[:12] for f in trained_on))}); "
                            "its held-out clips could have been training clips")
-    files = {path.stem: path for path in find_bvh_files(folders)}
     contents = {clip.name: clip.content for clip in dataset.select("test", augmented=False)}
-    if kind == "path":
+    trained_takes = [name for name in wanted if name not in contents]
+    if trained_takes:
+        raise ControlError(f"the study's checkpoints may have been trained on {', '.join(trained_takes)}: named "
+                           f"takes must be among the takes held out of their data ({', '.join(sorted(contents))})")
+    if kind == registry.PATH:
         held_out = held_out_paths(dataset, seconds, lead)
-        if lead and not held_out:
-            raise ControlError(f"no held-out take of {where} (MOTION_DATA) is longer than the lead-in of {lead:g} s")
     else:  # only what every model of the study can be asked for
         actions, styles = study_labels(study)
         held_out = [c for c in held_out_attributes(dataset, seconds) if c.action in actions and c.style in styles]
-    result = []
-    for control in _spread(held_out, contents, count):
-        source = source_name(files[control.name], folders)
-        cut = f"{lead:g}s+{seconds:g}s" if lead else f"{seconds:g}s"
-        named = dataclasses.replace(control, name=f"{control.name}-{cut}")
-        result.append(_save(study, named, ControlSignal.Origin.HELD_OUT, source))
-    return result
+    return [c for c in held_out if not wanted or c.name in wanted], contents
+
+
+def _untrained_takes(folders: list[Path], options: DatasetOptions, wanted: list[str], seconds: float, lead: float
+                     ) -> tuple[list[Control], dict[str, str | None], DatasetOptions]:
+    """The held-out paths of takes no checkpoint of the study was trained on: those the
+    seeded split that training on the folders makes holds out (of the locomotion contents
+    where the takes have labels, as ``train`` takes them), or the ``wanted`` ones; each
+    take's content; and the options with the unit and up axis as read."""
+    options = dataclasses.replace(options, contents=None if wanted else contents_or_all(folders, LOCOMOTION))
+    found, options = natural_takes(folders, options, wanted or None)
+    held_out = take_paths([(take.name, take.control) for take in found], options.fps, seconds, lead)
+    return held_out, {take.name: take.content for take in found}, options
 
 
 def add_label_controls(study: Study, actions: list[str], styles: list[str], seconds: float) -> list[ControlSignal]:
     """Synthetic label controls: every chosen action with every chosen style, ``seconds`` long."""
-    _require(study, "attributes")
+    _require(study, registry.LABELS)
     known_actions, known_styles = study_labels(study)
     for names, known, kind in ((actions, known_actions, "action"), (styles, known_styles, "style")):
         if not names:
@@ -171,8 +249,8 @@ def add_label_controls(study: Study, actions: list[str], styles: list[str], seco
 
 def add_preset_controls(study: Study, names: list[str]) -> list[ControlSignal]:
     """Synthetic controls from ``generation.control.PRESETS`` by name."""
-    _require(study, "path")
-    fps = training_options(study).fps
+    _require(study, registry.PATH)
+    fps = study_options(study).fps
     try:
         controls = [preset_path(name, fps) for name in names]
     except ValueError as error:
@@ -187,8 +265,8 @@ def add_control_file(study: Study, upload: File) -> list[ControlSignal]:
         raise ControlError(f"{name or 'the file'}: a control description must be {', '.join(CONTROL_FILE_SUFFIXES)}")
     if upload.size > MAX_CONTROL_FILE_BYTES:
         raise ControlError(f"{name}: {upload.size / 1e6:.1f} MB is over the {MAX_CONTROL_FILE_BYTES / 1e6:.0f} MB limit")
-    _require(study, "path")
-    fps = training_options(study).fps
+    _require(study, registry.PATH)
+    fps = study_options(study).fps
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / name
         path.write_bytes(b"".join(upload.chunks()))
@@ -200,4 +278,4 @@ def add_control_file(study: Study, upload: File) -> list[ControlSignal]:
 
 
 __all__ = ["ControlError", "add_control_file", "add_held_out_controls", "add_label_controls", "add_preset_controls",
-           "control_kind", "study_labels", "training_options"]
+           "control_kind", "natural_options", "study_labels", "study_options", "training_options"]

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from generation import registry
 from studyapp.models import Study
 
 # The dataset options `python -m generation train` sets: each option as it is written,
@@ -55,21 +56,22 @@ def matching_train_options(study: dict) -> str:
 
 
 def data_mismatch(study: Study, control: str, dataset_options: dict, fingerprint: str) -> str | None:
-    """Why a checkpoint controlled by ``control`` ("path" or "attributes") that learnt from
-    the data of ``fingerprint``, prepared by ``dataset_options``, does not fit ``study``'s
-    other checkpoints; None where it fits (or is the first)."""
-    others = list(study.systems.exclude(checkpoint=""))
+    """Why a checkpoint controlled by ``control`` (``registry.PATH`` or ``registry.LABELS``)
+    that learnt from the data of ``fingerprint``, prepared by ``dataset_options``, does not
+    fit ``study``'s other checkpoints; None where it fits (or is the first)."""
+    others = [s for s in study.systems.exclude(checkpoint="") if s.kind in registry.MODELS]
     if not others:
         return None
     names = ", ".join(s.name for s in others)
     first = others[0].metadata
-    if control != first.get("control", "path"):
-        follows = {"path": "a path", "attributes": "action and style labels"}
+    theirs = registry.MODELS[others[0].kind].control
+    if control != theirs:
+        follows = {registry.PATH: "a path", registry.LABELS: "action and style labels"}
         return (f"it follows {follows[control]}, and the study's checkpoints ({names}) follow "
-                f"{follows[first.get('control', 'path')]}: one study holds one kind of model")
+                f"{follows[theirs]}: one study holds one kind of model")
     differences = option_differences(dataset_options, first["dataset_options"])
     if differences:
-        match = "" if control != "path" else (
+        match = "" if control != registry.PATH else (
             f" Train it with: python -m generation train FOLDER ... {matching_train_options(first['dataset_options'])}")
         return (f"it learnt from data prepared otherwise than the study's checkpoints ({names}): "
                 + "; ".join(differences) + f".{match}")

@@ -1,11 +1,19 @@
-"""A study's motion as the objective metrics read it: one folder per system, one clip a file.
+"""A study's motion as the objective metrics and animation tools read it: one folder per
+system, one clip in two files.
 
     OUT/<system>/<control id>.npz    positions (frames, joints, 3) cm, y up; fps; names;
                                      parents; offsets; system (analysis/motion_io.py's layout)
-    OUT/<system>/<control id>.bvh    the same clip as a rotation BVH (cm, y up), for animation
-                                     tools: motion that has positions only (MoGlow and its
-                                     baselines, submitted arrays) gets its rotations on its own
-                                     rig by inverse kinematics, as ``sample --bvh`` writes them
+    OUT/<system>/<control id>.bvh    the same clip as a rotation BVH on the system's rig:
+                                     every joint's ZXY rotation and the root's position,
+                                     in cm with y up (BVH cannot say so itself)
+
+The BVH files hold rotations for every kind of system, so the motion loads onto a
+character in Blender, Maya or a game engine: NAT's are the capture's own; every other
+clip is kept as positions (sampled motion of any model kind, submitted motion), and its
+rotations are those that inverse kinematics finds on the rig (``generation.motion.ik``:
+the rig's bone lengths, every bone pointing where the clip's does; a label model's
+clip, made by its rig's forward kinematics, comes back joint for joint). The objective
+metrics read the ``.npz`` files only.
 
 Systems are named as in the ratings table (``System.export_name``: NAT and BAD for those
 roles, a model system by its name), in each file's ``system`` array and, where the name
@@ -14,7 +22,7 @@ is a plain file name, in its folder's name (else ``system-<id>``), so ``python -
 its ratings. A clip is the motion of a finished stimulus as its system's source gives it
 to the renderer (``sources``): a checkpoint's sampled motion, submitted motion, the
 natural clip; uploaded videos have no motion and are left out. A clip sampled with
-another seed than 0 is ``<control id>-seed<seed>.npz``.
+another seed than 0 is ``<control id>-seed<seed>.npz`` (and ``.bvh``).
 
 The folder is written under a temporary name beside ``out`` and renamed into place, so a
 failure leaves nothing behind. ``motion_zip`` gives the same files as a zip.
@@ -29,8 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
-from generation.files import atomic_folder
-from generation.motion.bvh import motion_to_bvh, write_bvh
+from generation.files import atomic_folder, write_atomic
+from generation.motion.bvh import bvh_text, motion_to_bvh
 from generation.motion.npz import save_motion_npz
 from studyapp.models import Stimulus, Study, System
 from studyapp.stimuli.control_export import SAFE_ID, control_id
@@ -43,11 +51,10 @@ def folder_name(system: System) -> str:
     return system.export_name if SAFE_ID.fullmatch(system.export_name) else f"system-{system.pk}"
 
 
-def clip_name(stimulus: Stimulus, suffix: str = ".npz") -> str:
-    """The file a stimulus's motion (or, by ``suffix``, its video or BVH) is written to,
-    inside its system's folder."""
-    name = control_id(stimulus.control) if stimulus.control else f"video-{stimulus.pk}"
-    return f"{name}{suffix}" if stimulus.seed == 0 else f"{name}-seed{stimulus.seed}{suffix}"
+def clip_name(stimulus: Stimulus) -> str:
+    """The name of a stimulus's files inside its system's folder, without their suffix."""
+    name = control_id(stimulus.control)
+    return name if stimulus.seed == 0 else f"{name}-seed{stimulus.seed}"
 
 
 def exported_stimuli(study: Study) -> list[Stimulus]:
@@ -66,13 +73,13 @@ def write_motion(study: Study, out: Path) -> dict[str, int]:
     with atomic_folder(out) as work:
         for stimulus in exported_stimuli(study):
             system = stimulus.system.export_name
-            folder = work / folder_name(stimulus.system)
             try:
                 motion = source_of(stimulus.system).clip(stimulus).motion
-                save_motion_npz(motion, folder / clip_name(stimulus), system=np.array(system))
-                write_bvh(motion_to_bvh(motion), folder / clip_name(stimulus, ".bvh"))
             except (ValueError, FileNotFoundError) as error:
                 raise ValueError(f"the motion of {stimulus.system.name} for {stimulus.control.name}: {error}") from None
+            folder, name = work / folder_name(stimulus.system), clip_name(stimulus)  # a name may hold a dot: "-2.5s"
+            save_motion_npz(motion, folder / f"{name}.npz", system=np.array(system))
+            write_atomic(folder / f"{name}.bvh", bvh_text(motion_to_bvh(motion)).encode())
             counts[system] = counts.get(system, 0) + 1
     return counts
 

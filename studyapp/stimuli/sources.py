@@ -28,7 +28,7 @@ from generation.motion.npz import load_motion_npz, save_motion_npz
 from generation.motion.root import root_trajectory
 from generation.motion.types import Motion
 from studyapp.models import ControlSignal, Stimulus, System
-from studyapp.stimuli.controls import training_options
+from studyapp.stimuli.controls import natural_options, study_options
 from studyapp.stimuli.natural import natural_motion
 from studyapp.stimuli.submissions import read_stored_motion
 
@@ -65,7 +65,7 @@ def commanded_floor(control: ControlSignal, motion: Motion) -> np.ndarray:
     signal = control_from_dict(control.control)
     if isinstance(signal, PathControl):
         return signal.path().xz
-    return root_trajectory(motion, training_options(control.study).root).xz
+    return root_trajectory(motion, study_options(control.study).root).xz
 
 
 def sampling_device(setting: str) -> str:
@@ -184,7 +184,7 @@ class NaturalClips:
 
     def clip(self, stimulus: Stimulus) -> Clip:
         control = stimulus.control
-        options = training_options(stimulus.study)
+        options = natural_options(control)
         motion = natural_motion(control, options)
         return Clip(motion, root_trajectory(motion, options.root).xz)
 

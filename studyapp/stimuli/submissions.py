@@ -1,13 +1,16 @@
-"""Submitted motion: another lab's clips for the study's exported controls, as a system.
+"""Submitted motion: another lab's clips for the study's controls, as a system.
 
-A submission is a folder or a zip holding one BVH or ``.npz`` per control, named by the
-control's id (``control_export.control_id``; the bundle's README.txt states the rules).
-Everything is checked before anything is stored and every problem is listed at once
-(``SubmissionRefused``): controls without a file and files of no control, skeletons that
-differ, unreadable or non-finite motion, a frame rate below the control's, a clip
-shorter than its control, lengths that are not centimetres, and a root that strays from
-the commanded path. Accepted clips are reduced to the body (the hips and below, as NAT
-clips are), resampled to the control's frame rate, trimmed to its frames and stored as
+A submission is a folder or a zip of motion files as the lab has them: one BVH (any
+unit, y or z up, starting anywhere) or ``.npz`` per control, named by the control's id
+(``control_export.control_id``) or ``ID_NN.bvh`` as ``sample`` names its clips. The files
+go through ``generation.submission.prepare_submission`` with the study's own controls,
+in one pass, exactly as ``python -m generation prepare-submission`` runs it: the unit
+and up axis detected (or given), each clip resampled and cut to its control, moved on
+the floor so its root starts at the control's start (unless kept where it is), and
+refused where a control has no usable clip. Its report says per control what was
+matched, converted and refused; a refused submission is refused whole with the report
+(``SubmissionRefused``), and an accepted one keeps it in the system's metadata. Accepted
+clips are reduced to the body (the hips and below, as NAT clips are) and stored as
 ``.npz`` under ``CHECKPOINT_ROOT/submitted/<digest>/``; ``sources.SubmittedMotion``
 reads them and the workers render them as they render sampled motion.
 
@@ -19,43 +22,49 @@ zip bomb).
 from __future__ import annotations
 
 import hashlib
-import io
 import os
 import shutil
 import tempfile
 import zipfile
-from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
-import numpy as np
 from django.conf import settings
 from django.core.files import File
 
-from generation.control import PathControl, control_from_dict
-from generation.motion.bvh import BVHError, load_motion
+from generation.control import control_from_dict
 from generation.motion.kinematics import subtree_motion
 from generation.motion.npz import load_motion_npz, save_motion_npz
-from generation.motion.resample import resample
-from generation.motion.root import hips_index, root_trajectory
+from generation.motion.root import RootOptions, hips_index
 from generation.motion.types import Motion
+from generation.submission import MOTION_SUFFIXES, prepare_submission
 from studyapp.models import ControlSignal, Study, System
-from studyapp.stimuli.control_export import MAX_HEIGHT_CM, MIN_HEIGHT_CM, PATH_TOLERANCE_CM, control_id
-from studyapp.stimuli.controls import ControlError, training_options
+from studyapp.stimuli.control_export import control_id
+from studyapp.stimuli.controls import ControlError, study_options
 from studyapp.stimuli.systems import UploadRefused, check_name
 
-MOTION_SUFFIXES = (".bvh", ".npz")
 MAX_MEMBERS = 10_000
 SUBMITTED_FOLDER = "submitted"
 
 
 class SubmissionRefused(UploadRefused):
-    """Submitted motion that cannot become a system; ``problems`` lists every reason."""
+    """Submitted motion that cannot become a system; ``lines`` say why: the report of
+    every control where the files were read."""
 
-    def __init__(self, problems: list[str]) -> None:
-        self.problems = problems
-        super().__init__(f"{len(problems)} problem(s) with the submitted motion:\n" + "\n".join(
-            f"- {problem}" for problem in problems))
+    def __init__(self, lines: list[str]) -> None:
+        self.lines = lines
+        super().__init__("the submitted motion was not registered:\n" + "\n".join(f"- {line}" for line in lines))
+
+
+@dataclass(frozen=True)
+class Reading:
+    """How the submitted files are read: the BVH files' unit (``scale``, file units to cm)
+    and up axis, None where detected, and whether each clip stays where it is on the
+    floor (``keep_root``) instead of starting at its control's start."""
+
+    scale: float | None = None
+    up: str | None = None
+    keep_root: bool = False
 
 
 def _max_bytes() -> int:
@@ -99,109 +108,60 @@ def read_folder(folder: Path) -> dict[str, bytes]:
     return files
 
 
-def _parse(name: str, data: bytes) -> Motion:
-    """A file's motion; ValueError naming the problem."""
-    if name.lower().endswith(".npz"):
-        return load_motion_npz(io.BytesIO(data))
-    with tempfile.TemporaryDirectory() as folder:
-        path = Path(folder) / name
-        path.write_bytes(data)
-        try:
-            return load_motion(path)
-        except (BVHError, UnicodeDecodeError) as error:
-            raise ValueError(str(error).replace(str(path), name)) from None
-
-
-def body_height(motion: Motion) -> float:
-    """The largest vertical extent of the body over the clip (about a person's height when standing)."""
-    y = motion.positions[..., 1]
-    return float((y.max(axis=1) - y.min(axis=1)).max())
-
-
 @dataclass(frozen=True)
 class Accepted:
     control: ControlSignal
     motion: Motion
 
 
-def _check_one(name: str, motion: Motion, control: ControlSignal, root_options) -> tuple[Motion | None, list[str]]:
-    """The motion as the study will render it (body, control's fps and frames), or the problems."""
-    signal = control_from_dict(control.control)
-    problems = []
-    if motion.fps + 1e-6 < signal.fps:
-        return None, [f"{name}: {motion.fps:g} fps is below the control's {signal.fps:g} fps; "
-                      "motion is resampled down, never up"]
-    body = resample(subtree_motion(motion, hips_index(motion.skeleton, root_options.hips)), signal.fps)
-    if body.n_frames < signal.n_frames:
-        return None, [f"{name}: {body.n_frames} frames ({body.n_frames / signal.fps:.2f} s) at {signal.fps:g} fps, "
-                      f"shorter than its control's {signal.n_frames} frames ({signal.n_frames / signal.fps:.2f} s)"]
-    body = Motion(body.positions[:signal.n_frames], body.fps, body.skeleton)
-    height = body_height(body)
-    if not MIN_HEIGHT_CM <= height <= MAX_HEIGHT_CM:
-        problems.append(f"{name}: the body is {height:.3g} units tall; lengths must be centimetres "
-                        f"(a body {MIN_HEIGHT_CM:g}-{MAX_HEIGHT_CM:g} cm tall)")
-    elif isinstance(signal, PathControl):
-        try:
-            root = root_trajectory(body, root_options).xz
-        except ValueError as error:
-            return None, [f"{name}: {error}"]
-        distance = np.linalg.norm(root - signal.path().xz, axis=1)
-        worst = int(distance.argmax())
-        if distance[worst] > PATH_TOLERANCE_CM:
-            problems.append(f"{name}: the root strays {distance[worst]:.0f} cm from the control's path (at frame "
-                            f"{worst}); the tolerance is {PATH_TOLERANCE_CM:g} cm")
-    return (None if problems else body), problems
+def _motion_files(files: dict[str, bytes]) -> dict[str, str]:
+    """The motion files' paths by file name (README files, macOS resource forks and the
+    like left out); SubmissionRefused where two share a name, since only the name counts."""
+    named: dict[str, list[str]] = {}
+    for path in files:
+        name = PurePosixPath(path).name
+        if not (name.startswith(".") or path.startswith("__MACOSX/") or Path(name).suffix.lower() not in MOTION_SUFFIXES):
+            named.setdefault(name, []).append(path)
+    shared = [" and ".join(paths) for paths in named.values() if len(paths) > 1]
+    if shared:
+        raise SubmissionRefused([f"{paths}: only a file's name counts, and these have the same" for paths in shared])
+    return {name: paths[0] for name, paths in named.items()}
 
 
-def check_submission(study: Study, files: dict[str, bytes]) -> list[Accepted]:
-    """Every control's accepted motion; SubmissionRefused listing every problem if any."""
+def check_submission(study: Study, files: dict[str, bytes], reading: Reading = Reading()
+                     ) -> tuple[list[Accepted], list[str]]:
+    """Every control's accepted motion and the report of what became of each file (its
+    lines); SubmissionRefused with the report where a control has no usable clip."""
     try:
-        root_options = training_options(study).root
+        root = study_options(study).root
     except ControlError as error:
         raise SubmissionRefused([str(error)]) from None
     by_id = {control_id(c): c for c in study.controls.all()}
     if not by_id:
         raise SubmissionRefused(["the study has no controls yet: add them, export them, then submit motion"])
-    problems: list[str] = []
-    chosen: dict[str, str] = {}
-    for path in files:
-        name = PurePosixPath(path).name
-        stem, suffix = os.path.splitext(name)
-        if name.startswith(".") or path.startswith("__MACOSX/") or suffix.lower() not in MOTION_SUFFIXES:
-            continue  # README files, macOS resource forks and the like
-        if stem not in by_id:
-            problems.append(f"{path}: no control has the id {stem!r}")
-        elif stem in chosen:
-            problems.append(f"{path}: control {stem!r} already has the file {chosen[stem]}")
-        else:
-            chosen[stem] = path
-    missing = sorted(set(by_id) - set(chosen))
-    if missing:
-        problems.append(f"no file for the control(s) {', '.join(missing)}")
-    motions = {}
-    for stem, path in sorted(chosen.items()):
+    named = _motion_files(files)
+    controls = {ident: control_from_dict(control.control) for ident, control in by_id.items()}
+    with tempfile.TemporaryDirectory() as scratch:
+        # prepare_submission reads files: each keeps its name, nothing else of its path.
+        paths = [Path(scratch) / name for name in named]
+        for path in paths:
+            try:
+                path.write_bytes(files[named[path.name]])
+            except OSError as error:  # a name this file system does not take
+                raise SubmissionRefused([f"{named[path.name]}: not a usable file name ({error.strerror})"]) from None
         try:
-            motions[stem] = _parse(PurePosixPath(path).name, files[path])
-        except ValueError as error:
-            problems.append(f"{path}: {error}")
-    # The skeleton most files share is the submission's; the others are listed against it.
-    skeletons = {stem: (m.skeleton.names, tuple(m.skeleton.parents)) for stem, m in motions.items()}
-    common = Counter(skeletons.values()).most_common(1)
-    accepted = []
-    for stem, motion in motions.items():
-        path = chosen[stem]
-        if skeletons[stem] != common[0][0]:
-            sharing = [chosen[s] for s, k in skeletons.items() if k == common[0][0]]
-            problems.append(f"{path}: its skeleton ({motion.skeleton.n_joints} joints) differs from the one of "
-                            f"{len(sharing)} other file(s), e.g. {sharing[0]} ({len(common[0][0][0])} joints)")
-            continue
-        body, found = _check_one(path, motion, by_id[stem], root_options)
-        problems += found
-        if body is not None:
-            accepted.append(Accepted(by_id[stem], body))
-    if problems:
-        raise SubmissionRefused(problems)
-    return accepted
+            report = prepare_submission(paths, controls, reading.scale, reading.up, root, not reading.keep_root)
+        except ValueError as error:  # BVH files that mix units
+            raise SubmissionRefused([str(error).replace(f"{scratch}{os.sep}", "")]) from None
+        lines = [line.replace(f"{scratch}{os.sep}", "") for line in report.lines()]
+    if not report.accepted:
+        raise SubmissionRefused(lines)
+    return [Accepted(by_id[result.control], _body(result.motion, root)) for result in report.results], lines
+
+
+def _body(motion: Motion, root: RootOptions) -> Motion:
+    """The body (the hips and below), as NAT clips and the models' data are."""
+    return subtree_motion(motion, hips_index(motion.skeleton, root.hips))
 
 
 def _store(accepted: list[Accepted]) -> tuple[str, str]:
@@ -224,12 +184,13 @@ def _store(accepted: list[Accepted]) -> tuple[str, str]:
 
 
 def add_submitted_system(study: Study, name: str, files: dict[str, bytes], role: str = System.Role.MODEL,
-                         source: str = "") -> System:
-    """A system of submitted motion (``files`` by name, from ``read_zip`` or ``read_folder``)."""
+                         source: str = "", reading: Reading = Reading()) -> System:
+    """A system of submitted motion (``files`` by name, from ``read_zip`` or ``read_folder``);
+    its metadata keeps the report of what became of each file."""
     if role not in (System.Role.MODEL, System.Role.BAD):
         raise UploadRefused(f"submitted motion makes a model or a BAD system, not {role!r}")
     check_name(study, name)
-    accepted = check_submission(study, files)
+    accepted, report = check_submission(study, files, reading)
     folder, digest = _store(accepted)
     twin = study.systems.filter(kind=System.SourceKind.SUBMITTED, checkpoint_digest=digest).first()
     if twin is not None:
@@ -238,10 +199,11 @@ def add_submitted_system(study: Study, name: str, files: dict[str, bytes], role:
     return System.objects.create(
         study=study, name=name, role=role, kind=System.SourceKind.SUBMITTED, checkpoint_digest=digest,
         metadata={"folder": folder, "controls": sorted(a.control.name for a in accepted), "file": source,
-                  "joints": skeleton.n_joints})
+                  "joints": skeleton.n_joints, "report": report})
 
 
-def add_submitted_upload(study: Study, name: str, upload: File, role: str = System.Role.MODEL) -> System:
+def add_submitted_upload(study: Study, name: str, upload: File, role: str = System.Role.MODEL,
+                         reading: Reading = Reading()) -> System:
     """A system from an uploaded zip of motion (the systems page, ``add_system --motion``)."""
     original = Path(upload.name or "").name
     if not original.lower().endswith(".zip"):
@@ -249,7 +211,7 @@ def add_submitted_upload(study: Study, name: str, upload: File, role: str = Syst
     if upload.size > _max_bytes():
         raise UploadRefused(f"{original}: {upload.size / 1e6:.1f} MB is over the {_max_bytes() / 1e6:g} MB limit")
     upload.seek(0)
-    return add_submitted_system(study, name, read_zip(upload), role, original)
+    return add_submitted_system(study, name, read_zip(upload), role, original, reading)
 
 
 def read_stored_motion(system: System, control: ControlSignal) -> Motion:
@@ -260,5 +222,5 @@ def read_stored_motion(system: System, control: ControlSignal) -> Motion:
     return load_motion_npz(path)
 
 
-__all__ = ["SubmissionRefused", "add_submitted_system", "add_submitted_upload", "body_height", "check_submission",
+__all__ = ["Reading", "SubmissionRefused", "add_submitted_system", "add_submitted_upload", "check_submission",
            "read_folder", "read_stored_motion", "read_zip"]

@@ -4,22 +4,22 @@ Uploads are never trusted: a checkpoint must be a safetensors file of this proje
 loads completely (digest, kind, every tensor's name and shape), can drive the Generator
 and learnt from the data the study's other checkpoints learnt from, prepared the same
 way (``data_match``); a video must be an MP4 whose first frame decodes. Nothing is unpickled or
-executed, and a refused upload leaves nothing on disk. Accepted checkpoints are stored
-under ``CHECKPOINT_ROOT`` named by their SHA-256, so the same file uploaded twice is
-stored once; accepted videos become finished stimuli under ``MEDIA_ROOT/stimuli/``.
+executed, and a refused upload leaves nothing on disk. Accepted checkpoints are kept by
+the project's one checkpoint store (``generation.store.keep``) under ``CHECKPOINT_ROOT``,
+named by their content digest, so the same checkpoint uploaded twice is stored once; what
+a kind is controlled by and its named presets come from the model registry
+(``generation.registry``). Accepted videos become finished stimuli under
+``MEDIA_ROOT/stimuli/``.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
-import json
-import os
-import struct
 import subprocess
 import tempfile
-from contextlib import ExitStack
 from collections.abc import Callable
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -29,19 +29,16 @@ from django.conf import settings
 from django.core.files import File
 from django.db import transaction
 
+from generation import registry
 from generation.files import atomic_output
+from generation.store import SUFFIX as CHECKPOINT_SUFFIX
 from studyapp.models import Stimulus, Study, System, new_token
 from studyapp.stimuli.data_match import data_mismatch
 
 if TYPE_CHECKING:  # torch-backed modules load only when a checkpoint is handled
     from generation.checkpoint import CheckpointMeta
 
-CHECKPOINT_SUFFIX = ".safetensors"
 VIDEO_SUFFIX = ".mp4"
-# A safetensors file starts with the little-endian length of its JSON header; real
-# headers are kilobytes, so anything near this is not one.
-MAX_HEADER_BYTES = 100_000_000
-KNOWN_PRESETS = ("paper", "cpu")
 
 
 class UploadRefused(ValueError):
@@ -51,7 +48,7 @@ class UploadRefused(ValueError):
 @dataclass(frozen=True)
 class StoredCheckpoint:
     relative_path: str  # under CHECKPOINT_ROOT
-    digest: str  # SHA-256 of the file
+    digest: str  # its content digest (generation.store.content_digest)
     meta: CheckpointMeta
     parameters: int
 
@@ -74,64 +71,35 @@ def _copy(upload: File, target: Path) -> str:
     return digest.hexdigest()
 
 
-def safetensors_header_problem(path: Path) -> str | None:
-    """Why the file is not a safetensors file (its framing and JSON header), or None."""
-    size = path.stat().st_size
-    with path.open("rb") as stream:
-        prefix = stream.read(8)
-        if len(prefix) < 8:
-            return "too short to be a safetensors file"
-        (length,) = struct.unpack("<Q", prefix)
-        if length < 2 or length > min(MAX_HEADER_BYTES, size - 8):
-            return "not a safetensors file (its first 8 bytes do not give a header length that fits the file)"
-        header = stream.read(length)
-    try:
-        parsed = json.loads(header)
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        return "not a safetensors file (its header is not JSON)"
-    return None if isinstance(parsed, dict) else "not a safetensors file (its header is not a JSON object)"
-
-
 def preset_name(meta: CheckpointMeta) -> str:
-    """The named presets whose configuration the checkpoint has ("paper/cpu" where they
-    are the same), or "custom"."""
-    from generation.registry import model_class, preset
-
+    """The kind's named presets (the registry's) whose configuration the checkpoint has
+    ("paper/cpu" where they are the same), or "custom"."""
     # With the defaults of options newer than the checkpoint filled in, as loading does.
-    hyperparameters = dataclasses.asdict(model_class(meta.kind).Config(**meta.hyperparameters))
-    matches = []
-    for name in KNOWN_PRESETS:
-        try:
-            if dataclasses.asdict(preset(meta.kind, name)) == hyperparameters:
-                matches.append(name)
-        except ValueError:  # a kind without this preset
-            continue
+    hyperparameters = dataclasses.asdict(registry.model_class(meta.kind).Config(**meta.hyperparameters))
+    matches = [name for name in registry.MODELS[meta.kind].presets
+               if dataclasses.asdict(registry.preset(meta.kind, name)) == hyperparameters]
     return "/".join(matches) or "custom"
 
 
 def store_checkpoint(upload: File, fits: Callable[[CheckpointMeta], str | None] = lambda meta: None) -> StoredCheckpoint:
-    """Validate an uploaded checkpoint completely and store it by digest (UploadRefused if
-    not); ``fits`` says why a valid checkpoint does not fit where it goes (None: it fits),
-    before anything is stored."""
+    """Validate an uploaded checkpoint completely and keep it in the checkpoint store
+    (UploadRefused if not); ``fits`` says why a valid checkpoint does not fit where it goes
+    (None: it fits), before anything is kept."""
     from generation.checkpoint import CheckpointError, load_checkpoint
     from generation.generator import Generator
+    from generation.store import keep
 
     _check_upload(upload, CHECKPOINT_SUFFIX, settings.MAX_CHECKPOINT_UPLOAD_BYTES, "checkpoint")
     name = Path(upload.name).name
     root = Path(settings.CHECKPOINT_ROOT)
     root.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(dir=root, prefix=".upload-", suffix=".part")
-    os.close(fd)
-    tmp = Path(tmp_name)
-    try:
-        digest = _copy(upload, tmp)
-        problem = safetensors_header_problem(tmp)
-        if problem:
-            raise UploadRefused(f"{name}: {problem}")
+    with tempfile.TemporaryDirectory(dir=root, prefix=".upload-") as scratch:  # gone whatever happens
+        received = Path(scratch) / f"upload{CHECKPOINT_SUFFIX}"
+        _copy(upload, received)
         try:
-            model, meta = load_checkpoint(tmp)
+            model, meta = load_checkpoint(received)
         except CheckpointError as error:
-            raise UploadRefused(f"{name}: {str(error).removeprefix(f'{tmp}: ')}") from None
+            raise UploadRefused(f"{name}: {str(error).removeprefix(f'{received}: ')}") from None
         try:
             Generator(model, meta)  # the features and statistics sampling needs are there
         except (KeyError, TypeError, ValueError, AttributeError) as error:
@@ -139,26 +107,16 @@ def store_checkpoint(upload: File, fits: Callable[[CheckpointMeta], str | None] 
         if (problem := fits(meta)) is not None:
             raise UploadRefused(f"{name}: {problem}")
         parameters = sum(p.numel() for p in model.parameters())
-        final = root / f"{digest}{CHECKPOINT_SUFFIX}"
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, final)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return StoredCheckpoint(final.name, digest, meta, parameters)
-
-
-def control_of(meta: CheckpointMeta) -> str:
-    """What a checkpoint's controls must be: "attributes" (action and style labels) or "path"."""
-    return "attributes" if meta.features.get("type") == "angles" else "path"
+        stored, digest = keep(received, root)
+    return StoredCheckpoint(stored.name, digest, meta, parameters)
 
 
 def checkpoint_metadata(stored: StoredCheckpoint, original_name: str) -> dict:
     """What the systems page shows and generation needs about a stored checkpoint."""
     meta = stored.meta
-    labelled = control_of(meta) == "attributes"
+    labelled = registry.MODELS[meta.kind].control == registry.LABELS
     labels = {"actions": meta.hyperparameters["actions"], "styles": meta.hyperparameters["styles"]} if labelled else None
     return {
-        "control": control_of(meta),  # what its controls must be
         "labels": labels,
         "file": original_name,
         "preset": preset_name(meta),
@@ -188,10 +146,18 @@ def add_checkpoint_system(study: Study, name: str, upload: File, role: str = Sys
         raise UploadRefused(f"the sampling temperature must be positive, got {temperature}")
     check_name(study, name)
     stored = store_checkpoint(upload, lambda meta: data_mismatch(
-        study, control_of(meta), meta.features["dataset_options"], meta.data_fingerprint))
+        study, registry.MODELS[meta.kind].control, meta.features["dataset_options"], meta.data_fingerprint))
     twin = study.systems.filter(checkpoint_digest=stored.digest, role=role, temperature=temperature).first()
     if twin is not None:
         raise UploadRefused(f"this checkpoint is already system {twin.name!r} at temperature {temperature:g}")
+    # A study without checkpoints may have controls already (for submitted motion and NAT): a model
+    # trained at another frame rate could follow none of them.
+    fps = stored.meta.features["dataset_options"]["fps"]
+    other = [control.name for control in study.controls.all() if abs(control.control["fps"] - fps) > 1e-6]
+    if other:
+        raise UploadRefused(f"this checkpoint was trained at {fps:g} fps and cannot follow the study's controls at "
+                            f"another frame rate ({', '.join(other[:3])}{' ...' if len(other) > 3 else ''}); remove "
+                            "them first")
     return System.objects.create(
         study=study, name=name, role=role, checkpoint=stored.relative_path, checkpoint_digest=stored.digest,
         kind=stored.meta.kind, metadata=checkpoint_metadata(stored, Path(upload.name).name), temperature=temperature)
@@ -278,4 +244,4 @@ def add_video_system(study: Study, name: str, uploads: list[File], role: str = S
 
 
 __all__ = ["UploadRefused", "add_checkpoint_system", "check_name", "add_natural_system", "add_video_system",
-           "safetensors_header_problem", "store_checkpoint", "video_duration"]
+           "store_checkpoint", "video_duration"]

@@ -2,6 +2,7 @@
 a supplement or a talk:
 
     stimuli-study-<pk>/<system>/<control id>.mp4   named as the motion export names its files
+                                                   (an uploaded video: video-<id>.mp4)
     stimuli-study-<pk>/index.csv                   file, system, control, control_class and the
                                                    stimulus column of the ratings table
 
@@ -39,7 +40,7 @@ def stimuli_zip(study: Study) -> IO[bytes]:
     try:
         with zipfile.ZipFile(archive_file, "w", zipfile.ZIP_STORED) as archive:
             for clip in finished_clips(study):
-                name = f"{folder_name(clip.system)}/{clip_name(clip, '.mp4')}"
+                name = f"{folder_name(clip.system)}/{clip_name(clip) if clip.control else f'video-{clip.pk}'}.mp4"
                 if not clip.video_path().is_file():
                     raise FileNotFoundError(f"the video of {clip.system.name} for "
                                             f"{clip.control.name if clip.control else 'an uploaded video'} is missing")

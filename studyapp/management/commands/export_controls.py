@@ -18,7 +18,7 @@ class Command(BaseCommand):
         parser.add_argument("study_id", type=int)
         parser.add_argument("--out", type=Path, required=True, help="the folder to write (created)")
         parser.add_argument("--natural", action="store_true",
-                            help="also the natural clips of the held-out controls as BVH (from MOTION_DATA)")
+                            help="also the natural clips of the held-out controls as BVH (read where their takes are)")
 
     def handle(self, *args, **options):
         study = study_by_id(options["study_id"])

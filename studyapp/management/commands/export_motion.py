@@ -13,7 +13,8 @@ from ._study import InputError, study_by_id
 class Command(BaseCommand):
     help = ("Write the motion of every finished clip of a study (sampled, submitted and natural) as .npz files, "
             "one folder per system named as in the ratings table, for `python -m analysis objective` and "
-            "`python -m analysis report --motion`.")
+            "`python -m analysis report --motion`, and each clip as a rotation BVH on its system's rig (cm, y up) "
+            "for animation tools.")
 
     def add_arguments(self, parser):
         parser.add_argument("study_id", type=int)

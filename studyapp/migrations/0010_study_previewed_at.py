@@ -6,7 +6,7 @@ from django.db import migrations, models
 class Migration(migrations.Migration):
 
     dependencies = [
-        ('studyapp', '0007_control_export_ids_kept_on_rename'),
+        ('studyapp', '0009_control_export_ids_kept_on_rename'),
     ]
 
     operations = [

@@ -6,7 +6,7 @@ from django.db import migrations, models
 class Migration(migrations.Migration):
 
     dependencies = [
-        ('studyapp', '0008_study_previewed_at'),
+        ('studyapp', '0010_study_previewed_at'),
     ]
 
     operations = [

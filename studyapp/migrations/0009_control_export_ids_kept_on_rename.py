@@ -19,7 +19,7 @@ def keep_current_ids(apps, schema_editor):
 class Migration(migrations.Migration):
 
     dependencies = [
-        ('studyapp', '0006_designs_from_the_registry'),
+        ('studyapp', '0008_natural_source_of_held_out_controls'),
     ]
 
     operations = [

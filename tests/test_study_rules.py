@@ -1,0 +1,147 @@
+"""One set of study rules: the live flags, the monitor, the in-app report and the command-line
+report (given the exported ratings and rules.json) agree, on every design, with rules
+other than the defaults."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from django.test import Client
+from django.urls import reverse
+
+from analysis.cli import main as analysis_main
+from analysis.exclusions import ExclusionRules
+from studyapp.models import Participant, System
+from studyapp.researchers.monitor import study_monitor
+from studyapp.researchers.reports import html_table, report_folder
+from tests.study_fixtures import current_clip, current_page, make_study
+from tests.test_study_designs import PAIRWISE, SIDE_BY_SIDE, compare, rate_page
+from tests.test_study_designs import through_practice as through_page_practice
+from tests.test_study_participant import rate_current, through_practice
+
+pytestmark = pytest.mark.django_db
+
+# Each design with rules of its own: who passes them, who fails them, and who the defaults would judge otherwise.
+SINGLE_RULES = {"natural_threshold": 4.5, "bad_threshold": 3.0}  # NAT below 4.5 or BAD at 3 or above excludes
+SIDE_BY_SIDE_RULES = {**SIDE_BY_SIDE, "natural_threshold": 4.5, "bad_threshold": 3.0}  # on 0-100: 87.5 and 50
+PAIRWISE_RULES = {**PAIRWISE, "discard_early": False, "require_full_play": False}  # early answers are kept
+
+
+def value_of(scores: dict[str, int]):
+    return lambda clip: scores[clip.stimulus.system.role if clip.stimulus.system.role != System.Role.MODEL
+                               else clip.stimulus.system.name]
+
+
+# A participant's answers: a value per system (single, side by side), or which side to prefer.
+SCORES = {
+    "careful": {System.Role.NATURAL: 5, System.Role.BAD: 1, "MoGlow": 4, "RNN": 2},
+    "nat-4": {System.Role.NATURAL: 4, System.Role.BAD: 1, "MoGlow": 3, "RNN": 2},  # excluded: NAT below 4.5
+    "bad-3": {System.Role.NATURAL: 5, System.Role.BAD: 3, "MoGlow": 5, "RNN": 3},  # excluded: BAD at 3
+    "fair": {System.Role.NATURAL: 5, System.Role.BAD: 2, "MoGlow": 3, "RNN": 3},
+}
+
+
+def sliders(scores: dict) -> dict:
+    """The 1-5 scores on 0-100 sliders."""
+    return {system: 25 * (value - 1) for system, value in scores.items()}
+
+
+def take_part(study, pid: str, answers) -> None:
+    client = Client()
+    if study.design == "single":
+        participant = through_practice(client, study, pid)
+        while (clip := current_clip(participant)) is not None:
+            rate_current(client, study, participant, value_of(answers)(clip))
+        return
+    participant = through_page_practice(client, study, pid)
+    early = {"ended_s-1": "", "ended_s-2": ""}  # the browser saw no end: answered early
+    while page := current_page(participant):
+        if study.design == "side-by-side":
+            rate_page(client, study, participant, value_of(sliders(answers)))
+        else:
+            roles = [a.stimulus.system.role for a in page]
+            prefer_bad = answers == "prefers BAD" and System.Role.BAD in roles
+            side = "left" if (roles[0] == System.Role.BAD) == prefer_bad else "right"
+            compare(client, study, participant, side, **(early if answers == "hasty" else {}))
+
+
+def populate(study) -> None:
+    if study.design == "pairwise":
+        for pid, answers in (("careful", "careful"), ("prefers-bad", "prefers BAD"), ("hasty", "hasty"),
+                             ("other", "careful")):
+            take_part(study, pid, answers)
+        return
+    for pid, scores in SCORES.items():
+        take_part(study, pid, scores)
+
+
+def in_app_report(client: Client, study, settings) -> Path:
+    response = client.post(reverse("study-report", args=[study.pk]))
+    assert response.status_code == 302 and response["Location"].startswith("/analysis/"), response
+    return report_folder(settings.MEDIA_ROOT, response["Location"].strip("/").split("/")[-1])
+
+
+def command_line_report(client: Client, study, tmp_path: Path) -> Path:
+    """``python -m analysis report`` on the downloaded ratings.csv and rules.json."""
+    (tmp_path / "ratings.csv").write_bytes(client.get(reverse("study-export", args=[study.pk])).content)
+    (tmp_path / "rules.json").write_bytes(client.get(reverse("study-rules", args=[study.pk])).content)
+    out = tmp_path / "report"
+    assert analysis_main(["report", str(tmp_path / "ratings.csv"), "--rules", str(tmp_path / "rules.json"),
+                          "--out", str(out)]) == 0
+    return out
+
+
+def test_the_in_app_report_excludes_the_participants_the_study_excludes(settings, tmp_path):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(controls=3, clips_per_participant=7, ratings_per_stimulus=10, training_clips=0, **SINGLE_RULES)
+    populate(study)
+    client = Client()
+    client.force_login(study.owner)
+    removed = json.loads((in_app_report(client, study, settings) / "tables" / "exclusions.json").read_text())
+    excluded = Participant.objects.filter(study=study, excluded=True).count()
+    assert sum(row["participants_removed"] for row in removed) == excluded == 2  # nat-4 and bad-3
+
+
+@pytest.mark.parametrize("fields", [SINGLE_RULES, SIDE_BY_SIDE_RULES, PAIRWISE_RULES],
+                         ids=["single", "side-by-side", "pairwise"])
+def test_monitor_in_app_report_and_command_line_report_agree_under_the_studys_rules(fields, settings, tmp_path):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(controls=3, clips_per_participant=7, ratings_per_stimulus=10, training_clips=0, **fields)
+    populate(study)
+    client = Client()
+    client.force_login(study.owner)
+
+    rules = ExclusionRules.from_json(client.get(reverse("study-rules", args=[study.pk])).content.decode())
+    assert (rules.bad_at_or_above, rules.natural_below, rules.discard_early) == (
+        study.bad_threshold, study.natural_threshold, study.discard_early)
+    app, cli = in_app_report(client, study, settings), command_line_report(client, study, tmp_path)
+    tables = sorted(path.name for path in (app / "tables").iterdir())
+    assert tables == sorted(path.name for path in (cli / "tables").iterdir()) and "exclusions.csv" in tables
+    for name in tables:
+        assert (app / "tables" / name).read_bytes() == (cli / "tables" / name).read_bytes(), name
+
+    excluded = {p.platform_id for p in Participant.objects.filter(study=study, excluded=True)}
+    assert excluded == ({"prefers-bad"} if study.design == "pairwise" else {"nat-4", "bad-3"})
+    removed = json.loads((app / "tables" / "exclusions.json").read_text())
+    monitor = study_monitor(study)
+    assert monitor.participants_excluded == sum(row["participants_removed"] for row in removed) == len(excluded)
+    page = client.get(f"/analysis/{app.name}/").content.decode()
+    assert f"below {study.natural_threshold:g}" in page and 'id="rules"' in page  # the report states its rules
+
+    # The monitor's summary is the report's own table, on the same kept ratings.
+    from analysis.ratings import read_ratings
+    from analysis.report import build_report
+    report = build_report(read_ratings(tmp_path / "ratings.csv"), rules=rules)
+    if study.design == "single":
+        means = report.means.set_index("system")
+        assert {row.system for row in monitor.means} == {*means.index, "BAD"}  # the monitor shows BAD's too
+        for row in (row for row in monitor.means if row.system in means.index):
+            assert (row.n, row.mean, row.ci_low) == pytest.approx(
+                (means.loc[row.system, "n"], means.loc[row.system, "mean"], means.loc[row.system, "ci_low"]))
+    else:
+        name = "system_medians_means" if study.design == "side-by-side" else "preference_pairs"
+        assert monitor.tables[0][1] == html_table(report.table(name))
+    if study.design == "pairwise":  # early answers kept under these rules: the hasty pages count
+        assert report.flagged["discarded_early"].sum() == 0 and report.flagged["answered_before_end"].any()
