@@ -25,6 +25,9 @@ from generation import registry
 from studyapp.designs.rules import StudyRules
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.participants.views import PLATFORM_PARAMETERS
+from studyapp.researchers import question_order
+from studyapp.researchers.completion_time import completion_minutes
+from studyapp.researchers.duplication import duplicate_study
 from studyapp.researchers.editing import EditRefused, edit_system, rename_control
 from studyapp.researchers.export import ratings_csv, rules_json
 from studyapp.researchers.forms import (CheckpointSystemForm, ControlEditForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
@@ -32,11 +35,8 @@ from studyapp.researchers.forms import (CheckpointSystemForm, ControlEditForm, C
                             SubmittedMotionSystemForm, SystemEditForm, VideoSystemForm)
 from studyapp.researchers.monitor import study_monitor
 from studyapp.researchers.monitor_figures import live_figures
-from studyapp.researchers.completion_time import completion_minutes
 from studyapp.researchers.participant_list import participant_rows, participants_csv, question_names
 from studyapp.researchers.preview import preview_pages
-from studyapp.researchers import question_order
-from studyapp.researchers.duplication import duplicate_study
 from studyapp.researchers.readiness import open_problems, open_warnings
 from studyapp.researchers.removal import SystemsFixed, removal_summary, remove, remove_study, require_not_started
 from studyapp.researchers.reports import AnalysisInputError, create_report
