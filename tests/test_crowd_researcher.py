@@ -41,6 +41,11 @@ def test_the_checklist_says_what_is_done_and_what_is_missing():
     assert checklist(study)[4].done and checklist(study)[4].note == "seen"
 
 
+def test_the_settings_item_of_a_pairwise_study_names_no_scale():
+    assert "scale" not in checklist(make_study(design="pairwise"))[0].note
+    assert "scale 1–5" in checklist(make_study(owner_name="other"))[0].note
+
+
 def test_the_preview_shows_every_page_in_order_and_records_nothing():
     study = make_study(device_check=True, min_screen_width=300)
     Question.objects.create(study=study, part=Question.Part.BEFORE, name="l", text="First language?", choices="a\nb")
