@@ -53,6 +53,9 @@ def researcher_urls(study) -> dict[str, str]:
         "study-preview": reverse("study-preview-page", args=[study.pk, 4]),
         "edit-system": reverse("study-item-edit", args=[study.pk, "systems", system.pk]),
         "edit-control": reverse("study-item-edit", args=[study.pk, "controls", control.pk]),
+        "remove-system": reverse("study-remove", args=[study.pk, "systems", system.pk]),
+        "study-delete": reverse("study-delete", args=[study.pk]),
+        "edit-question": reverse("study-question-edit", args=[study.pk, study.questions.first().pk]),
         "analysis": reverse("analysis"), "gallery": reverse("gallery"), "health": reverse("health"),
     }
 
