@@ -29,6 +29,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import pandas as pd
+from matplotlib.figure import Figure
 
 from analysis import design_plots, plots
 from analysis.appropriateness import appropriateness_scores, matched_preference, score_pairs
@@ -323,6 +324,32 @@ def design_summary_text(report: DesignReport) -> str:
     return "\n\n".join(p for p in out if p) + "\n"
 
 
+def design_figures(report: DesignReport) -> dict[str, Figure]:
+    """The report's figures by file name: side by side, the median and mean per system (on
+    the rating scale) and the significance matrix; pairwise, the preferences and the
+    Bradley-Terry strengths; appropriateness, the matched share and the scores."""
+    if report.design == SIDE_BY_SIDE:
+        scores = report.table("system_medians_means")
+        order = system_order(scores["system"].unique(), report.reference)
+        figures = {"median_mean_ci": design_plots.scale_plot(
+            scores, [("median", "median", "median_ci_low", "median_ci_high"), ("mean", "mean", "ci_low", "ci_high")],
+            "rating (95 % interval)", order, plots.rating_scale(report.flagged))}
+        if len(report.table("wilcoxon_pairs")):
+            figures["significance_matrix"] = design_plots.significance_matrix_plot(report.table("wilcoxon_pairs"), scores)
+        return figures
+    if report.design == APPROPRIATENESS:
+        scores = report.table("appropriateness_scores")
+        order = system_order(scores["system"].unique(), report.reference)
+        return design_plots.appropriateness_plots(report.table("matched_preference"), scores, order)
+    figures = {"preferences": design_plots.preference_plot(report.table("preference_pairs"))}
+    scale = report.table("bradley_terry")
+    if len(scale):
+        order = system_order(scale["system"].unique(), report.reference)
+        figures["bradley_terry"] = design_plots.scale_plot(
+            scale, [("strength", "strength", "ci_low", "ci_high")], "Bradley-Terry strength (log-odds, 95 % CI)", order)
+    return figures
+
+
 def write_design_report(report: DesignReport, folder: str | Path) -> list[Path]:
     """Write the report folder (tables, figures, summary.md); return the files written."""
     folder = Path(folder)
@@ -334,33 +361,10 @@ def write_design_report(report: DesignReport, folder: str | Path) -> list[Path]:
     for name, (title, table) in report.tables.items():
         if len(table):
             written += write_table(table, tables, name, caption=f"{title}.")
-    if report.design == SIDE_BY_SIDE:
-        scores = report.table("system_medians_means")
-        order = system_order(scores["system"].unique(), report.reference)
-        written += plots.save_figure(design_plots.scale_plot(
-            scores, [("median", "median", "median_ci_low", "median_ci_high"),
-                     ("mean", "mean", "ci_low", "ci_high")], "rating (95 % interval)", order),
-            figures, "median_mean_ci")
-        if len(report.table("wilcoxon_pairs")):
-            written += plots.save_figure(design_plots.significance_matrix_plot(
-                report.table("wilcoxon_pairs"), scores), figures, "significance_matrix")
-    elif report.design == APPROPRIATENESS:
-        scores = report.table("appropriateness_scores")
-        order = system_order(scores["system"].unique(), report.reference)
-        for name, figure in design_plots.appropriateness_plots(report.table("matched_preference"), scores,
-                                                                order).items():
-            written += plots.save_figure(figure, figures, name)
-    else:
-        written += plots.save_figure(design_plots.preference_plot(report.table("preference_pairs")),
-                                     figures, "preferences")
-        scale = report.table("bradley_terry")
-        if len(scale):
-            order = system_order(scale["system"].unique(), report.reference)
-            written += plots.save_figure(design_plots.scale_plot(
-                scale, [("strength", "strength", "ci_low", "ci_high")],
-                "Bradley-Terry strength (log-odds, 95 % CI)", order), figures, "bradley_terry")
-        if report.leaderboard is not None:
-            written += write_heat_maps(report.leaderboard, figures)
+    for name, figure in design_figures(report).items():
+        written += plots.save_figure(figure, figures, name)
+    if report.leaderboard is not None:
+        written += write_heat_maps(report.leaderboard, figures)
     notes = "".join(f"- {n}\n" for n in report.notes) or "- None: everything was computed.\n"
     summary = folder / "summary.md"
     summary.write_text("# Summary\n\n" + design_summary_text(report)

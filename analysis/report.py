@@ -21,10 +21,11 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import pandas as pd
+from matplotlib.figure import Figure
 
 from analysis import plots
 from analysis.correlation import subjective_objective_correlation
-from analysis.design_report import (POWER, DesignReport, build_design_report,
+from analysis.design_report import (POWER, DesignReport, build_design_report, design_figures,
                                     design_summary_text, write_design_report)
 from analysis.designs import SINGLE, table_design
 from analysis.errors import AnalysisInputError
@@ -242,6 +243,16 @@ def summary_text(report: Report | DesignReport) -> str:
     return "\n\n".join(out) + "\n"
 
 
+def report_figures(report: Report | DesignReport) -> dict[str, Figure]:
+    """The figures of the ratings by file name (the objective metrics' are the folder's own):
+    the single design's mean ratings with CIs on the rating scale and the rating
+    distributions, the other designs' ``design_figures``."""
+    if isinstance(report, DesignReport):
+        return design_figures(report)
+    return {"means_ci": plots.means_plot(report.means, report.reference, plots.rating_scale(report.analysed)),
+            "rating_distributions": plots.distribution_plot(report.analysed, report.reference)}
+
+
 def write_report(report: Report | DesignReport, folder: str | Path) -> list[Path]:
     """Write the report folder (tables, figures, summary.md); return the files written."""
     if isinstance(report, DesignReport):
@@ -262,9 +273,8 @@ def write_report(report: Report | DesignReport, folder: str | Path) -> list[Path
                                caption=f"Tukey HSD adjusted p-values, {task} · {cc}.")
     if report.rater_models is not None:
         written += write_rater_models(report.rater_models, folder)
-    written += plots.save_figure(plots.means_plot(report.means, report.reference), figures, "means_ci")
-    written += plots.save_figure(plots.distribution_plot(report.analysed, report.reference),
-                                 figures, "rating_distributions")
+    for name, figure in report_figures(report).items():
+        written += plots.save_figure(figure, figures, name)
     if report.objective is not None:
         written += write_table(report.objective, tables, "objective_metrics")
         written += write_table(report.objective_display, tables, "table3_objective",

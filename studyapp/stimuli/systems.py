@@ -1,8 +1,9 @@
 """Registering a study's systems: uploaded checkpoints, natural motion (NAT) and BAD videos.
 
 Uploads are never trusted: a checkpoint must be a safetensors file of this project that
-loads completely (digest, kind, every tensor's name and shape) and can drive the
-Generator; a video must be an MP4 whose first frame decodes. Nothing is unpickled or
+loads completely (digest, kind, every tensor's name and shape), can drive the Generator
+and learnt from the data the study's other checkpoints learnt from, prepared the same
+way (``data_match``); a video must be an MP4 whose first frame decodes. Nothing is unpickled or
 executed, and a refused upload leaves nothing on disk. Accepted checkpoints are kept by
 the project's one checkpoint store (``generation.store.keep``) under ``CHECKPOINT_ROOT``,
 named by their content digest, so the same checkpoint uploaded twice is stored once; what
@@ -17,6 +18,7 @@ import dataclasses
 import hashlib
 import subprocess
 import tempfile
+from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,6 +34,7 @@ from generation.files import atomic_output
 from generation.store import SUFFIX as CHECKPOINT_SUFFIX
 from studyapp.models import Stimulus, Study, System, new_token
 from studyapp.server.null_characters import null_character_in
+from studyapp.stimuli.data_match import data_mismatch
 
 if TYPE_CHECKING:  # torch-backed modules load only when a checkpoint is handled
     from generation.checkpoint import CheckpointMeta
@@ -79,8 +82,10 @@ def preset_name(meta: CheckpointMeta) -> str:
     return "/".join(matches) or "custom"
 
 
-def store_checkpoint(upload: File) -> StoredCheckpoint:
-    """Validate an uploaded checkpoint completely and keep it in the checkpoint store (UploadRefused if not)."""
+def store_checkpoint(upload: File, fits: Callable[[CheckpointMeta], str | None] = lambda meta: None) -> StoredCheckpoint:
+    """Validate an uploaded checkpoint completely and keep it in the checkpoint store
+    (UploadRefused if not); ``fits`` says why a valid checkpoint does not fit where it goes
+    (None: it fits), before anything is kept."""
     from generation.checkpoint import CheckpointError, load_checkpoint
     from generation.generator import Generator
     from generation.store import keep
@@ -102,6 +107,8 @@ def store_checkpoint(upload: File) -> StoredCheckpoint:
             raise UploadRefused(f"{name}: a {meta.kind} checkpoint that cannot drive sampling ({error!r})") from None
         if (where := null_character_in(dataclasses.asdict(meta))) is not None:  # PostgreSQL could not store it
             raise UploadRefused(f"{name}: the checkpoint's description holds a NUL character (\\0) in {where}")
+        if (problem := fits(meta)) is not None:
+            raise UploadRefused(f"{name}: {problem}")
         parameters = sum(p.numel() for p in model.parameters())
         stored, digest = keep(received, root)
     return StoredCheckpoint(stored.name, digest, meta, parameters)
@@ -141,7 +148,8 @@ def add_checkpoint_system(study: Study, name: str, upload: File, role: str = Sys
     if not temperature > 0:
         raise UploadRefused(f"the sampling temperature must be positive, got {temperature}")
     check_name(study, name)
-    stored = store_checkpoint(upload)
+    stored = store_checkpoint(upload, lambda meta: data_mismatch(
+        study, registry.MODELS[meta.kind].control, meta.features["dataset_options"], meta.data_fingerprint))
     twin = study.systems.filter(checkpoint_digest=stored.digest, role=role, temperature=temperature).first()
     if twin is not None:
         raise UploadRefused(f"this checkpoint is already system {twin.name!r} at temperature {temperature:g}")
