@@ -8,7 +8,7 @@ INSTALLED := $(VENV)/.installed
 # The motion capture: the demo and the study app read $MOTION_DATA (by default both
 # Bandai-Namco folders, studyapp/server/settings.py), the tests ../shared/data (tests/conftest.py).
 
-.PHONY: demo test bench tour install clean
+.PHONY: demo demo-models test bench tour install clean
 
 install: $(INSTALLED)
 
@@ -32,6 +32,11 @@ test: $(INSTALLED)
 
 demo: $(INSTALLED)
 	$(BIN)/python -m studyapp.server.demo
+
+# The demo's RNN, VAE and BAD MoGlow trained again into models/, with their digests
+# (models/SHA256SUMS); `make demo` uses the committed ones and trains nothing itself.
+demo-models: $(INSTALLED)
+	PYTHON=$(BIN)/python scripts/train-demo-models.sh
 
 # The screenshots of docs/running-a-study.md, taken again by the tests' browser.
 tour: $(INSTALLED)

@@ -11,6 +11,10 @@ y up; fps; joint names and parents), and writes the tables and figures of MoGlow
 - `analysis.side_by_side`, `analysis.pairwise`, `analysis.bradley_terry`: the statistics
   of side-by-side and pairwise designs (`analysis.designs`);
 - `more_ratings_for_power` (`analysis.power`): ratings needed for 80 % power per pair;
+- `analysis.leaderboard`, `analysis.pairing`: the leaderboard of pairwise votes (Elo with
+  bootstrap intervals) and the next pair of an adaptive pairwise study;
+- `analysis.crossed_mixed`, `analysis.ordinal_mixed`, `analysis.agreement`: the crossed
+  LMM, the cumulative link mixed model and rater agreement;
 - `analysis.footsteps`, `analysis.bones`, `analysis.scores`: objective metrics.
 """
 

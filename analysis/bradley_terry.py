@@ -15,8 +15,13 @@ the cell is left out with a note.
 
 Intervals: the inverse Fisher information ``sum_ij n_ij p_ij (1 - p_ij) (e_i - e_j)(e_i -
 e_j)'`` is singular along the all-ones direction; its Moore-Penrose inverse is the
-covariance of the sum-to-zero strengths. The tests check estimates and standard errors
-against a logistic regression (statsmodels GLM) of the same comparisons.
+covariance of the sum-to-zero strengths. Software that fixes one system at zero instead
+(a logistic regression without that system's column, R's BradleyTerry2) reports each
+strength against it: ``b_i - b_ref`` with variance ``C_ii + C_rr - 2 C_ir``, given beside
+the centred ones (``strength_vs_reference``, ``se_vs_reference``), and the covariance
+itself is written out (`bradley_terry_covariance`) for any other contrast. The tests
+check estimates and standard errors of both forms against a logistic regression
+(statsmodels GLM) of the same comparisons.
 """
 
 from __future__ import annotations
@@ -89,16 +94,9 @@ def _not_connected_reason(wins: np.ndarray, label: np.ndarray, count: int) -> st
             "the groups' distance is unbounded")
 
 
-def bradley_terry_scale(pages: pd.DataFrame, groupby: Sequence[str] = CELL,
-                        confidence: float = 0.95) -> tuple[pd.DataFrame, list[str]]:
-    """Bradley-Terry strengths per system and cell from `preference_pages` output.
-
-    Columns: *groupby, system, comparisons (pages with a preference), wins, strength
-    (centred log-strength), se, ci_low, ci_high. Cells where the strengths do not exist
-    are left out; the notes say why.
-    """
-    z = sps.norm.ppf(0.5 + confidence / 2)
-    rows, notes = [], []
+def _cell_fits(pages: pd.DataFrame, groupby: Sequence[str], notes: list[str]):
+    """(key, systems, wins, centred strengths, covariance) per cell with a fit; the
+    cells without one are named in ``notes``."""
     for key, frame in iter_cells(pages, groupby):
         systems, wins = win_matrix(frame)
         try:
@@ -107,10 +105,42 @@ def bradley_terry_scale(pages: pd.DataFrame, groupby: Sequence[str] = CELL,
             where = " · ".join(map(str, key.values())) or "all pages"
             notes.append(f"No Bradley-Terry scale for {where}: {exc}.")
             continue
+        yield key, systems, wins, b, covariance
+
+
+def bradley_terry_scale(pages: pd.DataFrame, groupby: Sequence[str] = CELL,
+                        confidence: float = 0.95, reference: str | None = None) -> tuple[pd.DataFrame, list[str]]:
+    """Bradley-Terry strengths per system and cell from `preference_pages` output.
+
+    Columns: *groupby, system, comparisons (pages with a preference), wins, strength
+    (centred log-strength), se, ci_low, ci_high, reference (``reference`` where compared
+    in the cell, else the first system in sorted order), strength_vs_reference and
+    se_vs_reference (the strength with the reference fixed at 0). Cells where the
+    strengths do not exist are left out; the notes say why.
+    """
+    z = sps.norm.ppf(0.5 + confidence / 2)
+    rows, notes = [], []
+    for key, systems, wins, b, covariance in _cell_fits(pages, groupby, notes):
         se = np.sqrt(np.diag(covariance))
+        r = systems.index(reference) if reference in systems else 0
+        se_fixed = np.sqrt(np.maximum(np.diag(covariance) + covariance[r, r] - 2 * covariance[r], 0.0))
         rows.append(pd.DataFrame({**key, "system": systems,
                                   "comparisons": (wins + wins.T).sum(axis=1).astype(int),
                                   "wins": wins.sum(axis=1).astype(int), "strength": b, "se": se,
-                                  "ci_low": b - z * se, "ci_high": b + z * se}))
-    columns = [*groupby, "system", "comparisons", "wins", "strength", "se", "ci_low", "ci_high"]
+                                  "ci_low": b - z * se, "ci_high": b + z * se, "reference": systems[r],
+                                  "strength_vs_reference": b - b[r], "se_vs_reference": se_fixed}))
+    columns = [*groupby, "system", "comparisons", "wins", "strength", "se", "ci_low", "ci_high",
+               "reference", "strength_vs_reference", "se_vs_reference"]
     return (pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=columns)), notes
+
+
+def bradley_terry_covariance(pages: pd.DataFrame, groupby: Sequence[str] = CELL) -> pd.DataFrame:
+    """The covariance of the centred strengths per cell, one row per ordered pair of
+    systems (the diagonal included): *groupby, system_a, system_b, covariance."""
+    rows = []
+    for key, systems, _, _, covariance in _cell_fits(pages, groupby, []):
+        a, b = np.meshgrid(np.arange(len(systems)), np.arange(len(systems)), indexing="ij")
+        rows.append(pd.DataFrame({**key, "system_a": np.asarray(systems)[a.ravel()],
+                                  "system_b": np.asarray(systems)[b.ravel()], "covariance": covariance.ravel()}))
+    columns = [*groupby, "system_a", "system_b", "covariance"]
+    return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=columns)

@@ -3,6 +3,8 @@
     python -m analysis report RATINGS.csv --out report/ [--rules RULES.json] [--motion DIR ...]
     python -m analysis objective DIR ... --out objective/ [--appropriateness RATINGS.csv]
     python -m analysis hvrnn-scores OUTPUTS.npz --out scores/
+    python -m analysis leaderboard RATINGS.csv --out leaderboard/   (and the other commands
+        of `analysis.rankings_cli`)
 """
 
 from __future__ import annotations
@@ -22,11 +24,13 @@ from analysis import plots
 from analysis.adherence import adherence_correlation, label_adherence, path_adherence
 from analysis.appropriateness import appropriateness_pages
 from analysis.attribute_scores import read_classifier_outputs, write_scores
+from analysis.cli_options import add_exclusion_arguments, exclusion_rules
 from analysis.designs import APPROPRIATENESS, table_design
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import ExclusionRules, apply_exclusions
 from analysis.motion_io import SystemClips, load_motion_sets
 from analysis.objective import objective_metrics
+from analysis.rankings_cli import add_commands as add_ranking_commands
 from analysis.ratings import read_ratings
 from analysis.report import build_report, require_single_design, write_report
 from analysis.tables import objective_table, to_markdown, write_table
@@ -60,24 +64,10 @@ def _parser() -> argparse.ArgumentParser:
                              "analysis/motion_io.py); a subfolder or file stem names the system")
     report.add_argument("--systems", help="comma-separated list of expected systems; any other "
                                           "system in the ratings is an error")
-    rules = report.add_argument_group(
-        "exclusion rules", "as options, or all at once with --rules (the study app's rules.json, which "
-                           "reproduces its report); not both")
-    rules.add_argument("--rules", metavar="RULES.json",
-                       help="the exclusion rules as JSON: natural_system, attention_system, "
-                            "bad_at_or_above, natural_below, discard_early")
-    rules.add_argument("--natural", help="name of the natural-motion system (default NAT)")
-    rules.add_argument("--attention", help="name of the attention-check system (default BAD)")
-    rules.add_argument("--bad-threshold", type=float,
-                       help="exclude a participant rating any attention clip at or above this "
-                            "(on a 1-5 scale, rescaled for others; default 4)")
-    rules.add_argument("--nat-threshold", type=float,
-                       help="exclude a participant rating any natural clip below this "
-                            "(on a 1-5 scale; default 2)")
-    rules.add_argument("--keep-early", action="store_true",
-                       help="do not discard ratings given before the clip ended")
-    report.add_argument("--compare-attention-checks", action="store_true",
-                        help="include the attention-check system in the comparisons")
+    add_exclusion_arguments(report)
+    report.add_argument("--continuity-correction", action="store_true",
+                        help="correct the normal approximation of the side-by-side Wilcoxon tests by "
+                             "half a unit, as R's wilcox.test does (default: no correction, as scipy)")
     report.add_argument("--foot-joints", help="comma-separated foot joint names (default: "
                                               "found by name)")
     report.add_argument("--foot-kind", choices=("heel", "toe"), default="heel",
@@ -90,6 +80,7 @@ def _parser() -> argparse.ArgumentParser:
                     "write the IS/FID table and a t-SNE figure per classifier.")
     scores.add_argument("outputs", help="classifier outputs (.npz)")
     scores.add_argument("--out", required=True, help="folder to write tables and figures into")
+    add_ranking_commands(commands)
     return parser
 
 
@@ -227,22 +218,6 @@ def _mean_scores(args: argparse.Namespace) -> pd.Series:
     return appropriateness_pages(kept).groupby("system")["score"].mean()
 
 
-def _rules(args: argparse.Namespace) -> ExclusionRules:
-    """The exclusion rules of the options, or of the --rules file."""
-    options = {"natural_system": args.natural, "attention_system": args.attention,
-               "bad_at_or_above": args.bad_threshold, "natural_below": args.nat_threshold,
-               "discard_early": False if args.keep_early else None}
-    given = {name: value for name, value in options.items() if value is not None}
-    if args.rules is None:
-        return ExclusionRules(**given)
-    if given:
-        raise AnalysisInputError("give the exclusion rules with --rules or as options, not both")
-    try:
-        text = Path(args.rules).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise AnalysisInputError(f"cannot read --rules {args.rules}: {exc.strerror}") from None
-    return ExclusionRules.from_json(text, source=args.rules)
-
 
 def _split(text: str | None) -> list[str] | None:
     return [t.strip() for t in text.split(",") if t.strip()] if text else None
@@ -259,6 +234,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     out = Path(args.out)
+    if hasattr(args, "write"):  # the commands of analysis.rankings_cli
+        with staged_output(out) as work:
+            lines = args.write(args, work)
+        print("\n".join(lines))
+        return 0
     if args.command == "hvrnn-scores":
         with staged_output(out) as work:
             table = write_scores(args.outputs, work)
@@ -270,7 +250,7 @@ def _run(args: argparse.Namespace) -> int:
         for note in notes:
             print(f"note: {note}")
         return 0
-    rules = _rules(args)
+    rules = exclusion_rules(args)
     with staged_output(out) as work:
         ratings = read_ratings(args.ratings)
         if args.motion:
@@ -279,6 +259,7 @@ def _run(args: argparse.Namespace) -> int:
         report = build_report(ratings, motion, reference=args.reference, rules=rules,
                               systems=_split(args.systems),
                               compare_attention_checks=args.compare_attention_checks,
+                              continuity_correction=args.continuity_correction,
                               foot_joints=_split(args.foot_joints), foot_kind=args.foot_kind)
         written = [out / path.relative_to(work) for path in write_report(report, work)]
     print(f"wrote {len(written)} files to {out} (summary: {written[0]})")

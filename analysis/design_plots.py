@@ -22,7 +22,7 @@ from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from analysis.plots import _cell_axes, plain_text, plt
+from analysis.plots import _cell_axes, fit_scale, interval_errors, plain_text, plt
 from analysis.side_by_side import significance_matrix
 
 _MATRIX_COLOURS = ListedColormap(["#d7301f", "#bdbdbd", "#2ca25f"])  # lower, n.s., higher
@@ -62,9 +62,10 @@ def significance_matrix_plot(pairs: pd.DataFrame, order_by: pd.DataFrame) -> Fig
 
 
 def scale_plot(table: pd.DataFrame, estimates: Sequence[tuple[str, str, str, str]],
-               xlabel: str, order: Sequence[str]) -> Figure:
+               xlabel: str, order: Sequence[str], scale: tuple[int, int] | None = None) -> Figure:
     """Point estimates with intervals per system; ``estimates`` lists (label, value column,
-    low column, high column), drawn side by side for each system."""
+    low column, high column), drawn side by side for each system. With a rating ``scale``
+    the axis spans it and the intervals are cut at its ends."""
     cells = _cells(table)
     position = {system: len(order) - 1 - i for i, system in enumerate(order)}
     fig, axes = _cell_axes(cells, order, legend_in=0.9 if len(estimates) > 1 else 0.0)
@@ -73,12 +74,11 @@ def scale_plot(table: pd.DataFrame, estimates: Sequence[tuple[str, str, str, str
         frame = _in_cell(table, cell)
         y = frame["system"].map(position).to_numpy(dtype=float)
         for offset, (label, value, low, high) in zip(offsets, estimates):
-            centre = frame[value].to_numpy(dtype=float)
-            error = np.vstack([centre - frame[low].to_numpy(dtype=float),
-                               frame[high].to_numpy(dtype=float) - centre])
-            ax.errorbar(centre, y + offset, xerr=np.nan_to_num(error), fmt="o", capsize=3, label=label)
+            error = interval_errors(frame[value], frame[low], frame[high], scale)
+            ax.errorbar(frame[value].to_numpy(dtype=float), y + offset, xerr=error, fmt="o", capsize=3, label=label)
         ax.set_title(plain_text(f"{cell[0]} · {cell[1]}"), fontsize="medium")
         ax.set_xlabel(xlabel)
+        fit_scale(ax, scale)
     axes[0].set_yticks(list(position.values()), [plain_text(label) for label in position])
     axes[0].set_ylim(-0.5, len(order) - 0.5)
     if len(estimates) > 1:

@@ -4,12 +4,14 @@
 Side-by-side (GENEA's analysis of HEMVIP pages): exclusions, per system the median and
 mean with 95 % intervals, two-sided Wilcoxon signed-rank tests on the per-page
 differences of every pair, Holm-Bonferroni corrected per task x control class, the
-significance matrix, and the random-intercept mixed model on the slider values.
+significance matrix, the random-intercept mixed model on the slider values, and the
+rater- and clip-aware models with rater agreement (`analysis.rater_models`).
 
 Pairwise: exclusions, per pair the preference share with its Wilson interval and the
 share of "no preference", exact two-sided binomial (sign) tests on the pages with a
-preference, Holm-Bonferroni corrected, a Bradley-Terry scale with 95 % intervals, and a
-check of the raters' side bias.
+preference, Holm-Bonferroni corrected, a Bradley-Terry scale with 95 % intervals, a
+check of the raters' side bias, and the leaderboard (`analysis.leaderboard_report`:
+graded votes weighted, Elo with bootstrap intervals, win-fraction and battle heat maps).
 
 Appropriateness (`analysis.appropriateness`): exclusions, per system the share of pages
 preferring the matched clip (ties split, Wilson interval) with a sign test of 50 %, the
@@ -23,21 +25,26 @@ summary.md, tables/<name>.{csv,md,tex,json}, figures/<name>.{png,svg}.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import pandas as pd
+from matplotlib.figure import Figure
 
 from analysis import design_plots, plots
 from analysis.appropriateness import appropriateness_scores, matched_preference, score_pairs
-from analysis.bradley_terry import bradley_terry_scale
-from analysis.designs import APPROPRIATENESS, PAGE, PAIRWISE, SIDE_BY_SIDE, table_design
+from analysis.bradley_terry import bradley_terry_covariance, bradley_terry_scale
+from analysis.designs import APPROPRIATENESS, PAGE, PAIRWISE, PREFERENCE_DESIGNS, SIDE_BY_SIDE, table_design
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import (ExclusionRules, apply_exclusions, compared_ratings, exclusion_notes,
-                                 exclusion_summary, removed_by_reason, scaled_threshold)
+from analysis.exclusions import (ExclusionRules, apply_exclusions, attention_rule_text,
+                                 compared_ratings, exclusion_notes, exclusion_summary,
+                                 removed_by_reason)
+from analysis.leaderboard_report import (LeaderboardReport, build_leaderboard, leaderboard_tables,
+                                         leaderboard_text, write_heat_maps)
 from analysis.mixed import mixed_model_means
 from analysis.pairwise import preference_pages, preference_pairs, side_bias
 from analysis.power import more_ratings_for_power, power_summary
+from analysis.rater_models import RaterModels, build_rater_models, rater_models_text
 from analysis.side_by_side import median_and_mean, signed_rank_pairs
 from analysis.stats import CELL, comparable_cells, too_few_ratings
 from analysis.tables import system_order, write_table
@@ -61,6 +68,9 @@ class DesignReport:
     rules: ExclusionRules
     alpha: float
     notes: list[str] = field(default_factory=list)
+    continuity_correction: bool = False  # of the Wilcoxon tests' normal approximation
+    leaderboard: LeaderboardReport | None = None  # pairwise
+    rater_models: RaterModels | None = None  # side-by-side
 
     def table(self, name: str) -> pd.DataFrame:
         return self.tables[name][1]
@@ -69,8 +79,9 @@ class DesignReport:
 def build_design_report(ratings: pd.DataFrame, reference: str | None = None,
                         rules: ExclusionRules = ExclusionRules(),
                         compare_attention_checks: bool = False,
-                        alpha: float = 0.05) -> DesignReport:
-    """Run the analysis of a validated side-by-side, pairwise or appropriateness ratings table."""
+                        alpha: float = 0.05, continuity_correction: bool = False) -> DesignReport:
+    """Run the analysis of a validated side-by-side, pairwise or appropriateness ratings
+    table; ``continuity_correction`` applies to the Wilcoxon tests' normal approximation."""
     design = table_design(ratings)
     if design not in (SIDE_BY_SIDE, PAIRWISE, APPROPRIATENESS):
         raise AnalysisInputError(f"build_design_report analyses side-by-side, pairwise and "
@@ -79,26 +90,41 @@ def build_design_report(ratings: pd.DataFrame, reference: str | None = None,
         raise AnalysisInputError(
             f"reference system {reference!r} does not exist in the ratings; systems: "
             f"{', '.join(sorted(set(ratings['system'])))}")
+    if compare_attention_checks:
+        rules = replace(rules, attention_rule=False)
     flagged = apply_exclusions(ratings, rules)
     notes = exclusion_notes(flagged, rules)
-    kept = flagged[flagged["kept"]]
-    if not compare_attention_checks:
-        kept = compared_ratings(kept, rules)
+    kept = compared_ratings(flagged, rules)
     if kept.empty:
         raise AnalysisInputError("no ratings are left after the exclusions; nothing to analyse")
     if reference is None and rules.natural_system in set(kept["system"]):
         reference = rules.natural_system
-    build = {SIDE_BY_SIDE: _side_by_side_tables, PAIRWISE: _pairwise_tables,
-             APPROPRIATENESS: _appropriateness_tables}[design]
-    tables = build(kept, alpha, notes)
+    if design == SIDE_BY_SIDE:
+        tables = _side_by_side_tables(kept, alpha, notes, continuity_correction)
+    elif design == PAIRWISE:
+        tables = _pairwise_tables(kept, alpha, notes, reference)
+    else:
+        tables = _appropriateness_tables(kept, alpha, notes)
+    leaderboard = rater_models = None
+    if design == SIDE_BY_SIDE:
+        rater_models = build_rater_models(kept, reference if reference in set(kept["system"]) else None, alpha)
+        tables.update(rater_models.tables())
+        notes += rater_models.notes
+    if design == PAIRWISE:
+        leaderboard = build_leaderboard(kept, reference if reference in set(kept["system"]) else None,
+                                        natural=rules.natural_system)
+        tables.update(leaderboard_tables(leaderboard))
+        notes += leaderboard.notes
     if design != APPROPRIATENESS:  # its systems are not compared on shared pages
         power = more_ratings_for_power(kept, alpha, POWER)
         tables["power_more_ratings"] = (f"Ratings needed for {POWER * 100:g} % power per pair", power)
     return DesignReport(design, flagged, exclusion_summary(flagged), removed_by_reason(flagged),
-                        tables, reference, rules, alpha, notes)
+                        tables, reference, rules, alpha, notes, continuity_correction, leaderboard,
+                        rater_models)
 
 
-def _side_by_side_tables(kept: pd.DataFrame, alpha: float, notes: list[str]) -> dict:
+def _side_by_side_tables(kept: pd.DataFrame, alpha: float, notes: list[str],
+                         continuity_correction: bool) -> dict:
     too_few = too_few_ratings(kept)
     notes += [f"Not computed for {r.system} in {r.task} · {r.control_class}: only {r.n} kept "
               "rating (two or more needed)." for r in too_few.itertuples(index=False)]
@@ -106,7 +132,7 @@ def _side_by_side_tables(kept: pd.DataFrame, alpha: float, notes: list[str]) -> 
         too_few.set_index([*CELL, "system"]).index)]
     if usable.empty:
         raise AnalysisInputError("no system has two or more kept ratings in any cell")
-    pairs = signed_rank_pairs(usable, alpha=alpha)
+    pairs = signed_rank_pairs(usable, alpha=alpha, continuity=continuity_correction)
     untested = pairs[pairs["method"] == "not computed"] if len(pairs) else pairs
     notes += [f"No Wilcoxon test of {r.system_a} and {r.system_b} in {r.task} · {r.control_class}: "
               "no page rated them differently." for r in untested.itertuples(index=False)]
@@ -124,19 +150,23 @@ def _side_by_side_tables(kept: pd.DataFrame, alpha: float, notes: list[str]) -> 
     }
 
 
-def _pairwise_tables(kept: pd.DataFrame, alpha: float, notes: list[str]) -> dict:
+def _pairwise_tables(kept: pd.DataFrame, alpha: float, notes: list[str], reference: str | None) -> dict:
     pairs = preference_pairs(kept, alpha=alpha)
     if pairs.empty:
         raise AnalysisInputError("no page compares two analysed systems; nothing to analyse")
     undecided = pairs[pairs["wins_a"] + pairs["wins_b"] == 0]
     notes += [f"No sign test of {r.system_a} and {r.system_b} in {r.task} · {r.control_class}: "
               "every page was answered 'no preference'." for r in undecided.itertuples(index=False)]
-    scale, scale_notes = bradley_terry_scale(preference_pages(kept))
+    pages = preference_pages(kept)
+    scale, scale_notes = bradley_terry_scale(pages, reference=reference)
     notes += scale_notes
     return {
         "preference_pairs": ("Preference shares (Wilson 95 % intervals) and sign tests, Holm "
                              "corrected; 'no preference' left out of share and test", pairs),
-        "bradley_terry": ("Bradley-Terry strengths (log-odds, centred) with 95 % intervals", scale),
+        "bradley_terry": ("Bradley-Terry strengths (log-odds, centred) with 95 % intervals, and "
+                          "each against the reference with its standard error", scale),
+        "bradley_terry_covariance": ("Covariance of the centred Bradley-Terry strengths",
+                                     bradley_terry_covariance(pages)),
         "side_bias": ("Share of preferences for the left clip", side_bias(kept)),
     }
 
@@ -166,11 +196,8 @@ def _exclusion_sentence(report: DesignReport, row) -> str:
     rules = report.rules
     removed = report.removed[report.removed["task"] == row.task]
     reasons = ", ".join(f"{r.participants} {r.reason}" for r in removed.itertuples(index=False))
-    if report.design in (PAIRWISE, APPROPRIATENESS):
-        rule = (f"a participant was removed who preferred a {rules.attention_system} clip on any "
-                f"page showing one" if report.design == PAIRWISE else
-                f"a participant was removed who preferred the mismatched clip of any "
-                f"{rules.attention_system} page")
+    if report.design in PREFERENCE_DESIGNS:
+        rule = attention_rule_text(rules, report.design)
         # both rows of a pairwise page share its flags, so pages are rows / 2
         collected, by_participant, early, kept = (
             n // 2 for n in (row.ratings_collected, row.discarded_participant,
@@ -179,10 +206,7 @@ def _exclusion_sentence(report: DesignReport, row) -> str:
     else:
         in_task = report.flagged[report.flagged["task"] == row.task].iloc[0]
         lo, hi = int(in_task["scale_min"]), int(in_task["scale_max"])
-        rule = (f"a participant was removed who rated any {rules.attention_system} clip "
-                f"{scaled_threshold(rules.bad_at_or_above, lo, hi):g} or higher or any "
-                f"{rules.natural_system} clip below {scaled_threshold(rules.natural_below, lo, hi):g} "
-                f"(on the {lo}-{hi} scale)")
+        rule = attention_rule_text(rules, SIDE_BY_SIDE, (lo, hi))
         collected, by_participant, early, kept = (
             row.ratings_collected, row.discarded_participant, row.discarded_early, row.ratings_kept)
         pages = report.flagged[report.flagged["task"] == row.task].groupby(list(PAGE)).ngroups
@@ -219,8 +243,11 @@ def _side_by_side_sentence(report: DesignReport, task: str, cc: str) -> str:
     higher = [f"{r.higher} > {r.system_b if r.higher == r.system_a else r.system_a}"
               for r in pairs[pairs["reject"]].itertuples(index=False)]
     same = [f"{r.system_a} and {r.system_b}" for r in pairs[~pairs["reject"]].itertuples(index=False)]
+    correction = "with" if report.continuity_correction else "without"
     text += (f" Two-sided Wilcoxon signed-rank tests on the per-page rating differences "
-            f"of each pair of systems, Holm-Bonferroni corrected over the {len(pairs)} pairs "
+            f"of each pair of systems (exact up to 50 pages without tied differences, else the "
+            f"normal approximation {correction} continuity correction), Holm-Bonferroni "
+            f"corrected over the {len(pairs)} pairs "
             f"(family-wise α = {report.alpha:g}), found {len(higher)} significant difference(s)")
     text += f", the first system rated higher: {'; '.join(higher)}" if higher else ""
     text += f". No significant difference between {'; '.join(same)}." if same else "."
@@ -288,9 +315,39 @@ def design_summary_text(report: DesignReport) -> str:
         for cc in cells.loc[cells["task"] == row.task, "control_class"]:
             text += sentence(report, row.task, cc)
         out.append(text)
+    if report.leaderboard is not None:
+        out.append(leaderboard_text(report.leaderboard))
+    if report.rater_models is not None:
+        out.append(rater_models_text(report.rater_models))
     if "power_more_ratings" in report.tables:
         out.append(power_summary(report.table("power_more_ratings"), report.alpha, POWER))
     return "\n\n".join(p for p in out if p) + "\n"
+
+
+def design_figures(report: DesignReport) -> dict[str, Figure]:
+    """The report's figures by file name: side by side, the median and mean per system (on
+    the rating scale) and the significance matrix; pairwise, the preferences and the
+    Bradley-Terry strengths; appropriateness, the matched share and the scores."""
+    if report.design == SIDE_BY_SIDE:
+        scores = report.table("system_medians_means")
+        order = system_order(scores["system"].unique(), report.reference)
+        figures = {"median_mean_ci": design_plots.scale_plot(
+            scores, [("median", "median", "median_ci_low", "median_ci_high"), ("mean", "mean", "ci_low", "ci_high")],
+            "rating (95 % interval)", order, plots.rating_scale(report.flagged))}
+        if len(report.table("wilcoxon_pairs")):
+            figures["significance_matrix"] = design_plots.significance_matrix_plot(report.table("wilcoxon_pairs"), scores)
+        return figures
+    if report.design == APPROPRIATENESS:
+        scores = report.table("appropriateness_scores")
+        order = system_order(scores["system"].unique(), report.reference)
+        return design_plots.appropriateness_plots(report.table("matched_preference"), scores, order)
+    figures = {"preferences": design_plots.preference_plot(report.table("preference_pairs"))}
+    scale = report.table("bradley_terry")
+    if len(scale):
+        order = system_order(scale["system"].unique(), report.reference)
+        figures["bradley_terry"] = design_plots.scale_plot(
+            scale, [("strength", "strength", "ci_low", "ci_high")], "Bradley-Terry strength (log-odds, 95 % CI)", order)
+    return figures
 
 
 def write_design_report(report: DesignReport, folder: str | Path) -> list[Path]:
@@ -304,31 +361,10 @@ def write_design_report(report: DesignReport, folder: str | Path) -> list[Path]:
     for name, (title, table) in report.tables.items():
         if len(table):
             written += write_table(table, tables, name, caption=f"{title}.")
-    if report.design == SIDE_BY_SIDE:
-        scores = report.table("system_medians_means")
-        order = system_order(scores["system"].unique(), report.reference)
-        written += plots.save_figure(design_plots.scale_plot(
-            scores, [("median", "median", "median_ci_low", "median_ci_high"),
-                     ("mean", "mean", "ci_low", "ci_high")], "rating (95 % interval)", order),
-            figures, "median_mean_ci")
-        if len(report.table("wilcoxon_pairs")):
-            written += plots.save_figure(design_plots.significance_matrix_plot(
-                report.table("wilcoxon_pairs"), scores), figures, "significance_matrix")
-    elif report.design == APPROPRIATENESS:
-        scores = report.table("appropriateness_scores")
-        order = system_order(scores["system"].unique(), report.reference)
-        for name, figure in design_plots.appropriateness_plots(report.table("matched_preference"), scores,
-                                                                order).items():
-            written += plots.save_figure(figure, figures, name)
-    else:
-        written += plots.save_figure(design_plots.preference_plot(report.table("preference_pairs")),
-                                     figures, "preferences")
-        scale = report.table("bradley_terry")
-        if len(scale):
-            order = system_order(scale["system"].unique(), report.reference)
-            written += plots.save_figure(design_plots.scale_plot(
-                scale, [("strength", "strength", "ci_low", "ci_high")],
-                "Bradley-Terry strength (log-odds, 95 % CI)", order), figures, "bradley_terry")
+    for name, figure in design_figures(report).items():
+        written += plots.save_figure(figure, figures, name)
+    if report.leaderboard is not None:
+        written += write_heat_maps(report.leaderboard, figures)
     notes = "".join(f"- {n}\n" for n in report.notes) or "- None: everything was computed.\n"
     summary = folder / "summary.md"
     summary.write_text("# Summary\n\n" + design_summary_text(report)

@@ -52,6 +52,7 @@ class ExclusionRules:
     bad_at_or_above: float = 4.0
     natural_below: float = 2.0
     discard_early: bool = True
+    attention_rule: bool = True  # off when the attention-check system is compared as a system
 
     def __post_init__(self) -> None:
         # NaN compares false with every rating, which would silently exclude nobody.
@@ -64,7 +65,7 @@ class ExclusionRules:
 
     def rated_attention_high(self, system, value, scale_min, scale_max):
         """Rule 1: an attention-check clip rated at or above the (rescaled) BAD threshold."""
-        return (system == self.attention_system) & (
+        return self.attention_rule & (system == self.attention_system) & (
             value >= scaled_threshold(self.bad_at_or_above, scale_min, scale_max))
 
     def rated_natural_low(self, system, value, scale_min, scale_max):
@@ -74,7 +75,7 @@ class ExclusionRules:
 
     def preferred_attention(self, system, answer, side):
         """Rule 1 on pairwise pages: the attention-check clip is the one preferred."""
-        return (system == self.attention_system) & (answer == side)
+        return self.attention_rule & (system == self.attention_system) & (answer == side)
 
     def preferred_mismatched_attention(self, system, answer, side, matched):
         """Rule 1 on appropriateness pages: on a check page (both clips the attention-check
@@ -99,10 +100,16 @@ class ExclusionRules:
 
     def described(self) -> list[str]:
         """The rules in words, as a report states them."""
-        return [
+        attention = (
             f"A participant is excluded who rates any {self.attention_system} clip {self.bad_at_or_above:g} or "
             f"higher or any {self.natural_system} clip below {self.natural_below:g} (on a 1-5 scale, rescaled "
-            f"linearly to others), or who prefers a {self.attention_system} clip on a pairwise page.",
+            f"linearly to others), or who prefers a {self.attention_system} clip on a pairwise page."
+            if self.attention_rule else
+            f"A participant is excluded who rates any {self.natural_system} clip below {self.natural_below:g} (on "
+            f"a 1-5 scale, rescaled linearly to others); {self.attention_system} is compared as a system, not "
+            "used as an attention check.")
+        return [
+            attention,
             "A rating given before its clip had finished playing is discarded (on a pairwise page, the page)."
             if self.discard_early else "Ratings given before their clip had finished playing are kept.",
         ]
@@ -184,10 +191,14 @@ def early_discards(ratings: pd.DataFrame, rules: ExclusionRules, excluded: pd.Se
     return early & ~excluded
 
 
-def compared_ratings(kept: pd.DataFrame, rules: ExclusionRules) -> pd.DataFrame:
-    """The kept ratings that the comparisons of systems use: the attention-check system's
-    rows left out, and on a pairwise page the whole page showing it (a check page
-    compares nothing)."""
+def compared_ratings(flagged: pd.DataFrame, rules: ExclusionRules) -> pd.DataFrame:
+    """The kept ratings that enter the comparisons: without the attention-check system's
+    ratings unless it is compared (``rules.attention_rule`` off). A pairwise or
+    appropriateness page showing it goes whole: without its attention clip a page
+    compares nothing."""
+    kept = flagged[flagged["kept"].astype(bool)]
+    if not rules.attention_rule:
+        return kept
     drop = kept["system"] == rules.attention_system
     if table_design(kept) in PREFERENCE_DESIGNS:
         check_pages = kept.loc[drop, list(PAGE)].set_index(list(PAGE)).index
@@ -221,12 +232,33 @@ def exclusion_notes(flagged: pd.DataFrame, rules: ExclusionRules = ExclusionRule
                 f"The web app's discarded_early flag disagrees with the recomputed rule on "
                 f"{differ} rating(s); the recomputed flags were used."
             )
-    ruled = ((rules.attention_system,) if table_design(flagged) in PREFERENCE_DESIGNS
-             else (rules.attention_system, rules.natural_system))
-    for system in ruled:
+    ruled = (() if table_design(flagged) in PREFERENCE_DESIGNS else (rules.natural_system,))
+    for system in ((rules.attention_system,) if rules.attention_rule else ()) + ruled:
         if not (flagged["system"] == system).any():
             notes.append(f"No ratings of {system} clips: its attention rule excluded nobody.")
     return notes
+
+
+
+def attention_rule_text(rules: ExclusionRules, design: str,
+                        scale: tuple[int, int] | None = None) -> str:
+    """The attention rules applied, as a report states them ("a participant was removed
+    who ..."), on ``scale`` (default: the 1-5 reference scale, rescaled for others)."""
+    checked = rules.attention_system
+    if design in PREFERENCE_DESIGNS:
+        if not rules.attention_rule:
+            return f"no attention check was applied ({checked} was compared as a system)"
+        if design == APPROPRIATENESS:
+            return f"a participant was removed who preferred the mismatched clip of any {checked} page"
+        return f"a participant was removed who preferred a {checked} clip on any page showing one"
+    lo, hi = scale or REFERENCE_SCALE
+    where = f"on the {lo}-{hi} scale" if scale else "on a 1-5 scale; scaled linearly on others"
+    natural = f"any {rules.natural_system} clip below {scaled_threshold(rules.natural_below, lo, hi):g}"
+    if not rules.attention_rule:
+        return (f"a participant was removed who rated {natural} ({where}); {checked} was compared "
+                "as a system, not used as an attention check")
+    return (f"a participant was removed who rated any {checked} clip "
+            f"{scaled_threshold(rules.bad_at_or_above, lo, hi):g} or higher or {natural} ({where})")
 
 
 def exclusion_summary(flagged: pd.DataFrame) -> pd.DataFrame:

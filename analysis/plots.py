@@ -44,18 +44,51 @@ def _cell_axes(cells: list[tuple], labels, width: float = 3.6, height: float = 3
     return fig, axes[0]
 
 
-def means_plot(means: pd.DataFrame, reference: str | None = None) -> Figure:
-    """Mean rating and 95 % CI per system, one panel per task x control class."""
+def rating_scale(ratings: pd.DataFrame) -> tuple[int, int] | None:
+    """The one scale (lowest, highest) all ``ratings`` are on; None where they have no
+    scale columns or mix scales."""
+    if not {"scale_min", "scale_max"} <= set(ratings.columns) or not len(ratings):
+        return None
+    scales = ratings[["scale_min", "scale_max"]].drop_duplicates()
+    return (int(scales.iloc[0, 0]), int(scales.iloc[0, 1])) if len(scales) == 1 else None
+
+
+def interval_errors(centre, low, high, limits: tuple[float, float] | None = None) -> np.ndarray:
+    """``errorbar``'s (2, n) xerr of intervals [low, high] about ``centre``, cut at the ends
+    of ``limits`` (a rating scale: no mean lies outside it); 0 where an end is missing."""
+    centre, low, high = (np.asarray(x, dtype=float) for x in (centre, low, high))
+    if limits is not None:
+        low, high = np.maximum(low, limits[0]), np.minimum(high, limits[1])
+    return np.nan_to_num(np.vstack([centre - low, high - centre]))
+
+
+def fit_scale(ax, limits: tuple[float, float] | None) -> None:
+    """The value axis spans the rating scale (a little beyond its ends), integer points
+    marked on a short scale."""
+    if limits is None:
+        return
+    low, high = limits
+    pad = 0.04 * (high - low)
+    ax.set_xlim(low - pad, high + pad)
+    if high - low <= 10:
+        ax.set_xticks(np.arange(low, high + 1))
+
+
+def means_plot(means: pd.DataFrame, reference: str | None = None,
+               scale: tuple[int, int] | None = None) -> Figure:
+    """Mean rating and 95 % CI per system, one panel per task x control class; with the
+    ``scale``, the axis spans it and the intervals are cut at its ends."""
     cells = sorted(means.groupby(["task", "control_class"]).groups)
     order = system_order(means["system"].unique(), reference)
     position = {system: len(order) - 1 - i for i, system in enumerate(order)}
     fig, axes = _cell_axes(cells, order)
     for ax, cell in zip(axes, cells):
         frame = means[(means["task"] == cell[0]) & (means["control_class"] == cell[1])]
-        ax.errorbar(frame["mean"], frame["system"].map(position), xerr=frame["ci_half"],
-                    fmt="o", capsize=3)
+        ax.errorbar(frame["mean"], frame["system"].map(position),
+                    xerr=interval_errors(frame["mean"], frame["ci_low"], frame["ci_high"], scale), fmt="o", capsize=3)
         ax.set_title(plain_text(f"{cell[0]} · {cell[1]}"), fontsize="medium")
         ax.set_xlabel("mean rating (95 % CI)")
+        fit_scale(ax, scale)
     axes[0].set_yticks(list(position.values()), [plain_text(s) for s in position])
     axes[0].set_ylim(-0.5, len(order) - 0.5)
     return fig

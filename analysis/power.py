@@ -3,7 +3,10 @@
 For every pair of systems in a cell, the number of ratings (or pages) at which the
 design's own pairwise test, at the study's alpha, would detect the difference observed
 so far with the given power, and so how many more are needed and, at the present rate of
-ratings per participant, how many more participants. The observed difference is taken
+ratings per participant, how many more participants. The rate counts every participant
+of the cell, not only those who saw the pair: with random pairing a new participant sees
+a given pair only sometimes, and dividing by those who did would promise the pages from
+too few participants (the tests check the figure by drawing that many participants). The observed difference is taken
 as the true one, so these are planning numbers with the uncertainty of the estimate
 itself; they say nothing about whether the difference is real.
 
@@ -74,7 +77,8 @@ def more_ratings_for_power(kept: pd.DataFrame, alpha: float = 0.05, power: float
     pairwise: share preferring a - 1/2), alpha_pair (alpha / pairs in the cell), unit
     (``ratings per system`` or ``pages``), n_now, power_now (at n_now, same approximation),
     n_needed (NaN when the observed effect is zero or cannot be estimated), n_more (n_needed - n_now, at least
-    0), per_participant (units per participant so far), participants_more.
+    0), per_participant (units of the pair per participant of the cell so far),
+    participants_more.
     """
     design = table_design(kept)
     per_pair = {SIDE_BY_SIDE: _side_by_side_pairs, PAIRWISE: _pairwise_pairs}.get(design, _single_pairs)
@@ -134,6 +138,7 @@ def walsh_positive_share(differences) -> float:
 
 def _side_by_side_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
     diffs = page_differences(frame, groupby=())
+    participants = frame["participant"].nunique()
     alpha_pair = alpha / max(1, diffs.groupby(["system_a", "system_b"]).ngroups)
     rows = []
     for (a, b), pair in diffs.groupby(["system_a", "system_b"], sort=True):
@@ -147,7 +152,7 @@ def _side_by_side_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.D
                      "n_needed": needed,
                      "power_now": _normal_power(np.sqrt(3 * len(nonzero)) * abs(effect), alpha_pair)
                      if np.isfinite(effect) else np.nan,
-                     "per_participant": len(d) / pair["participant"].nunique()})
+                     "per_participant": len(d) / participants})
     return _finish(rows, alpha_pair, "pages")
 
 
@@ -175,6 +180,7 @@ def sign_test_trials_for_power(share: float, alpha: float, power: float) -> floa
 
 def _pairwise_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
     pages = preference_pages(frame, groupby=())
+    participants = frame["participant"].nunique()
     alpha_pair = alpha / max(1, pages.groupby(["system_a", "system_b"]).ngroups)
     rows = []
     for (a, b), pair in pages.groupby(["system_a", "system_b"], sort=True):
@@ -186,7 +192,7 @@ def _pairwise_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.DataF
                      "n_needed": np.ceil(trials / share_decided) if share_decided else np.nan,
                      "power_now": float(sign_test_power(len(decided), share, alpha_pair))
                      if len(decided) else np.nan,
-                     "per_participant": len(pair) / pair["participant"].nunique()})
+                     "per_participant": len(pair) / participants})
     return _finish(rows, alpha_pair, "pages")
 
 

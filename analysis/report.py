@@ -8,29 +8,35 @@ computed and why. `write_report` turns it into a folder:
     tables/<name>.{csv,md,tex,json}
     figures/<name>.{png,svg}
 
+Single-design reports include the rater- and clip-aware models (crossed LMM, cumulative
+link mixed model, rater agreement: `analysis.rater_models`).
+
 The study app calls the same two functions and shows the same tables and figures.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import pandas as pd
+from matplotlib.figure import Figure
 
 from analysis import plots
 from analysis.correlation import subjective_objective_correlation
-from analysis.design_report import (POWER, DesignReport, build_design_report,
+from analysis.design_report import (POWER, DesignReport, build_design_report, design_figures,
                                     design_summary_text, write_design_report)
 from analysis.designs import SINGLE, table_design
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import (ExclusionRules, apply_exclusions, compared_ratings, exclusion_notes,
-                                 exclusion_summary, removed_by_reason)
+from analysis.exclusions import (ExclusionRules, apply_exclusions, attention_rule_text,
+                                 compared_ratings, exclusion_notes, exclusion_summary,
+                                 removed_by_reason)
 from analysis.mixed import mixed_model_means
 from analysis.motion_io import SystemClips
 from analysis.objective import METRIC_COLUMNS, objective_metrics
 from analysis.power import more_ratings_for_power, power_summary
+from analysis.rater_models import RaterModels, build_rater_models, rater_models_text, write_rater_models
 from analysis.stats import (CELL, anova, comparable_cells, pvalue_matrix, system_means,
                             too_few_ratings, tukey_hsd)
 from analysis.tables import objective_table, pvalue_display, significance_table, slug, write_table
@@ -56,6 +62,7 @@ class Report:
     footstep_curves: pd.DataFrame | None = None
     correlation: pd.DataFrame | None = None
     power: pd.DataFrame | None = None  # more ratings for 80 % power per pair (analysis.power)
+    rater_models: RaterModels | None = None  # crossed LMM, CLMM, agreement (analysis.rater_models)
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -95,7 +102,7 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
                  reference: str | None = None, rules: ExclusionRules = ExclusionRules(),
                  systems: Sequence[str] | None = None, compare_attention_checks: bool = False,
                  foot_joints: Sequence[str] | None = None,
-                 foot_kind: str = "heel") -> Report | DesignReport:
+                 foot_kind: str = "heel", continuity_correction: bool = False) -> Report | DesignReport:
     """Run the whole analysis on a validated ratings table (see `analysis.ratings`).
 
     Side-by-side, pairwise and appropriateness tables (their ``design`` column) get their
@@ -104,8 +111,9 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
 
     ``reference`` marks significance in Table 2 (default NAT when rated). ``systems``,
     when given, lists the systems expected; any other system in the ratings is an error.
-    BAD clips are attention checks, left out of the comparisons unless
-    ``compare_attention_checks``.
+    ``continuity_correction`` applies to the side-by-side Wilcoxon tests' normal
+    approximation. BAD clips are attention checks, left out of the comparisons unless
+    ``compare_attention_checks``, which compares BAD as a system and excludes nobody on it.
     """
     rated = set(ratings["system"].unique())
     if systems is not None:
@@ -116,13 +124,14 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
                 f"{', '.join(systems)}")
     if motion:
         require_single_design(ratings)
+    if compare_attention_checks:
+        rules = replace(rules, attention_rule=False)
     if table_design(ratings) != SINGLE:
-        return build_design_report(ratings, reference, rules, compare_attention_checks)
+        return build_design_report(ratings, reference, rules, compare_attention_checks,
+                                   continuity_correction=continuity_correction)
     flagged = apply_exclusions(ratings, rules)
     notes = exclusion_notes(flagged, rules)
-    kept = flagged[flagged["kept"]]
-    if not compare_attention_checks:
-        kept = compared_ratings(kept, rules)
+    kept = compared_ratings(flagged, rules)
     if kept.empty:
         raise AnalysisInputError("no ratings are left after the exclusions; nothing to analyse")
     too_few = too_few_ratings(kept)
@@ -140,6 +149,8 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
     tukey_table = tukey_hsd(comparable) if len(comparable) else pd.DataFrame()
     mixed_table = mixed_model_means(comparable) if len(comparable) else pd.DataFrame()
     power_table = more_ratings_for_power(usable, power=POWER)
+    rater_models = build_rater_models(comparable, reference) if len(comparable) else None
+    notes += rater_models.notes if rater_models else []
     if len(mixed_table) and mixed_table["at_boundary"].any():
         where = mixed_table.loc[mixed_table["at_boundary"], list(CELL)].drop_duplicates()
         notes.append("Mixed model: participant variance estimated at zero in "
@@ -160,7 +171,7 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
         means=means, anova=anova_table, tukey=tukey_table, mixed=mixed_table,
         significance_display=significance_table(means, tukey_table, reference, too_few),
         pvalues_display=pvalues, reference=reference, rules=rules, notes=notes,
-        power=power_table)
+        power=power_table, rater_models=rater_models)
     if motion:
         _add_objective(report, motion, foot_joints, foot_kind)
     return report
@@ -212,10 +223,8 @@ def summary_text(report: Report | DesignReport) -> str:
         reasons = ", ".join(f"{r.participants} {r.reason}" for r in removed.itertuples(index=False))
         text = (f"**{row.task}.** Of {row.participants_total} participants, "
                 f"{row.participants_removed} were removed for failing attention checks"
-                f"{f' ({reasons})' if reasons else ''}; a participant was removed who rated "
-                f"any {rules.attention_system} clip {rules.bad_at_or_above:g} or higher or any "
-                f"{rules.natural_system} clip below {rules.natural_below:g} (on a 1-5 scale; "
-                f"scaled linearly on others). {row.ratings_collected} ratings were collected; "
+                f"{f' ({reasons})' if reasons else ''}; {attention_rule_text(rules, SINGLE)}. "
+                f"{row.ratings_collected} ratings were collected; "
                 f"{row.discarded_participant} were discarded with the removed participants and "
                 f"{row.discarded_early} because they were given before the clip had finished "
                 f"playing, leaving {row.ratings_kept} ratings, {row.ratings_per_stimulus_min} to "
@@ -227,9 +236,21 @@ def summary_text(report: Report | DesignReport) -> str:
     if report.reference:
         out.append("Table 2 reports means with 95 % confidence intervals; ** and * mark a "
                    f"significant difference from {report.reference} at p < 0.01 and p < 0.05.")
+    if report.rater_models is not None:
+        out.append(rater_models_text(report.rater_models))
     if report.power is not None and len(report.power):
         out.append(power_summary(report.power, power=POWER))
     return "\n\n".join(out) + "\n"
+
+
+def report_figures(report: Report | DesignReport) -> dict[str, Figure]:
+    """The figures of the ratings by file name (the objective metrics' are the folder's own):
+    the single design's mean ratings with CIs on the rating scale and the rating
+    distributions, the other designs' ``design_figures``."""
+    if isinstance(report, DesignReport):
+        return design_figures(report)
+    return {"means_ci": plots.means_plot(report.means, report.reference, plots.rating_scale(report.analysed)),
+            "rating_distributions": plots.distribution_plot(report.analysed, report.reference)}
 
 
 def write_report(report: Report | DesignReport, folder: str | Path) -> list[Path]:
@@ -250,9 +271,10 @@ def write_report(report: Report | DesignReport, folder: str | Path) -> list[Path
     for (task, cc), matrix in report.pvalues_display.items():
         written += write_table(matrix, tables, f"pvalues_{slug(task, cc)}",
                                caption=f"Tukey HSD adjusted p-values, {task} · {cc}.")
-    written += plots.save_figure(plots.means_plot(report.means, report.reference), figures, "means_ci")
-    written += plots.save_figure(plots.distribution_plot(report.analysed, report.reference),
-                                 figures, "rating_distributions")
+    if report.rater_models is not None:
+        written += write_rater_models(report.rater_models, folder)
+    for name, figure in report_figures(report).items():
+        written += plots.save_figure(figure, figures, name)
     if report.objective is not None:
         written += write_table(report.objective, tables, "objective_metrics")
         written += write_table(report.objective_display, tables, "table3_objective",

@@ -77,12 +77,14 @@ def page_differences(data: pd.DataFrame, dv: str = "value", between: str = "syst
 
 
 def signed_rank_pairs(data: pd.DataFrame, dv: str = "value", between: str = "system",
-                      groupby: Sequence[str] = CELL, alpha: float = 0.05) -> pd.DataFrame:
+                      groupby: Sequence[str] = CELL, alpha: float = 0.05,
+                      continuity: bool = False) -> pd.DataFrame:
     """Wilcoxon signed-rank test per pair of systems on their per-page differences.
 
     Columns: *groupby, system_a, system_b, n_pages (pages showing both), n_nonzero
     (pages rating them differently: the test's n), median_diff and mean_diff (a - b),
-    statistic (min of the positive and negative rank sums), method (exact or normal),
+    statistic (min of the positive and negative rank sums), method (exact, normal, or
+    normal with ``continuity`` correction),
     p, p_holm (over all pairs of the cell), reject (p_holm < alpha), higher (the system
     with the larger rank sum, empty when equal or not computed).
     """
@@ -90,7 +92,7 @@ def signed_rank_pairs(data: pd.DataFrame, dv: str = "value", between: str = "sys
     rows = []
     for (*key, a, b), frame in diffs.groupby([*groupby, "system_a", "system_b"], sort=True):
         d = frame["difference"].to_numpy()
-        test = signed_rank_test(d)
+        test = signed_rank_test(d, continuity)
         positive = test.positive_rank_sum
         negative = test.n_nonzero * (test.n_nonzero + 1) / 2 - positive
         rows.append({**dict(zip(groupby, key)), "system_a": a, "system_b": b,

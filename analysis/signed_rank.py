@@ -8,11 +8,13 @@ both systems alike carries no sign and is left out) and chooses its p-value as f
   distribution of the positive rank sum (every sign pattern equally likely), counted by
   dynamic programming over the ranks;
 - otherwise the normal approximation with the tie correction of the variance,
-  ``z = (T - n(n+1)/4) / sqrt(n(n+1)(2n+1)/24 - sum(t^3 - t)/48)``, no continuity
-  correction.
+  ``z = (T - n(n+1)/4) / sqrt(n(n+1)(2n+1)/24 - sum(t^3 - t)/48)``; with ``continuity``
+  the numerator moves half a unit towards zero, as R's ``wilcox.test`` does by default
+  (scipy's ``correction=True``); without it, as scipy does by default.
 
 Two-sided p = min(1, 2 P(T <= min(T+, T-))). The tests check both branches against
-scipy.stats.wilcoxon (``method="exact"`` and ``method="asymptotic"``).
+scipy.stats.wilcoxon (``method="exact"`` and ``method="asymptotic"``, with and without
+``correction``).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ class SignedRankResult:
     statistic: float  # min(T+, T-), as scipy reports it for a two-sided test
     positive_rank_sum: float  # T+: which way the differences lean
     p: float
-    method: str  # "exact" or "normal"
+    method: str  # "exact", "normal" or "normal, continuity-corrected"
 
 
 @lru_cache(maxsize=None)
@@ -45,8 +47,9 @@ def _rank_sum_cdf(n: int) -> np.ndarray:
     return np.cumsum(counts) / 2.0**n
 
 
-def signed_rank_test(differences) -> SignedRankResult:
-    """Two-sided Wilcoxon signed-rank test of ``differences`` being symmetric about zero."""
+def signed_rank_test(differences, continuity: bool = False) -> SignedRankResult:
+    """Two-sided Wilcoxon signed-rank test of ``differences`` being symmetric about zero;
+    ``continuity`` corrects the normal approximation by half a unit."""
     d = np.asarray(differences, dtype=np.float64)
     d = d[d != 0]
     n = len(d)
@@ -62,5 +65,7 @@ def signed_rank_test(differences) -> SignedRankResult:
     variance = n * (n + 1) * (2 * n + 1) / 24 - float((ties**3 - ties).sum()) / 48
     if variance <= 0:
         return SignedRankResult(n, statistic, positive, np.nan, "not computed")
-    z = (statistic - n * (n + 1) / 4) / np.sqrt(variance)
-    return SignedRankResult(n, statistic, positive, float(min(1.0, 2.0 * sps.norm.cdf(z))), "normal")
+    gap = statistic - n * (n + 1) / 4
+    z = (gap - 0.5 * np.sign(gap) * continuity) / np.sqrt(variance)
+    method = "normal, continuity-corrected" if continuity else "normal"
+    return SignedRankResult(n, statistic, positive, float(min(1.0, 2.0 * sps.norm.cdf(z))), method)

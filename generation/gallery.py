@@ -1,7 +1,9 @@
-"""A gallery of natural clips: videos, contact sheets and an index for the web page.
+"""A gallery of natural clips: videos, their posters (the first frame, shown before a
+video plays), contact sheets and an index for the web page.
 
 The index (``index.json``) lists one entry per clip: file, title, content, style, frames,
-fps and sheet. The study app's gallery page reads it.
+fps, sheet and poster. The study app's gallery page reads it. No clip is shorter than
+``GalleryOptions.min_seconds``: too short to see a motion in, it is left out.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from .render import Camera, contact_sheet, render_video
 class GalleryOptions:
     fps: float = 20.0
     seconds: float = 4.0  # each clip is cut to at most this long, from its start
+    min_seconds: float = 1.0  # takes shorter than this are left out
     size: tuple[int, int] = (640, 480)
     per_content: int = 1  # clips per content label
     contents: tuple[str, ...] | None = None
@@ -35,7 +38,7 @@ class GalleryOptions:
     def to_dict(self) -> dict:
         """JSON-serialisable, to send to a worker."""
         return {
-            "fps": self.fps, "seconds": self.seconds, "size": list(self.size),
+            "fps": self.fps, "seconds": self.seconds, "min_seconds": self.min_seconds, "size": list(self.size),
             "per_content": self.per_content,
             "contents": list(self.contents) if self.contents is not None else None,
             "camera": self.camera.to_dict(), "scale": self.scale, "up": self.up,
@@ -44,7 +47,7 @@ class GalleryOptions:
     @classmethod
     def from_dict(cls, data: dict) -> "GalleryOptions":
         return cls(
-            fps=data["fps"], seconds=data["seconds"], size=tuple(data["size"]),
+            fps=data["fps"], seconds=data["seconds"], min_seconds=data.get("min_seconds", 0.0), size=tuple(data["size"]),
             per_content=data["per_content"],
             contents=tuple(data["contents"]) if data["contents"] is not None else None,
             camera=Camera.from_dict(data["camera"]), scale=data.get("scale"), up=data.get("up"),
@@ -52,12 +55,14 @@ class GalleryOptions:
 
 
 def choose_clips(folder: str | os.PathLike, per_content: int, contents: tuple[str, ...] | None,
-                 seconds: float = 0.0) -> list[Path]:
-    """The first ``per_content`` clips (by name) of each content label: clips lasting at
-    least ``seconds`` first, then the "normal" style."""
+                 seconds: float = 0.0, min_seconds: float = 0.0) -> list[Path]:
+    """The first ``per_content`` clips (by name) of each content label, none shorter than
+    ``min_seconds``: clips lasting at least ``seconds`` first (the "normal" style first
+    among them), then the longest."""
     chosen: dict[str | None, list[Path]] = {}
-    labels = {p: read_labels(p) for p in find_bvh_files(folder)}
-    files = sorted(labels, key=lambda p: (bvh_duration(p) < seconds, labels[p][1] != "normal", p.name))
+    durations = {p: bvh_duration(p) for p in find_bvh_files(folder)}
+    labels = {p: read_labels(p) for p, duration in durations.items() if duration >= min_seconds}
+    files = sorted(labels, key=lambda p: (-min(durations[p], seconds), labels[p][1] != "normal", p.name))
     for path in files:
         content = labels[path][0]
         if contents is not None and not any(content_matches(content, c) for c in contents):
@@ -69,8 +74,8 @@ def choose_clips(folder: str | os.PathLike, per_content: int, contents: tuple[st
 
 
 def render_clip(path: Path, out_dir: Path, options: GalleryOptions) -> dict:
-    """Render one BVH clip (video and contact sheet) unless already there; its index entry."""
-    video, sheet = out_dir / f"{path.stem}.mp4", out_dir / f"{path.stem}.png"
+    """Render one BVH clip (video, poster and contact sheet) unless already there; its index entry."""
+    video, sheet, poster = out_dir / f"{path.stem}.mp4", out_dir / f"{path.stem}.png", out_dir / f"{path.stem}.poster.png"
     units = choose_units([path], options.scale, options.up).units
     motion = load_body_motion(path, options.fps, options.seconds, units.scale, up=units.up)
     floor = root_trajectory(motion, RootOptions()).xz
@@ -78,6 +83,8 @@ def render_clip(path: Path, out_dir: Path, options: GalleryOptions) -> dict:
         render_video(motion, video, camera=options.camera, size=options.size, root_path=floor)
     if not sheet.exists():
         contact_sheet(motion, sheet, n=8, camera=options.camera, root_path=floor)
+    if not poster.exists():  # the video's first frame, at its size
+        contact_sheet(motion, poster, n=1, camera=options.camera, size=options.size, root_path=floor)
     content, style = read_labels(path)
     return {
         "file": video.name,
@@ -87,6 +94,7 @@ def render_clip(path: Path, out_dir: Path, options: GalleryOptions) -> dict:
         "frames": motion.n_frames,
         "fps": motion.fps,
         "sheet": sheet.name,
+        "poster": poster.name,
         "source": path.name,
     }
 
@@ -102,7 +110,7 @@ def build_gallery(folder: str | os.PathLike, out_dir: str | os.PathLike, options
     """Render the chosen clips into ``out_dir`` and write its ``index.json``; units the
     options leave open are detected for all the clips together (and printed)."""
     out_dir = Path(out_dir)
-    clips = choose_clips(folder, options.per_content, options.contents, options.seconds)
+    clips = choose_clips(folder, options.per_content, options.contents, options.seconds, options.min_seconds)
     if clips and (options.scale is None or options.up is None):
         choice = choose_units(clips, options.scale, options.up)
         options = replace(options, scale=choice.units.scale, up=choice.units.up)

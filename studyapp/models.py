@@ -9,6 +9,7 @@ and the rating form names an assignment by another random token. Exclusions are 
 from __future__ import annotations
 
 import math
+import re
 import secrets
 from pathlib import Path
 
@@ -23,6 +24,8 @@ from studyapp.bounds import Within, storable_json
 from studyapp.designs import registry as designs
 
 NATURAL_NAME, ATTENTION_NAME = "NAT", "BAD"  # the names the analysis expects for these roles
+# A name that is a plain file name on every system: a control's export id where its name is one.
+SAFE_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")
 
 
 class StoredDataError(ValueError):
@@ -205,6 +208,7 @@ class Study(models.Model):
     video_width = models.PositiveSmallIntegerField(default=640, validators=[VIDEO_SIDE])
     video_height = models.PositiveSmallIntegerField(default=480, validators=[VIDEO_SIDE])
     is_open = models.BooleanField(default=False, help_text="accepting participants")
+    previewed_at = models.DateTimeField(null=True, blank=True, help_text="when the researcher last saw the preview")
     created = models.DateTimeField(auto_now_add=True)
     # Participant pages keep the study in memory while this stamp is unchanged (``study_cache``).
     updated = models.DateTimeField(auto_now=True)
@@ -366,6 +370,10 @@ class ControlSignal(models.Model):
                                help_text="held-out: the folders its take was found in and the dataset options it is "
                                          "read with")
     seconds = models.FloatField()
+    # The name other labs' files carry (``control_export.control_id``): the name the control
+    # was created with, kept when it is renamed, so exported controls and submitted motion
+    # stay matched; empty where that name was no plain file name (then control-<pk>).
+    export_id = models.CharField(max_length=100, blank=True, editable=False)
 
     class Meta:
         ordering = ["study", "origin", "name"]
@@ -395,6 +403,14 @@ class ControlSignal(models.Model):
             raise
         except (KeyError, TypeError, ValueError, AttributeError) as error:
             raise StoredDataError(self, "natural", f"holds no readable dataset options ({error!r})") from None
+
+    def save(self, *args, **kwargs) -> None:
+        """Save, giving a new control its export id: its name, unless that is no plain file
+        name or another control of the study (since renamed) already has it."""
+        if self._state.adding and not self.export_id and SAFE_ID.fullmatch(self.name):
+            taken = ControlSignal.objects.filter(study_id=self.study_id, export_id=self.name).exists()
+            self.export_id = "" if taken else self.name
+        super().save(*args, **kwargs)
 
     @property
     def lead_in_seconds(self) -> float:
@@ -554,10 +570,11 @@ class Question(models.Model):
     minimum = models.FloatField(default=0, validators=[ANSWER_BOUND], help_text="number questions: the smallest answer")
     maximum = models.FloatField(default=120, validators=[ANSWER_BOUND], help_text="number questions: the largest answer")
     whole_numbers = models.BooleanField(default=True, help_text="number questions: only whole numbers (as ages)")
+    order = models.PositiveSmallIntegerField(default=0, help_text="its place among the questions of its part")
     created = models.DateTimeField(auto_now_add=True)
 
     class Meta:
-        ordering = ["study", "part", "created", "pk"]
+        ordering = ["study", "part", "order", "created", "pk"]
         constraints = [models.UniqueConstraint(fields=["study", "name"], name="unique_question_name")]
 
     def __str__(self) -> str:

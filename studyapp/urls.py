@@ -12,10 +12,12 @@ from studyapp.server import views as server_views
 
 urlpatterns = [
     path("", site_views.gallery, name="gallery"),
+    path("favicon.ico", server_views.favicon, name="favicon"),  # where browsers look without a page's link
     path("health/", server_views.health_page, name="health"),
     path("health.json", server_views.health_json, name="health-json"),
     path("analysis/", site_views.analysis_upload, name="analysis"),
     path("analysis/<str:digest>/", site_views.analysis_report, name="analysis-report"),
+    path("analysis/<str:digest>/report.zip", site_views.analysis_report_zip, name="analysis-report-zip"),
     path("admin/", admin.site.urls),
     path("login/", auth_views.LoginView.as_view(), name="login"),
     path("logout/", auth_views.LogoutView.as_view(), name="logout"),

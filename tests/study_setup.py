@@ -37,12 +37,13 @@ def link_clips(motion_data: Path, folder: Path, names: list[str] = CLIPS) -> Pat
     return folder
 
 
-def train_tiny_moglow(clips: Path, out: Path, steps: int, cache: Path) -> Path:
-    """A MoGlow a few thousand parameters big, trained ``steps`` steps on the clips."""
+def train_tiny_moglow(clips: Path, out: Path, steps: int, cache: Path,
+                      options: DatasetOptions = DatasetOptions()) -> Path:
+    """A MoGlow a few thousand parameters big, trained ``steps`` steps on the clips prepared by ``options``."""
     cpu = registry.MODELS["moglow"].presets["cpu"]
     tiny = registry.Preset({**cpu.model, "steps": 2, "tau": 3, "lstm_hidden": 16},
                            {**cpu.training, "batch_size": 8, "warmup_steps": 0})
-    dataset = build_dataset(clips, DatasetOptions(), cache_dir=cache, progress=False)
+    dataset = build_dataset(clips, options, cache_dir=cache, progress=False)
     # A model this small gains nothing from a second thread and loses much when the cores are busy.
     threads = torch.get_num_threads()
     torch.set_num_threads(1)

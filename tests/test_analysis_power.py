@@ -110,3 +110,20 @@ def test_a_pair_without_any_difference_needs_no_number_and_says_so():
     assert np.isnan(power["n_needed"]) and np.isnan(power["n_more"])
     text = power_summary(more_ratings_for_power(pd.DataFrame(rows)))
     assert "1 pair(s) show no difference, or too few answers" in text and SEQUENTIAL_LOOKS_NOTE in text
+
+
+def test_the_participants_needed_bring_the_pages_needed_under_random_pairing():
+    systems = {"NAT": 1.0, "A": 0.5, "B": 0.0, "C": -0.4, "D": -0.8, "E": -1.2}  # 15 pairs
+    options = dict(pages_per_participant=10, no_preference_share=0.0, inattentive_share=0.0, early_share=0.0)
+    rate = 10 / 15  # pages of a given pair a new participant brings under random pairing
+    rows = []
+    for seed in range(40):
+        power = more_ratings_for_power(kept_of(simulate_pairwise(systems, n_participants=30, seed=seed, **options)))
+        rows.append(power.set_index(["system_a", "system_b"]).loc[("A", "B")])
+    table = pd.DataFrame(rows)
+    # the rate counts every participant, not only those who happened to see the pair (about
+    # half of them, which doubled it); 40 studies estimate it within about 3.5 % (one se)
+    assert table["per_participant"].mean() == pytest.approx(rate, rel=0.1)
+    # so the participants asked for bring the pages needed (a little more: 1 / rate is convex)
+    brought = (table["participants_more"] * rate / table["n_more"]).mean()
+    assert 0.9 <= brought <= 1.25

@@ -29,12 +29,21 @@ def test_the_checklist_says_what_is_done_and_what_is_missing():
         ("Open", False)]
     assert [s.note for s in checklist(empty)][1:4] == ["no model system yet", "none yet", "none generated"]
     steps = checklist(study)
-    assert [s.done for s in steps] == [True, True, True, True, True, False]
+    assert [s.done for s in steps] == [True, True, True, True, False, False]  # the preview is not seen yet
+    assert steps[4].note == "see the pages as a participant"
     assert steps[3].note == "12 of 12 clips finished" and "completion code" in steps[5].note  # why it cannot open
     client = Client()
     client.force_login(study.owner)
     page = client.get(reverse("study-systems", args=[study.pk])).content.decode()
     assert '<ol class="steps"' in page and 'aria-current="page"' in page and "12 of 12 clips finished" in page
+    assert client.get(reverse("study-preview", args=[study.pk])).status_code == 200
+    study.refresh_from_db()
+    assert checklist(study)[4].done and checklist(study)[4].note == "seen"
+
+
+def test_the_settings_item_of_a_pairwise_study_names_no_scale():
+    assert "scale" not in checklist(make_study(design="pairwise"))[0].note
+    assert "scale 1–5" in checklist(make_study(owner_name="other"))[0].note
 
 
 def test_the_preview_shows_every_page_in_order_and_records_nothing():

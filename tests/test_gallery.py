@@ -7,7 +7,7 @@ import pytest
 
 CLIPS = [
     {"file": "walk_normal_001.mp4", "title": "walk / normal / take 001", "content": "walk",
-     "style": "normal", "frames": 80, "fps": 20, "sheet": "walk_normal_001.png"},
+     "style": "normal", "frames": 80, "fps": 20, "sheet": "walk_normal_001.png", "poster": "walk_normal_001.poster.png"},
     {"file": "run_happy_002.mp4", "title": "run / happy / take 002", "content": "run",
      "style": "happy", "frames": 60, "fps": 30},
 ]
@@ -57,6 +57,7 @@ def test_with_an_index_every_clip_gets_an_inline_player(client, media_root) -> N
     assert "walk / normal / take 001" in page
     assert "80 frames at 20 fps (4.0 s)" in page
     assert 'href="/media/gallery/walk_normal_001.png"' in page
+    assert 'poster="/media/gallery/walk_normal_001.poster.png"' in page and page.count("poster=") == 1
     assert page.count("contact sheet") == 1
     assert "make demo" not in page
 

@@ -7,9 +7,11 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from PIL import Image
 
 from generation.cli import main
-from generation.gallery import GalleryOptions, build_gallery
+from generation.gallery import GalleryOptions, build_gallery, choose_clips
+from generation.motion.bvh import bvh_duration
 
 
 def test_info_describes_a_real_clip(clip_path, capsys):
@@ -77,12 +79,24 @@ def test_gallery_renders_clips_and_an_index(motion_data, tmp_path):
     for entry in entries:
         assert (tmp_path / entry["file"]).stat().st_size > 1000
         assert (tmp_path / entry["sheet"]).is_file()
+        assert Image.open(tmp_path / entry["poster"]).size == (320, 240)  # the video's first frame, at its size
         assert entry["frames"] == 20 and entry["fps"] == 20.0
     # Rendering again reuses the files.
     before = {p.name: p.stat().st_mtime_ns for p in tmp_path.glob("*.mp4")}
     build_gallery(motion_data, tmp_path, options, progress=False)
     assert {p.name: p.stat().st_mtime_ns for p in tmp_path.glob("*.mp4")} == before
     assert np.isfinite([e["frames"] for e in entries]).all()
+
+
+def test_the_gallery_leaves_out_clips_shorter_than_a_second(motion_data):
+    # Dataset 1's normal dash lasts 0.67 s and its normal run 0.8 s.
+    every = choose_clips(motion_data, 100, ("dash", "run"), seconds=4.0)
+    assert {"dataset-1_dash_normal_001.bvh", "dataset-1_run_normal_001.bvh"} <= {path.name for path in every}
+    shown = choose_clips(motion_data, 100, ("dash", "run"), seconds=4.0, min_seconds=GalleryOptions().min_seconds)
+    assert shown == [path for path in every if bvh_duration(path) >= 1.0] and len(shown) == len(every) - 2
+    # One a content: the longest take where none lasts the clip's 4 s.
+    dash = choose_clips(motion_data, 1, ("dash",), seconds=4.0, min_seconds=1.0)
+    assert bvh_duration(dash[0]) == max(bvh_duration(path) for path in every if "_dash_" in path.name)
 
 
 def test_natural_clips_export_feeds_the_objective_metrics(motion_data, tmp_path, capsys):

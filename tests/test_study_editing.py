@@ -8,8 +8,12 @@ from django.contrib.auth.models import User
 from django.test import Client
 from django.urls import reverse
 
-from studyapp.models import Participant, Study, System
+from generation.motion.dataset import load_body_motion
+from generation.motion.npz import save_motion_npz
+from studyapp.models import ControlSignal, Participant, Study, System
 from studyapp.stimuli.clips import content_key
+from studyapp.stimuli.control_export import control_id
+from studyapp.stimuli.submissions import read_stored_motion
 from tests.study_fixtures import make_study
 
 pytestmark = pytest.mark.django_db
@@ -82,16 +86,24 @@ def test_a_renamed_control_keeps_its_clips_under_the_keys_planning_finds(setting
     assert all(s.content_key == content_key(study, s.system, control, s.seed) for s in stimuli)
 
 
-def test_a_control_with_submitted_motion_keeps_its_name(settings, tmp_path):
+def test_a_renamed_control_keeps_its_export_id_and_its_submitted_motion(settings, tmp_path, clip_path):
+    settings.CHECKPOINT_ROOT = tmp_path / "checkpoints"
     study = sampled_study(settings, tmp_path)
-    System.objects.create(study=study, name="Other lab", kind=System.SourceKind.SUBMITTED,
-                          metadata={"controls": ["control-0"]})
     control = study.controls.get(name="control-0")
+    folder = settings.CHECKPOINT_ROOT / "submitted" / "abc"
+    motion = load_body_motion(clip_path("walk_normal_001"), 20.0, 1.0)
+    save_motion_npz(motion, folder / "control-0.npz")
+    other_lab = System.objects.create(study=study, name="Other lab", kind=System.SourceKind.SUBMITTED,
+                                      metadata={"controls": ["control-0"], "folder": "submitted/abc"})
     response = researcher(study).post(edit_url(study, "controls", control.pk), {"name": "zigzag"})
-    assert response.status_code == 400
-    assert "Other lab submitted motion named after control-0" in response.context["form"].errors["name"][0]
+    assert response.status_code == 302
     control.refresh_from_db()
-    assert control.name == "control-0"
+    assert (control.name, control.export_id, control_id(control)) == ("zigzag", "control-0", "control-0")
+    assert read_stored_motion(other_lab, control).n_frames == motion.n_frames
+    # A new control under the old name cannot take the id the renamed one keeps.
+    again = ControlSignal.objects.create(study=study, name="control-0", origin="synthetic", control={"type": "path"},
+                                         seconds=1.0)
+    assert control_id(again) == f"control-{again.pk}"
 
 
 @pytest.mark.parametrize(("kind", "posted", "field", "message"), [

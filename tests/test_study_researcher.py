@@ -422,10 +422,12 @@ def test_a_label_controlled_model_gets_label_controls_and_its_stimuli_render(cli
 def test_path_and_label_controlled_models_do_not_share_a_study(client, researcher, site, files):
     study = new_study(researcher)
     upload_checkpoint(client, study, files.good.read_bytes())
-    upload_checkpoint(client, study, files.erd.read_bytes(), name="ERD")
-    response = client.post(f"/studies/{study.pk}/controls/", {"action": "held_out", "seconds": "2"})
-    assert response.status_code == 400 and "one study needs one" in response.content.decode()
-    assert not ControlSignal.objects.exists()
+    response = upload_checkpoint(client, study, files.erd.read_bytes(), name="ERD")
+    assert response.status_code == 400
+    assert response.context["refused"]["problems"] == [
+        "model.safetensors: it follows action and style labels, and the study's checkpoints (MoGlow) follow a path: "
+        "one study holds one kind of model"]
+    assert list(study.systems.values_list("name", flat=True)) == ["MoGlow"]
 
 
 # --- generation ------------------------------------------------------------------

@@ -2,7 +2,8 @@
 
     settings -> systems -> controls -> stimuli -> preview -> open
 
-Every study page shows it at its top, so a researcher always sees what is left to do.
+Every study page shows it at its top, so a researcher always sees what is left to do; the
+preview is ticked once the researcher has seen it (``Study.previewed_at``).
 The settings' card also says how long a participant is expected to take (``duration``).
 """
 
@@ -16,7 +17,7 @@ from django.urls import reverse
 from studyapp.designs.registry import design_of
 from studyapp.models import Stimulus, Study, System
 from studyapp.researchers.duration import expected_duration
-from studyapp.researchers.readiness import open_problems
+from studyapp.researchers.readiness import open_problems, open_warnings
 
 
 @dataclass(frozen=True)
@@ -33,6 +34,7 @@ def checklist(study: Study) -> list[ChecklistItem]:
     stimuli = study.stimuli.aggregate(all=Count("pk"), done=Count("pk", filter=Q(status=Stimulus.Status.DONE)),
                                       failed=Count("pk", filter=Q(status=Stimulus.Status.FAILED)))
     problems = open_problems(study)
+    previewed = study.previewed_at is not None and stimuli["done"] > 0
 
     def url(name: str) -> str:
         return reverse(f"study-{name}", args=[study.pk])
@@ -45,10 +47,11 @@ def checklist(study: Study) -> list[ChecklistItem]:
                   f"{systems['all']} system(s)" if systems["models"] else "no model system yet"),
         ChecklistItem("Controls", url("controls"), controls > 0, f"{controls} control(s)" if controls else "none yet"),
         ChecklistItem("Stimuli", url("stimuli"), stimuli["all"] > 0 and stimuli["done"] == stimuli["all"], stimuli_note),
-        ChecklistItem("Preview", url("preview"), stimuli["done"] > 0,
-                  "see the pages as a participant" if stimuli["done"] else "needs a finished clip"),
+        ChecklistItem("Preview", url("preview"), previewed,
+                  "seen" if previewed else "see the pages as a participant" if stimuli["done"] else "needs a finished clip"),
         ChecklistItem("Open", url("monitor"), study.is_open,
-                  "open" if study.is_open else ("ready to open" if not problems else problems[0])),
+                  "open" if study.is_open else problems[0] if problems else
+                  "ready to open, with a warning" if open_warnings(study) else "ready to open"),
     ]
 
 

@@ -6,7 +6,8 @@ other submitted motion or another path is another system or control (remove and 
 A new temperature changes every sampled clip of the system, so those clips are deleted
 (rows, videos and sampled motion) and generating the stimuli again makes them anew. A new control name
 changes no clip, but the control's description carries its name and every clip's content
-key digests it, so its clips keep their videos and get their new keys.
+key digests it, so its clips keep their videos and get their new keys; its export id, which
+files made elsewhere are named by, stays.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from __future__ import annotations
 from django.db import transaction
 
 from studyapp.bounds import check_field
-from studyapp.models import ControlSignal, Stimulus, System, json_object
+from studyapp.models import ControlSignal, Stimulus, System
 from studyapp.researchers.removal import delete_files, require_not_started
 from studyapp.stimuli.clips import content_key
 
@@ -57,17 +58,10 @@ def edit_system(system: System, name: str, temperature: float | None = None) -> 
 
 
 def rename_control(control: ControlSignal, name: str) -> None:
-    """Rename ``control``; its clips keep their videos under new content keys.
-
-    Refused while a submitted-motion system has motion for it: that motion is stored and
-    matched by the control's name.
-    """
+    """Rename ``control``; its clips keep their videos under new content keys, and its
+    export id (``ControlSignal.export_id``) stays, so the files of exported controls and
+    submitted motion still name it."""
     _check_name(control, name)
-    submitted = [s.name for s in control.study.systems.filter(kind=System.SourceKind.SUBMITTED)
-                 if control.name in (json_object(s, "metadata").get("controls") or [])]
-    if submitted:
-        raise EditRefused("name", f"{', '.join(submitted)} submitted motion named after {control.name}: "
-                                  "remove that system first, or keep the name")
     with transaction.atomic():
         require_not_started(control.study)
         control.name = name

@@ -21,11 +21,26 @@ from studyapp.models import TEMPERATURE, ControlSignal, Question, Stimulus, Stud
 
 
 CAMERA_PREFIX = "camera_"
+# The camera's fields in words; a field not named here is labelled by its name.
+CAMERA_LABELS = {
+    "azimuth": "Camera direction (degrees about the vertical)",
+    "elevation": "Camera height (degrees above the horizon)",
+    "distance": "Camera distance (cm)",
+    "fov": "Field of view (degrees, vertical)",
+    "target_height": "Aimed at (cm above the floor)",
+    "follow": "Camera follows the character",
+    "follow_smoothing": "Following smoothed over (s)",
+    "near": "Nothing drawn nearer than (cm)",
+    "figure_share": "Character's share of the frame height",
+    "target_share": "Aimed at (share of the character's size)",
+}
+# Settings of answers on the scale, which a design without one (pairwise) does not show.
+SCALE_SETTINGS = ("scale_min", "scale_max", "label_min", "label_max", "bad_threshold", "natural_threshold")
 
 
 def _camera_field(spec: dataclasses.Field) -> forms.Field:
     """A form field for one field of ``Camera`` (a number, or a yes/no)."""
-    label = spec.name.replace("_", " ").capitalize()
+    label = CAMERA_LABELS.get(spec.name, spec.name.replace("_", " ").capitalize())
     if spec.type in ("bool", bool):
         return forms.BooleanField(required=False, label=label)
     if spec.default is None:  # the renderer derives it from the character's size
@@ -60,7 +75,7 @@ class StudyForm(forms.ModelForm):
         ("Video and camera", ("video_width", "video_height")),  # and every camera field
     )
 
-    redirect_url = forms.URLField(required=False, assume_scheme="https",
+    redirect_url = forms.URLField(required=False, assume_scheme="https", label="Completion URL",
                                   help_text=Study._meta.get_field("redirect_url").help_text)
 
     OPTIONAL_SIZES = ("min_screen_width", "min_screen_height")  # left empty: any size
@@ -86,13 +101,35 @@ class StudyForm(forms.ModelForm):
     def camera_fields(self) -> list[str]:
         return [name for name in self.fields if name.startswith(CAMERA_PREFIX)]
 
-    def sections(self) -> list[tuple[str, list[forms.BoundField]]]:
-        """The fields in their sections; any field no section names goes in the last, "Other settings"."""
+    def chosen_design(self) -> str:
+        """The design the form shows its fields for: the posted one, else the study's."""
+        posted = self.data.get("design") if self.is_bound else None
+        return posted if posted in designs.DESIGNS else self.instance.design
+
+    @staticmethod
+    def field_designs(name: str) -> list[str]:
+        """The designs a setting matters to: every design but those another design's
+        setting belongs to (``Design.settings``) and, for a scale's setting, those whose
+        answers are not on a scale."""
+        return [design for design in designs.DESIGNS
+                if name not in designs.foreign_settings(design)
+                and not (name in SCALE_SETTINGS and not designs.design_named(design).on_scale)]
+
+    def sections(self) -> list[tuple[str, list[tuple[forms.BoundField, str | None]]]]:
+        """The fields in their sections, each with the designs it matters to (None: all),
+        space-separated; any field no section names goes in the last, "Other settings"."""
         placed = {name for _, names in self.SECTIONS for name in names} | set(self.camera_fields())
-        sections = [(title, [self[name] for name in names if name in self.fields]) for title, names in self.SECTIONS]
-        sections[-1][1].extend(self[name] for name in self.camera_fields())
-        others = [self[name] for name in self.fields if name not in placed]
-        return sections + ([("Other settings", others)] if others else [])
+        sections = [(title, [name for name in names if name in self.fields]) for title, names in self.SECTIONS]
+        sections[-1][1].extend(self.camera_fields())
+        others = [name for name in self.fields if name not in placed]
+        sections += [("Other settings", others)] if others else []
+        every = list(designs.DESIGNS)
+
+        def shown(name: str) -> tuple[forms.BoundField, str | None]:
+            owners = self.field_designs(name)
+            return self[name], None if owners == every else " ".join(owners)
+
+        return [(title, [shown(name) for name in names]) for title, names in sections]
 
     def clean(self) -> dict:
         for name in self.OPTIONAL_SIZES:
@@ -118,7 +155,35 @@ class StudyForm(forms.ModelForm):
 
     class Meta:
         model = Study
-        exclude = ["owner", "camera"]
+        exclude = ["owner", "camera", "previewed_at"]
+        labels = {
+            "pages_per_participant": "Pages per participant",
+            "abx": "Natural clip shown as a reference (ABX)",
+            "preference_strengths": "Degrees of preference",
+            "scale_min": "Lowest rating",
+            "scale_max": "Highest rating",
+            "label_min": "Lowest rating's label",
+            "label_max": "Highest rating's label",
+            "clips_per_participant": "Clips per participant",
+            "ratings_per_stimulus": "Ratings per clip (target)",
+            "training_clips": "Practice clips",
+            "reservation_minutes": "Clips held for an idle participant (minutes)",
+            "bad_checks": "BAD checks per participant",
+            "natural_checks": "NAT checks per participant",
+            "bad_threshold": "Exclude who rates a BAD clip at or above",
+            "natural_threshold": "Exclude who rates a NAT clip below",
+            "instructed_checks": "Instructed checks per participant",
+            "stop_after_failed_checks": "Stop after failed instructed checks",
+            "require_full_play": "Answers unlock when the clip has played",
+            "discard_early": "Flag answers given before the clip ended",
+            "completion_code": "Completion code",
+            "is_open": "Open to participants",
+            "device_check": "Check the device before consent",
+            "min_screen_width": "Smallest screen width (px)",
+            "min_screen_height": "Smallest screen height (px)",
+            "video_width": "Video width (px)",
+            "video_height": "Video height (px)",
+        }
         widgets = {
             "instructions": forms.Textarea(attrs={"rows": 4}),
             "consent_text": forms.Textarea(attrs={"rows": 4}),
@@ -148,7 +213,8 @@ class QuestionForm(forms.ModelForm):
         widgets = {"choices": forms.Textarea(attrs={"rows": 3}), "accepted": forms.Textarea(attrs={"rows": 2})}
 
     def validate_unique(self) -> None:
-        if Question.objects.filter(study=self.instance.study, name=self.cleaned_data.get("name")).exists():
+        others = Question.objects.filter(study=self.instance.study).exclude(pk=self.instance.pk)
+        if others.filter(name=self.cleaned_data.get("name")).exists():
             self.add_error("name", "another question of this study has this name")
 
 

@@ -105,7 +105,7 @@ def spreadsheet_safe(value: object) -> object:
 
 def question_names(study: Study) -> list[str]:
     """The study's questions in the order participants meet them."""
-    return list(study.questions.order_by("-part", "created", "pk").values_list("name", flat=True))  # before, after
+    return list(study.questions.order_by("-part", "order", "created", "pk").values_list("name", flat=True))  # before, after
 
 
 def participants_csv(study: Study) -> bytes:

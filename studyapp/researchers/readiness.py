@@ -5,13 +5,16 @@ participants who finish: Prolific a completion code or URL, and a screen-out cod
 screening questions can turn participants away (Prolific allows in-study screening only
 with its fixed screen-out payment); MTurk its frame over HTTPS (the participant's link
 brings the submit target, which ``participants.views`` checks on entry). The monitor's
-open button lists the reasons; the open view refuses on them.
+open button lists the reasons; the open view refuses on them. Warnings (attention checks
+without the system that makes them) do not stop it, once the researcher has seen them:
+the monitor shows them beside the button.
 """
 
 from __future__ import annotations
 
 from django.conf import settings
 
+from studyapp.designs.registry import design_of
 from studyapp.models import Question, Stimulus, Study, System
 
 
@@ -35,4 +38,20 @@ def open_problems(study: Study) -> list[str]:
     return problems
 
 
-__all__ = ["open_problems"]
+def open_warnings(study: Study) -> list[str]:
+    """What the study may open with but is probably a mistake, in words for the researcher:
+    attention checks asked for without the system that makes them."""
+    warnings = []
+    finished = study.stimuli.filter(status=Stimulus.Status.DONE)
+    if study.bad_checks and not finished.filter(system__role=System.Role.BAD).exists():
+        warnings.append(f"the settings ask for {study.bad_checks} BAD check(s) per participant, but the study has no "
+                        "BAD system with a finished clip, so no participant gets one and none can be excluded for "
+                        "it: add a BAD system on the systems page and generate its clips, or set BAD checks to 0")
+    if "natural_checks" in design_of(study).settings and study.natural_checks \
+            and not finished.filter(system__role=System.Role.NATURAL).exists():
+        warnings.append(f"the settings ask for {study.natural_checks} NAT check(s) per participant, but the study "
+                        "has no NAT system with a finished clip: add NAT on the systems page, or set NAT checks to 0")
+    return warnings
+
+
+__all__ = ["open_problems", "open_warnings"]

@@ -13,7 +13,7 @@ import re
 
 from django.db import transaction
 
-from studyapp.models import ControlSignal, Stimulus, Study, System
+from studyapp.models import ControlSignal, Rating, Stimulus, Study, System
 from studyapp.stimuli.sources import sampled_folder
 
 SAMPLED_NAME = re.compile(r"[0-9a-f]{64}\.npz")  # a content key; anything else there is not ours to delete
@@ -56,6 +56,31 @@ def delete_unreferenced_samples() -> int:
     return len(unreferenced)
 
 
+def removal_summary(item: System | ControlSignal | Study) -> list[str]:
+    """What removing ``item`` deletes, in words, one thing a line; the last line says
+    what stays."""
+    clips = item.stimuli.count()
+    if isinstance(item, Study):
+        participants = item.participants.count()
+        ratings = Rating.objects.filter(assignment__participant__study=item).count()
+        return [f"the study “{item.title}” and its settings",
+                f"its {item.systems.count()} system(s), {item.controls.count()} control(s) and "
+                f"{item.questions.count()} question(s)",
+                f"its {clips} clip(s): their videos, and sampled motion no other study shares",
+                f"its {participants} participant(s) with their {ratings} rating(s) and answers",
+                "Kept: uploaded checkpoints and submitted motion (stored once by their content), and analysis "
+                "reports already made. Download the ratings first if you need them."]
+    if isinstance(item, System):
+        sampled = " and sampled motion no other study shares" if item.checkpoint else ""
+        kept = {System.SourceKind.CHECKPOINT: "its checkpoint file", System.SourceKind.SUBMITTED: "its submitted motion"}
+        return [f"the system {item.name} ({item.get_role_display()})", f"its {clips} clip(s): their videos{sampled}",
+                f"Kept: {kept[item.source_kind]}, stored once by its content for any system that uses it."
+                if item.source_kind in kept else "Kept: every other system and its clips."]
+    return [f"the control {item.name} ({item.origin})",
+            f"its {clips} clip(s), one per system with motion for it: their videos and sampled motion",
+            "Kept: every other control and each system's other clips."]
+
+
 def remove(item: System | ControlSignal) -> int:
     """Delete ``item`` and its stimuli (rows, video files and sampled motion no other
     stimulus shares); returns how many clips went."""
@@ -72,10 +97,11 @@ def remove_study(study: Study) -> int:
     other study shares; returns how many clips went."""
     with transaction.atomic():
         stimuli = list(study.stimuli.all())
+        study.participants.all().delete()  # their assignments first: a rated clip is protected from deletion
         study.delete()
     delete_files(stimuli)
     return len(stimuli)
 
 
-__all__ = ["SystemsFixed", "delete_files", "delete_unreferenced_samples", "remove", "remove_study",
+__all__ = ["SystemsFixed", "delete_files", "delete_unreferenced_samples", "remove", "remove_study", "removal_summary",
            "require_not_started"]

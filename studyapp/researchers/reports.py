@@ -29,6 +29,7 @@ from analysis.exclusions import ExclusionRules
 from analysis.ratings import read_ratings
 from analysis.report import Report, build_report, summary_text, write_report
 from generation.files import atomic_folder
+from studyapp.researchers.table_format import readable_table
 from studyapp.designs.registry import design_named
 
 REPORTS_FOLDER = "reports"
@@ -107,13 +108,8 @@ def _paragraphs(markdown: str) -> list[SafeString]:
 
 
 def html_table(table: pd.DataFrame) -> SafeString:
-    """A table as escaped HTML (MultiIndex columns flattened), for the report and the monitor."""
-    flat = table.copy()
-    if isinstance(flat.columns, pd.MultiIndex):
-        flat.columns = [" · ".join(str(p) for p in c if str(p)) for c in flat.columns]
-    html = flat.to_html(index=not isinstance(flat.index, pd.RangeIndex), escape=True, border=0,
-                        classes="data", float_format=lambda x: f"{x:.4g}")
-    return mark_safe(html)  # pandas escaped every cell
+    """A table as escaped HTML for reading (``table_format``), for the report and the monitor."""
+    return readable_table(table)
 
 
 def report_page(media_root: Path, digest: str, owner_id: int) -> ReportPage:

@@ -8,6 +8,7 @@ from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import redirect, render
 from django.views.decorators.http import require_safe
 
+from studyapp.researchers.report_files import report_zip
 from studyapp.researchers.reports import AnalysisInputError, create_report, report_page
 from studyapp.server.views import current_health
 from studyapp.stimuli.gallery import GalleryIndexError, index_path, load_gallery
@@ -69,4 +70,20 @@ def analysis_report(request: HttpRequest, digest: str) -> HttpResponse:
         page = report_page(settings.MEDIA_ROOT, digest, request.user.pk)
     except FileNotFoundError:
         raise Http404("no such report") from None
-    return render(request, "studyapp/analysis_report.html", {"page": page})
+    # Each file by its place in the report (tables/..., figures/...); the tables' CSVs are the short list.
+    files = [(path, path.split("/", 2)[2]) for path in page.files]
+    csv_files = [(path, name) for path, name in files if name.endswith(".csv")]
+    return render(request, "studyapp/analysis_report.html", {"page": page, "files": files, "csv_files": csv_files})
+
+
+@login_required
+@require_safe
+def analysis_report_zip(request: HttpRequest, digest: str) -> HttpResponse:
+    """Every file of a report in one zip."""
+    try:
+        data = report_zip(settings.MEDIA_ROOT, digest, request.user.pk)
+    except FileNotFoundError:
+        raise Http404("no such report") from None
+    response = HttpResponse(data, content_type="application/zip")
+    response["Content-Disposition"] = f'attachment; filename="report-{digest[:12]}.zip"'
+    return response

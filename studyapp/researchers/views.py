@@ -14,26 +14,31 @@ from django.conf import settings
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
 from django.db.models import Count, Q
-from django.http import Http404, HttpRequest, HttpResponse, JsonResponse
+from django.http import FileResponse, Http404, HttpRequest, HttpResponse, JsonResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.urls import reverse
 from django.views.decorators.cache import never_cache
-from django.views.decorators.http import require_POST, require_safe
+from django.utils import timezone
+from django.views.decorators.http import require_http_methods, require_POST, require_safe
 
 from generation import registry
 from studyapp.designs.rules import StudyRules
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.participants.views import PLATFORM_PARAMETERS
+from studyapp.researchers import question_order
+from studyapp.researchers.completion_time import completion_minutes
+from studyapp.researchers.duplication import duplicate_study
 from studyapp.researchers.editing import EditRefused, edit_system, rename_control
 from studyapp.researchers.export import ratings_csv, rules_json
 from studyapp.researchers.forms import (CheckpointSystemForm, ControlEditForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
                             LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, QuestionRemovalForm, StudyForm,
                             SubmittedMotionSystemForm, SystemEditForm, VideoSystemForm)
 from studyapp.researchers.monitor import study_monitor
+from studyapp.researchers.monitor_figures import live_figures
 from studyapp.researchers.participant_list import participant_rows, participants_csv, question_names
 from studyapp.researchers.preview import preview_pages
-from studyapp.researchers.readiness import open_problems
-from studyapp.researchers.removal import SystemsFixed, remove, require_not_started
+from studyapp.researchers.readiness import open_problems, open_warnings
+from studyapp.researchers.removal import SystemsFixed, removal_summary, remove, remove_study, require_not_started
 from studyapp.researchers.reports import AnalysisInputError, create_report
 from studyapp.server.celery import app as celery_app
 from studyapp.server.health import collect_health
@@ -45,6 +50,7 @@ from studyapp.stimuli.dispatch import BrokerUnavailable, generate_stimuli, retry
 from studyapp.stimuli.motion_export import exported_stimuli, motion_zip
 from studyapp.stimuli.submissions import Reading, add_submitted_upload
 from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
+from studyapp.stimuli.video_export import finished_clips, stimuli_zip
 
 # Prolific fills these placeholders in a study URL; MTurk appends its own ids.
 PROLIFIC_PLACEHOLDERS = "PROLIFIC_PID={{%PROLIFIC_PID%}}&STUDY_ID={{%STUDY_ID%}}&SESSION_ID={{%SESSION_ID%}}"
@@ -98,21 +104,33 @@ def _forms_page(request: HttpRequest, study: Study, page: str, forms: dict, acti
     """A page of several forms, each posting ``action=<its key>``.
 
     The submitted form is validated and its action run; the action's message is shown
-    after a redirect, and a refusal (``refusal``) becomes the form's error, with 400.
+    after a redirect. A refusal (``refusal``) is listed at the top of the page, one
+    problem a line (a submission's every problem), and the form points there, with 400.
     """
     action = request.POST.get("action") if request.method == "POST" else None
-    bound = {key: form_class(request.POST, request.FILES) if key == action else form_class()
-             for key, form_class in forms.items()}
+    # Each form's own element ids, so that every label names its own input.
+    bound = {key: form_class(request.POST, request.FILES, auto_id=f"id_{key}_%s") if key == action
+             else form_class(auto_id=f"id_{key}_%s") for key, form_class in forms.items()}
     form = bound.get(action)
+    refused = None
     if form is not None and form.is_valid():
         try:
             messages.success(request, actions[action](form.cleaned_data))
             return redirect(f"study-{page}", pk=study.pk)
         except refusal as error:
-            form.add_error(None, str(error))
+            refused = _refusal(error)
+            form.add_error(None, "Refused: the problems are listed at the top of the page.")
     status = 400 if request.method == "POST" else 200
-    return render(request, f"studyapp/researcher/{page}.html", {"study": study, "forms": bound, **context},
-                  status=status)
+    return render(request, f"studyapp/researcher/{page}.html",
+                  {"study": study, "forms": bound, "refused": refused, **context}, status=status)
+
+
+def _refusal(error: Exception) -> dict:
+    """A refusal as the top of a page lists it: a title, then one problem a line."""
+    problems = getattr(error, "lines", None)  # a submission's report, one control a line
+    if problems:
+        return {"title": str(error).splitlines()[0].rstrip(":"), "problems": problems}
+    return {"title": "Not done", "problems": [str(error)]}
 
 
 def _submitted(system: System) -> str:
@@ -249,18 +267,78 @@ def study_item_edit(request: HttpRequest, pk: int, kind: str, item: int) -> Http
     return render(request, "studyapp/researcher/edit_item.html", context, status=status)
 
 
+def _confirm_removal(request: HttpRequest, study: Study, target: System | ControlSignal | Study,
+                     back: str, refusal: str = "") -> HttpResponse:
+    """The page that says what a removal deletes (and what it keeps) and asks to confirm it."""
+    *deletes, kept = removal_summary(target)
+    context = {"study": study, "target": target, "deletes": deletes, "kept": kept, "back": back, "refusal": refusal,
+               "whole_study": isinstance(target, Study)}
+    return render(request, "studyapp/researcher/confirm_removal.html", context)
+
+
 @login_required
-@require_POST
+@require_http_methods(["GET", "HEAD", "POST"])
 def study_remove(request: HttpRequest, pk: int, kind: str, item: int) -> HttpResponse:
-    """Remove a system or a control, with its clips, until the first participant starts."""
+    """Remove a system or a control, with its clips, until the first participant starts:
+    asked for (GET) with what it deletes, done when confirmed (POST)."""
     study = _study(request, pk)
     target = _item(study, kind, item)
+    if request.method != "POST":
+        fixed = "participants have started this study: its systems and controls are fixed" \
+            if study.participants.exists() else ""
+        return _confirm_removal(request, study, target, reverse(f"study-{kind}", args=[study.pk]), fixed)
     try:
         clips = remove(target)
         messages.success(request, f"Removed {target.name} and its {clips} clip(s).")
     except SystemsFixed as refusal:
         messages.error(request, f"{target.name} stays: {refusal}.")
     return redirect(f"study-{kind}", pk=study.pk)
+
+
+@login_required
+@require_http_methods(["GET", "HEAD", "POST"])
+def study_delete(request: HttpRequest, pk: int) -> HttpResponse:
+    """Delete a whole study with everything in it: asked for (GET) with what it deletes, done when confirmed (POST)."""
+    study = _study(request, pk)
+    if request.method != "POST":
+        return _confirm_removal(request, study, study, reverse("study-monitor", args=[study.pk]))
+    title = study.title
+    clips = remove_study(study)
+    messages.success(request, f"Deleted “{title}” and its {clips} clip(s).")
+    return redirect("study-list")
+
+
+@login_required
+@require_POST
+def study_duplicate(request: HttpRequest, pk: int) -> HttpResponse:
+    """A closed copy of the study, its clips linked rather than rendered again; its settings page next."""
+    study = _study(request, pk)
+    try:
+        copy = duplicate_study(study)
+    except FileNotFoundError as error:
+        messages.error(request, f"Not duplicated: {error}.")
+        return redirect("study-monitor", pk=study.pk)
+    messages.success(request, f"Duplicated as “{copy.title}”, closed, with {copy.stimuli.count()} finished clip(s) "
+                              "and no participants: change what differs, then open it.")
+    return redirect("study-edit", pk=copy.pk)
+
+
+@never_cache
+@login_required
+@require_safe
+def study_stimuli_download(request: HttpRequest, pk: int) -> HttpResponse:
+    """Every finished clip as an MP4, in one zip with an index (``video_export``)."""
+    study = _study(request, pk)
+    if not finished_clips(study):
+        messages.error(request, "No clips to download yet: generate the stimuli first.")
+        return redirect("study-stimuli", pk=study.pk)
+    try:
+        archive = stimuli_zip(study)
+    except FileNotFoundError as error:
+        messages.error(request, f"No download: {error}.")
+        return redirect("study-stimuli", pk=study.pk)
+    return FileResponse(archive, as_attachment=True, filename=f"stimuli-study-{study.pk}.zip",
+                        content_type="application/zip")
 
 
 @never_cache
@@ -300,6 +378,7 @@ def study_monitor_page(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
     context = {"study": study, "entry_link": entry_link(request, study),
                "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study),
+               "open_warnings": open_warnings(study), "figures": live_figures(study),
                "rules": StudyRules.of(study).described()}
     try:
         context["monitor"] = study_monitor(study)
@@ -318,6 +397,8 @@ def study_preview(request: HttpRequest, pk: int, index: int = 0) -> HttpResponse
     if not pages:
         messages.error(request, "The preview needs a finished clip: generate the stimuli first.")
         return redirect("study-stimuli", pk=study.pk)
+    # An update, not a save: participants' pages keep the study cached while ``updated`` stands.
+    Study.objects.filter(pk=study.pk).update(previewed_at=timezone.now())
     if index >= len(pages):
         return redirect("study-preview-page", pk=study.pk, index=0)
     page = pages[index]
@@ -335,7 +416,8 @@ def study_participants(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
     names = question_names(study)
     rows = [(row, [row.answers.get(name, "") for name in names]) for row in participant_rows(study)]
-    return render(request, "studyapp/researcher/participants.html", {"study": study, "rows": rows, "questions": names})
+    context = {"study": study, "rows": rows, "questions": names, "completion": completion_minutes(study)}
+    return render(request, "studyapp/researcher/participants.html", context)
 
 
 @login_required
@@ -360,11 +442,53 @@ def study_questions(request: HttpRequest, pk: int) -> HttpResponse:
         else:
             form = QuestionForm(request.POST, instance=Question(study=study))
             if form.is_valid():
+                form.instance.order = question_order.last_place(form.instance)
                 messages.success(request, f"Added “{form.save().text}”.")
                 return redirect("study-questions", pk=study.pk)
         status = 400
-    context = {"study": study, "form": form, "locked": locked, "questions": study.questions.all()}
+    # In the order participants meet them: the questions before the ratings first.
+    questions = study.questions.order_by("-part", "order", "created", "pk")
+    context = {"study": study, "form": form, "locked": locked, "questions": questions}
     return render(request, "studyapp/researcher/questions.html", context, status=status)
+
+
+@login_required
+def study_question_edit(request: HttpRequest, pk: int, question: int) -> HttpResponse:
+    """Change a question (its text, choices, part, ...) until anyone has started."""
+    study = _study(request, pk)
+    target = get_object_or_404(Question, pk=question, study=study)
+    locked = study.participants.exists()
+    part = target.part
+    form = QuestionForm(request.POST or None, instance=target)
+    status = 200
+    if request.method == "POST":
+        if locked:
+            messages.error(request, "Participants have started: the questions are fixed.")
+            return redirect("study-questions", pk=study.pk)
+        if form.is_valid():
+            if form.instance.part != part:  # it joins the other part at its end
+                form.instance.order = question_order.last_place(form.instance)
+            messages.success(request, f"Saved “{form.save().text}”.")
+            return redirect("study-questions", pk=study.pk)
+        status = 400
+    return render(request, "studyapp/researcher/question_edit.html",
+                  {"study": study, "form": form, "question": target, "locked": locked}, status=status)
+
+
+@login_required
+@require_POST
+def study_question_move(request: HttpRequest, pk: int, question: int) -> HttpResponse:
+    """Move a question one place up or down (``direction`` "up" or "down") within its part."""
+    study = _study(request, pk)
+    target = get_object_or_404(Question, pk=question, study=study)
+    step = {"up": -1, "down": 1}.get(request.POST.get("direction", ""))
+    if step is None:
+        return HttpResponse("direction must be up or down", status=400, content_type="text/plain")
+    if study.participants.exists():
+        messages.error(request, "Participants have started: the questions are fixed.")
+    elif not question_order.move(target, step):
+        messages.error(request, f"“{target.text}” is {'first' if step < 0 else 'last'} of its part already.")
+    return redirect("study-questions", pk=study.pk)
 
 
 @never_cache
@@ -378,11 +502,15 @@ def study_participants_csv(request: HttpRequest, pk: int) -> HttpResponse:
 @login_required
 @require_POST
 def study_open(request: HttpRequest, pk: int) -> HttpResponse:
-    """Open the study to participants, or close it (``open`` = "1" or "0")."""
+    """Open the study to participants, or close it (``open`` = "1" or "0"); a study with
+    warnings opens only when they were seen (``despite_warnings`` = "1")."""
     study = _study(request, pk)
     want_open = request.POST.get("open") == "1"
     if want_open and (problems := open_problems(study)):
         messages.error(request, "The study cannot open: " + "; ".join(problems) + ".")
+    elif want_open and (warnings := open_warnings(study)) and request.POST.get("despite_warnings") != "1":
+        messages.error(request, "Not opened: " + "; ".join(warnings) + ". To open it all the same, tick "
+                                "“Open it despite the warning” beside the button.")
     else:
         study.is_open = want_open
         study.save(update_fields=["is_open"])

@@ -4,9 +4,10 @@
    researcher account exists;
 2. builds the MoGlow locomotion dataset from $MOTION_DATA (by default the locomotion of
    both Bandai-Namco folders, 1.5 hours; about half a minute, cached after the first run);
-3. uses the project's own ``cpu`` MoGlow (models/moglow-cpu.safetensors, trained on that
-   data for hours) and trains the ``cpu`` RNN and VAE and an early MoGlow for the BAD
-   clips on the same data and split (minutes), unless var/models/ has them already;
+3. uses the project's own models (models/: the ``cpu`` MoGlow, trained on that data for
+   hours, and the ``cpu`` RNN and VAE and an early MoGlow for the BAD clips, trained on
+   the same data and split by ``make demo-models``), checked against their recorded
+   digests and the data; it trains its own only when asked (DEMO_TRAIN=1);
 4. starts one local Celery worker on the serverless filesystem broker;
 5. has the worker render a gallery of natural clips (one per content label);
 6. sets up the demo study (MoGlow, RNN, VAE, NAT and BAD; held-out and synthetic
@@ -14,12 +15,15 @@
 7. sets up a side-by-side study beside it (the same systems, controls and clips, rated
    on 0-100 sliders, every system's clip of one control on a page);
 8. opens both studies and serves them with Django's runserver (``manage.py serve``, whose
-   listen queue holds a crowd) until Ctrl-C, printing the participant links and the
-   researcher's login.
+   listen queue holds a crowd) on DEMO_HOST:DEMO_PORT (all interfaces, port 8000) until
+   Ctrl-C, printing the participant links (each with an id of its own, at this machine's
+   network address, so they open on a phone of the same network) and the researcher's
+   login.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import secrets
 import signal
@@ -43,14 +47,21 @@ SIDE_BY_SIDE_INSTRUCTIONS = (
     "Each page shows several short videos of a stick figure moving. Play every video to its end (playing one "
     "pauses the others), then rate how natural each one looks on its slider, from 0 (completely unnatural) to 100 "
     "(completely natural). Compare them with each other: the videos on one page follow the same path.")
-# (system name, model kind, training steps, role, checkpoint). The baselines train in
-# minutes and keep the state with the lowest validation loss ("best"); MoGlow's is the
-# project's own training, committed under COMMITTED_MODELS and trained again by the demo
-# (4,000 steps, about an hour) only if that file is missing or learnt from other data.
-# The BAD system is MoGlow stopped after a few steps, whose motion is visibly broken.
-DEMO_MODELS = (("MoGlow", "moglow", 4000, "model", "committed"), ("RNN", "rnn", 400, "model", "best"),
-               ("VAE", "vae", 1000, "model", "best"), ("BAD", "moglow", 15, "bad", "last"))
+# (system name, model kind, role, committed file, training steps). Every demo model is
+# committed under COMMITTED_MODELS with its digest in SHA256SUMS, trained by
+# scripts/train-demo-models.sh (`make demo-models`; MoGlow as the README's "Trained on the
+# real data" says): the RNN and VAE keep their state of lowest validation loss, the BAD
+# system is MoGlow stopped after a few steps, whose motion is visibly broken. The demo
+# trains its own, with these steps, into var/models only when asked (DEMO_TRAIN=1), should a
+# committed file be missing, changed, or learnt from other data than $MOTION_DATA.
+DEMO_MODELS = (("MoGlow", "moglow", "model", "moglow-cpu.safetensors", 4000),
+               ("RNN", "rnn", "model", "rnn-cpu.safetensors", 400),
+               ("VAE", "vae", "model", "vae-cpu.safetensors", 1000),
+               ("BAD", "moglow", "bad", "moglow-bad.safetensors", 15))
 COMMITTED_MODELS = REPO / "models"
+DIGESTS = COMMITTED_MODELS / "SHA256SUMS"
+# What a demo model trained when asked keeps: the baselines their best state, MoGlow and BAD their last.
+KEEPS_BEST = {"rnn", "vae"}
 # Held-out clips start 1 s into their takes, the models warming up on that first second,
 # as the MoGlow authors sample a test take (many walks start slower than they go on).
 HELD_OUT_CONTROLS, CONTROL_SECONDS, HELD_OUT_LEAD_IN = 4, 6.0, 1.0
@@ -83,7 +94,7 @@ def render_gallery(data: str, media_root: Path) -> int:
 
     options = GalleryOptions()
     out = media_root / "gallery"
-    clips = choose_clips(data, options.per_content, options.contents, options.seconds)
+    clips = choose_clips(data, options.per_content, options.contents, options.seconds, options.min_seconds)
     pending = [render_natural_clip.delay(str(p), str(out), options.to_dict()) for p in clips]
     entries = []
     with tqdm(total=len(pending), desc="worker rendering gallery", unit="clip") as bar:
@@ -94,45 +105,68 @@ def render_gallery(data: str, media_root: Path) -> int:
     return len(entries)
 
 
-def committed_model(kind: str, fingerprint: str) -> Path | None:
-    """The project's committed checkpoint of ``kind``, if it is there and learnt from the
-    data of this ``fingerprint`` (held-out controls of other data could be its training clips)."""
+class DemoStop(Exception):
+    """The demo cannot go on without something only the user can do; the message says what."""
+
+
+def recorded_digests() -> dict[str, str]:
+    """The committed models' SHA-256 digests by file name (models/SHA256SUMS)."""
+    lines = DIGESTS.read_text().splitlines() if DIGESTS.is_file() else []
+    return {name.strip(): digest for digest, name in (line.split(maxsplit=1) for line in lines if line.strip())}
+
+
+def committed_model(file: str, fingerprint: str) -> tuple[Path | None, str]:
+    """The committed checkpoint ``file`` where it is whole (its recorded digest) and learnt
+    from the data of this ``fingerprint`` (held-out controls of other data could be its
+    training clips); else None and why not."""
     from generation.checkpoint import read_meta
 
-    path = COMMITTED_MODELS / f"{kind}-cpu.safetensors"
+    path = COMMITTED_MODELS / file
+    shown = path.relative_to(REPO)
     if not path.is_file():
-        return None
+        return None, f"{shown} is missing"
+    recorded = recorded_digests().get(file)
+    if recorded is None or hashlib.sha256(path.read_bytes()).hexdigest() != recorded:
+        return None, f"{shown} is not the file whose digest {DIGESTS.relative_to(REPO)} records (git checkout models/)"
     if read_meta(path).data_fingerprint != fingerprint:
-        say(f"{path.relative_to(REPO)} learnt from other data (the locomotion of both Bandai-Namco folders) "
-            "than $MOTION_DATA holds; the demo trains its own (about an hour)")
-        return None
-    return path
+        return None, f"{shown} learnt from other data (the locomotion of both Bandai-Namco folders) than $MOTION_DATA holds"
+    return path, ""
 
 
-def model_path(models: Path, kind: str, steps: int, which: str, fingerprint: str) -> Path:
-    """A demo model's checkpoint: the project's committed one where ``which`` asks for it
-    and it fits the data, else the last or best state of the demo's own training run."""
-    committed = committed_model(kind, fingerprint) if which == "committed" else None
-    return committed or models / f"{kind}-cpu-{steps}steps{'.best' if which == 'best' else ''}.safetensors"
+def trained_path(models: Path, kind: str, steps: int) -> Path:
+    """Where a demo model trained when asked is kept: its last or best state."""
+    return models / f"{kind}-cpu-{steps}steps{'.best' if kind in KEEPS_BEST else ''}.safetensors"
 
 
-def ensure_models(dataset, models: Path) -> dict[str, Path]:
-    """Each demo system's checkpoint, trained where missing (minutes each on 2 cores; the
-    MoGlow, should its committed file be missing or not fit the data, about an hour)."""
+def ensure_models(dataset, models: Path, train_if_needed: bool = False) -> dict[str, Path]:
+    """Each demo system's checkpoint: the committed one, or, where that does not fit and
+    ``train_if_needed``, one trained on the demo's data (minutes each on 2 cores, MoGlow about
+    an hour); DemoStop naming what does not fit otherwise."""
     from generation.checkpoint import read_meta
     from generation.train import TrainOptions, train
 
-    checkpoints = {}
-    for name, kind, steps, _, which in DEMO_MODELS:
-        path = checkpoints[name] = model_path(models, kind, steps, which, dataset.fingerprint)
+    checkpoints, unfit = {}, []
+    for name, kind, _, file, steps in DEMO_MODELS:
+        committed, why = committed_model(file, dataset.fingerprint)
+        if committed is not None:
+            checkpoints[name] = committed
+            continue
+        path = checkpoints[name] = trained_path(models, kind, steps)
         last = path.with_name(path.name.replace(".best", ""))
-        if path.parent == COMMITTED_MODELS or (path.exists() and read_meta(last).step >= steps):
+        if path.exists() and read_meta(last).step >= steps:
+            continue
+        if not train_if_needed:
+            unfit.append(f"{name}: {why}")
             continue
         # A run stopped part-way (Ctrl-C) goes on from its last checkpoint instead of being taken as trained.
         resume = last.exists()
-        say(f"{'continuing' if resume else 'training'} {name} ({kind}, cpu preset, {steps} steps) on the demo's "
-            f"data: once, kept in {models}")
+        say(f"{why}: {'continuing' if resume else 'training'} {name} ({kind}, cpu preset, {steps} steps) on the "
+            f"demo's data, once, kept in {models}")
         train(kind, "cpu", dataset, last, TrainOptions(steps=steps, eval_every=min(steps, 250)), resume=resume)
+    if unfit:
+        raise DemoStop("; ".join(unfit) + ". Train the demo's own models on $MOTION_DATA with "
+                       "DEMO_TRAIN=1 make demo (minutes for RNN, VAE and BAD, about an hour for MoGlow), "
+                       "or run the demo on the data the committed models learnt from")
     return checkpoints
 
 
@@ -168,7 +202,7 @@ def _create_study(owner, checkpoints: dict[str, Path]):
 
     study = Study.objects.create(owner=owner, title=DEMO_STUDY, clips_per_participant=12, ratings_per_stimulus=10,
                                  training_clips=3, completion_code="DEMO-DONE")
-    for name, _, _, role, _ in DEMO_MODELS:
+    for name, _, role, _, _ in DEMO_MODELS:
         path = checkpoints[name]
         with path.open("rb") as stream:
             add_checkpoint_system(study, name, File(stream, name=path.name), role=role)
@@ -180,11 +214,12 @@ def _create_study(owner, checkpoints: dict[str, Path]):
 
 def ensure_side_by_side_study(single):
     """The side-by-side demo study: the single study's systems, controls and rendered clips
-    (each clip's file linked under a token of its own), so it needs no rendering of its
-    own; clips rendered since the last run are added."""
+    (``duplication.copy_contents``: each clip's file linked under a token of its own), so it
+    needs no rendering of its own; clips rendered since the last run are added."""
     from django.db import transaction
 
-    from studyapp.models import ControlSignal, Stimulus, Study, System
+    from studyapp.models import Stimulus, Study
+    from studyapp.researchers.duplication import copy_contents
 
     with transaction.atomic():
         study, _ = Study.objects.get_or_create(owner=single.owner, title=SIDE_BY_SIDE_STUDY, defaults={
@@ -192,19 +227,7 @@ def ensure_side_by_side_study(single):
             "ratings_per_stimulus": 10, "training_clips": 3, "bad_checks": 2, "instructed_checks": 1,
             "instructions": SIDE_BY_SIDE_INSTRUCTIONS, "completion_code": "DEMO-DONE", "camera": single.camera,
             "video_width": single.video_width, "video_height": single.video_height})
-        systems = {s.pk: System.objects.get_or_create(study=study, name=s.name, defaults={
-            "role": s.role, "checkpoint": s.checkpoint, "checkpoint_digest": s.checkpoint_digest, "kind": s.kind,
-            "metadata": s.metadata, "temperature": s.temperature})[0] for s in single.systems.all()}
-        controls = {c.pk: ControlSignal.objects.get_or_create(study=study, name=c.name, defaults={
-            "origin": c.origin, "control": c.control, "source_clip": c.source_clip, "seconds": c.seconds})[0]
-            for c in single.controls.all()}
-        copied = set(study.stimuli.values_list("content_key", flat=True))
-        for clip in single.stimuli.filter(status=Stimulus.Status.DONE).exclude(content_key__in=copied):
-            twin = Stimulus.objects.create(
-                study=study, system=systems[clip.system_id], control=controls.get(clip.control_id), seed=clip.seed,
-                content_key=clip.content_key, status=Stimulus.Status.DONE, duration_s=clip.duration_s)
-            twin.video_path().parent.mkdir(parents=True, exist_ok=True)
-            os.link(clip.video_path(), twin.video_path())
+        copy_contents(single, study)
         study.is_open = study.stimuli.filter(status=Stimulus.Status.DONE).exists()
         study.save(update_fields=["is_open"])
     return study
@@ -233,6 +256,25 @@ def ensure_researcher(var_dir: Path):
 def port_is_free(port: int) -> bool:
     with socket.socket() as s:
         return s.connect_ex(("127.0.0.1", port)) != 0
+
+
+def network_address() -> str:
+    """This machine's address on its network (the interface of its default route), or
+    127.0.0.1 without one. Connecting a UDP socket sends nothing."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            s.connect(("192.0.2.1", 9))  # TEST-NET-1: never routed anywhere
+            return s.getsockname()[0]
+        except OSError:
+            return "127.0.0.1"
+
+
+def participant_link(base: str, study, id_name: str) -> str:
+    """An entry link of ``study`` carrying a participant id of its own: each link printed
+    is one participant, whichever browser or phone opens it."""
+    from django.urls import reverse
+
+    return f"{base}{reverse('participant-enter', args=[study.key])}?{id_name}=demo-{secrets.token_hex(3)}"
 
 
 def stop(process: subprocess.Popen | None) -> None:
@@ -270,10 +312,16 @@ def main() -> int:
             "and 2 from GitHub (BandaiNamcoResearchInc/Bandai-Namco-Research-Motiondataset) or use any folder of "
             "BVH files, then run:  MOTION_DATA=/path/to/folder make demo  (several folders joined with ':')")
         return 2
-    port = int(os.environ.get("DEMO_PORT", "8000"))
+    try:
+        port = int(os.environ.get("DEMO_PORT", "8000"))
+    except ValueError:
+        say(f"DEMO_PORT must be a port number, got {os.environ['DEMO_PORT']!r}")
+        return 2
     if not port_is_free(port):
         say(f"port {port} is in use; choose another with DEMO_PORT=8001 make demo")
         return 2
+    host = os.environ.get("DEMO_HOST", "0.0.0.0")
+    address = network_address() if host == "0.0.0.0" else host
 
     say(f"database: {settings.DATABASES['default']['NAME']}")
     call_command("migrate", verbosity=0)
@@ -285,7 +333,11 @@ def main() -> int:
         dataset = build_dataset(data, DatasetOptions(**DATASET))
         say(f"dataset {dataset.fingerprint[:12]}: {len(dataset.select('train', augmented=False))} training takes, "
             f"{len(dataset.select('test'))} held out, {len(dataset.windows('train')['pose'])} training windows")
-        checkpoints = ensure_models(dataset, Path(settings.VAR_DIR) / "models")
+        checkpoints = ensure_models(dataset, Path(settings.VAR_DIR) / "models",
+                                    os.environ.get("DEMO_TRAIN") == "1")
+    except DemoStop as stop_reason:
+        say(str(stop_reason))
+        return 2
     except KeyboardInterrupt:
         say("stopped; make demo goes on from here")
         return 130
@@ -299,17 +351,19 @@ def main() -> int:
         say(f"{count} natural clips rendered into {Path(settings.MEDIA_ROOT) / 'gallery'}")
         study = ensure_study(researcher, checkpoints)
         side_by_side = ensure_side_by_side_study(study)
+        # The server answers to the address the links carry (and to this machine's own names).
+        hosts = os.environ.get("ALLOWED_HOSTS") or ",".join(dict.fromkeys(["localhost", "127.0.0.1", "[::1]", address]))
         server = subprocess.Popen(
-            [sys.executable, "manage.py", "serve", "--noreload", f"127.0.0.1:{port}"],
-            cwd=REPO, start_new_session=True,
+            [sys.executable, "manage.py", "serve", "--noreload", f"{host}:{port}"],
+            cwd=REPO, start_new_session=True, env={**os.environ, "ALLOWED_HOSTS": hosts},
         )
-        base = f"http://127.0.0.1:{port}"
+        base = f"http://{address}:{port}"
         if study.is_open:
             id_name = PLATFORM_PARAMETERS[study.platform][0]
             for label, each in (("single clips", study), ("side by side", side_by_side)):
-                say(f"participant link ({label}): "
-                    f"{base}{reverse('participant-enter', args=[each.key])}?{id_name}=demo-participant-1")
-            say(f"   (another {id_name} starts a new participant; the same one resumes)")
+                say(f"participant link ({label}): {participant_link(base, each, id_name)}")
+            say(f"   each link is one participant, in any browser or on a phone of this network; another {id_name} "
+                "(or none) starts another")
         else:
             say("no stimulus could be rendered, so the study stays closed: see the stimuli page for the reasons")
         say(f"researcher:       {base}{reverse('study-list')}  (login {researcher.username} / {password})")

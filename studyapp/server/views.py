@@ -5,7 +5,8 @@ from django.conf import settings
 from django.contrib.auth.decorators import login_required
 from django.contrib.auth.views import redirect_to_login
 from django.http import Http404, HttpRequest, HttpResponse, HttpResponseBase, JsonResponse
-from django.shortcuts import render
+from django.shortcuts import redirect, render
+from django.templatetags.static import static
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_safe
 
@@ -25,6 +26,12 @@ def _http_status(report: HealthReport) -> int:
     # balancers and compose should see it as down; a missing broker or worker
     # only degrades it (pages still render, background work waits).
     return 200 if report.database.ok else 503
+
+
+@require_safe
+def favicon(request: HttpRequest) -> HttpResponse:
+    """The site's icon for a browser that asks at /favicon.ico (every page links it too)."""
+    return redirect(static("studyapp/favicon.svg"), permanent=True)
 
 
 @never_cache

@@ -10,15 +10,15 @@ The bundle (a folder, or the same files in a zip):
                         control's frame: a valid submission for that control (in
                         centimetres with y up, which the README and index.json say)
 
-A control's id is its name where the name is a plain file name, else ``control-<pk>``;
-submitted files are named by it (``studyapp.stimuli.submissions``).
+A control's id is the name it was created with where that is a plain file name, else
+``control-<pk>``, and renaming the control keeps it; submitted files are named by it
+(``studyapp.stimuli.submissions``).
 """
 
 from __future__ import annotations
 
 import io
 import json
-import re
 import zipfile
 from pathlib import Path
 
@@ -30,11 +30,10 @@ from generation.motion.bvh import bvh_text, motion_to_bvh
 from generation.motion.root import root_trajectory, to_root_frame
 from generation.motion.types import Motion
 from generation.submission import MAX_HEIGHT_CM, MIN_HEIGHT_CM, PATH_TOLERANCE_CM
-from studyapp.models import ControlSignal, Study
+from studyapp.models import SAFE_ID, ControlSignal, Study
 from studyapp.stimuli.controls import natural_options, study_options
 from studyapp.stimuli.natural import natural_motion
 
-SAFE_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")
 
 UNITS = {"forward": "cm/s", "sideways": "cm/s, left positive", "yaw_velocity": "rad/s, counter-clockwise seen from above (left turn) positive",
          "root_path": "cm, (x, z) on the floor", "root_yaw": "rad, 0 faces +z", "fps": "frames per second",
@@ -95,8 +94,9 @@ exactly as it renders the motion it samples itself.
 
 
 def control_id(control: ControlSignal) -> str:
-    """The file name stem of a control in an export and in a submission."""
-    return control.name if SAFE_ID.fullmatch(control.name) else f"control-{control.pk}"
+    """The file name stem of a control in an export and in a submission: its export id,
+    which a rename leaves as it was."""
+    return control.export_id or f"control-{control.pk}"
 
 
 def natural_in_control_frame(motion: Motion, root_options) -> Motion:

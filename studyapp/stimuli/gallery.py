@@ -2,7 +2,8 @@
 
 The demo renders clips to `MEDIA_ROOT/gallery/*.mp4` and lists them in
 `MEDIA_ROOT/gallery/index.json`, a JSON list of objects with `file`, `title`,
-`content`, `style`, `frames`, `fps` and an optional contact-sheet `sheet`.
+`content`, `style`, `frames`, `fps`, an optional contact-sheet `sheet` and an optional
+`poster` (the first frame, which the page shows before a video plays).
 """
 
 import json
@@ -26,6 +27,7 @@ class GalleryClip:
     frames: int
     fps: float
     sheet: str | None = None
+    poster: str | None = None  # the first frame, shown before the video plays
 
     @property
     def seconds(self) -> float:
@@ -48,6 +50,7 @@ def _clip_from_entry(entry: object, position: int) -> GalleryClip:
             frames=int(entry.get("frames", 0)),
             fps=float(entry.get("fps", 0)),
             sheet=str(entry["sheet"]) if entry.get("sheet") else None,
+            poster=str(entry["poster"]) if entry.get("poster") else None,
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise GalleryIndexError(f"entry {position}: {type(exc).__name__}: {exc}") from exc

@@ -1,13 +1,14 @@
 """Registering a study's systems: uploaded checkpoints, natural motion (NAT) and BAD videos.
 
 Uploads are never trusted: a checkpoint must be a safetensors file of this project that
-loads completely (digest, kind, every tensor's name and shape) and can drive the
-Generator; a video must be an MP4 whose every frame decodes, as long as it says it lasts
-(a file cut short still decodes its first frames). Nothing is unpickled or executed, and
-a refused upload leaves nothing on disk. Accepted checkpoints are kept by the project's
-one checkpoint store (``generation.store.keep``) under ``CHECKPOINT_ROOT``, named by
-their content digest, so the same checkpoint uploaded twice is stored once; what a kind
-is controlled by and its named presets come from the model registry
+loads completely (digest, kind, every tensor's name and shape), can drive the Generator
+and learnt from the data the study's other checkpoints learnt from, prepared the same
+way (``data_match``); a video must be an MP4 whose every frame decodes, as long as it
+says it lasts (a file cut short still decodes its first frames). Nothing is unpickled or
+executed, and a refused upload leaves nothing on disk. Accepted checkpoints are kept by
+the project's one checkpoint store (``generation.store.keep``) under ``CHECKPOINT_ROOT``,
+named by their content digest, so the same checkpoint uploaded twice is stored once; what
+a kind is controlled by and its named presets come from the model registry
 (``generation.registry``). Accepted videos become finished stimuli under
 ``MEDIA_ROOT/stimuli/``.
 """
@@ -18,6 +19,7 @@ import dataclasses
 import hashlib
 import subprocess
 import tempfile
+from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,6 +37,7 @@ from generation.store import SUFFIX as CHECKPOINT_SUFFIX
 from studyapp.bounds import check_field
 from studyapp.models import Stimulus, Study, System, new_token
 from studyapp.server.null_characters import null_character_in
+from studyapp.stimuli.data_match import data_mismatch
 
 if TYPE_CHECKING:  # torch-backed modules load only when a checkpoint is handled
     from generation.checkpoint import CheckpointMeta
@@ -82,8 +85,10 @@ def preset_name(meta: CheckpointMeta) -> str:
     return "/".join(matches) or "custom"
 
 
-def store_checkpoint(upload: File) -> StoredCheckpoint:
-    """Validate an uploaded checkpoint completely and keep it in the checkpoint store (UploadRefused if not)."""
+def store_checkpoint(upload: File, fits: Callable[[CheckpointMeta], str | None] = lambda meta: None) -> StoredCheckpoint:
+    """Validate an uploaded checkpoint completely and keep it in the checkpoint store
+    (UploadRefused if not); ``fits`` says why a valid checkpoint does not fit where it goes
+    (None: it fits), before anything is kept."""
     from generation.checkpoint import CheckpointError, load_checkpoint
     from generation.generator import Generator
     from generation.store import keep
@@ -105,6 +110,8 @@ def store_checkpoint(upload: File) -> StoredCheckpoint:
             raise UploadRefused(f"{name}: a {meta.kind} checkpoint that cannot drive sampling ({error!r})") from None
         if (where := null_character_in(dataclasses.asdict(meta))) is not None:  # PostgreSQL could not store it
             raise UploadRefused(f"{name}: the checkpoint's description holds a NUL character (\\0) in {where}")
+        if (problem := fits(meta)) is not None:
+            raise UploadRefused(f"{name}: {problem}")
         parameters = sum(p.numel() for p in model.parameters())
         stored, digest = keep(received, root)
     return StoredCheckpoint(stored.name, digest, meta, parameters)
@@ -144,7 +151,8 @@ def add_checkpoint_system(study: Study, name: str, upload: File, role: str = Sys
     if problem := check_field(System, "temperature", temperature):
         raise UploadRefused(problem)
     check_name(study, name)
-    stored = store_checkpoint(upload)
+    stored = store_checkpoint(upload, lambda meta: data_mismatch(
+        study, registry.MODELS[meta.kind].control, meta.features["dataset_options"], meta.data_fingerprint))
     twin = study.systems.filter(checkpoint_digest=stored.digest, role=role, temperature=temperature).first()
     if twin is not None:
         raise UploadRefused(f"this checkpoint is already system {twin.name!r} at temperature {temperature:g}")

@@ -15,7 +15,7 @@ def keep_what_number_questions_took(apps, schema_editor):
 class Migration(migrations.Migration):
 
     dependencies = [
-        ('studyapp', '0008_natural_source_of_held_out_controls'),
+        ('studyapp', '0011_question_order'),
     ]
 
     operations = [

@@ -1,0 +1,126 @@
+"""Adaptive pairing: the criterion against a brute-force computation, sides balanced,
+exploration, refusals, and a small seeded simulation (the full one is in the README)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis.errors import AnalysisInputError
+from analysis.pairing import (PRIOR_TIES, PairingState, choose_pair, current_fit,
+                              expected_standard_errors, next_pair, pairing_state)
+from analysis.pairing_simulation import (Scenario, best_allocation_saving, compare_designs,
+                                         pairing_summary, simulate_votes, votes_saved)
+
+SYSTEMS = ["NAT", "A", "B", "C", "D"]
+
+
+def some_votes() -> pd.DataFrame:
+    return pd.DataFrame({
+        "system_left": ["NAT", "A", "B", "C", "A", "D", "NAT", "B"],
+        "system_right": ["A", "B", "C", "D", "NAT", "B", "D", "A"],
+        "answer": ["left", "none", "left", "right", "right", "left", "left", "right"],
+        "strength": [2, pd.NA, 1, 2, 1, pd.NA, 2, 1]})
+
+
+def test_the_votes_are_counted_with_the_leaderboard_weights():
+    state = pairing_state(some_votes(), SYSTEMS)
+    i = {s: n for n, s in enumerate(SYSTEMS)}
+    assert state.wins[i["NAT"], i["A"]] == 4 + 2  # clear, then slight (A left, answered right)
+    assert state.wins[i["A"], i["B"]] == 1 + 2 and state.wins[i["B"], i["A"]] == 1  # tie, then slight
+    assert state.wins[i["D"], i["B"]] == 4  # a plain answer counts as clear
+    assert state.shown[i["A"], i["B"]] == state.shown[i["B"], i["A"]] == 2
+    assert state.left[i["A"], i["B"]] == 1 and state.left[i["B"], i["A"]] == 1
+
+
+@pytest.mark.parametrize("anchor", [0, None])
+def test_the_criterion_equals_a_brute_force_update_of_the_information(anchor):
+    state = pairing_state(some_votes(), SYSTEMS)
+    b = current_fit(state)
+    fast = expected_standard_errors(state, b, anchor)
+    k = len(SYSTEMS)
+    first, second = np.triu_indices(k, 1)
+
+    def summed_errors(pages: np.ndarray) -> float:
+        information = np.zeros((k, k))
+        for i, j, n in zip(first, second, pages):
+            p = 1 / (1 + np.exp(b[j] - b[i]))
+            a = np.zeros(k)
+            a[i], a[j] = 1, -1
+            information += n * p * (1 - p) * np.outer(a, a)
+        if anchor is None:
+            return float(np.sqrt(np.diag(np.linalg.pinv(information))).sum())
+        kept = np.delete(np.delete(information, anchor, 0), anchor, 1)
+        return float(np.sqrt(np.diag(np.linalg.inv(kept))).sum())
+
+    shown = state.shown[first, second] + PRIOR_TIES
+    brute = [summed_errors(shown + np.eye(len(first))[c]) for c in range(len(first))]
+    np.testing.assert_allclose(fast, brute, rtol=1e-10)
+    left, right = choose_pair(state, np.random.default_rng(0), exploration=0.0, anchor=anchor, log_strength=b)
+    assert {left, right} == {first[np.argmin(brute)], second[np.argmin(brute)]}
+
+
+def test_every_pair_is_balanced_in_sides_within_one_page():
+    rng = np.random.default_rng(3)
+    votes = pd.DataFrame(columns=["system_left", "system_right", "answer", "strength"])
+    for _ in range(120):
+        left, right = next_pair(votes, SYSTEMS, rng)
+        answer = "left" if rng.random() < 0.5 else "right"
+        votes.loc[len(votes)] = [left, right, answer, 2]
+    counts = pd.crosstab(votes["system_left"], votes["system_right"]).reindex(
+        index=SYSTEMS, columns=SYSTEMS, fill_value=0)
+    assert np.abs(counts - counts.T).to_numpy().max() <= 1
+
+
+def test_full_exploration_draws_every_pair_uniformly():
+    state = pairing_state(some_votes(), SYSTEMS)
+    rng = np.random.default_rng(1)
+    drawn = pd.Series([frozenset(choose_pair(state, rng, exploration=1.0)) for _ in range(2000)]).value_counts()
+    assert len(drawn) == 10 and drawn.min() > 150 and drawn.max() < 250  # 200 expected each
+
+
+def test_the_first_pair_needs_no_votes_and_the_anchor_may_be_absent():
+    empty = pd.DataFrame(columns=["system_left", "system_right", "answer"])
+    left, right = next_pair(empty, SYSTEMS, np.random.default_rng(0))
+    assert left != right and {left, right} <= set(SYSTEMS)
+    left, right = next_pair(some_votes(), SYSTEMS, np.random.default_rng(0), anchor="absent")
+    assert left != right
+
+
+def test_votes_of_unknown_systems_or_without_columns_are_refused():
+    with pytest.raises(AnalysisInputError, match="name system.s. E that are not among the systems"):
+        next_pair(some_votes().replace({"D": "E"}), SYSTEMS, np.random.default_rng(0))
+    with pytest.raises(AnalysisInputError, match="lack the column.s. answer"):
+        next_pair(some_votes().drop(columns="answer"), SYSTEMS, np.random.default_rng(0))
+    with pytest.raises(AnalysisInputError, match="exploration must lie in"):
+        choose_pair(PairingState.empty(SYSTEMS), np.random.default_rng(0), exploration=1.5)
+
+
+def test_the_best_allocation_for_three_equal_systems_saves_two_minus_root_three_quarters():
+    # anchored at the first: pages a, a, 1 - 2a on 0-1, 0-2, 1-2; the best a = 1 - 1/sqrt(3)
+    equal = Scenario({"A": 1000.0, "B": 1000.0, "C": 1000.0})
+    assert best_allocation_saving(equal) == pytest.approx((2 - np.sqrt(3)) / 4, abs=1e-5)
+
+
+def test_votes_saved_interpolates_between_checkpoints():
+    summary = pd.DataFrame({
+        "design": ["uniform"] * 2 + ["adaptive"] * 2, "votes": [100, 200] * 2,
+        "kendall_tau": [0.8, 0.9, 0.85, 0.95], "mean_width": [200.0, 150.0, 180.0, 120.0]})
+    saved = votes_saved(summary).set_index("uniform_votes")
+    assert saved.loc[100, "at_least"] and saved.loc[100, "saving"] == 0.0
+    # tau 0.9 at 100 + (0.9 - 0.85) / 0.1 * 100 = 150 votes; width 150 at 100 + 30/60 * 100 = 150
+    assert saved.loc[200, ["adaptive_votes_for_tau", "adaptive_votes_for_width"]].tolist() == pytest.approx([150, 150])
+    assert saved.loc[200, "saving"] == pytest.approx(0.25) and not saved.loc[200, "at_least"]
+
+
+def test_a_small_seeded_simulation_is_reproducible_and_adaptive_pairing_narrows_the_intervals():
+    scenario = Scenario({"NAT": 1000.0, "A": 800.0, "B": 600.0, "C": 400.0, "D": 200.0}, resamples=200)
+    results = compare_designs(scenario, studies=8, checkpoints=(600,), seed=4)
+    pd.testing.assert_frame_equal(results.iloc[:1], compare_designs(scenario, 1, (600,), seed=4).iloc[:1])
+    summary = pairing_summary(results).set_index(["design", "votes"])
+    assert summary.loc[("adaptive", 600), "mean_width"] < summary.loc[("uniform", 600), "mean_width"]
+    pages = simulate_votes(scenario, "adaptive", 600, seed=1)
+    shown = pd.crosstab(pages["system_left"], pages["system_right"])
+    shown = (shown + shown.T).stack()
+    assert shown[("NAT", "D")] < 600 / 10  # a foregone pair gets fewer pages than uniform's share
