@@ -84,8 +84,8 @@ class StudyForm(forms.ModelForm):
         super().__init__(*args, **kwargs)
         for name in self.OPTIONAL_SIZES:
             self.fields[name].required = False
-        stored = {field.name for field in Study._meta.concrete_fields}
-        for name in stored & set(self.fields):  # the browser holds to the bounds of Study's validators too
+        model_fields = {field.name for field in Study._meta.concrete_fields}
+        for name in model_fields & set(self.fields):  # the browser holds to the bounds of Study's validators too
             if bound := bound_of(Study, name):
                 self.fields[name].widget.attrs.update(min=f"{bound.low:g}", max=f"{bound.high:g}")
         stored = self.instance.camera if isinstance(self.instance.camera, dict) else {}  # saving replaces a broken one
@@ -111,9 +111,9 @@ class StudyForm(forms.ModelForm):
         """The designs a setting matters to: every design but those another design's
         setting belongs to (``Design.settings``) and, for a scale's setting, those whose
         answers are not on a scale."""
-        return [design for design in designs.DESIGNS
-                if name not in designs.foreign_settings(design)
-                and not (name in SCALE_SETTINGS and not designs.design_named(design).on_scale)]
+        return [each for each in designs.DESIGNS
+                if name not in designs.foreign_settings(each)
+                and not (name in SCALE_SETTINGS and not designs.design_named(each).on_scale)]
 
     def sections(self) -> list[tuple[str, list[tuple[forms.BoundField, str | None]]]]:
         """The fields in their sections, each with the designs it matters to (None: all),
