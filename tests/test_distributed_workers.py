@@ -53,7 +53,7 @@ checkpoint, controls = sys.argv[1:]
 call_command("migrate", interactive=False, verbosity=0)
 call_command("createsuperuser", interactive=False, username="researcher", email="r@example.org", verbosity=0)
 out = io.StringIO()
-call_command("create_study", "researcher", "Three queues", "--size", "160", "120", stdout=out)
+call_command("create_study", "researcher", "Three queues", "--size", "640", "480", stdout=out)
 study = out.getvalue().strip()
 call_command("add_system", study, "MoGlow", checkpoint, stdout=io.StringIO())
 call_command("add_system", study, "NAT", "--role", "natural", stdout=io.StringIO())
@@ -161,7 +161,9 @@ def test_a_rendering_worker_killed_mid_batch_leaves_every_stimulus_rendered_once
     redis_url = require_redis()
     files = study_files(motion_data, tmp_path_factory.getbasetemp())
     controls = tmp_path / "paths.json"
-    controls.write_text(json.dumps([{"segments": [{"type": "straight", "speed": 90 + 15 * i, "seconds": 4}]}
+    # Clips long and large enough that a render takes a second or more even on a quiet
+    # machine, so the worker is caught holding a batch while it renders.
+    controls.write_text(json.dumps([{"segments": [{"type": "straight", "speed": 90 + 15 * i, "seconds": 8}]}
                                     for i in range(4)]))
     run = uuid.uuid4().hex[:8]
     sample_queue, render_queue = f"sample-{run}", f"render-{run}"
