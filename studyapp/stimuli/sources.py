@@ -41,6 +41,7 @@ class Clip:
 
     motion: Motion
     floor: np.ndarray
+    starts_on_path: bool = True  # starts where every control's path does (natural motion: where its take was)
 
 
 class MotionSource(Protocol):
@@ -186,7 +187,7 @@ class NaturalClips:
         control = stimulus.control
         options = natural_options(control)
         motion = natural_motion(control, options)
-        return Clip(motion, root_trajectory(motion, options.root).xz)
+        return Clip(motion, root_trajectory(motion, options.root).xz, starts_on_path=False)
 
 
 class SubmittedMotion:
