@@ -148,3 +148,39 @@ def test_answers_export_as_the_appropriateness_table_and_a_wrong_check_excludes(
     mismatched = table[~table["matched"]]
     rules = [ATTENTION if system == "BAD" else PARTNERS for system in mismatched["system"]]
     assert list(mismatched["made_for"]) == [rule[shown] for rule, shown in zip(rules, mismatched["shown_control"])]
+
+
+def test_the_stimuli_page_lists_the_pairs_and_the_controls_left_without_a_partner(client):
+    study = make_appropriateness_study()
+    client.force_login(study.owner)
+    html = client.get(f"/studies/{study.pk}/stimuli/").content.decode()
+    table = html.split('id="mismatched-pairs"')[1].split("</table>")[0]
+    rows = [row for row in table.split("<tr")[2:]]
+    assert len(rows) == study.controls.count()
+    for shown, partner in PARTNERS.items():
+        assert any(f"<td>{shown}</td>" in row and f"<td>{partner}</td>" in row for row in rows), shown
+    still = next(row for row in rows if "<td>stand-still</td>" in row)
+    assert "<td>none</td>" in still and "no other control" in still
+    assert "sharp-left, shown against straight" in html  # NAT's attention clip among the stimuli
+
+
+def test_the_monitor_and_the_report_show_each_systems_scores(client, settings, tmp_path):
+    settings.MEDIA_ROOT = tmp_path / "media"  # where the report is written
+    study = make_appropriateness_study(pages_per_participant=8)
+    for n in range(4):
+        answerer = Client()
+        participant = through_practice(answerer, study, f"p{n}")
+        while page := current_page(participant):  # the matched clip clearly better, but RNN's at random
+            random_side = random.Random(page[0].pk).choice(("left", "right"))
+            side = random_side if page[0].stimulus.system.name == "RNN" else matched_side(page)
+            answer_page(answerer, study, participant, lambda _: (side, 2))
+    client.force_login(study.owner)
+    monitor = client.get(f"/studies/{study.pk}/monitor/").content.decode()
+    assert "Share of pages preferring the matched clip" in monitor and "Mean appropriateness score" in monitor
+    assert "80 % power" not in monitor
+    scores = monitor.split("Mean appropriateness score")[1]
+    for system in (*MODELS, "NAT"):
+        assert f"<td>{system}</td>" in scores
+    report = client.post(f"/studies/{study.pk}/report/", follow=True).content.decode()
+    assert "Mean appropriateness score" in report and "share_matched" in report
+    assert all(f"<td>{system}</td>" in report for system in (*MODELS, "NAT"))

@@ -21,6 +21,7 @@ from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
 from generation import registry
+from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.participants.views import PLATFORM_PARAMETERS
@@ -42,6 +43,7 @@ from studyapp.stimuli.control_export import bundle_zip
 from studyapp.stimuli.controls import (ControlError, add_control_file, add_held_out_controls, add_label_controls,
                                add_preset_controls, control_kind, study_labels)
 from studyapp.stimuli.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
+from studyapp.stimuli.mismatched import study_pairings
 from studyapp.stimuli.motion_export import exported_stimuli, motion_zip
 from studyapp.stimuli.submissions import Reading, add_submitted_upload
 from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
@@ -198,7 +200,9 @@ def study_stimuli(request: HttpRequest, pk: int) -> HttpResponse:
     # Queued clips with nobody to make them: say so rather than let the bar sit still.
     waiting = state["counts"]["queued"] + state["counts"]["running"]
     health = collect_health(celery_app, settings.HEALTH_TIMEOUT_S) if waiting else None
-    context = {"study": study, "form": form, "stimuli": study.stimuli.select_related("system", "control"),
+    context = {"study": study, "form": form,
+               "stimuli": study.stimuli.select_related("system", "control", "shown_control"),
+               "pairings": study_pairings(study) if design_of(study).mismatched_clips else None,
                "progress": state, "no_worker": health is not None and not health.workers, "health": health}
     return render(request, "studyapp/researcher/stimuli.html", context, status=status)
 
