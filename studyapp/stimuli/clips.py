@@ -34,7 +34,7 @@ from django.utils import timezone
 
 import numpy as np
 
-from generation.control import PathControl, control_from_dict, in_control_frame
+from generation.control import PathControl, control_from_dict
 from generation.motion.root import root_trajectory
 from generation.motion.types import Motion
 from generation.render import Camera, render_video
@@ -178,10 +178,8 @@ def over_shown_control(stimulus: Stimulus, clip: Clip) -> tuple[Motion, np.ndarr
     matched or not, is then drawn over the same path by a camera following it."""
     shown = control_from_dict((stimulus.shown_control or stimulus.control).control)
     root = study_options(stimulus.study).root
-    motion = clip.motion if clip.starts_on_path else in_control_frame(clip.motion, root)
-    frames = min(motion.n_frames, shown.n_frames)
-    motion = Motion(motion.positions[:frames], motion.fps, motion.skeleton)
-    path = shown.path().xz[:frames] if isinstance(shown, PathControl) else None
+    motion = clip.on_control_path(shown.n_frames, root)
+    path = shown.path().xz[:motion.n_frames] if isinstance(shown, PathControl) else None
     return motion, root_trajectory(motion, root).xz, path
 
 
