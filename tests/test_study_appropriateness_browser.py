@@ -15,6 +15,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import pandas as pd
 import pytest
 import torch
 from django.contrib.auth.models import User
@@ -23,6 +24,7 @@ from django.test import Client
 
 from analysis.appropriateness import appropriateness_pages, appropriateness_scores, matched_preference
 from analysis.exclusions import apply_exclusions, compared_ratings
+from analysis.cli import main as analysis_main
 from analysis.ratings import read_ratings
 from generation.motion.dataset import DatasetOptions, build_dataset
 from generation.render.camera import Camera
@@ -31,6 +33,7 @@ from studyapp.designs.rules import StudyRules
 from studyapp.models import Participant, Stimulus, Study
 from studyapp.researchers.export import ratings_csv
 from studyapp.stimuli.clips import over_shown_control, motion_row
+from studyapp.stimuli.motion_export import write_motion
 from studyapp.stimuli.sources import source_of
 from tests.study_fixtures import current_page
 from tests.study_setup import link_clips, train_tiny_moglow
@@ -190,3 +193,16 @@ def test_an_appropriateness_study_built_from_the_web_pages_runs_in_a_browser_and
     assert "Mean appropriateness score" in report
     for system in shares.index:
         assert f"<td>{system}</td>" in report
+
+    # The control adherence of the study's own motion, in the app and from its export on the command line.
+    adherence_page = client.get(f"/studies/{study.pk}/adherence/").content.decode()
+    assert "Pearson correlation across systems" in adherence_page
+    assert all(f"<td>{system}</td>" in adherence_page for system in ("MoGlow", "RNN", "VAE", "NAT"))
+    write_motion(study, site / "motion")
+    (site / "ratings.csv").write_bytes(ratings_csv(study))
+    assert analysis_main(["objective", str(site / "motion"), "--out", str(site / "objective"),
+                          "--appropriateness", str(site / "ratings.csv")]) == 0
+    adherence = pd.read_csv(site / "objective" / "tables" / "control_adherence.csv").set_index("system")
+    assert set(adherence.index) == {"MoGlow", "RNN", "VAE", "NAT"}
+    assert adherence.loc["NAT", "position_error_mean"] < 5  # a take follows the path taken from it
+    assert (site / "objective" / "tables" / "adherence_correlation.csv").is_file()

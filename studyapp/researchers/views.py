@@ -25,6 +25,7 @@ from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.participants.views import PLATFORM_PARAMETERS
+from studyapp.researchers.adherence import adherence_tables
 from studyapp.researchers.editing import EditRefused, edit_system, rename_control
 from studyapp.researchers.export import ratings_csv, rules_json
 from studyapp.researchers.forms import (CheckpointSystemForm, ControlEditForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
@@ -35,7 +36,7 @@ from studyapp.researchers.participant_list import participant_rows, participants
 from studyapp.researchers.preview import preview_pages
 from studyapp.researchers.readiness import open_problems
 from studyapp.researchers.removal import SystemsFixed, remove, require_not_started
-from studyapp.researchers.reports import AnalysisInputError, create_report
+from studyapp.researchers.reports import AnalysisInputError, create_report, html_table
 from studyapp.server.celery import app as celery_app
 from studyapp.server.health import collect_health
 from studyapp.stimuli.clips import progress
@@ -421,6 +422,21 @@ def study_motion_download(request: HttpRequest, pk: int) -> HttpResponse:
         messages.error(request, f"No download: {error}")
         return redirect("study-monitor", pk=study.pk)
     return _download(data, "application/zip", f"motion-study-{study.pk}.zip")
+
+
+@never_cache
+@login_required
+@require_safe
+def study_adherence(request: HttpRequest, pk: int) -> HttpResponse:
+    """How closely the study's motion follows its controls, and (appropriateness) its correlation with the scores."""
+    study = _study(request, pk)
+    try:
+        tables, notes = adherence_tables(study)
+    except ValueError as error:
+        messages.error(request, f"No control adherence: {error}")
+        return redirect("study-monitor", pk=study.pk)
+    return render(request, "studyapp/researcher/adherence.html",
+                  {"study": study, "tables": [(title, html_table(table)) for title, table in tables], "notes": notes})
 
 
 @login_required
