@@ -184,3 +184,21 @@ def test_the_monitor_and_the_report_show_each_systems_scores(client, settings, t
     report = client.post(f"/studies/{study.pk}/report/", follow=True).content.decode()
     assert "Mean appropriateness score" in report and "share_matched" in report
     assert all(f"<td>{system}</td>" in report for system in (*MODELS, "NAT"))
+
+
+def test_the_demo_reuses_the_motion_another_study_sampled_for_the_same_clips(settings, tmp_path):
+    from studyapp.server.demo import reuse_sampled_motion
+    from studyapp.stimuli.sources import sampled_path
+
+    settings.VAR_DIR = tmp_path
+    single = make_appropriateness_study("a")
+    appropriateness = make_appropriateness_study("b", video_width=320)  # its clips rendered otherwise
+    sampled = [s for s in single.stimuli.exclude(system__checkpoint="").filter(shown_control__isnull=True)]
+    for stimulus in sampled:
+        sampled_path(stimulus).parent.mkdir(parents=True, exist_ok=True)
+        sampled_path(stimulus).write_bytes(stimulus.content_key.encode())
+    assert reuse_sampled_motion(appropriateness, single) == len(sampled) == 3 * 7
+    ours = appropriateness.stimuli.exclude(system__checkpoint="").filter(shown_control__isnull=True)
+    theirs = {(s.system.name, s.control.name): sampled_path(s).read_bytes() for s in sampled}
+    assert all(sampled_path(s).read_bytes() == theirs[s.system.name, s.control.name] for s in ours)
+    assert reuse_sampled_motion(appropriateness, single) == 0  # once
