@@ -202,3 +202,24 @@ def test_the_demo_reuses_the_motion_another_study_sampled_for_the_same_clips(set
     theirs = {(s.system.name, s.control.name): sampled_path(s).read_bytes() for s in sampled}
     assert all(sampled_path(s).read_bytes() == theirs[s.system.name, s.control.name] for s in ours)
     assert reuse_sampled_motion(appropriateness, single) == 0  # once
+
+
+def test_a_label_controlled_page_names_the_shown_controls_action_and_style_in_words():
+    from generation.control import AttributeControl
+    from studyapp.models import ControlSignal, Study
+
+    study = make_appropriateness_study()
+    study.controls.all().delete()
+    for action, style in (("walk", "happy"), ("walk", "sad"), ("run", "happy"), ("run", "sad")):
+        control = AttributeControl(action, style, 80, 20.0, f"{action}-{style}")
+        ControlSignal.objects.create(study=study, name=control.name, origin=ControlSignal.Origin.SYNTHETIC,
+                                     control=control.to_dict(), seconds=4.0)
+    stimuli, _ = plan_stimuli(study)
+    Stimulus.objects.filter(pk__in=[s.pk for s in stimuli]).update(status=Stimulus.Status.DONE, duration_s=4.0)
+    client = Client()
+    participant = through_practice(client, Study.objects.get(pk=study.pk))
+    html = page_html(client, study)
+    shown = next(a.stimulus.shown_control or a.stimulus.control for a in current_page(participant))
+    action, style = shown.control["action"], shown.control["style"]
+    assert f"<strong>{action}</strong>, in a\n  <strong>{style}</strong> style" in html
+    assert "orange band" not in html
