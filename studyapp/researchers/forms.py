@@ -105,9 +105,9 @@ class StudyForm(forms.ModelForm):
         """The designs a setting matters to: every design but those another design's
         setting belongs to (``Design.settings``) and, for a scale's setting, those whose
         answers are not on a scale."""
-        return [design for design in designs.DESIGNS
-                if name not in designs.foreign_settings(design)
-                and not (name in SCALE_SETTINGS and not designs.design_named(design).on_scale)]
+        return [each for each in designs.DESIGNS
+                if name not in designs.foreign_settings(each)
+                and not (name in SCALE_SETTINGS and not designs.design_named(each).on_scale)]
 
     def sections(self) -> list[tuple[str, list[tuple[forms.BoundField, str | None]]]]:
         """The fields in their sections, each with the designs it matters to (None: all),
