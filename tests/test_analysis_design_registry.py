@@ -7,9 +7,12 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 
 from analysis import build_report, validate_ratings
+from analysis.cli import main
 from analysis.designs import DESIGNS, design_named, design_of
 from analysis.exclusions import ExclusionRules
 from analysis.report import summary_text
@@ -107,3 +110,37 @@ def test_comparing_the_attention_system_is_stated_alike_in_every_design():
     for name in ("pairwise", "appropriateness"):
         assert design_named(name).described(compared)[0] == (
             "No attention check was applied (BAD was compared as a system).")
+
+
+@pytest.fixture
+def thumbs(monkeypatch):
+    """The toy design's analysis registered (tests/toy_analysis_design.py)."""
+    monkeypatch.setitem(DESIGNS, "thumbs", "tests.toy_analysis_design:Thumbs")
+    yield
+    design_named.cache_clear()
+
+
+def thumbs_table() -> pd.DataFrame:
+    """12 participants giving thumbs up or down; p0 gives BAD a thumbs up, p1 NAT a thumbs down."""
+    rng = np.random.default_rng(3)
+    rows = [{"participant": f"p{p}", "system": system, "stimulus": f"{system}{clip}",
+             "value": int(p == 0) if system == "BAD" else int(p != 1) if system == "NAT" and clip == 0
+             else int(rng.random() < share)}
+            for p in range(12) for system, share in (("NAT", 1.0), ("A", 0.7), ("B", 0.3), ("BAD", 0.0))
+            for clip in range(5 if system != "BAD" else 1)]
+    return pd.DataFrame(rows).assign(design="thumbs", scale_min=0, scale_max=1)
+
+
+def test_a_new_designs_analysis_is_one_module_and_one_registration(thumbs, tmp_path):
+    table = thumbs_table()
+    table.to_csv(tmp_path / "ratings.csv", index=False)
+    assert main(["report", str(tmp_path / "ratings.csv"), "--out", str(tmp_path / "out")]) == 0
+
+    kept = table[~table["participant"].isin(["p0", "p1"]) & (table["system"] != "BAD")]
+    shares = pd.read_csv(tmp_path / "out" / "tables" / "thumbs_up.csv").set_index("system")["share_up"]
+    assert shares.to_dict() == pytest.approx(kept.groupby("system")["value"].mean().to_dict())
+    summary = (tmp_path / "out" / "summary.md").read_text()
+    assert ("Of 12 participants, 2 were removed for failing attention checks (1 rated a BAD clip high, 1 rated a "
+            "NAT clip low); a participant was removed who rated any BAD clip 0.75 or higher or any NAT clip below "
+            "0.25 (on the 0-1 scale).") in summary
+    assert f"thumbs up: A {shares['A'] * 100:.0f} % of 50" in summary
