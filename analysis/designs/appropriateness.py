@@ -24,7 +24,7 @@ import pandas as pd
 from analysis import design_plots, plots
 from analysis.appropriateness import appropriateness_scores, matched_preference, score_pairs
 from analysis.design_report import DesignReport, in_cell, interval_text, p_text
-from analysis.designs.pages import PAGE, first_row, page_name
+from analysis.designs.pages import PAGE, every_page, first_row
 from analysis.designs.pairwise import Pairwise
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import ExclusionRules
@@ -45,16 +45,11 @@ class Appropriateness(Pairwise):
         """A page shows one system's clip for the shown control and its clip for another
         (``matched`` already read as booleans)."""
         pages = df.groupby(list(PAGE), sort=False)
-        one_system = pages["system"].transform("nunique") == 1
-        if not one_system.all():
-            raise AnalysisInputError(
-                "an appropriateness page shows one system twice, its matched and its mismatched clip; page "
-                f"{page_name(df, ~one_system)} (first at row {first_row(~one_system)}) shows two systems")
-        matched_once = pages["matched"].transform("sum") == 1
-        if not matched_once.all():
-            raise AnalysisInputError(
-                "an appropriateness page has one matched clip (matched true) and one mismatched (false); page "
-                f"{page_name(df, ~matched_once)} (first at row {first_row(~matched_once)}) does not")
+        every_page(df, pages["system"].transform("nunique") == 1,
+                   "an appropriateness page shows one system twice, its matched and its mismatched clip",
+                   otherwise="shows two systems")
+        every_page(df, pages["matched"].transform("sum") == 1,
+                   "an appropriateness page has one matched clip (matched true) and one mismatched (false)")
         if "strength" in df.columns:
             strong = df["strength"].notna() & (df["strength"] > 2)
             if strong.any():

@@ -43,6 +43,13 @@ def positive_integers(column: pd.Series, name: str, allow_empty: bool) -> pd.Ser
     return numbers.astype("Int64")
 
 
+def every_page(df: pd.DataFrame, holds: pd.Series, rule: str, otherwise: str = "does not") -> None:
+    """AnalysisInputError stating ``rule`` and naming the first page where ``holds`` is false."""
+    if not holds.all():
+        raise AnalysisInputError(f"{rule}; page {page_name(df, ~holds)} (first at row {first_row(~holds)}) "
+                                 f"{otherwise}")
+
+
 def no_system_twice_on_a_page(df: pd.DataFrame) -> None:
     twice = df.duplicated([*PAGE, "system"], keep=False)
     if twice.any():

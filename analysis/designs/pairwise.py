@@ -26,8 +26,8 @@ from analysis import design_plots, plots
 from analysis.bradley_terry import bradley_terry_covariance, bradley_terry_scale
 from analysis.design_report import DesignReport, exclusion_sentence, in_cell, interval_text, p_text, power_table
 from analysis.designs.base import RatingDesign
-from analysis.designs.pages import (ANSWERS, NO_PREFERENCE, PAGE, SIDES, first_row, labels,
-                                    no_system_twice_on_a_page, page_name, positive_integers)
+from analysis.designs.pages import (ANSWERS, NO_PREFERENCE, PAGE, SIDES, every_page, first_row, labels,
+                                    no_system_twice_on_a_page, positive_integers)
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import ExclusionRules
 from analysis.leaderboard_report import build_leaderboard, leaderboard_tables, write_heat_maps
@@ -66,16 +66,10 @@ class Pairwise(RatingDesign):
                     f"'strength' qualifies a preference, but row {first_row(undecided)} gives one "
                     f"with answer {NO_PREFERENCE!r}")
         pages = df.groupby(list(PAGE), sort=False)
-        shape_ok = (pages["side"].transform("size") == 2) & (pages["side"].transform("nunique") == 2)
-        if not shape_ok.all():
-            raise AnalysisInputError(
-                "a pairwise page must have exactly two rows, one on each side; page "
-                f"{page_name(df, ~shape_ok)} (first at row {first_row(~shape_ok)}) does not")
-        answer_ok = pages["answer"].transform("nunique") == 1
-        if not answer_ok.all():
-            raise AnalysisInputError(
-                "the two rows of a pairwise page must carry the same answer; page "
-                f"{page_name(df, ~answer_ok)} (first at row {first_row(~answer_ok)}) does not")
+        every_page(df, (pages["side"].transform("size") == 2) & (pages["side"].transform("nunique") == 2),
+                   "a pairwise page must have exactly two rows, one on each side")
+        every_page(df, pages["answer"].transform("nunique") == 1,
+                   "the two rows of a pairwise page must carry the same answer")
         return self.check_page_systems(df)
 
     def check_page_systems(self, df: pd.DataFrame) -> pd.DataFrame:
