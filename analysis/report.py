@@ -26,7 +26,7 @@ import pandas as pd
 
 from analysis import plots
 from analysis.correlation import subjective_objective_correlation
-from analysis.design_report import POWER, DesignReport, design_summary_text, write_design_report
+from analysis.design_report import POWER, DesignReport, design_summary_text, p_text, write_design_report
 from analysis.designs import design_of
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import (ExclusionRules, apply_exclusions, compared_ratings, exclusion_notes,
@@ -199,17 +199,13 @@ def _add_objective(report: Report, motion: dict[str, SystemClips],
     report.notes += corr_notes
 
 
-def _p_text(p: float) -> str:
-    return "p < .001" if p < 0.001 else f"p = {p:.3f}".replace("0.", ".", 1)
-
-
 def _comparison_text(report: Report, task: str, control_class: str) -> str:
     """One cell's ANOVA and post-hoc result in words."""
     a = report.anova[(report.anova["task"] == task)
                      & (report.anova["control_class"] == control_class)].iloc[0]
     text = (f" In {control_class}, a one-way ANOVA found "
             f"{'a significant' if a.p < 0.05 else 'no significant'} effect of system "
-            f"(F({a.df_between}, {a.df_within}) = {a.F:.2f}, {_p_text(a.p)}).")
+            f"(F({a.df_between}, {a.df_within}) = {a.F:.2f}, {p_text(a.p)}).")
     tukey, ref = report.tukey, report.reference
     pairs = tukey[(tukey["task"] == task) & (tukey["control_class"] == control_class)
                   & ((tukey["system_a"] == ref) | (tukey["system_b"] == ref))]
