@@ -32,6 +32,9 @@ if TYPE_CHECKING:
 
 
 class RatingDesign:
+    """One rating design as the analysis treats it; the registry (`analysis.designs`) makes
+    one object per design and hands it out for each table of that design."""
+
     name: str  # as the ratings table's ``design`` column says it
     rated = True  # each row is one clip's value on a scale (else one preference answers a page)
     votes = False  # each page is a vote between two systems' clips, which a leaderboard ranks
