@@ -23,7 +23,7 @@ from tests.test_study_participant import enter, post
 
 STUDYAPP = Path(__file__).resolve().parents[1] / "studyapp"
 # design ==, design !=, design in, .Design., or == / != a design's constant.
-DESIGN_COMPARISON = re.compile(r"design\)? ?(==|!=|not in |in )|\.Design\.|(==|!=) ?(SINGLE|PAIRWISE|SIDE_BY_SIDE)\b")
+DESIGN_COMPARISON = re.compile(r"design\)? ?(==|!=|not in |in )|\.Design\.|(==|!=) ?(SINGLE|PAIRWISE|SIDE_BY_SIDE|APPROPRIATENESS)\b")
 
 
 @pytest.fixture

@@ -21,7 +21,7 @@ import pandas as pd
 
 from analysis.adherence import adherence_correlation, path_adherence
 from analysis.appropriateness import appropriateness_pages
-from analysis.designs import APPROPRIATENESS, table_design
+from analysis.designs import design_of
 from analysis.exclusions import compared_ratings
 from analysis.motion_io import load_motion_sets
 from studyapp.designs.rules import StudyRules
@@ -56,7 +56,7 @@ def adherence_tables(study: Study) -> tuple[list[tuple[str, pd.DataFrame]], list
 def _mean_scores(study: Study) -> pd.Series | None:
     """Each compared system's mean appropriateness score over the kept pages (None: no such pages)."""
     flagged = flagged_ratings(study)
-    if flagged.empty or table_design(flagged) != APPROPRIATENESS:
+    if flagged.empty or not design_of(flagged).judges_appropriateness:
         return None
     compared = compared_ratings(flagged, StudyRules.of(study).exclusion)
     if compared.empty:

@@ -26,7 +26,6 @@ import hashlib
 import json
 from collections import Counter
 from importlib import metadata
-from pathlib import Path
 
 from django.db import transaction
 from django.db.models import F
