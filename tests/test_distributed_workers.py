@@ -21,6 +21,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 import urllib.request
 import uuid
@@ -135,6 +136,28 @@ class Browser:
             return response.read().decode()
 
 
+class Killer:
+    """Kills a worker's whole process group (the worker with the clips it prefetched) the
+    moment ``condition`` holds, watching from a thread of its own."""
+
+    def __init__(self, condition, worker: subprocess.Popen) -> None:
+        self.killed = threading.Event()
+        self.thread = threading.Thread(target=self._watch, args=(condition, worker), daemon=True)
+        self.thread.start()
+
+    def _watch(self, condition, worker: subprocess.Popen) -> None:
+        deadline = time.monotonic() + 240
+        while time.monotonic() < deadline:
+            if condition():
+                os.killpg(worker.pid, signal.SIGKILL)
+                self.killed.set()
+                return
+            time.sleep(0.01)
+
+    def wait(self, timeout: float) -> bool:
+        return self.killed.wait(timeout)
+
+
 def wait_for(condition, timeout: float, what: str, processes: Processes):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -199,8 +222,6 @@ def test_a_rendering_worker_killed_mid_batch_leaves_every_stimulus_rendered_once
             researcher.submit("/login/", {"username": "researcher", "password": PASSWORD})
             health = researcher.get("/health/").decode()  # the web process sees both workers
             assert f"gpu-{run}@" in health and f"render-{run}@" in health, health
-            page = researcher.submit(f"/studies/{study}/stimuli/", {"seed": "0"})
-            assert "sent to the workers" in page, page[-2000:]
 
             def rendering_a_batch() -> bool:
                 """The first rendering worker renders one clip and holds more."""
@@ -208,8 +229,15 @@ def test_a_rendering_worker_killed_mid_batch_leaves_every_stimulus_rendered_once
                 held = log.count("generate_stimulus[") - 2 * log.count("] succeeded in")  # received, not done
                 return held >= 2 and stimuli_folder.is_dir() and bool(list(stimuli_folder.glob(".*.part")))
 
-            wait_for(rendering_a_batch, 240, "the rendering worker to hold a batch", processes)
-            os.killpg(first.pid, signal.SIGKILL)  # the whole worker, with the clips it prefetched
+            # A clip renders in under a second, so the worker is watched, and killed the
+            # moment it holds a batch, from before the clips are sent (the page that sends
+            # them may answer after the worker has rendered them all).
+            killer = Killer(rendering_a_batch, first)
+            page = researcher.submit(f"/studies/{study}/stimuli/", {"seed": "0"})
+            assert "sent to the workers" in page, page[-2000:]
+            if not killer.wait(240):
+                pytest.fail(f"timed out after 240 s waiting for the rendering worker to hold a batch\n"
+                            f"{processes.tails()}")
             first.wait(timeout=10)
             killed_at = time.monotonic()
             processes.worker("render-again", render_queue)

@@ -43,6 +43,7 @@ class Appropriateness(Pairwise):
     export_columns = ("design", "page", "side", "matched", "answer", "strength", "shown_control", "made_for")
     mismatched_clips = True
     power_table = False  # its systems are not compared on shared pages: the scores' intervals say it
+    attention_check_role = System.Role.NATURAL
 
     def strengths(self, study: Study) -> range:
         return range(1, len(STRENGTH_WORDS) + 1)

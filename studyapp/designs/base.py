@@ -144,6 +144,9 @@ class Design:
     # clip is drawn over the path of the control its page shows.
     mismatched_clips = False
     power_table = True  # the monitor shows the ratings needed for 80 % power per pair of systems
+    # The system whose clips its BAD checks are made of: a BAD system's clips, or NAT's
+    # clips set against a path they obviously do not follow (appropriateness).
+    attention_check_role = System.Role.BAD
 
     def __init__(self, name: str) -> None:
         self.name = name
