@@ -7,6 +7,8 @@ y up; fps; joint names and parents), and writes the tables and figures of MoGlow
 
 - `read_ratings`, `build_report`, `write_report`: the whole pipeline (also
   ``python -m analysis report``);
+- `analysis.designs`: one object per rating design, which the pipeline asks for all that
+  differs between designs (columns, rules, their words, the report's tables and figures);
 - `analysis.stats`, `analysis.mixed`: ANOVA, Tukey HSD, CIs, the mixed model;
 - `analysis.side_by_side`, `analysis.pairwise`, `analysis.bradley_terry`: the statistics
   of side-by-side and pairwise designs (`analysis.designs`);

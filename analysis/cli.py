@@ -25,14 +25,14 @@ from analysis.adherence import adherence_correlation, label_adherence, path_adhe
 from analysis.appropriateness import appropriateness_pages
 from analysis.attribute_scores import read_classifier_outputs, write_scores
 from analysis.cli_options import add_exclusion_arguments, exclusion_rules
-from analysis.designs import APPROPRIATENESS, table_design
+from analysis.designs import design_of
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import ExclusionRules, apply_exclusions
 from analysis.motion_io import SystemClips, load_motion_sets
 from analysis.objective import objective_metrics
 from analysis.rankings_cli import add_commands as add_ranking_commands
 from analysis.ratings import read_ratings
-from analysis.report import build_report, require_single_design, write_report
+from analysis.report import build_report, require_design_taking_motion, write_report
 from analysis.tables import objective_table, to_markdown, write_table
 from analysis.units import to_centimetres_y_up
 from measures.units import parse_scale
@@ -208,8 +208,9 @@ def _adherence(args: argparse.Namespace, motion: dict[str, SystemClips], out: Pa
 def _mean_scores(args: argparse.Namespace) -> pd.Series:
     """Each system's mean appropriateness score over the kept pages of --appropriateness."""
     ratings = read_ratings(args.appropriateness)
-    if table_design(ratings) != APPROPRIATENESS:
-        raise AnalysisInputError(f"--appropriateness {args.appropriateness} is a {table_design(ratings)} table; "
+    design = design_of(ratings)
+    if not design.judges_appropriateness:
+        raise AnalysisInputError(f"--appropriateness {args.appropriateness} is a {design.name} table; "
                                  "give an appropriateness table (docs/ratings-schema.md)")
     flagged = apply_exclusions(ratings, ExclusionRules(natural_system=args.natural, attention_system=args.attention))
     kept = flagged[flagged["kept"] & (flagged["system"] != args.attention)]
@@ -254,7 +255,7 @@ def _run(args: argparse.Namespace) -> int:
     with staged_output(out) as work:
         ratings = read_ratings(args.ratings)
         if args.motion:
-            require_single_design(ratings)  # before the motion is read: the ratings decide whether it is used
+            require_design_taking_motion(ratings)  # before the motion is read: the ratings decide whether it is used
         motion = _motion_in_centimetres(args) if args.motion else None
         report = build_report(ratings, motion, reference=args.reference, rules=rules,
                               systems=_split(args.systems),

@@ -11,13 +11,9 @@ Other scales: a threshold t on the 1-5 reference scale maps linearly onto
 integer ratings are compared with that real-valued threshold without rounding. On 1-10,
 BAD >= 7.75 means BAD >= 8 and NAT < 3.25 means NAT <= 3.
 
-Pairwise designs (`analysis.designs`) have no ratings to threshold. There rule 1 reads:
-a participant who prefers the attention-check clip on any page that shows one (a BAD
-versus NAT page in the studies this project runs) is excluded; "no preference" there
-does not exclude. Rule 2 discards a page, both its rows, when either clip was answered
-before it finished playing. Appropriateness pages (one system's matched and mismatched
-clips) are attention checks when their system is BAD: natural motion against a path it
-obviously does not follow. Preferring the mismatched clip on one excludes.
+Each rating design applies the rules to its table and states them in words
+(`analysis.designs`): pairwise designs have no ratings to threshold, so there rule 1
+reads "prefers the attention-check clip" and rule 2 discards a whole page.
 
 Nothing is deleted. Each rating gets ``excluded_participant``, ``discarded_early``,
 ``kept`` and ``exclusion_reason``; a rating that breaks both rules is counted under the
@@ -26,7 +22,8 @@ participant exclusion, so ratings collected = discarded by each reason + kept.
 Each rule is written once, as a method of `ExclusionRules` that takes a whole table's
 columns or one answer's values alike: the study app flags a participant with the same
 methods as their answers arrive, and writes the rules it applied as JSON
-(``ExclusionRules.to_json``), which ``python -m analysis report --rules`` reads back.
+(``ExclusionRules.to_json``), which ``python -m analysis report --rules`` reads back. The
+functions below apply them to a table through the table's design object.
 """
 
 from __future__ import annotations
@@ -37,7 +34,7 @@ from dataclasses import asdict, dataclass, fields
 
 import pandas as pd
 
-from analysis.designs import APPROPRIATENESS, PAGE, PREFERENCE_DESIGNS, table_design
+from analysis.designs import design_of
 from analysis.errors import AnalysisInputError
 
 REFERENCE_SCALE = (1, 5)
@@ -98,22 +95,6 @@ class ExclusionRules:
     def mismatch_reason(self) -> str:
         return f"preferred the mismatched clip of a {self.attention_system} page"
 
-    def described(self) -> list[str]:
-        """The rules in words, as a report states them."""
-        attention = (
-            f"A participant is excluded who rates any {self.attention_system} clip {self.bad_at_or_above:g} or "
-            f"higher or any {self.natural_system} clip below {self.natural_below:g} (on a 1-5 scale, rescaled "
-            f"linearly to others), or who prefers a {self.attention_system} clip on a pairwise page."
-            if self.attention_rule else
-            f"A participant is excluded who rates any {self.natural_system} clip below {self.natural_below:g} (on "
-            f"a 1-5 scale, rescaled linearly to others); {self.attention_system} is compared as a system, not "
-            "used as an attention check.")
-        return [
-            attention,
-            "A rating given before its clip had finished playing is discarded (on a pairwise page, the page)."
-            if self.discard_early else "Ratings given before their clip had finished playing are kept.",
-        ]
-
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=2) + "\n"
 
@@ -159,16 +140,7 @@ def apply_exclusions(ratings: pd.DataFrame, rules: ExclusionRules = ExclusionRul
     """
     df = ratings.copy()
     reason = pd.Series("", index=df.index, dtype=object)
-    design = table_design(ratings)
-    if design == APPROPRIATENESS:
-        failed = [(rules.preferred_mismatched_attention(df["system"], df["answer"], df["side"], df["matched"]),
-                   rules.mismatch_reason)]
-    elif design in PREFERENCE_DESIGNS:
-        failed = [(rules.preferred_attention(df["system"], df["answer"], df["side"]), rules.preference_reason)]
-    else:
-        scale = (df["value"], df["scale_min"], df["scale_max"])
-        failed = [(rules.rated_attention_high(df["system"], *scale), rules.attention_reason),
-                  (rules.rated_natural_low(df["system"], *scale), rules.natural_reason)]
+    failed = design_of(ratings).attention_failures(df, rules)
     for failing, why in reversed(failed):  # the first rule a participant failed names their reason
         reason[df["participant"].isin(set(df.loc[failing, "participant"]))] = why
     df["excluded_participant"] = reason != ""
@@ -185,10 +157,7 @@ def early_discards(ratings: pd.DataFrame, rules: ExclusionRules, excluded: pd.Se
     answer covers both clips, so an early answer discards the page."""
     if not rules.discard_early or "answered_before_end" not in ratings.columns:
         return pd.Series(False, index=ratings.index)
-    early = ratings["answered_before_end"].astype(bool)
-    if table_design(ratings) in PREFERENCE_DESIGNS:
-        early = early.groupby([ratings[column] for column in PAGE], sort=False).transform("any")
-    return early & ~excluded
+    return design_of(ratings).early_answers(ratings) & ~excluded
 
 
 def compared_ratings(flagged: pd.DataFrame, rules: ExclusionRules) -> pd.DataFrame:
@@ -197,13 +166,7 @@ def compared_ratings(flagged: pd.DataFrame, rules: ExclusionRules) -> pd.DataFra
     appropriateness page showing it goes whole: without its attention clip a page
     compares nothing."""
     kept = flagged[flagged["kept"].astype(bool)]
-    if not rules.attention_rule:
-        return kept
-    drop = kept["system"] == rules.attention_system
-    if table_design(kept) in PREFERENCE_DESIGNS:
-        check_pages = kept.loc[drop, list(PAGE)].set_index(list(PAGE)).index
-        drop |= kept.set_index(list(PAGE)).index.isin(check_pages)
-    return kept[~drop]
+    return design_of(flagged).compared(kept, rules) if rules.attention_rule else kept
 
 
 def exclusion_notes(flagged: pd.DataFrame, rules: ExclusionRules = ExclusionRules()) -> list[str]:
@@ -232,33 +195,10 @@ def exclusion_notes(flagged: pd.DataFrame, rules: ExclusionRules = ExclusionRule
                 f"The web app's discarded_early flag disagrees with the recomputed rule on "
                 f"{differ} rating(s); the recomputed flags were used."
             )
-    ruled = (() if table_design(flagged) in PREFERENCE_DESIGNS else (rules.natural_system,))
-    for system in ((rules.attention_system,) if rules.attention_rule else ()) + ruled:
+    for system in design_of(flagged).ruled_systems(rules):
         if not (flagged["system"] == system).any():
             notes.append(f"No ratings of {system} clips: its attention rule excluded nobody.")
     return notes
-
-
-
-def attention_rule_text(rules: ExclusionRules, design: str,
-                        scale: tuple[int, int] | None = None) -> str:
-    """The attention rules applied, as a report states them ("a participant was removed
-    who ..."), on ``scale`` (default: the 1-5 reference scale, rescaled for others)."""
-    checked = rules.attention_system
-    if design in PREFERENCE_DESIGNS:
-        if not rules.attention_rule:
-            return f"no attention check was applied ({checked} was compared as a system)"
-        if design == APPROPRIATENESS:
-            return f"a participant was removed who preferred the mismatched clip of any {checked} page"
-        return f"a participant was removed who preferred a {checked} clip on any page showing one"
-    lo, hi = scale or REFERENCE_SCALE
-    where = f"on the {lo}-{hi} scale" if scale else "on a 1-5 scale; scaled linearly on others"
-    natural = f"any {rules.natural_system} clip below {scaled_threshold(rules.natural_below, lo, hi):g}"
-    if not rules.attention_rule:
-        return (f"a participant was removed who rated {natural} ({where}); {checked} was compared "
-                "as a system, not used as an attention check")
-    return (f"a participant was removed who rated any {checked} clip "
-            f"{scaled_threshold(rules.bad_at_or_above, lo, hi):g} or higher or {natural} ({where})")
 
 
 def exclusion_summary(flagged: pd.DataFrame) -> pd.DataFrame:

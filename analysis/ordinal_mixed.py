@@ -52,7 +52,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 from scipy import optimize
-from scipy import stats as sps
 from scipy.special import expit
 
 from analysis.crossed_design import (CrossedBlocks, CrossedLayout, contrasts_against_reference,

@@ -52,7 +52,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats as sps
 
-from analysis.designs import NO_PREFERENCE, PAIRWISE, SIDE_BY_SIDE, table_design
+from analysis.designs import NO_PREFERENCE, design_of
 from analysis.pairwise import preference_pages
 from analysis.side_by_side import page_differences
 from analysis.stats import CELL, iter_cells
@@ -72,7 +72,8 @@ def more_ratings_for_power(kept: pd.DataFrame, alpha: float = 0.05, power: float
                            groupby: Sequence[str] = CELL) -> pd.DataFrame:
     """Per cell and pair of systems, the ratings (or pages) needed for ``power`` at ``alpha``.
 
-    ``kept`` holds the kept ratings of the compared systems, in any design. Columns:
+    ``kept`` holds the kept ratings of the compared systems, in any design that compares
+    systems (its design object says which of the closed forms below applies). Columns:
     *groupby, system_a, system_b, effect (single: mean_a - mean_b; side-by-side: p' - 1/2;
     pairwise: share preferring a - 1/2), alpha_pair (alpha / pairs in the cell), unit
     (``ratings per system`` or ``pages``), n_now, power_now (at n_now, same approximation),
@@ -80,11 +81,10 @@ def more_ratings_for_power(kept: pd.DataFrame, alpha: float = 0.05, power: float
     0), per_participant (units of the pair per participant of the cell so far),
     participants_more.
     """
-    design = table_design(kept)
-    per_pair = {SIDE_BY_SIDE: _side_by_side_pairs, PAIRWISE: _pairwise_pairs}.get(design, _single_pairs)
+    design = design_of(kept)
     rows = []
     for key, frame in iter_cells(kept, groupby):
-        pairs = per_pair(frame, alpha, power)
+        pairs = design.power_pairs(frame, alpha, power)
         if pairs.empty:
             continue
         rows.append(pairs.assign(**key))
@@ -98,7 +98,8 @@ def _z(alpha_pair: float, power: float) -> float:
     return float(sps.norm.ppf(1 - alpha_pair / 2) + sps.norm.ppf(power))
 
 
-def _single_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
+def single_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
+    """One cell's pairs of systems rated on separate pages (two-sample z approximation)."""
     stats = frame.groupby("system", sort=True)["value"].agg(["size", "mean", "var"])
     stats = stats[stats["size"] >= 2]
     k = len(stats)
@@ -136,7 +137,8 @@ def walsh_positive_share(differences) -> float:
     return float((pairs_above + pairs_equal / 2) / (n * (n - 1) / 2))
 
 
-def _side_by_side_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
+def side_by_side_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
+    """One cell's pairs of systems rated on the same pages (Noether's formula)."""
     diffs = page_differences(frame, groupby=())
     participants = frame["participant"].nunique()
     alpha_pair = alpha / max(1, diffs.groupby(["system_a", "system_b"]).ngroups)
@@ -178,7 +180,8 @@ def sign_test_trials_for_power(share: float, alpha: float, power: float) -> floa
     return float(n[short[-1] + 1]) if len(short) else 1.0
 
 
-def _pairwise_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
+def pairwise_pairs(frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
+    """One cell's pairs of systems compared by preference (exact sign test)."""
     pages = preference_pages(frame, groupby=())
     participants = frame["participant"].nunique()
     alpha_pair = alpha / max(1, pages.groupby(["system_a", "system_b"]).ngroups)

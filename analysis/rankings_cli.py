@@ -11,13 +11,15 @@ folder as it was) and returns the lines to print.
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
 from analysis.cli_options import add_exclusion_arguments, exclusion_rules
-from analysis.designs import PAIRWISE, SIDE_BY_SIDE, SINGLE, table_design
+from analysis.designs import design_of, designs_where
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import apply_exclusions, compared_ratings, exclusion_notes
 from analysis.leaderboard import MODELS, RESAMPLES
@@ -28,6 +30,9 @@ from analysis.pairing_simulation import (DEFAULT_ELO, DEFAULT_VOTES, Scenario, c
 from analysis.rater_models import build_rater_models, rater_models_text, write_rater_models
 from analysis.ratings import read_ratings
 from analysis.tables import to_markdown
+
+if TYPE_CHECKING:
+    from analysis.designs.base import RatingDesign
 
 
 def _count(minimum: int):
@@ -140,14 +145,14 @@ def _share(text: str) -> float:
     return value
 
 
-def _compared(args: argparse.Namespace, designs: tuple[str, ...]) -> tuple[pd.DataFrame, list[str]]:
+def _compared(args: argparse.Namespace, analysed: Callable[[RatingDesign], bool]) -> tuple[pd.DataFrame, list[str]]:
     """The ratings file's compared rows (kept, attention checks removed unless compared)
-    and the exclusion notes; refuses a table of another design."""
+    and the exclusion notes; refuses a table of a design that is not ``analysed``."""
     ratings = read_ratings(args.ratings)
-    design = table_design(ratings)
-    if design not in designs:
-        raise AnalysisInputError(f"{args.command} analyses {' and '.join(designs)} tables; "
-                                 f"{args.ratings} is {design}")
+    design = design_of(ratings)
+    if not analysed(design):
+        raise AnalysisInputError(f"{args.command} analyses {' and '.join(designs_where(analysed))} tables; "
+                                 f"{args.ratings} is {design.name}")
     rules = exclusion_rules(args)
     flagged = apply_exclusions(ratings, rules)
     kept = compared_ratings(flagged, rules)
@@ -165,7 +170,7 @@ def _summary(folder: Path, title: str, text: str, notes: list[str]) -> Path:
 
 
 def leaderboard_command(args: argparse.Namespace, out: Path) -> list[str]:
-    kept, notes = _compared(args, (PAIRWISE,))
+    kept, notes = _compared(args, lambda design: design.votes)
     report = build_leaderboard(kept, args.anchor, args.model, args.resamples, args.seed,
                                natural=exclusion_rules(args).natural_system)
     if report.board.empty:
@@ -186,7 +191,7 @@ def simulate_pairing_command(args: argparse.Namespace, out: Path) -> list[str]:
 
 
 def rater_models_command(args: argparse.Namespace, out: Path) -> list[str]:
-    kept, notes = _compared(args, (SINGLE, SIDE_BY_SIDE))
+    kept, notes = _compared(args, lambda design: design.rated)
     if args.reference is not None and args.reference not in set(kept["system"]):
         raise AnalysisInputError(f"reference system {args.reference!r} has no compared ratings; "
                                  f"systems: {', '.join(sorted(set(kept['system'])))}")

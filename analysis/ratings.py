@@ -32,9 +32,9 @@ Optional columns:
 
 Side-by-side, pairwise and appropriateness tables carry a ``design`` column and the page
 structure described in `analysis.designs` (``page``, ``position``; ``side``, ``answer``,
-``strength``; ``matched``); pairwise and appropriateness tables need no ``value`` or
-scale columns. Without a ``design``
-column a table is ``single`` and reads as it always has.
+``strength``; ``matched``), which their design objects check; pairwise and
+appropriateness tables need no ``value`` or scale columns. Without a ``design`` column a
+table is ``single`` and reads as it always has.
 
 Any other column is carried through untouched. The web app's export is the minimal
 schema plus task, control_class, clip_duration_s, shown_at, answered_at and the two flags.
@@ -48,8 +48,7 @@ from typing import IO
 import numpy as np
 import pandas as pd
 
-from analysis.designs import (APPROPRIATENESS, SINGLE, needs_scale, required_columns, table_design,
-                              validate_design_columns)
+from analysis.designs import design_of
 from analysis.errors import AnalysisInputError
 
 REQUIRED_COLUMNS = ("participant", "system", "stimulus", "value", "scale_min", "scale_max")
@@ -93,13 +92,12 @@ def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
     when the timings allow it, and the app's own flags renamed with an ``app_`` prefix.
     Raises AnalysisInputError naming the offending column and rows otherwise.
     """
-    design = table_design(ratings)
-    required = required_columns(design, REQUIRED_COLUMNS)
+    design = design_of(ratings)
+    required = design.required_columns(REQUIRED_COLUMNS)
     missing = [c for c in required if c not in ratings.columns]
     if missing:
         raise AnalysisInputError(
-            f"ratings table lacks the required column(s) {', '.join(missing)}; the minimal "
-            f"schema{'' if design == SINGLE else f' of a {design} table'} is "
+            f"ratings table lacks the required column(s) {', '.join(missing)}; {design.schema_title()} is "
             f"{', '.join(required)} (see docs/ratings-schema.md)"
         )
     if len(ratings) == 0:
@@ -115,11 +113,11 @@ def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
                 f"column {column!r} is empty in {int(empty.sum())} row(s), first at row "
                 f"{_row_number(df, empty)}"
             )
-    if needs_scale(design):
+    if design.rated:
         _check_scale(df)
-    if design == APPROPRIATENESS:
-        df["matched"] = _booleans(df["matched"], "matched")
-    df = validate_design_columns(df, design)
+    for column in design.boolean_columns:
+        df[column] = _booleans(df[column], column)
+    df = design.check_pages(df)
     _refuse_duplicates(df)
     early = _answered_before_end(df)
     if early is not None:

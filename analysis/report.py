@@ -1,8 +1,9 @@
 """A whole evaluation from a ratings table (and optionally motion): build, then write.
 
-`build_report` runs every analysis and collects the results in a `Report` of tidy
-tables plus the papers' display tables, with a note for everything that could not be
-computed and why. `write_report` turns it into a folder:
+`build_report` hands a table to its design (`analysis.designs`), which runs every
+analysis. The single design's results are a `Report` of tidy tables plus the papers'
+display tables (the other designs': `analysis.design_report`), with a note for everything
+that could not be computed and why. `write_report` turns either into a folder:
 
     summary.md                    a paragraph per task to paste into a paper, plus notes
     tables/<name>.{csv,md,tex,json}
@@ -19,19 +20,18 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pandas as pd
 from matplotlib.figure import Figure
 
 from analysis import plots
 from analysis.correlation import subjective_objective_correlation
-from analysis.design_report import (POWER, DesignReport, build_design_report, design_figures,
-                                    design_summary_text, write_design_report)
-from analysis.designs import SINGLE, table_design
+from analysis.design_report import POWER, DesignReport, design_summary_text, p_text, write_design_report
+from analysis.designs import design_of
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import (ExclusionRules, apply_exclusions, attention_rule_text,
-                                 compared_ratings, exclusion_notes, exclusion_summary,
-                                 removed_by_reason)
+from analysis.exclusions import (ExclusionRules, apply_exclusions, compared_ratings, exclusion_notes,
+                                 exclusion_summary, removed_by_reason)
 from analysis.mixed import mixed_model_means
 from analysis.motion_io import SystemClips
 from analysis.objective import METRIC_COLUMNS, objective_metrics
@@ -40,6 +40,9 @@ from analysis.rater_models import RaterModels, build_rater_models, rater_models_
 from analysis.stats import (CELL, anova, comparable_cells, pvalue_matrix, system_means,
                             too_few_ratings, tukey_hsd)
 from analysis.tables import objective_table, pvalue_display, significance_table, slug, write_table
+
+if TYPE_CHECKING:
+    from analysis.designs.base import RatingDesign
 
 
 @dataclass
@@ -57,6 +60,7 @@ class Report:
     pvalues_display: dict[tuple[str, str], pd.DataFrame]
     reference: str | None
     rules: ExclusionRules
+    design: RatingDesign
     objective: pd.DataFrame | None = None
     objective_display: pd.DataFrame | None = None
     footstep_curves: pd.DataFrame | None = None
@@ -89,10 +93,10 @@ def _resolve_reference(reference: str | None, compared: set[str], rated: set[str
     return None
 
 
-def require_single_design(ratings: pd.DataFrame) -> None:
+def require_design_taking_motion(ratings: pd.DataFrame) -> None:
     """Objective metrics join a report of single-design ratings only; motion rated in
     other designs is measured by ``python -m analysis objective``."""
-    if table_design(ratings) != SINGLE:
+    if not design_of(ratings).takes_motion:
         raise AnalysisInputError(
             "objective metrics (--motion) are reported with single-design ratings; run "
             "'python -m analysis objective' on the motion alone")
@@ -105,9 +109,9 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
                  foot_kind: str = "heel", continuity_correction: bool = False) -> Report | DesignReport:
     """Run the whole analysis on a validated ratings table (see `analysis.ratings`).
 
-    Side-by-side, pairwise and appropriateness tables (their ``design`` column) get their
-    own analysis, a `DesignReport` (`analysis.design_report`); `write_report` and
-    `summary_text` take either.
+    The table's design builds the report (`analysis.designs`): a single-design table gets a
+    `Report` (`build_single_report`), side-by-side, pairwise and appropriateness tables a
+    `DesignReport` (`analysis.design_report`); `write_report` and `summary_text` take either.
 
     ``reference`` marks significance in Table 2 (default NAT when rated). ``systems``,
     when given, lists the systems expected; any other system in the ratings is an error.
@@ -123,12 +127,18 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
                 f"unknown system(s) in the ratings: {', '.join(sorted(unknown))}; expected "
                 f"{', '.join(systems)}")
     if motion:
-        require_single_design(ratings)
+        require_design_taking_motion(ratings)
     if compare_attention_checks:
         rules = replace(rules, attention_rule=False)
-    if table_design(ratings) != SINGLE:
-        return build_design_report(ratings, reference, rules, compare_attention_checks,
-                                   continuity_correction=continuity_correction)
+    return design_of(ratings).build_report(ratings, rules, reference, continuity_correction, motion,
+                                           foot_joints, foot_kind)
+
+
+def build_single_report(ratings: pd.DataFrame, design: RatingDesign, rules: ExclusionRules,
+                        reference: str | None, motion: dict[str, SystemClips] | None,
+                        foot_joints: Sequence[str] | None, foot_kind: str) -> Report:
+    """The single design's report (see `build_report`, which checks the arguments)."""
+    rated = set(ratings["system"].unique())
     flagged = apply_exclusions(ratings, rules)
     notes = exclusion_notes(flagged, rules)
     kept = compared_ratings(flagged, rules)
@@ -170,7 +180,7 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
         flagged=flagged, exclusions=exclusion_summary(flagged), removed=removed_by_reason(flagged),
         means=means, anova=anova_table, tukey=tukey_table, mixed=mixed_table,
         significance_display=significance_table(means, tukey_table, reference, too_few),
-        pvalues_display=pvalues, reference=reference, rules=rules, notes=notes,
+        pvalues_display=pvalues, reference=reference, rules=rules, design=design, notes=notes,
         power=power_table, rater_models=rater_models)
     if motion:
         _add_objective(report, motion, foot_joints, foot_kind)
@@ -190,17 +200,13 @@ def _add_objective(report: Report, motion: dict[str, SystemClips],
     report.notes += corr_notes
 
 
-def _p_text(p: float) -> str:
-    return "p < .001" if p < 0.001 else f"p = {p:.3f}".replace("0.", ".", 1)
-
-
 def _comparison_text(report: Report, task: str, control_class: str) -> str:
     """One cell's ANOVA and post-hoc result in words."""
     a = report.anova[(report.anova["task"] == task)
                      & (report.anova["control_class"] == control_class)].iloc[0]
     text = (f" In {control_class}, a one-way ANOVA found "
             f"{'a significant' if a.p < 0.05 else 'no significant'} effect of system "
-            f"(F({a.df_between}, {a.df_within}) = {a.F:.2f}, {_p_text(a.p)}).")
+            f"(F({a.df_between}, {a.df_within}) = {a.F:.2f}, {p_text(a.p)}).")
     tukey, ref = report.tukey, report.reference
     pairs = tukey[(tukey["task"] == task) & (tukey["control_class"] == control_class)
                   & ((tukey["system_a"] == ref) | (tukey["system_b"] == ref))]
@@ -223,7 +229,7 @@ def summary_text(report: Report | DesignReport) -> str:
         reasons = ", ".join(f"{r.participants} {r.reason}" for r in removed.itertuples(index=False))
         text = (f"**{row.task}.** Of {row.participants_total} participants, "
                 f"{row.participants_removed} were removed for failing attention checks"
-                f"{f' ({reasons})' if reasons else ''}; {attention_rule_text(rules, SINGLE)}. "
+                f"{f' ({reasons})' if reasons else ''}; {report.design.rule_text(rules)}. "
                 f"{row.ratings_collected} ratings were collected; "
                 f"{row.discarded_participant} were discarded with the removed participants and "
                 f"{row.discarded_early} because they were given before the clip had finished "
@@ -248,7 +254,7 @@ def report_figures(report: Report | DesignReport) -> dict[str, Figure]:
     the single design's mean ratings with CIs on the rating scale and the rating
     distributions, the other designs' ``design_figures``."""
     if isinstance(report, DesignReport):
-        return design_figures(report)
+        return report.design.figures(report)
     return {"means_ci": plots.means_plot(report.means, report.reference, plots.rating_scale(report.analysed)),
             "rating_distributions": plots.distribution_plot(report.analysed, report.reference)}
 

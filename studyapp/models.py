@@ -147,15 +147,15 @@ class Study(models.Model):
         "may stop at any time. We record your ratings, the time you take, and the id your crowd "
         "platform gives you; nothing else about you."))
     # A registered design's name (studyapp.designs.registry), as the ratings table's design column says it.
-    design = models.CharField(max_length=12, choices=designs.choices, default=designs.DEFAULT)
+    design = models.CharField(max_length=20, choices=designs.choices, default=designs.DEFAULT)
     clips_per_participant = models.PositiveSmallIntegerField(
         default=20, help_text="single design: clips each participant rates, attention and instructed checks included",
         validators=[Within(1, 200, "one sitting")])
     ratings_per_stimulus = models.PositiveSmallIntegerField(
         default=10, help_text="target number of ratings of each stimulus", validators=[Within(1, 1000)])
     pages_per_participant = models.PositiveSmallIntegerField(
-        default=8, help_text="side-by-side and pairwise: pages each participant answers, attention and instructed "
-                             "checks included", validators=[Within(0, 100, "one sitting")])
+        default=8, help_text="side-by-side, pairwise and appropriateness: pages each participant answers, attention "
+                             "and instructed checks included", validators=[Within(0, 100, "one sitting")])
     abx = models.BooleanField(
         default=False, help_text="pairwise: show the control's natural clip as the reference X above A and B, and ask "
                                  "which of them is closer to it (held-out controls only; NAT is then not paired)")
@@ -452,6 +452,11 @@ class Stimulus(models.Model):
     study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="stimuli")
     system = models.ForeignKey(System, on_delete=models.CASCADE, related_name="stimuli")
     control = models.ForeignKey(ControlSignal, on_delete=models.CASCADE, related_name="stimuli", null=True, blank=True)
+    # An appropriateness study's mismatched clip: the system's motion for ``control``, shown
+    # (and drawn over the path of) this other control, whose page it appears on.
+    shown_control = models.ForeignKey(
+        ControlSignal, on_delete=models.CASCADE, related_name="mismatched_stimuli", null=True, blank=True,
+        help_text="appropriateness: the control a page shows this clip of another control against (empty: its own)")
     seed = models.IntegerField(default=0)
     content_key = models.CharField(max_length=64)
     token = models.CharField(max_length=32, unique=True, default=new_token, editable=False)

@@ -19,9 +19,9 @@ import json
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
+import threading
 import time
 import urllib.request
 import uuid
@@ -53,7 +53,7 @@ checkpoint, controls = sys.argv[1:]
 call_command("migrate", interactive=False, verbosity=0)
 call_command("createsuperuser", interactive=False, username="researcher", email="r@example.org", verbosity=0)
 out = io.StringIO()
-call_command("create_study", "researcher", "Three queues", "--size", "160", "120", stdout=out)
+call_command("create_study", "researcher", "Three queues", "--size", "640", "480", stdout=out)
 study = out.getvalue().strip()
 call_command("add_system", study, "MoGlow", checkpoint, stdout=io.StringIO())
 call_command("add_system", study, "NAT", "--role", "natural", stdout=io.StringIO())
@@ -136,6 +136,28 @@ class Browser:
             return response.read().decode()
 
 
+class Killer:
+    """Kills a worker's whole process group (the worker with the clips it prefetched) the
+    moment ``condition`` holds, watching from a thread of its own."""
+
+    def __init__(self, condition, worker: subprocess.Popen) -> None:
+        self.killed = threading.Event()
+        self.thread = threading.Thread(target=self._watch, args=(condition, worker), daemon=True)
+        self.thread.start()
+
+    def _watch(self, condition, worker: subprocess.Popen) -> None:
+        deadline = time.monotonic() + 240
+        while time.monotonic() < deadline:
+            if condition():
+                os.killpg(worker.pid, signal.SIGKILL)
+                self.killed.set()
+                return
+            time.sleep(0.01)
+
+    def wait(self, timeout: float) -> bool:
+        return self.killed.wait(timeout)
+
+
 def wait_for(condition, timeout: float, what: str, processes: Processes):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -161,7 +183,9 @@ def test_a_rendering_worker_killed_mid_batch_leaves_every_stimulus_rendered_once
     redis_url = require_redis()
     files = study_files(motion_data, tmp_path_factory.getbasetemp())
     controls = tmp_path / "paths.json"
-    controls.write_text(json.dumps([{"segments": [{"type": "straight", "speed": 90 + 15 * i, "seconds": 4}]}
+    # Clips long and large enough that a render takes a second or more even on a quiet
+    # machine, so the worker is caught holding a batch while it renders.
+    controls.write_text(json.dumps([{"segments": [{"type": "straight", "speed": 90 + 15 * i, "seconds": 8}]}
                                     for i in range(4)]))
     run = uuid.uuid4().hex[:8]
     sample_queue, render_queue = f"sample-{run}", f"render-{run}"
@@ -198,8 +222,6 @@ def test_a_rendering_worker_killed_mid_batch_leaves_every_stimulus_rendered_once
             researcher.submit("/login/", {"username": "researcher", "password": PASSWORD})
             health = researcher.get("/health/").decode()  # the web process sees both workers
             assert f"gpu-{run}@" in health and f"render-{run}@" in health, health
-            page = researcher.submit(f"/studies/{study}/stimuli/", {"seed": "0"})
-            assert "sent to the workers" in page, page[-2000:]
 
             def rendering_a_batch() -> bool:
                 """The first rendering worker renders one clip and holds more."""
@@ -207,8 +229,15 @@ def test_a_rendering_worker_killed_mid_batch_leaves_every_stimulus_rendered_once
                 held = log.count("generate_stimulus[") - 2 * log.count("] succeeded in")  # received, not done
                 return held >= 2 and stimuli_folder.is_dir() and bool(list(stimuli_folder.glob(".*.part")))
 
-            wait_for(rendering_a_batch, 240, "the rendering worker to hold a batch", processes)
-            os.killpg(first.pid, signal.SIGKILL)  # the whole worker, with the clips it prefetched
+            # A clip renders in under a second, so the worker is watched, and killed the
+            # moment it holds a batch, from before the clips are sent (the page that sends
+            # them may answer after the worker has rendered them all).
+            killer = Killer(rendering_a_batch, first)
+            page = researcher.submit(f"/studies/{study}/stimuli/", {"seed": "0"})
+            assert "sent to the workers" in page, page[-2000:]
+            if not killer.wait(240):
+                pytest.fail(f"timed out after 240 s waiting for the rendering worker to hold a batch\n"
+                            f"{processes.tails()}")
             first.wait(timeout=10)
             killed_at = time.monotonic()
             processes.worker("render-again", render_queue)

@@ -41,6 +41,7 @@ HOSTILE_TABLES = {
     "infinite timing": (_with_first_row(FIRST.rsplit(",", 1)[0] + ",inf"), "'played_until_s' must hold finite"),
     "a duplicated row": ((GOOD + FIRST + "\n").encode(), f"row {len(REST) + 2} repeats row 1 exactly"),
     "no rows": ((HEADER + "\n").encode(), "has no rows"),
+    "no rows of a pairwise table": (b"design,participant,system,stimulus,page,side,answer\n", "has no rows"),
     "empty file": (b"", "is empty"),
     "no required columns": (b"a,b\n1,2\n", "lacks the required column"),
 }
@@ -146,6 +147,26 @@ def test_a_nan_exclusion_threshold_is_refused_rather_than_excluding_nobody(tmp_p
     (tmp_path / "ratings.csv").write_text(GOOD)
     assert main(["report", str(tmp_path / "ratings.csv"), "--out", str(tmp_path / "out"), "--bad-threshold", "nan"]) == 2
     assert "bad_at_or_above must be a finite number" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+# One participant per design who fails its attention check, so no rating is left to analyse.
+EVERYONE_EXCLUDED = {
+    "single": "participant,system,stimulus,value,scale_min,scale_max\np1,BAD,b1,5,1,5\np1,A,a1,3,1,5\n",
+    "side-by-side": "design,participant,system,stimulus,page,value,scale_min,scale_max\n"
+                    "side-by-side,p1,BAD,b1,q1,90,0,100\nside-by-side,p1,A,a1,q1,50,0,100\n",
+    "pairwise": "design,participant,system,stimulus,page,side,answer\n"
+                "pairwise,p1,BAD,b1,q1,left,left\npairwise,p1,NAT,n1,q1,right,left\n",
+    "appropriateness": "design,participant,system,stimulus,page,side,answer,matched\n"
+                       "appropriateness,p1,BAD,b1m,q1,left,left,false\nappropriateness,p1,BAD,b1,q1,right,left,true\n",
+}
+
+
+@pytest.mark.parametrize("table", EVERYONE_EXCLUDED.values(), ids=EVERYONE_EXCLUDED.keys())
+def test_a_table_whose_every_participant_is_excluded_exits_2_whatever_its_design(table, tmp_path, capsys):
+    (tmp_path / "ratings.csv").write_text(table)
+    assert main(["report", str(tmp_path / "ratings.csv"), "--out", str(tmp_path / "out")]) == 2
+    assert "no ratings are left after the exclusions" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
 
 

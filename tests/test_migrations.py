@@ -87,7 +87,7 @@ def test_a_study_from_the_first_schema_migrates_to_the_last_with_its_rows_and_ba
 
 @pytest.mark.django_db(transaction=True)
 def test_number_questions_made_before_their_range_keep_taking_any_finite_number():
-    last, before = latest(), [("studyapp", "0011_question_order")]
+    last, before = latest(), [("studyapp", "0012_appropriateness_design_and_mismatched_clips")]
     try:
         migrate(before)
         old = models_at(before)

@@ -3,7 +3,6 @@ on constructed ones: same length, comparable speed, a different shape, seeded dr
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest

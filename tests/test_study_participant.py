@@ -14,7 +14,7 @@ from django.utils import timezone
 
 from studyapp.designs.rules import StudyRules
 from studyapp.designs.single import stimulus_loads
-from studyapp.models import Assignment, Participant, Rating, Stimulus, Study, System
+from studyapp.models import Participant, Rating, Stimulus, Study, System
 from studyapp.participants.assignment import StudyFull, enrol
 from studyapp.researchers.export import ratings_rows
 from tests.study_fixtures import current_clip, make_study

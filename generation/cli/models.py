@@ -60,8 +60,6 @@ def _contents(args: argparse.Namespace) -> tuple[str, ...] | None:
 
 
 def train_command(args: argparse.Namespace) -> int:
-    import torch
-
     from ..train import TrainOptions, train
 
     _require_device(args.device)

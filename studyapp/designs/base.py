@@ -82,6 +82,7 @@ class PageClip:
     seconds: float
     control_id: int | None = None
     expected: str = ""  # an instructed check's answer for this clip
+    shown_control_id: int | None = None  # a mismatched clip's page's control (``Stimulus.shown_control``)
 
 
 @dataclass(frozen=True)
@@ -138,6 +139,14 @@ class Design:
     settings: tuple[str, ...] = ()
     export_columns: tuple[str, ...] = ()  # its columns in front of the ratings table's (docs/ratings-schema.md)
     on_scale = True  # answers are values on the study's scale (pairwise: a preference instead)
+    # Its pages show clips made for another control than the page's (appropriateness):
+    # those are planned and rendered with the others (``stimuli.mismatched``), and every
+    # clip is drawn over the path of the control its page shows.
+    mismatched_clips = False
+    power_table = True  # the monitor shows the ratings needed for 80 % power per pair of systems
+    # The system whose clips its BAD checks are made of: a BAD system's clips, or NAT's
+    # clips set against a path they obviously do not follow (appropriateness).
+    attention_check_role = System.Role.BAD
 
     def __init__(self, name: str) -> None:
         self.name = name
@@ -246,7 +255,8 @@ class Design:
     # The ratings table, the monitor and the report.
 
     def export_fields(self, assignment: Assignment, rating: Rating) -> dict:
-        """The row's values of ``export_columns``."""
+        """The row's values of ``export_columns`` (and of any shared column the design
+        words otherwise: an appropriateness check page names its system BAD)."""
         return {}
 
     def monitor_tables(self, compared: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:

@@ -66,10 +66,13 @@ def page_orders(study: Study) -> Counter:
 
 def by_control(rendered: list[Stimulus]) -> tuple[dict[int, list[Stimulus]], dict[int | None, list[Stimulus]]]:
     """Non-BAD clips per control (one per system: the first rendered) and BAD clips per
-    control (None: uploaded BAD videos, which can join any page)."""
+    control (None: uploaded BAD videos, which can join any page). Mismatched clips (made
+    for another control than the one they are shown with) are no control's clip."""
     clips: dict[int, dict[int, Stimulus]] = defaultdict(dict)
     bad: dict[int | None, list[Stimulus]] = defaultdict(list)
     for stimulus in sorted(rendered, key=lambda s: s.id):
+        if stimulus.shown_control_id is not None:
+            continue
         if stimulus.system.role == System.Role.BAD:
             bad[stimulus.control_id].append(stimulus)
         elif stimulus.control_id is not None:

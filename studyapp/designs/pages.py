@@ -32,7 +32,7 @@ def rating_page(study: Study, participant: Participant) -> dict:
     pages: dict[int, list[dict]] = {}
     for clip in participant.assignments.order_by("position").values(
             "pk", "token", "page", "slot", "shown_at", "expected", "rating", "stimulus__token",
-            "stimulus__duration_s", "stimulus__control_id"):
+            "stimulus__duration_s", "stimulus__control_id", "stimulus__shown_control_id"):
         pages.setdefault(clip["page"], []).append(clip)
     unrated = [page for page in pages.values() if any(clip["rating"] is None for clip in page)]
     current, upcoming = unrated[0], unrated[1] if len(unrated) > 1 else []
@@ -42,7 +42,8 @@ def rating_page(study: Study, participant: Participant) -> dict:
     done = len(pages) - len(unrated)
     page = Page(
         clips=[PageClip(clip["slot"], clip["token"], _video_url(clip["stimulus__token"]),
-                        clip["stimulus__duration_s"] or 0.0, clip["stimulus__control_id"], clip["expected"])
+                        clip["stimulus__duration_s"] or 0.0, clip["stimulus__control_id"], clip["expected"],
+                        clip["stimulus__shown_control_id"])
                for clip in sorted(current, key=lambda clip: clip["slot"])],
         action="participant-rate", form={design.form_field: current[0]["token"]},
         heading=f"{design.page_word} {done + 1} of {len(pages)}", done=done, total=len(pages),
@@ -66,7 +67,8 @@ def remaining_practice(study: Study, participant: Participant) -> list[list[Stim
 def _clips_context(study: Study, clips: list[Stimulus], action: str, form: dict, heading: str, done: int,
                    total: int, upcoming: list[Stimulus]) -> dict:
     """The design's context of a page of ``clips`` that no assignment stands behind (practice, preview)."""
-    page = Page(clips=[PageClip(slot, "", clip.video_url, clip.duration_s or 0.0, clip.control_id)
+    page = Page(clips=[PageClip(slot, "", clip.video_url, clip.duration_s or 0.0, clip.control_id,
+                                shown_control_id=clip.shown_control_id)
                        for slot, clip in enumerate(clips, start=1)],
                 action=action, form=form, heading=heading, done=done, total=total,
                 upcoming=[clip.video_url for clip in upcoming])

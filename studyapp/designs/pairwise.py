@@ -35,7 +35,7 @@ from studyapp.participants.refusal import AnswerRefused
 SIDES = {Assignment.LEFT: Rating.Answer.LEFT, Assignment.RIGHT: Rating.Answer.RIGHT}  # slot -> side
 
 
-def _balanced_sides(pair: tuple[Stimulus, Stimulus], orders: Counter, rng: random.Random) -> list[Stimulus]:
+def balanced_sides(pair: tuple[Stimulus, Stimulus], orders: Counter, rng: random.Random) -> list[Stimulus]:
     """The pair in the order (left, right) it has been shown less often (ties at random); ``orders`` is updated."""
     key = frozenset(s.id for s in pair)
     both = [list(pair), list(pair[::-1])]
@@ -79,7 +79,7 @@ class Pairwise(MultiClip):
         for nat in natural[:count]:
             anchor = bad_for(nat.control_id, bad, rng)
             if anchor is not None:
-                checks.append(PlannedPage(_balanced_sides((nat, anchor), orders, rng), is_check=True))
+                checks.append(PlannedPage(balanced_sides((nat, anchor), orders, rng), is_check=True))
         return checks
 
     def plan(self, study: Study, rendered: list[Stimulus], loads: Counter, count: int,
@@ -96,7 +96,7 @@ class Pairwise(MultiClip):
             pair = min(pairs, key=lambda p: (loads[key_of(list(p))], seen[p[0].system_id] + seen[p[1].system_id]))
             pairs.remove(pair)
             seen.update(s.system_id for s in pair)
-            rated.append(PlannedPage(_balanced_sides(pair, orders, rng)))
+            rated.append(PlannedPage(balanced_sides(pair, orders, rng)))
         if not rated:
             return []
         for check in checks:
@@ -116,6 +116,10 @@ class Pairwise(MultiClip):
         rng.shuffle(pages)
         return [s.id for page in pages for s in page.clips]
 
+    def strengths(self, study: Study) -> range:
+        """The strengths a preference is given with (empty: none asked)."""
+        return study.strengths
+
     def practice_pages(self, clips: list[Stimulus]) -> list[list[Stimulus]]:
         return [clips[i:i + 2] for i in range(0, len(clips), 2)]
 
@@ -130,7 +134,7 @@ class Pairwise(MultiClip):
         return answer.choice == expected[0]
 
     def page_context(self, study: Study, page: Page) -> dict:
-        return {**super().page_context(study, page), "strengths": list(study.strengths),
+        return {**super().page_context(study, page), "strengths": list(self.strengths(study)),
                 "reference": self._reference(study, page)}
 
     def _reference(self, study: Study, page: Page) -> dict | None:
@@ -150,12 +154,12 @@ class Pairwise(MultiClip):
         if answer.choice not in Rating.Answer.values:
             raise AnswerRefused(f"the answer must be one of {', '.join(Rating.Answer.values)}, "
                                 f"not {answer.choice[:20]!r}")
-        if answer.choice == Rating.Answer.NONE or not study.preference_strengths:
+        strengths = self.strengths(study)
+        if answer.choice == Rating.Answer.NONE or not strengths:
             if answer.strength is not None:
                 raise AnswerRefused("a strength goes with a preference for one clip, and only where the study asks it")
-        elif answer.strength not in study.strengths:
-            raise AnswerRefused(f"the strength of the preference must be a whole number from 1 to "
-                                f"{study.preference_strengths}")
+        elif answer.strength not in strengths:
+            raise AnswerRefused(f"the strength of the preference must be a whole number from 1 to {len(strengths)}")
 
     def exclusion_reason(self, rules: ExclusionRules, study: Study, page: list[OnPage], answer: Answer) -> str:
         preferred = any(rules.preferred_attention(clip.system, answer.choice, SIDES.get(clip.assignment.slot))

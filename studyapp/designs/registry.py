@@ -31,6 +31,8 @@ DESIGNS: dict[str, DesignEntry] = {
                                 "studyapp.designs.side_by_side:SideBySide"),
     "pairwise": DesignEntry("pairwise: two systems' clips of one control, which is better",
                             "studyapp.designs.pairwise:Pairwise"),
+    "appropriateness": DesignEntry("appropriateness: a system's clip for the shown control beside its clip for "
+                                   "another control, which fits better", "studyapp.designs.appropriateness:Appropriateness"),
 }
 DEFAULT = "single"
 

@@ -13,6 +13,7 @@ files made elsewhere are named by, stays.
 from __future__ import annotations
 
 from django.db import transaction
+from django.db.models import Q
 
 from studyapp.bounds import check_field
 from studyapp.models import ControlSignal, Stimulus, System
@@ -67,9 +68,10 @@ def rename_control(control: ControlSignal, name: str) -> None:
         control.name = name
         control.control = {**control.control, "name": name}
         control.save(update_fields=["name", "control"])
-        for stimulus in control.stimuli.select_related("system"):  # an update: a queued clip stays as it was
-            Stimulus.objects.filter(pk=stimulus.pk).update(
-                content_key=content_key(control.study, stimulus.system, control, stimulus.seed))
+        shown = Stimulus.objects.filter(Q(control=control) | Q(shown_control=control))  # mismatched clips too
+        for stimulus in shown.select_related("system", "control", "shown_control"):  # a queued clip stays as it was
+            Stimulus.objects.filter(pk=stimulus.pk).update(content_key=content_key(
+                control.study, stimulus.system, stimulus.control, stimulus.seed, stimulus.shown_control))
 
 
 __all__ = ["EditRefused", "edit_system", "rename_control"]

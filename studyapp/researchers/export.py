@@ -44,7 +44,7 @@ def ratings_rows(study: Study) -> list[dict]:
     design = design_of(study)
     ratings = (Rating.objects.filter(assignment__participant__study=study, assignment__expected="")
                .select_related("assignment__participant", "assignment__stimulus__system",
-                               "assignment__stimulus__control")
+                               "assignment__stimulus__control", "assignment__stimulus__shown_control")
                .order_by("answered_at", "pk"))
     columns = export_columns(study)
     rows = []
@@ -52,7 +52,6 @@ def ratings_rows(study: Study) -> list[dict]:
         assignment = rating.assignment
         participant, stimulus = assignment.participant, assignment.stimulus
         row = {
-            **design.export_fields(assignment, rating),
             "participant": participant.code,
             "system": stimulus.system.export_name,
             "stimulus": stimulus.token,
@@ -71,6 +70,7 @@ def ratings_rows(study: Study) -> list[dict]:
             "answered_before_end": rating.answered_before_end,
             "excluded_participant": participant.excluded,
             "exclusion_reason": participant.exclusion_reason,
+            **design.export_fields(assignment, rating),
         }
         rows.append({column: row.get(column) for column in columns})
     if rows:

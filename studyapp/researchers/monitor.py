@@ -105,8 +105,11 @@ def analysis_tables(study: Study, kept: pd.DataFrame) -> list[tuple[str, SafeStr
     compared = compared[compared["system"].isin(counts.index[counts >= 2])]
     if compared["system"].nunique() < 2:
         return []
-    tables = [*design_of(study).monitor_tables(compared),
-              ("How many more ratings give 80 % power per pair (at alpha 0.05)", more_ratings_for_power(compared))]
+    design = design_of(study)
+    tables = list(design.monitor_tables(compared))
+    if design.power_table:
+        tables.append(("How many more ratings give 80 % power per pair (at alpha 0.05)",
+                       more_ratings_for_power(compared)))
     return [(title, html_table(table)) for title, table in tables]
 
 

@@ -43,10 +43,13 @@ def open_warnings(study: Study) -> list[str]:
     attention checks asked for without the system that makes them."""
     warnings = []
     finished = study.stimuli.filter(status=Stimulus.Status.DONE)
-    if study.bad_checks and not finished.filter(system__role=System.Role.BAD).exists():
+    made_of = design_of(study).attention_check_role
+    if study.bad_checks and not finished.filter(system__role=made_of).exists():
+        system = "BAD" if made_of == System.Role.BAD else "NAT"
         warnings.append(f"the settings ask for {study.bad_checks} BAD check(s) per participant, but the study has no "
-                        "BAD system with a finished clip, so no participant gets one and none can be excluded for "
-                        "it: add a BAD system on the systems page and generate its clips, or set BAD checks to 0")
+                        f"{system} system with a finished clip, so no participant gets one and none can be excluded "
+                        f"for it: add a {system} system on the systems page and generate its clips, or set BAD checks "
+                        "to 0")
     if "natural_checks" in design_of(study).settings and study.natural_checks \
             and not finished.filter(system__role=System.Role.NATURAL).exists():
         warnings.append(f"the settings ask for {study.natural_checks} NAT check(s) per participant, but the study "

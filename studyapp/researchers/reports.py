@@ -125,8 +125,8 @@ def report_page(media_root: Path, digest: str, owner_id: int) -> ReportPage:
               for title, table in design_named(table_design(report.flagged)).report_tables(report)]
     figures = sorted(str(p.relative_to(media_root)) for p in (folder / "figures").glob("*.svg"))
     files = sorted(str(p.relative_to(media_root)) for p in (folder / "tables").iterdir())
-    return ReportPage(digest, _paragraphs(summary_text(report)), report.rules.described(), tables, figures, files,
-                      report.notes)
+    return ReportPage(digest, _paragraphs(summary_text(report)), report.design.described(report.rules), tables,
+                      figures, files, report.notes)
 
 
 __all__ = ["AnalysisInputError", "ReportPage", "create_report", "html_table", "report_folder", "report_owner",

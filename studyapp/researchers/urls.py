@@ -35,5 +35,6 @@ urlpatterns = [
     path("<int:pk>/ratings.csv", views.study_export, name="study-export"),
     path("<int:pk>/rules.json", views.study_rules, name="study-rules"),
     path("<int:pk>/motion.zip", views.study_motion_download, name="study-motion-download"),
+    path("<int:pk>/adherence/", views.study_adherence, name="study-adherence"),
     path("<int:pk>/report/", views.study_report, name="study-report"),
 ]

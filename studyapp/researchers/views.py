@@ -22,10 +22,12 @@ from django.utils import timezone
 from django.views.decorators.http import require_http_methods, require_POST, require_safe
 
 from generation import registry
+from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.participants.views import PLATFORM_PARAMETERS
 from studyapp.researchers import question_order
+from studyapp.researchers.adherence import adherence_tables
 from studyapp.researchers.completion_time import completion_minutes
 from studyapp.researchers.duplication import duplicate_study
 from studyapp.researchers.editing import EditRefused, edit_system, rename_control
@@ -39,7 +41,7 @@ from studyapp.researchers.participant_list import participant_rows, participants
 from studyapp.researchers.preview import preview_pages
 from studyapp.researchers.readiness import open_problems, open_warnings
 from studyapp.researchers.removal import SystemsFixed, removal_summary, remove, remove_study, require_not_started
-from studyapp.researchers.reports import AnalysisInputError, create_report
+from studyapp.researchers.reports import AnalysisInputError, create_report, html_table
 from studyapp.server.celery import app as celery_app
 from studyapp.server.health import collect_health
 from studyapp.stimuli.clips import progress
@@ -47,6 +49,7 @@ from studyapp.stimuli.control_export import bundle_zip
 from studyapp.stimuli.controls import (ControlError, add_control_file, add_held_out_controls, add_label_controls,
                                add_preset_controls, control_kind, study_labels)
 from studyapp.stimuli.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
+from studyapp.stimuli.mismatched import study_pairings
 from studyapp.stimuli.motion_export import exported_stimuli, motion_zip
 from studyapp.stimuli.submissions import Reading, add_submitted_upload
 from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system, add_natural_system, add_video_system
@@ -216,7 +219,9 @@ def study_stimuli(request: HttpRequest, pk: int) -> HttpResponse:
     # Queued clips with nobody to make them: say so rather than let the bar sit still.
     waiting = state["counts"]["queued"] + state["counts"]["running"]
     health = collect_health(celery_app, settings.HEALTH_TIMEOUT_S) if waiting else None
-    context = {"study": study, "form": form, "stimuli": study.stimuli.select_related("system", "control"),
+    context = {"study": study, "form": form,
+               "stimuli": study.stimuli.select_related("system", "control", "shown_control"),
+               "pairings": study_pairings(study) if design_of(study).mismatched_clips else None,
                "progress": state, "no_worker": health is not None and not health.workers, "health": health}
     return render(request, "studyapp/researcher/stimuli.html", context, status=status)
 
@@ -551,6 +556,21 @@ def study_motion_download(request: HttpRequest, pk: int) -> HttpResponse:
         messages.error(request, f"No download: {error}")
         return redirect("study-monitor", pk=study.pk)
     return _download(data, "application/zip", f"motion-study-{study.pk}.zip")
+
+
+@never_cache
+@login_required
+@require_safe
+def study_adherence(request: HttpRequest, pk: int) -> HttpResponse:
+    """How closely the study's motion follows its controls, and (appropriateness) its correlation with the scores."""
+    study = _study(request, pk)
+    try:
+        tables, notes = adherence_tables(study)
+    except ValueError as error:
+        messages.error(request, f"No control adherence: {error}")
+        return redirect("study-monitor", pk=study.pk)
+    return render(request, "studyapp/researcher/adherence.html",
+                  {"study": study, "tables": [(title, html_table(table)) for title, table in tables], "notes": notes})
 
 
 @login_required

@@ -14,7 +14,10 @@
    control) and has the worker sample and render every stimulus;
 7. sets up a side-by-side study beside it (the same systems, controls and clips, rated
    on 0-100 sliders, every system's clip of one control on a page);
-8. opens both studies and serves them with Django's runserver (``manage.py serve``, whose
+8. sets up an appropriateness study (MoGlow, RNN, VAE and NAT; the same controls and
+   four more held-out takes, so that takes find partners), reusing the motion already
+   sampled, and queues its clips, which the worker renders while the demo serves;
+9. opens the studies and serves them with Django's runserver (``manage.py serve``, whose
    listen queue holds a crowd) on DEMO_HOST:DEMO_PORT (all interfaces, port 8000) until
    Ctrl-C, printing the participant links (each with an id of its own, at this machine's
    network address, so they open on a phone of the same network) and the researcher's
@@ -66,6 +69,14 @@ KEEPS_BEST = {"rnn", "vae"}
 # as the MoGlow authors sample a test take (many walks start slower than they go on).
 HELD_OUT_CONTROLS, CONTROL_SECONDS, HELD_OUT_LEAD_IN = 4, 6.0, 1.0
 SYNTHETIC_CONTROLS = ("walk-circle", "walk-backward", "stand-still", "sidestep-left")
+APPROPRIATENESS_STUDY = "Demo: does the generated locomotion follow its path?"
+# Of four held-out takes (one walk, run, dash and backward walk) none is like another; eight
+# add turns and sidesteps both ways, which pair up.
+APPROPRIATENESS_HELD_OUT = 8
+APPROPRIATENESS_INSTRUCTIONS = (
+    "Each page shows the same character twice. The orange band on the floor is the path it was asked to follow: in "
+    "one clip its motion was made for that path, in the other for another path. Play both clips to their end, then "
+    "say which one fits the path better, and whether slightly or clearly.")
 
 
 def say(text: str) -> None:
@@ -233,6 +244,71 @@ def ensure_side_by_side_study(single):
     return study
 
 
+def ensure_appropriateness_study(single):
+    """The appropriateness demo study: the single study's systems but BAD, its controls and
+    more held-out takes; created once. Its clips are queued, not waited for: the worker
+    renders them while the demo serves, and pages are made of the pairs already rendered."""
+    from django.db import transaction
+
+    from studyapp.models import Study, System
+    from studyapp.stimuli.clips import plan_stimuli
+    from studyapp.stimuli.controls import add_held_out_controls, add_preset_controls
+    from studyapp.stimuli.dispatch import BrokerUnavailable, queue_stimuli
+
+    study = Study.objects.filter(owner=single.owner, title=APPROPRIATENESS_STUDY).first()
+    if study is None:
+        with transaction.atomic():
+            study = Study.objects.create(
+                owner=single.owner, title=APPROPRIATENESS_STUDY, design="appropriateness", pages_per_participant=8,
+                ratings_per_stimulus=10, training_clips=2, bad_checks=1, instructions=APPROPRIATENESS_INSTRUCTIONS,
+                completion_code="DEMO-DONE", camera=single.camera, video_width=single.video_width,
+                video_height=single.video_height)
+            for system in single.systems.exclude(role=System.Role.BAD):
+                System.objects.create(study=study, name=system.name, role=system.role, checkpoint=system.checkpoint,
+                                      checkpoint_digest=system.checkpoint_digest, kind=system.kind,
+                                      metadata=system.metadata, temperature=system.temperature)
+            add_held_out_controls(study, CONTROL_SECONDS, APPROPRIATENESS_HELD_OUT, HELD_OUT_LEAD_IN)
+            add_preset_controls(study, list(SYNTHETIC_CONTROLS))
+    stimuli, _ = plan_stimuli(study)
+    reused = reuse_sampled_motion(study, single)
+    try:
+        queued = queue_stimuli(stimuli)
+    except BrokerUnavailable as error:
+        say(str(error))
+        queued = 0
+    say(f"appropriateness study: {len(stimuli)} clips ({reused} reusing motion already sampled), {queued} queued; "
+        "the worker renders them while the demo serves")
+    study.is_open = True
+    study.save(update_fields=["is_open"])
+    return study
+
+
+def reuse_sampled_motion(study, single) -> int:
+    """Link the motion the single study sampled to the same clips of ``study`` (same
+    checkpoint, temperature, control and seed), so the worker renders them without
+    sampling again; how many were linked."""
+    import json
+
+    from studyapp.stimuli.sources import sampled_path
+
+    def clip_key(stimulus) -> tuple:
+        system = stimulus.system
+        return system.checkpoint_digest, system.temperature, json.dumps(stimulus.control.control, sort_keys=True), \
+            stimulus.seed
+
+    sampled = {clip_key(s): sampled_path(s) for s in single.stimuli.exclude(system__checkpoint="")
+               .filter(control__isnull=False, shown_control__isnull=True).select_related("system", "control")}
+    linked = 0
+    for stimulus in (study.stimuli.exclude(system__checkpoint="").filter(shown_control__isnull=True)
+                     .select_related("system", "control")):
+        theirs, ours = sampled.get(clip_key(stimulus)), sampled_path(stimulus)
+        if theirs is not None and theirs.is_file() and not ours.exists():
+            ours.parent.mkdir(parents=True, exist_ok=True)
+            os.link(theirs, ours)
+            linked += 1
+    return linked
+
+
 def ensure_researcher(var_dir: Path):
     """The demo's researcher login; the password is made once and kept under var/."""
     from django.contrib.auth.models import Permission, User
@@ -351,6 +427,7 @@ def main() -> int:
         say(f"{count} natural clips rendered into {Path(settings.MEDIA_ROOT) / 'gallery'}")
         study = ensure_study(researcher, checkpoints)
         side_by_side = ensure_side_by_side_study(study)
+        appropriateness = ensure_appropriateness_study(study)
         # The server answers to the address the links carry (and to this machine's own names).
         hosts = os.environ.get("ALLOWED_HOSTS") or ",".join(dict.fromkeys(["localhost", "127.0.0.1", "[::1]", address]))
         server = subprocess.Popen(
@@ -360,7 +437,8 @@ def main() -> int:
         base = f"http://{address}:{port}"
         if study.is_open:
             id_name = PLATFORM_PARAMETERS[study.platform][0]
-            for label, each in (("single clips", study), ("side by side", side_by_side)):
+            for label, each in (("single clips", study), ("side by side", side_by_side),
+                                ("appropriateness", appropriateness)):
                 say(f"participant link ({label}): {participant_link(base, each, id_name)}")
             say(f"   each link is one participant, in any browser or on a phone of this network; another {id_name} "
                 "(or none) starts another")

@@ -5,7 +5,11 @@ depends on (the checkpoint's digest or the natural clip, the control, seed, temp
 camera, video size and code version), so planning again finds the same rows and never
 duplicates a stimulus. Each system gets the controls its source has motion for
 (``sources``): checkpoints every control, NAT the held-out ones (a synthetic path has no
-natural clip), submitted motion those it was submitted for, uploaded videos none.
+natural clip), submitted motion those it was submitted for, uploaded videos none. A
+design whose pages show clips made for other controls (appropriateness) adds those
+mismatched clips (``mismatched``): its system's motion for the partner control, drawn
+over the shown control's path; every clip of such a study is drawn over the path of the
+control its page shows, with the camera following that path (``over_shown_control``).
 
 ``render_stimulus`` is the work a task does: ask the system's source for the motion and
 render it, whatever the source, with the study's camera and write ``MEDIA_ROOT/stimuli/<token>.mp4`` atomically. A
@@ -22,16 +26,23 @@ import hashlib
 import json
 from collections import Counter
 from importlib import metadata
-from pathlib import Path
 
 from django.db import transaction
 from django.db.models import F
 from django.utils import timezone
 
+import numpy as np
+
+from generation.control import PathControl
+from generation.motion.root import root_trajectory
+from generation.motion.types import Motion
 from generation.render import Camera, render_video
 from generation.render.video_check import VideoError, check_rendered_video
+from studyapp.designs.registry import design_of
 from studyapp.models import ControlSignal, Stimulus, Study, System
-from studyapp.stimuli.sources import source_of
+from studyapp.stimuli.controls import study_options
+from studyapp.stimuli.mismatched import mismatched_clips
+from studyapp.stimuli.sources import Clip, source_of
 
 # The package version, not the git commit: a commit that changes no rendering code
 # must not make every stimulus new.
@@ -42,8 +53,10 @@ except metadata.PackageNotFoundError:
 
 
 
-def content_key(study: Study, system: System, control: ControlSignal, seed: int) -> str:
-    """SHA-256 of everything the clip of ``system`` for ``control`` depends on."""
+def content_key(study: Study, system: System, control: ControlSignal, seed: int,
+                shown: ControlSignal | None = None) -> str:
+    """SHA-256 of everything the clip of ``system`` for ``control`` depends on (shown
+    against the ``shown`` control's path, for a mismatched clip)."""
     parts = {
         "role": system.role,
         **source_of(system).identity(system, control, seed),  # source, seed, temperature
@@ -53,24 +66,29 @@ def content_key(study: Study, system: System, control: ControlSignal, seed: int)
         "size": [study.video_width, study.video_height],
         "code": CODE_VERSION,
     }
+    if design_of(study).mismatched_clips:  # drawn over the path of the control its page shows
+        parts["drawn_over"] = (shown or control).control
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 
 
-def _pairs(study: Study) -> list[tuple[System, ControlSignal]]:
-    """Each system with each control its source has motion for."""
+def _pairs(study: Study) -> list[tuple[System, ControlSignal, ControlSignal | None]]:
+    """Each system with each control its source has motion for (shown on its own, None),
+    and the mismatched clips where the study's pages show them."""
     controls = list(study.controls.all())
-    return [(system, control) for system in study.systems.all()
-            for control in source_of(system).controls(system, controls)]
+    own = [(system, control, None) for system in study.systems.all()
+           for control in source_of(system).controls(system, controls)]
+    return own + (mismatched_clips(study) if design_of(study).mismatched_clips else [])
 
 
 def plan_stimuli(study: Study, seed: int = 0) -> tuple[list[Stimulus], int]:
-    """The rows of every (system, control) pair, created where missing; (rows, how many were new)."""
+    """The rows of every (system, control) pair and mismatched clip, created where missing;
+    (rows, how many were new)."""
     stimuli, created = [], 0
     with transaction.atomic():
-        for system, control in _pairs(study):
+        for system, control, shown in _pairs(study):
             stimulus, new = Stimulus.objects.get_or_create(
-                study=study, content_key=content_key(study, system, control, seed),
-                defaults={"system": system, "control": control, "seed": seed})
+                study=study, content_key=content_key(study, system, control, seed, shown),
+                defaults={"system": system, "control": control, "seed": seed, "shown_control": shown})
             stimuli.append(stimulus)
             created += new
     return stimuli, created
@@ -103,9 +121,11 @@ def sample_ahead(sent: list[tuple[int, str]]) -> list[tuple[int, str]]:
             by_system.setdefault(stimulus.system_id, []).append(stimulus)
     ready = []
     for stimuli in by_system.values():
-        failed = source_of(stimuli[0].system).sample_ahead(stimuli[0].system, stimuli)
+        motions = {stimulus.pk: motion_row(stimulus) for stimulus in stimuli}  # a mismatched clip's is another's
+        unique = list({row.pk: row for row in motions.values()}.values())
+        failed = source_of(stimuli[0].system).sample_ahead(stimuli[0].system, unique)
         for stimulus in stimuli:
-            error = failed.get(stimulus.pk)
+            error = failed.get(motions[stimulus.pk].pk)
             if error is not None:  # the reason is shown on the progress page, where it can be retried
                 finish(stimulus, error=f"{type(error).__name__}: {error}")
             else:
@@ -122,6 +142,20 @@ def remove_partial_files(stimulus: Stimulus) -> int:
     return len(stale)
 
 
+def motion_row(stimulus: Stimulus) -> Stimulus:
+    """The stimulus whose motion a clip shows: itself, or for a mismatched clip its system's
+    clip of the control it was made for (so that motion is sampled once)."""
+    if stimulus.shown_control_id is None:
+        return stimulus
+    key = content_key(stimulus.study, stimulus.system, stimulus.control, stimulus.seed)
+    own = (Stimulus.objects.select_related("study", "system", "control")
+           .filter(study=stimulus.study_id, content_key=key).first())
+    if own is None:
+        raise ValueError(f"the clip of {stimulus.system.name} for {stimulus.control.name} is not planned: "
+                         "generate the stimuli again")
+    return own
+
+
 def render_stimulus(stimulus: Stimulus) -> float:
     """Write the stimulus's video atomically and check it whole against its clip (every
     frame decodes, as many frames lasting as long as the motion); its duration in seconds.
@@ -129,15 +163,30 @@ def render_stimulus(stimulus: Stimulus) -> float:
     remove_partial_files(stimulus)
     if stimulus.control is None:
         raise ValueError("an uploaded video has nothing to generate")
-    clip = source_of(stimulus.system).clip(stimulus)
+    clip = source_of(stimulus.system).clip(motion_row(stimulus))
     study = stimulus.study
-    path = render_video(clip.motion, stimulus.video_path(), camera=Camera.from_dict(study.camera),
-                        size=(study.video_width, study.video_height), root_path=clip.floor)
+    motion, floor, drawn = clip.motion, clip.floor, None
+    if design_of(study).mismatched_clips:
+        motion, floor, drawn = over_shown_control(stimulus, clip)
+    path = render_video(motion, stimulus.video_path(), camera=Camera.from_dict(study.camera),
+                        size=(study.video_width, study.video_height), root_path=floor, control_path=drawn)
     try:
-        return check_rendered_video(path, clip.motion).seconds
+        return check_rendered_video(path, motion).seconds
     except VideoError:
         path.unlink(missing_ok=True)
         raise
+
+
+def over_shown_control(stimulus: Stimulus, clip: Clip) -> tuple[Motion, np.ndarray, np.ndarray | None]:
+    """A clip as its page shows it: (the motion, in the frame where every control's path
+    starts and cut to the shown control's length; the figure's own floor path; the shown
+    control's path, None for a label control). Every system's clip of one page's control,
+    matched or not, is then drawn over the same path by a camera following it."""
+    shown = (stimulus.shown_control or stimulus.control).signal()
+    root = study_options(stimulus.study).root
+    motion = clip.on_control_path(shown.n_frames, root)
+    path = shown.path().xz[:motion.n_frames] if isinstance(shown, PathControl) else None
+    return motion, root_trajectory(motion, root).xz, path
 
 
 def claim(stimulus_id: int, task_id: str) -> Stimulus | None:
@@ -166,5 +215,5 @@ def finish(stimulus: Stimulus, duration_s: float | None = None, error: str = "")
         status=status, duration_s=duration_s, error=error, updated=timezone.now())
 
 
-__all__ = ["claim", "content_key", "finish", "plan_stimuli", "progress", "remove_partial_files", "render_stimulus",
+__all__ = ["claim", "content_key", "finish", "motion_row", "over_shown_control", "plan_stimuli", "progress", "remove_partial_files", "render_stimulus",
            "sample_ahead"]

@@ -2,7 +2,9 @@
 system, one clip in two files.
 
     OUT/<system>/<control id>.npz    positions (frames, joints, 3) cm, y up; fps; names;
-                                     parents; offsets; system (analysis/motion_io.py's layout)
+                                     parents; offsets; system (analysis/motion_io.py's layout);
+                                     for a path control also control_path, control_yaw,
+                                     root_path and root_yaw (its control adherence)
     OUT/<system>/<control id>.bvh    the same clip as a rotation BVH on the system's rig:
                                      every joint's ZXY rotation and the root's position,
                                      in cm with y up (BVH cannot say so itself)
@@ -37,12 +39,16 @@ from pathlib import Path
 
 import numpy as np
 
+from generation.control import PathControl, following_arrays
 from generation.files import atomic_folder, write_atomic
 from generation.motion.bvh import bvh_text, motion_to_bvh
 from generation.motion.npz import save_motion_npz
+from generation.motion.root import RootTrajectory
+from generation.motion.types import Motion
 from studyapp.models import Stimulus, Study, System
 from studyapp.stimuli.control_export import SAFE_ID, control_id
-from studyapp.stimuli.sources import source_of
+from studyapp.stimuli.controls import study_options
+from studyapp.stimuli.sources import Clip, source_of
 
 
 def folder_name(system: System) -> str:
@@ -58,9 +64,34 @@ def clip_name(stimulus: Stimulus) -> str:
 
 
 def exported_stimuli(study: Study) -> list[Stimulus]:
-    """The finished stimuli that have motion (every one but uploaded videos')."""
-    return list(study.stimuli.filter(status=Stimulus.Status.DONE, control__isnull=False)
+    """The finished stimuli that have motion (every one but uploaded videos'), each clip
+    once: an appropriateness study's mismatched clips are the motion of another one."""
+    return list(study.stimuli.filter(status=Stimulus.Status.DONE, control__isnull=False, shown_control__isnull=True)
                 .select_related("study", "system", "control").order_by("system__name", "control__name", "seed"))
+
+
+def adherence_arrays(stimulus: Stimulus, clip: Clip) -> dict[str, np.ndarray]:
+    """For a clip of a path control, the arrays the control-adherence metrics read
+    (``generation.control.following_arrays``): the path it was asked to follow and where
+    its root went, in the frame where every control's path starts (natural motion moved
+    there); none for a label control."""
+    signal = stimulus.control.signal()
+    if not isinstance(signal, PathControl):
+        return {}
+    root = study_options(stimulus.study).root
+    motion = clip.on_control_path(signal.n_frames, root)
+    asked = signal.path()
+    frames = motion.n_frames
+    return following_arrays(motion, RootTrajectory(asked.xz[:frames], asked.yaw[:frames]), root)
+
+
+def first_frames(motion: Motion, frames: int) -> Motion:
+    """The first ``frames`` of a motion, its rotations with them (a natural take can run a
+    frame past its control, whose arrays lie beside it)."""
+    cut = slice(0, frames)
+    return Motion(motion.positions[cut], motion.fps, motion.skeleton,
+                  None if motion.rotations is None else motion.rotations[cut],
+                  None if motion.translations is None else motion.translations[cut])
 
 
 def write_motion(study: Study, out: Path) -> dict[str, int]:
@@ -74,11 +105,13 @@ def write_motion(study: Study, out: Path) -> dict[str, int]:
         for stimulus in exported_stimuli(study):
             system = stimulus.system.export_name
             try:
-                motion = source_of(stimulus.system).clip(stimulus).motion
+                clip = source_of(stimulus.system).clip(stimulus)
             except (ValueError, FileNotFoundError) as error:
                 raise ValueError(f"the motion of {stimulus.system.name} for {stimulus.control.name}: {error}") from None
+            following = adherence_arrays(stimulus, clip)
+            motion = first_frames(clip.motion, len(following["root_yaw"]) if following else clip.motion.n_frames)
             folder, name = work / folder_name(stimulus.system), clip_name(stimulus)  # a name may hold a dot: "-2.5s"
-            save_motion_npz(motion, folder / f"{name}.npz", system=np.array(system))
+            save_motion_npz(motion, folder / f"{name}.npz", system=np.array(system), **following)
             write_atomic(folder / f"{name}.bvh", bvh_text(motion_to_bvh(motion)).encode())
             counts[system] = counts.get(system, 0) + 1
     return counts
@@ -96,4 +129,4 @@ def motion_zip(study: Study) -> bytes:
         return buffer.getvalue()
 
 
-__all__ = ["clip_name", "exported_stimuli", "folder_name", "motion_zip", "write_motion"]
+__all__ = ["adherence_arrays", "clip_name", "exported_stimuli", "folder_name", "motion_zip", "write_motion"]

@@ -23,9 +23,9 @@ from typing import Protocol
 import numpy as np
 from django.conf import settings
 
-from generation.control import PathControl
+from generation.control import PathControl, in_control_frame
 from generation.motion.npz import load_motion_npz, save_motion_npz
-from generation.motion.root import root_trajectory
+from generation.motion.root import RootOptions, root_trajectory
 from generation.motion.types import Motion
 from studyapp.models import ControlSignal, Stimulus, StoredDataError, System, json_object
 from studyapp.stimuli.controls import natural_options, study_options
@@ -41,6 +41,14 @@ class Clip:
 
     motion: Motion
     floor: np.ndarray
+    starts_on_path: bool = True  # starts where every control's path does (natural motion: where its take was)
+
+    def on_control_path(self, frames: int, root: RootOptions) -> Motion:
+        """The motion moved to start where every control's path starts, facing as it
+        does, and at most ``frames`` long: ready to be set against a control's path."""
+        motion = self.motion if self.starts_on_path else in_control_frame(self.motion, root)
+        frames = min(frames, motion.n_frames)
+        return Motion(motion.positions[:frames], motion.fps, motion.skeleton)
 
 
 class MotionSource(Protocol):
@@ -186,7 +194,7 @@ class NaturalClips:
         control = stimulus.control
         options = natural_options(control)
         motion = natural_motion(control, options)
-        return Clip(motion, root_trajectory(motion, options.root).xz)
+        return Clip(motion, root_trajectory(motion, options.root).xz, starts_on_path=False)
 
 
 class SubmittedMotion:

@@ -1,0 +1,29 @@
+"""The single design: one clip per page, rated on the scale (MoGlow, HVRNN).
+
+Its table is the minimal schema and its rules are the rated clips' defaults of
+`RatingDesign`. Its report is `analysis.report`'s: the MoGlow Table 2 layout, the
+one-way ANOVA and Tukey HSD per cell, the mixed models, and the objective metrics when
+motion is given, which no other design's report takes.
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from analysis.designs.base import RatingDesign
+from analysis.exclusions import ExclusionRules
+from analysis.motion_io import SystemClips
+from analysis.report import Report, build_single_report
+
+
+class Single(RatingDesign):
+    name = "single"
+    takes_motion = True
+
+    def schema_title(self) -> str:
+        return "the minimal schema"
+
+    def build_report(self, ratings: pd.DataFrame, rules: ExclusionRules, reference: str | None,
+                     continuity_correction: bool, motion: dict[str, SystemClips] | None,
+                     foot_joints: list[str] | None, foot_kind: str) -> Report:
+        return build_single_report(ratings, self, rules, reference, motion, foot_joints, foot_kind)
