@@ -62,6 +62,8 @@ class CheckpointMeta:
             data = json.loads(text)
         except json.JSONDecodeError as error:
             raise CheckpointError(f"{path}: the checkpoint's JSON header is invalid ({error.msg})") from None
+        except RecursionError:  # thousands of nested brackets exhaust the parser's stack
+            raise CheckpointError(f"{path}: the checkpoint's JSON header is nested too deeply") from None
         if not isinstance(data, dict):
             raise CheckpointError(f"{path}: the checkpoint's JSON header is not an object")
         if data.pop("format_version", None) != FORMAT_VERSION:

@@ -241,16 +241,19 @@ def load_control_file(path: str | Path, fps: float = 20.0) -> list[PathControl]:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as error:
         raise ValueError(f"{path}: not UTF-8 text (byte {error.start})") from None
-    if path.suffix.lower() in (".yaml", ".yml"):
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as error:
-            raise ValueError(f"{path}: invalid YAML ({error})") from None
-    else:
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as error:
-            raise ValueError(f"{path}:{error.lineno}: invalid JSON ({error.msg})") from None
+    try:  # both parsers recurse per level: thousands of nested brackets exhaust the stack
+        if path.suffix.lower() in (".yaml", ".yml"):
+            try:
+                data = yaml.safe_load(text)
+            except yaml.YAMLError as error:
+                raise ValueError(f"{path}: invalid YAML ({error})") from None
+        else:
+            try:
+                data = json.loads(text)
+            except json.JSONDecodeError as error:
+                raise ValueError(f"{path}:{error.lineno}: invalid JSON ({error.msg})") from None
+    except RecursionError:
+        raise ValueError(f"{path}: nested too deeply to be a path description") from None
     descriptions = data if isinstance(data, list) else [data]
     controls = []
     for i, description in enumerate(descriptions):

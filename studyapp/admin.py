@@ -5,10 +5,32 @@ study pages: a new study is theirs (the owner comes from the request, so the for
 lists other researchers' names); a superuser sees everything.
 """
 
+from django import forms
 from django.contrib import admin
+from django.core.exceptions import ValidationError
+from django.db import models
 
 from studyapp.models import Assignment, ControlSignal, Participant, Rating, Stimulus, Study, System
 from studyapp.researchers.removal import remove_study
+
+
+class ReadableJSONField(forms.JSONField):
+    """Django's JSON form field, refusing JSON nested too deeply for the parser to read:
+    thousands of brackets exhaust its stack, which Django would answer with a 500."""
+
+    NESTED = "nested too deeply to read"
+
+    def to_python(self, value):
+        try:
+            return super().to_python(value)
+        except RecursionError:
+            raise ValidationError(self.NESTED, code="invalid") from None
+
+    def bound_data(self, data, initial):
+        try:
+            return super().bound_data(data, initial)
+        except RecursionError:  # shown again as typed, beside the error
+            return forms.fields.InvalidJSONInput(data)
 
 
 class OwnStudiesOnly(admin.ModelAdmin):
@@ -18,6 +40,7 @@ class OwnStudiesOnly(admin.ModelAdmin):
     """
 
     owner_path = "study__owner"
+    formfield_overrides = {models.JSONField: {"form_class": ReadableJSONField}}
 
     def get_queryset(self, request):
         rows = super().get_queryset(request)

@@ -17,12 +17,39 @@ from django.conf import settings
 from django.core.exceptions import ValidationError
 from django.db import models
 
+from generation.control import Control, control_from_dict
+from generation.motion.dataset import DatasetOptions
 from generation.render.camera import Camera
+from studyapp.bounds import Within, storable_json
 from studyapp.designs import registry as designs
 
 NATURAL_NAME, ATTENTION_NAME = "NAT", "BAD"  # the names the analysis expects for these roles
 # A name that is a plain file name on every system: a control's export id where its name is one.
 SAFE_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")
+
+
+class StoredDataError(ValueError):
+    """A row holds data the study's code cannot read (an admin edit, an older version, a
+    hand-made row); the message names the row and the field, for the researcher to fix or
+    remove it in the admin (``admin_url``)."""
+
+    def __init__(self, row: models.Model, field: str, problem: str) -> None:
+        self.row, self.field = row, field
+        super().__init__(f"{row._meta.verbose_name} {getattr(row, 'name', None) or str(row)!r} (id {row.pk}): "
+                         f"its {field} {problem}")
+
+    @property
+    def admin_url(self) -> str:
+        meta = self.row._meta
+        return f"/admin/{meta.app_label}/{meta.model_name}/{self.row.pk}/change/"
+
+
+def json_object(row: models.Model, field: str) -> dict:
+    """A JSON field of ``row`` that must hold an object (StoredDataError if it does not)."""
+    value = getattr(row, field)
+    if not isinstance(value, dict):
+        raise StoredDataError(row, field, f"is {type(value).__name__}, not a JSON object")
+    return value
 
 
 def new_token() -> str:
@@ -39,29 +66,60 @@ def default_camera() -> dict:
 
 # Camera fields whose None means "from the character's size" (generation.render.camera).
 OPTIONAL_CAMERA_FIELDS = ("distance", "target_height")
+# What the renderer can draw of a person (lengths in cm): farther than 100 m a figure is a
+# few pixels tall, and a view narrower than a degree shows a few of its pixels.
+CAMERA_BOUNDS = {
+    "azimuth": Within(-360, 360, "degrees"),
+    "distance": Within(20, 10_000, "cm: 100 m at most"),
+    "fov": Within(1, 170, "degrees"),
+    "target_height": Within(-10_000, 10_000, "cm"),
+    "follow_smoothing": Within(0, 10, "seconds"),
+    "near": Within(0.1, 1000, "cm"),
+    "figure_share": Within(0.01, 2, "of the frame's height"),
+    "target_share": Within(0, 2, "of the character's size"),
+}
+
+
+def camera_setting_problem(name: str, value: object) -> str | None:
+    """What is wrong with one setting of a camera description, or None.
+
+    JSON admits NaN and Infinity, which no database's JSON column stores and no
+    renderer can draw, so every number must be finite, and within ``CAMERA_BOUNDS``.
+    """
+    if value is None and name in OPTIONAL_CAMERA_FIELDS:
+        return None
+    if name == "follow":
+        return None if isinstance(value, bool) else f"'follow' must be true or false, got {value!r}"
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return f"{name!r} must be a number, got {value!r}"
+    if not math.isfinite(value):
+        return f"{name!r} must be a finite number, got {value}"
+    bound = CAMERA_BOUNDS.get(name)
+    return f"{name!r} {bound.message(value)}" if bound and not bound.low <= value <= bound.high else None
 
 
 def camera_problem(data: object) -> str | None:
-    """What makes ``data`` no camera description (a JSON object of Camera's fields), or None.
-
-    JSON admits NaN and Infinity, which no database's JSON column stores and no
-    renderer can draw, so every number must be finite.
-    """
+    """What makes ``data`` no camera description (a JSON object of Camera's fields), or None."""
     if not isinstance(data, dict):
         return f"expected a JSON object of camera fields, got {type(data).__name__}"
     for name, value in data.items():
-        if value is None and name in OPTIONAL_CAMERA_FIELDS:
-            continue
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            if not (name == "follow" and isinstance(value, bool)):
-                return f"{name!r} must be a number, got {value!r}"
-        elif not math.isfinite(value):
-            return f"{name!r} must be a finite number, got {value}"
+        if problem := camera_setting_problem(name, value):
+            return problem
     try:
         Camera.from_dict(data)
     except (TypeError, ValueError) as error:
         return str(error)
     return None
+
+
+# The bounds of a study's numbers (``studyapp.bounds``), where they are shared or checked together.
+SCALE_END = Within(-1000, 1000, "the ratings table's range")
+CHECKS = Within(0, 50)
+THRESHOLD = Within(0, 6, "on the 1-5 scale; 0 or 6, beyond its ends, turns the check off")
+SCREEN_SIDE = Within(0, 7680, "CSS pixels of an 8K screen")
+# The renderer draws every frame in memory and H.264 encoders stop at 4K frames.
+VIDEO_SIDE = Within(64, 3840, "pixels: smaller shows no figure, larger is past 4K video")
+MAX_VIDEO_PIXELS = 3840 * 2160
 
 
 class Study(models.Model):
@@ -77,8 +135,8 @@ class Study(models.Model):
     # The participants' entry link carries this key; it says nothing about the study.
     key = models.CharField(max_length=32, unique=True, default=new_study_key, editable=False)
     question = models.CharField(max_length=300, default="How natural does the motion of the character look?")
-    scale_min = models.SmallIntegerField(default=1)
-    scale_max = models.SmallIntegerField(default=5)
+    scale_min = models.SmallIntegerField(default=1, validators=[SCALE_END])
+    scale_max = models.SmallIntegerField(default=5, validators=[SCALE_END])
     label_min = models.CharField(max_length=60, default="Completely unnatural")
     label_max = models.CharField(max_length=60, default="Completely natural")
     instructions = models.TextField(default=(
@@ -91,36 +149,48 @@ class Study(models.Model):
     # A registered design's name (studyapp.designs.registry), as the ratings table's design column says it.
     design = models.CharField(max_length=20, choices=designs.choices, default=designs.DEFAULT)
     clips_per_participant = models.PositiveSmallIntegerField(
-        default=20, help_text="single design: clips each participant rates, attention and instructed checks included")
-    ratings_per_stimulus = models.PositiveSmallIntegerField(default=10, help_text="target number of ratings of each stimulus")
+        default=20, help_text="single design: clips each participant rates, attention and instructed checks included",
+        validators=[Within(1, 200, "one sitting")])
+    ratings_per_stimulus = models.PositiveSmallIntegerField(
+        default=10, help_text="target number of ratings of each stimulus", validators=[Within(1, 1000)])
     pages_per_participant = models.PositiveSmallIntegerField(
         default=8, help_text="side-by-side, pairwise and appropriateness: pages each participant answers, attention "
-                             "and instructed checks included")
+                             "and instructed checks included", validators=[Within(0, 100, "one sitting")])
     abx = models.BooleanField(
         default=False, help_text="pairwise: show the control's natural clip as the reference X above A and B, and ask "
                                  "which of them is closer to it (held-out controls only; NAT is then not paired)")
     preference_strengths = models.PositiveSmallIntegerField(
-        default=0, help_text="pairwise: how many degrees of preference to ask (0: only which one)")
-    training_clips = models.PositiveSmallIntegerField(default=4, help_text="practice clips shown first and not recorded")
-    bad_checks = models.PositiveSmallIntegerField(default=1, help_text="BAD clips per participant (attention checks)")
-    natural_checks = models.PositiveSmallIntegerField(default=1, help_text="NAT clips per participant placed as attention checks")
-    bad_threshold = models.FloatField(default=4.0, help_text="on the 1-5 scale: rating a BAD clip this high or higher excludes")
-    natural_threshold = models.FloatField(default=2.0, help_text="on the 1-5 scale: rating a NAT clip below this excludes")
+        default=0, help_text="pairwise: how many degrees of preference to ask (0: only which one)",
+        validators=[Within(0, 5, "a button each")])
+    training_clips = models.PositiveSmallIntegerField(default=4, help_text="practice clips shown first and not recorded",
+                                                      validators=[Within(0, 20)])
+    bad_checks = models.PositiveSmallIntegerField(default=1, help_text="BAD clips per participant (attention checks)",
+                                                  validators=[CHECKS])
+    natural_checks = models.PositiveSmallIntegerField(
+        default=1, help_text="NAT clips per participant placed as attention checks", validators=[CHECKS])
+    bad_threshold = models.FloatField(
+        default=4.0, help_text="on the 1-5 scale: rating a BAD clip this high or higher excludes", validators=[THRESHOLD])
+    natural_threshold = models.FloatField(
+        default=2.0, help_text="on the 1-5 scale: rating a NAT clip below this excludes", validators=[THRESHOLD])
     instructed_checks = models.PositiveSmallIntegerField(
         default=0, help_text="pages per participant, among their pages, that tell them which answer to give "
-                             "(not analysed)")
+                             "(not analysed)", validators=[CHECKS])
     stop_after_failed_checks = models.PositiveSmallIntegerField(
-        default=0, help_text="end a participant's session politely after this many failed instructed checks (0: never)")
+        default=0, help_text="end a participant's session politely after this many failed instructed checks (0: never)",
+        validators=[CHECKS])
     discard_early = models.BooleanField(default=True, help_text="flag ratings given before the clip finished playing")
     require_full_play = models.BooleanField(
         default=True, help_text="the rating buttons unlock when the clip has played to its end, and answers sent "
                                 "sooner after the page than the clip lasts are refused")
     reservation_minutes = models.PositiveIntegerField(
-        default=90, help_text="an unfinished participant's unrated clips stop counting towards the target after this idle time")
+        default=90, help_text="an unfinished participant's unrated clips stop counting towards the target after this idle time",
+        validators=[Within(1, 7 * 24 * 60, "a week")])
     device_check = models.BooleanField(
         default=False, help_text="before consent, the browser plays a clip of the study and shows its screen size")
-    min_screen_width = models.PositiveSmallIntegerField(default=0, help_text="CSS pixels the device check asks for (0: any)")
-    min_screen_height = models.PositiveSmallIntegerField(default=0, help_text="CSS pixels the device check asks for (0: any)")
+    min_screen_width = models.PositiveSmallIntegerField(default=0, help_text="CSS pixels the device check asks for (0: any)",
+                                                        validators=[SCREEN_SIDE])
+    min_screen_height = models.PositiveSmallIntegerField(default=0, help_text="CSS pixels the device check asks for (0: any)",
+                                                         validators=[SCREEN_SIDE])
     platform = models.CharField(max_length=10, choices=Platform.choices, default=Platform.LINK)
     completion_code = models.CharField(max_length=100, blank=True)
     # Participants who do not finish the ratings still leave with a code of their own, so
@@ -134,9 +204,9 @@ class Study(models.Model):
         max_length=100, blank=True, help_text="given to participants stopped after failed instructed checks (empty: "
                                               "they are asked to return the study)")
     redirect_url = models.URLField(blank=True, help_text="where finished participants are sent (Prolific: its completion URL)")
-    camera = models.JSONField(default=default_camera)
-    video_width = models.PositiveSmallIntegerField(default=640)
-    video_height = models.PositiveSmallIntegerField(default=480)
+    camera = models.JSONField(default=default_camera, validators=[storable_json])
+    video_width = models.PositiveSmallIntegerField(default=640, validators=[VIDEO_SIDE])
+    video_height = models.PositiveSmallIntegerField(default=480, validators=[VIDEO_SIDE])
     is_open = models.BooleanField(default=False, help_text="accepting participants")
     previewed_at = models.DateTimeField(null=True, blank=True, help_text="when the researcher last saw the preview")
     created = models.DateTimeField(auto_now_add=True)
@@ -161,6 +231,9 @@ class Study(models.Model):
             raise ValidationError({"scale_max": f"the scale must rise: {self.scale_min} to {self.scale_max} does not"})
         if self.video_width % 2 or self.video_height % 2:
             raise ValidationError({"video_width": "H.264 video needs an even width and height"})
+        if self.video_width * self.video_height > MAX_VIDEO_PIXELS:
+            raise ValidationError({"video_width": f"{self.video_width}×{self.video_height} is past 4K video: at most "
+                                                  f"{MAX_VIDEO_PIXELS:,} pixels a frame (3840×2160)"})
         try:
             design = designs.design_of(self)
         except KeyError as unknown:
@@ -171,9 +244,13 @@ class Study(models.Model):
             if getattr(self, name) is True:  # a switch of another design's, turned on
                 raise ValidationError({name: f"{self._meta.get_field(name).verbose_name} goes with the "
                                              f"{' or '.join(owners)} design"})
+        if self.stop_after_failed_checks > self.instructed_checks:
+            raise ValidationError({"stop_after_failed_checks": f"a participant meets {self.instructed_checks} "
+                                                               f"instructed check(s): stopping after "
+                                                               f"{self.stop_after_failed_checks} failed never happens"})
         problem = camera_problem(self.camera)
-        if problem:
-            raise ValidationError({"camera": f"not a camera description: {problem}"})
+        if problem:  # not keyed to "camera": the study form shows the camera as one field per setting
+            raise ValidationError(f"camera: not a camera description: {problem}")
 
     @property
     def scale(self) -> range:
@@ -182,6 +259,10 @@ class Study(models.Model):
     @property
     def strengths(self) -> range:
         return range(1, self.preference_strengths + 1)
+
+
+# Past 10 the noise swamps what a model learnt; the models take any finite temperature.
+TEMPERATURE = Within(0.0001, 10, "the sampling temperature")
 
 
 class System(models.Model):
@@ -206,8 +287,8 @@ class System(models.Model):
     checkpoint = models.CharField(max_length=200, blank=True)
     checkpoint_digest = models.CharField(max_length=64, blank=True)
     kind = models.CharField(max_length=30, blank=True)
-    metadata = models.JSONField(default=dict, blank=True)
-    temperature = models.FloatField(default=1.0)
+    metadata = models.JSONField(default=dict, blank=True, validators=[storable_json])
+    temperature = models.FloatField(default=1.0, validators=[TEMPERATURE])
     created = models.DateTimeField(auto_now_add=True)
 
     class Meta:
@@ -230,6 +311,41 @@ class System(models.Model):
     def checkpoint_path(self) -> Path | None:
         return Path(settings.CHECKPOINT_ROOT) / self.checkpoint if self.checkpoint else None
 
+    # What a checkpoint system's metadata tells the study (``systems.checkpoint_metadata``
+    # writes it); each reader raises StoredDataError naming the system if it cannot.
+
+    def dataset_options(self) -> DatasetOptions:
+        """The options of the data the checkpoint was trained on."""
+        data = json_object(self, "metadata").get("dataset_options")
+        try:
+            return DatasetOptions.from_dict(data)
+        except (KeyError, TypeError, ValueError, AttributeError) as error:
+            raise StoredDataError(self, "metadata", f"holds no readable dataset_options ({error!r})") from None
+
+    def labels(self) -> dict[str, list[str]] | None:
+        """The actions and styles a label-controlled checkpoint knows (None for a path-controlled one)."""
+        labels = json_object(self, "metadata").get("labels")
+        if not labels:
+            return None
+        if not (isinstance(labels, dict) and all(isinstance(labels.get(part), list) and
+                                                 all(isinstance(name, str) for name in labels[part])
+                                                 for part in ("actions", "styles"))):
+            raise StoredDataError(self, "metadata", "holds labels that are not lists of actions and styles")
+        return labels
+
+    def clean(self) -> None:
+        if self.source_kind not in self.SourceKind.values:
+            kinds = [kind for kind in self.SourceKind.values if kind != self.SourceKind.CHECKPOINT]
+            raise ValidationError({"kind": f"a system without a checkpoint has its motion from {', '.join(kinds)}, "
+                                           f"not {self.kind!r}"})
+        try:
+            json_object(self, "metadata")
+            if self.checkpoint:  # every reader of a checkpoint's metadata can read it
+                self.dataset_options()
+                self.labels()
+        except StoredDataError as error:
+            raise ValidationError({"metadata": str(error)}) from None
+
 
 def export_name(role: str, name: str) -> str:
     """The name in the ratings table of a system of ``role`` called ``name``."""
@@ -246,11 +362,11 @@ class ControlSignal(models.Model):
     study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="controls")
     name = models.CharField(max_length=100)
     origin = models.CharField(max_length=10, choices=Origin.choices)
-    control = models.JSONField(help_text="generation.control's to_dict() form")
+    control = models.JSONField(help_text="generation.control's to_dict() form", validators=[storable_json])
     # For held-out control: the natural clip it came from, which NAT stimuli show.
     source_clip = models.CharField(max_length=200, blank=True)
     # For held-out control: where its take was found and how it is read (``stimuli.natural.NaturalSource``).
-    natural = models.JSONField(default=dict, blank=True,
+    natural = models.JSONField(default=dict, blank=True, validators=[storable_json],
                                help_text="held-out: the folders its take was found in and the dataset options it is "
                                          "read with")
     seconds = models.FloatField()
@@ -266,6 +382,28 @@ class ControlSignal(models.Model):
     def __str__(self) -> str:
         return f"{self.name} ({self.origin})"
 
+    def signal(self) -> Control:
+        """The stored control as ``generation.control`` reads it (StoredDataError if it is none)."""
+        try:
+            return control_from_dict(json_object(self, "control"))
+        except StoredDataError:
+            raise
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as error:
+            detail = f"lacks {error}" if isinstance(error, KeyError) else str(error)
+            raise StoredDataError(self, "control", f"is no control description ({detail})") from None
+
+    def recorded_options(self) -> DatasetOptions | None:
+        """The dataset options a held-out control's take was read with, as recorded when it
+        was added (None where none were: controls made before they were recorded)."""
+        if not self.natural:
+            return None
+        try:
+            return DatasetOptions.from_dict(json_object(self, "natural")["options"])
+        except StoredDataError:
+            raise
+        except (KeyError, TypeError, ValueError, AttributeError) as error:
+            raise StoredDataError(self, "natural", f"holds no readable dataset options ({error!r})") from None
+
     def save(self, *args, **kwargs) -> None:
         """Save, giving a new control its export id: its name, unless that is no plain file
         name or another control of the study (since renamed) already has it."""
@@ -277,7 +415,21 @@ class ControlSignal(models.Model):
     @property
     def lead_in_seconds(self) -> float:
         """How far into its take a held-out control starts: the length of its lead-in (0 without one)."""
-        return len(self.control["lead_in"]) / self.control["fps"] if "lead_in" in self.control else 0.0
+        signal = self.signal()
+        return len(signal.lead_in) / signal.fps if getattr(signal, "lead_in", None) is not None else 0.0
+
+    @property
+    def problem(self) -> str:
+        """Why the stored control cannot be read ("" when it can), for the pages that list controls."""
+        try:
+            self.signal()
+        except StoredDataError as error:
+            return str(error)
+        return ""
+
+    def clean(self) -> None:
+        if problem := self.problem:
+            raise ValidationError({"control": problem})
 
 
 class Stimulus(models.Model):
@@ -344,14 +496,15 @@ class Participant(models.Model):
 
     study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="participants")
     platform_id = models.CharField(max_length=100)
-    platform_data = models.JSONField(default=dict, blank=True)
+    platform_data = models.JSONField(default=dict, blank=True, validators=[storable_json])
     # Anonymous id written to the ratings table instead of the platform id.
     code = models.CharField(max_length=32, unique=True, default=new_token, editable=False)
     started_at = models.DateTimeField(auto_now_add=True)
     last_seen = models.DateTimeField(auto_now_add=True)
     consented_at = models.DateTimeField(null=True, blank=True)
     instructed_at = models.DateTimeField(null=True, blank=True)
-    training = models.JSONField(default=list, blank=True, help_text="ids of the practice stimuli, in order")
+    training = models.JSONField(default=list, blank=True, help_text="ids of the practice stimuli, in order",
+                                validators=[storable_json])
     training_done = models.PositiveSmallIntegerField(default=0)
     finished_at = models.DateTimeField(null=True, blank=True)
     failed_checks = models.PositiveSmallIntegerField(default=0, help_text="instructed checks answered otherwise than asked")
@@ -361,7 +514,8 @@ class Participant(models.Model):
     screened_at = models.DateTimeField(null=True, blank=True, help_text="passed the questions before the ratings")
     screened_out_at = models.DateTimeField(null=True, blank=True, help_text="a screening answer did not match")
     surveyed_at = models.DateTimeField(null=True, blank=True, help_text="answered the questions after the ratings")
-    answers = models.JSONField(default=dict, blank=True, help_text="questionnaire answers by question name")
+    answers = models.JSONField(default=dict, blank=True, help_text="questionnaire answers by question name",
+                               validators=[storable_json])
     excluded = models.BooleanField(default=False)
     exclusion_reason = models.CharField(max_length=100, blank=True)
     # Answers refused for coming sooner than the clip lasts (require_full_play): they are
@@ -375,6 +529,24 @@ class Participant(models.Model):
 
     def __str__(self) -> str:
         return f"{self.platform_id} in {self.study}"
+
+    def practice_ids(self) -> list[int]:
+        """The ids of the practice stimuli, in order (StoredDataError if ``training`` holds anything else)."""
+        if not (isinstance(self.training, list) and all(type(pk) is int for pk in self.training)):
+            raise StoredDataError(self, "training", "must be a JSON list of stimulus ids")
+        return self.training
+
+    def clean(self) -> None:
+        for field in ("answers", "platform_data"):
+            if not isinstance(getattr(self, field), dict):
+                raise ValidationError({field: "must be a JSON object"})
+        try:
+            self.practice_ids()
+        except StoredDataError:
+            raise ValidationError({"training": "must be a JSON list of stimulus ids"}) from None
+
+
+ANSWER_BOUND = Within(-1e9, 1e9, "a number a participant types")
 
 
 class Question(models.Model):
@@ -399,6 +571,10 @@ class Question(models.Model):
     accepted = models.TextField(blank=True, help_text="before the ratings: the choices that may go on, one per line "
                                                       "(empty: every answer)")
     required = models.BooleanField(default=True)
+    # Number questions' answers lie in [minimum, maximum]; the defaults suit an age in years.
+    minimum = models.FloatField(default=0, validators=[ANSWER_BOUND], help_text="number questions: the smallest answer")
+    maximum = models.FloatField(default=120, validators=[ANSWER_BOUND], help_text="number questions: the largest answer")
+    whole_numbers = models.BooleanField(default=True, help_text="number questions: only whole numbers (as ages)")
     order = models.PositiveSmallIntegerField(default=0, help_text="its place among the questions of its part")
     created = models.DateTimeField(auto_now_add=True)
 
@@ -426,6 +602,10 @@ class Question(models.Model):
             raise ValidationError({"accepted": f"not among the choices: {', '.join(unknown)}"})
         if self.accepted_list and self.part != self.Part.BEFORE:
             raise ValidationError({"accepted": "only questions before the ratings screen participants"})
+        if self.kind == self.Kind.NUMBER and not self.minimum < self.maximum:
+            raise ValidationError({"maximum": f"the largest answer must exceed the smallest ({self.minimum:g})"})
+        if self.kind == self.Kind.NUMBER and self.whole_numbers and math.floor(self.maximum) < self.minimum:
+            raise ValidationError({"maximum": f"no whole number lies from {self.minimum:g} to {self.maximum:g}"})
 
 
 class Assignment(models.Model):

@@ -53,6 +53,12 @@ DATABASE_TESTS = (
     "tests/test_platform_codes.py",
     "tests/test_platform_api.py",
     "tests/test_study_natural_folder.py",
+    "tests/test_hostile_numbers.py",
+    "tests/test_hostile_ids.py",
+    "tests/test_hostile_submitted_zips.py",
+    "tests/test_stored_data.py",
+    "tests/test_study_video_check.py",
+    "tests/test_fuzz_web.py",
 )
 
 

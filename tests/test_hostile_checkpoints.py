@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import resource
+import struct
 import time
 from pathlib import Path
 
@@ -166,3 +167,25 @@ def test_evaluate_refuses_a_held_out_loss_that_is_not_finite(tiny, motion_data, 
     assert main(["evaluate", str(bad), "--data", str(motion_data), "--cache-dir", str(tmp_path / "cache")]) == 2
     err = capsys.readouterr().err
     assert f"{bad}: the held-out negative log-likelihood (nats per frame) is " in err and "overflow" in err
+
+
+def _framed(header: bytes) -> bytes:
+    """A safetensors file of ``header`` and no tensors: its length, then the header."""
+    return struct.pack("<Q", len(header)) + header
+
+
+NESTED = "[" * 100_000 + "]" * 100_000
+
+
+@pytest.mark.django_db
+@pytest.mark.parametrize("data, message", [
+    (_framed(NESTED.encode()), "model.safetensors: not a readable safetensors file"),
+    (_framed(json.dumps({"__metadata__": {FORMAT_KEY: NESTED, "digest": "0"}}).encode()),
+     "model.safetensors: the checkpoint&#x27;s JSON header is nested too deeply"),
+], ids=["the safetensors header", "the checkpoint's description"])
+def test_a_checkpoint_header_nested_past_the_parsers_stack_is_a_400_naming_it(data, message, study, client, tmp_path):
+    response = client.post(f"/studies/{study.pk}/systems/", {
+        "action": "checkpoint", "name": "MoGlow", "role": "model", "temperature": "1.0",
+        "checkpoint": SimpleUploadedFile("model.safetensors", data)})
+    assert response.status_code == 400 and message in response.content.decode()
+    assert not System.objects.exists()

@@ -206,6 +206,10 @@ HOSTILE_CONTROL_FILES = {
                                "segment 1: the path&#x27;s segments last over 600 s in all"),
     "a segment that is no object": ("path.json", b'{"segments": [5]}', "segment 0 must be an object"),
     "not UTF-8": ("path.json", b'{"name": "\xe9t\xe9"}', "path.json: not UTF-8 text"),
+    "100,000 nested brackets (JSON)": ("path.json", b"[" * 100_000 + b"]" * 100_000,
+                                       "path.json: nested too deeply to be a path description"),
+    "100,000 nested brackets (YAML)": ("path.yaml", b"segments: " + b"[" * 100_000,
+                                       "path.yaml: nested too deeply to be a path description"),
 }
 
 

@@ -83,3 +83,25 @@ def test_a_study_from_the_first_schema_migrates_to_the_last_with_its_rows_and_ba
         assert not {"studyapp_study", "studyapp_rating"} & set(connection.introspection.table_names())
     finally:
         migrate(last)  # whatever happened, the tests after this one find the schema they expect
+
+
+@pytest.mark.django_db(transaction=True)
+def test_number_questions_made_before_their_range_keep_taking_any_finite_number():
+    last, before = latest(), [("studyapp", "0012_appropriateness_design_and_mismatched_clips")]
+    try:
+        migrate(before)
+        old = models_at(before)
+        owner = old.get_model("auth", "User").objects.create(username="before-ranges")
+        study = old.get_model("studyapp", "Study").objects.create(title="Running", owner_id=owner.pk)
+        Question = old.get_model("studyapp", "Question")
+        hours = Question.objects.create(study=study, part="after", name="hours", text="Hours?", kind="number")
+        language = Question.objects.create(study=study, part="before", name="language", text="English?",
+                                           choices="yes\nno")
+
+        migrate(last)
+        Question = models_at(last).get_model("studyapp", "Question")
+        ranges = Question.objects.values_list("minimum", "maximum", "whole_numbers")
+        assert ranges.get(pk=hours.pk) == (-1e9, 1e9, False)
+        assert ranges.get(pk=language.pk) == (0, 120, True)
+    finally:
+        migrate(last)

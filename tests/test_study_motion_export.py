@@ -171,7 +171,8 @@ def test_an_export_with_no_clips_into_a_used_folder_or_of_missing_motion_is_refu
     with pytest.raises(CommandError, match="give a new or empty folder"):
         call_command("export_motion", str(study.pk), "--out", str(used))
     assert [p.name for p in used.iterdir()] == ["keep.txt"]
-    with pytest.raises(CommandError, match="the motion of BAD for control-0: system 'BAD' has no source"):
+    with pytest.raises(CommandError,
+                       match=r"the motion of BAD for control-0: system 'BAD' \(id \d+\): its kind '' names no source"):
         call_command("export_motion", str(study.pk), "--out", str(out))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["used"]  # no folder, no temporary
 

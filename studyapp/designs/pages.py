@@ -52,10 +52,11 @@ def rating_page(study: Study, participant: Participant) -> dict:
 
 
 def _practice_clips(study: Study, participant: Participant) -> list[Stimulus]:
-    stimuli = Stimulus.objects.in_bulk(participant.training)
-    if any(pk not in stimuli for pk in participant.training):
+    ids = participant.practice_ids()
+    stimuli = Stimulus.objects.in_bulk(ids)
+    if any(pk not in stimuli for pk in ids):
         raise Http404("practice clip gone")
-    return [stimuli[pk] for pk in participant.training]
+    return [stimuli[pk] for pk in ids]
 
 
 def remaining_practice(study: Study, participant: Participant) -> list[list[Stimulus]]:

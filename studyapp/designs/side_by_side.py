@@ -15,6 +15,7 @@ participant, as GENEA does). An instructed check asks for one clip's slider at t
 from __future__ import annotations
 
 import random
+import re
 from collections import Counter
 
 import pandas as pd
@@ -30,6 +31,7 @@ from studyapp.participants.refusal import AnswerRefused
 
 MAX, ANY = "max", "any"  # an instructed check: the clip to push to the top, the others
 TOP_SHARE = 0.1  # an instructed check passes in the top tenth of the scale
+SLOT_FIELD = re.compile(r"value-[0-9]{1,18}")
 
 
 def williams_row(k: int, row: int) -> list[int]:
@@ -143,8 +145,8 @@ class SideBySide(MultiClip):
                 "middle": (study.scale_min + study.scale_max) // 2}  # where every slider starts
 
     def read_answer(self, study: Study, form: QueryDict) -> Answer:
-        slots = sorted({int(name.removeprefix("value-")) for name in form
-                        if name.startswith("value-") and name.removeprefix("value-").isdigit()})
+        # A slot is ASCII digits: "²" passes isdigit() but not int(), nor do 5000 digits (a made-up slot of 18 is refused).
+        slots = sorted({int(name.removeprefix("value-")) for name in form if SLOT_FIELD.fullmatch(name)})
         values = {}
         for slot in slots:
             value = whole_number(form, f"value-{slot}", f"the rating of clip {clip_label(slot)}")

@@ -68,6 +68,9 @@ def _least_loaded(candidates: list[Stimulus], loads: Counter, count: int, rng: r
     return chosen
 
 
+MAX_BUTTON_POINTS = 11  # 0-10 at most
+
+
 class SingleClip(Design):
     template = "clip.html"
     page_word = "Clip"
@@ -77,6 +80,12 @@ class SingleClip(Design):
 
     def check_pages(self, study: Study) -> int:
         return study.bad_checks + study.natural_checks
+
+    def problems(self, study: Study) -> dict[str, str]:
+        if len(study.scale) > MAX_BUTTON_POINTS:  # the page shows a button per point
+            return {"scale_max": f"a single-clip page shows a button per point: at most {MAX_BUTTON_POINTS} points, "
+                                 f"not {len(study.scale)}"}
+        return super().problems(study)
 
     def loads(self, study: Study, cutoff: datetime) -> Counter:
         return Counter({frozenset({stimulus}): load for stimulus, load in stimulus_loads(study, cutoff).items()})
@@ -131,7 +140,7 @@ class SingleClip(Design):
         return f"Attention check: whatever you think of this clip, please answer {expected[0]}."
 
     def follows_instruction(self, study: Study, expected: list[str], answer: Answer) -> bool:
-        return answer.values.get(1) == int(expected[0])
+        return str(answer.values.get(1)) == expected[0]  # as stored: a changed row asking for no number fails, never crashes
 
     def page_context(self, study: Study, page: Page) -> dict:
         clip = page.clips[0]

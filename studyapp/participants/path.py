@@ -36,7 +36,7 @@ from studyapp.designs.answers import record_answer
 from studyapp.designs.pages import (practice_page, preview_clip, preview_practice_pages, preview_rating_pages,
                                     rating_page, remaining_practice)
 from studyapp.designs.registry import design_of
-from studyapp.models import Participant, Question, Stimulus, Study
+from studyapp.models import Participant, Question, Stimulus, Study, json_object
 from studyapp.participants.assignment import is_idle, renew_reservations
 from studyapp.participants.questionnaires import field_name, questions, read_answers, screened_out
 from studyapp.participants.refusal import AnswerRefused
@@ -108,7 +108,8 @@ def _consent(request: HttpRequest, study: Study, participant: Participant) -> Ht
 
 def _device_page(study: Study, participant: Participant) -> dict:
     """A clip the participant will see anyway (their first), played before they consent."""
-    first = participant.training[0] if participant.training else participant.assignments.values_list(
+    practice = participant.practice_ids()
+    first = practice[0] if practice else participant.assignments.values_list(
         "stimulus_id", flat=True).order_by("position").first()
     stimulus = Stimulus.objects.filter(pk=first).first()
     if stimulus is None:
@@ -158,7 +159,7 @@ def _screening(request: HttpRequest, study: Study, participant: Participant) -> 
     asked = questions(study, Question.Part.BEFORE)
     answers = read_answers(asked, request.POST)
     now = timezone.now()
-    participant.answers = {**participant.answers, **answers}
+    participant.answers = {**json_object(participant, "answers"), **answers}
     participant.screened_at = now
     fields = ["answers", "screened_at"]
     if screened_out(asked, answers):
@@ -171,7 +172,8 @@ def _screening(request: HttpRequest, study: Study, participant: Participant) -> 
 
 def _survey(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
     """Answers after the ratings."""
-    participant.answers = {**participant.answers, **read_answers(questions(study, Question.Part.AFTER), request.POST)}
+    participant.answers = {**json_object(participant, "answers"),
+                           **read_answers(questions(study, Question.Part.AFTER), request.POST)}
     participant.surveyed_at = timezone.now()
     participant.save(update_fields=["answers", "surveyed_at"])
     return _next_page(study)
@@ -232,8 +234,9 @@ def _leaving_with(study: Study, participant: Participant, code: str, target: str
     mturk_submit = None
     if study.platform == Study.Platform.PROLIFIC and code and not target:
         target = f"{PROLIFIC_COMPLETION_URL}?{urlencode({'cc': code})}"
-    if study.platform == Study.Platform.MTURK and (url := mturk_submit_url(participant.platform_data)):
-        mturk_submit = {"url": url, "assignment_id": participant.platform_data.get("assignmentId", "")}
+    platform_data = json_object(participant, "platform_data") if study.platform == Study.Platform.MTURK else {}
+    if url := mturk_submit_url(platform_data):
+        mturk_submit = {"url": url, "assignment_id": platform_data.get("assignmentId", "")}
     return {"code": code, "redirect_url": target, "mturk_submit": mturk_submit}
 
 

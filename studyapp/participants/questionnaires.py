@@ -7,6 +7,8 @@ out with the participant list.
 
 from __future__ import annotations
 
+import math
+
 from django.http import QueryDict
 
 from studyapp.models import Question, Study
@@ -24,17 +26,32 @@ def field_name(question: Question) -> str:
     return f"q-{question.name}"
 
 
-def _answer(question: Question, text: str) -> str | float:
+def _answer(question: Question, text: str) -> str | int | float:
     if question.kind == Question.Kind.CHOICE:
         if text not in question.choice_list:
             raise AnswerRefused(f"“{question.text}”: please choose one of the answers")
         return text
     if question.kind == Question.Kind.NUMBER:
-        try:
-            return float(text)
-        except ValueError:
-            raise AnswerRefused(f"“{question.text}”: please give a number, not {text[:20]!r}") from None
+        return _number(question, text)
     return text[:MAX_ANSWER_LENGTH]
+
+
+def _number(question: Question, text: str) -> int | float:
+    """A number answer within the question's bounds (a whole one where it asks for that).
+
+    float() reads "nan", "inf" and 400 nines (as inf), none of which a JSON column stores
+    or an analysis can use: every answer is finite and in range, or refused saying the range.
+    """
+    whole = question.whole_numbers
+    wanted = (f"a whole number from {math.ceil(question.minimum)} to {math.floor(question.maximum)}" if whole
+              else f"a number from {question.minimum:g} to {question.maximum:g}")
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and question.minimum <= value <= question.maximum) or (whole and value != int(value)):
+        raise AnswerRefused(f"“{question.text}”: please give {wanted}, not {text[:20]!r}")
+    return int(value) if whole else value
 
 
 def read_answers(asked: list[Question], form: QueryDict) -> dict[str, str | float]:

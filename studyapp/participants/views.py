@@ -21,7 +21,7 @@ from django.urls import reverse
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
-from studyapp.models import Participant, Study, new_token
+from studyapp.models import Participant, StoredDataError, Study, json_object, new_token
 from studyapp.participants.assignment import StudyFull, StudyNotReady, enrol, renew_reservations
 from studyapp.participants.path import Step, current_step, may_post, message, mturk_submit_url, stage
 from studyapp.participants.refusal import AnswerRefused
@@ -98,8 +98,8 @@ def _study(key: str, must_be_open: bool = False) -> Study:
 
 def plain_pages(view: Callable[..., HttpResponse]) -> Callable[..., HttpResponse]:
     """Whatever goes wrong, a participant gets a plain page of the study's own, never
-    Django's error or debug pages: a missing study or page (404) or a server error (500,
-    its traceback logged)."""
+    Django's error or debug pages: a missing study or page (404), a row of the study's
+    that its code cannot read (503) or a server error (500, its traceback logged)."""
     @wraps(view)
     def shielded(request: HttpRequest, *args, **kwargs) -> HttpResponse:
         try:
@@ -110,6 +110,10 @@ def plain_pages(view: Callable[..., HttpResponse]) -> Callable[..., HttpResponse
         except Http404:
             return message(request, "Page not found", "There is no such page in this study. Please go back to "
                            "the link your platform gave you.", 404)
+        except StoredDataError:  # the researcher's row, not the participant's doing: they may come back later
+            logger.exception("participant page %s met a broken row", request.path)
+            return message(request, "Not available just now", "This study cannot go on at the moment. Your "
+                           "answers so far are saved: please try again later, or contact the researcher.", 503)
         except Exception:
             logger.exception("participant page %s failed", request.path)
             return message(request, "Something went wrong", "The server could not show this page. Please try "
@@ -209,7 +213,8 @@ def _same_session(study: Study, participant: Participant, data: dict) -> bool:
     """Whether the link continues the platform session ``participant`` started in (the
     link this browser has no cookie for: without a session parameter, nothing continues)."""
     name = SESSION_PARAMETERS.get(study.platform)
-    return bool(name and participant.platform_data.get(name) and participant.platform_data[name] == data.get(name))
+    stored = json_object(participant, "platform_data")
+    return bool(name and stored.get(name) and stored[name] == data.get(name))
 
 
 def step_form(step: Step) -> Callable[..., HttpResponse]:

@@ -15,6 +15,7 @@ from __future__ import annotations
 from django.db import transaction
 from django.db.models import Q
 
+from studyapp.bounds import check_field
 from studyapp.models import ControlSignal, Stimulus, System
 from studyapp.researchers.removal import delete_files, require_not_started
 from studyapp.stimuli.clips import content_key
@@ -42,8 +43,8 @@ def edit_system(system: System, name: str, temperature: float | None = None) -> 
     _check_name(system, name)
     if temperature is not None and not system.checkpoint:
         raise EditRefused("temperature", f"{system.name} is not sampled from a checkpoint: it has no temperature")
-    if temperature is not None and not temperature > 0:
-        raise EditRefused("temperature", f"the sampling temperature must be positive, got {temperature}")
+    if temperature is not None and (problem := check_field(System, "temperature", temperature)):
+        raise EditRefused("temperature", problem)
     resample = temperature is not None and temperature != system.temperature
     with transaction.atomic():
         require_not_started(system.study)

@@ -15,8 +15,9 @@ from django.conf import settings
 from generation.control import PRESETS
 from generation.render.camera import Camera
 from measures.units import UNITS, parse_scale
+from studyapp.bounds import bound_of
 from studyapp.designs import registry as designs
-from studyapp.models import ControlSignal, Question, Stimulus, Study, System
+from studyapp.models import TEMPERATURE, ControlSignal, Question, Stimulus, Study, System, camera_setting_problem
 
 
 CAMERA_PREFIX = "camera_"
@@ -83,7 +84,12 @@ class StudyForm(forms.ModelForm):
         super().__init__(*args, **kwargs)
         for name in self.OPTIONAL_SIZES:
             self.fields[name].required = False
-        camera = {**Camera().to_dict(), **(self.instance.camera or {})}
+        model_fields = {field.name for field in Study._meta.concrete_fields}
+        for name in model_fields & set(self.fields):  # the browser holds to the bounds of Study's validators too
+            if bound := bound_of(Study, name):
+                self.fields[name].widget.attrs.update(min=f"{bound.low:g}", max=f"{bound.high:g}")
+        stored = self.instance.camera if isinstance(self.instance.camera, dict) else {}  # saving replaces a broken one
+        camera = {**Camera().to_dict(), **stored}
         for spec in dataclasses.fields(Camera):
             field = self.fields[CAMERA_PREFIX + spec.name] = _camera_field(spec)
             field.initial = camera.get(spec.name)
@@ -130,6 +136,9 @@ class StudyForm(forms.ModelForm):
             if self.cleaned_data.get(name) is None and name not in self.errors:
                 self.cleaned_data[name] = 0
         camera = {name[len(CAMERA_PREFIX):]: self.cleaned_data.get(name) for name in self.camera_fields()}
+        for setting, value in camera.items():
+            if CAMERA_PREFIX + setting not in self.errors and (problem := camera_setting_problem(setting, value)):
+                self.add_error(CAMERA_PREFIX + setting, problem)
         if not any(name in self.errors for name in self.camera_fields()):
             try:
                 self.instance.camera = Camera.from_dict(camera).to_dict()
@@ -182,18 +191,43 @@ class StudyForm(forms.ModelForm):
 
 
 class QuestionForm(forms.ModelForm):
-    """One question; ``Question.clean`` checks its choices, and the unique name is checked
-    against the study's other questions (the instance carries the study)."""
+    """One question; ``Question.clean`` checks its choices and its answers' range, and the
+    unique name is checked against the study's other questions (the instance carries the study)."""
+
+    RANGE = ("minimum", "maximum")  # number questions only; left empty, the defaults (an age in years)
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        for name in self.RANGE:
+            self.fields[name].required = False
+
+    def clean(self) -> dict:
+        for name in self.RANGE:
+            if self.cleaned_data.get(name) is None and name not in self.errors:
+                self.cleaned_data[name] = Question._meta.get_field(name).default
+        return super().clean()
 
     class Meta:
         model = Question
-        fields = ["part", "name", "text", "kind", "choices", "accepted", "required"]
+        fields = ["part", "name", "text", "kind", "choices", "accepted", "required", "minimum", "maximum", "whole_numbers"]
         widgets = {"choices": forms.Textarea(attrs={"rows": 3}), "accepted": forms.Textarea(attrs={"rows": 2})}
 
     def validate_unique(self) -> None:
         others = Question.objects.filter(study=self.instance.study).exclude(pk=self.instance.pk)
         if others.filter(name=self.cleaned_data.get("name")).exists():
             self.add_error("name", "another question of this study has this name")
+
+
+class QuestionRemovalForm(forms.Form):
+    """The question to remove: one of the study's, by id (any other value is this form's error)."""
+
+    question = forms.ModelChoiceField(queryset=Question.objects.none(),
+                                      error_messages={"invalid_choice": "no question of this study has the id %(value)s",
+                                                      "required": "say which question to remove"})
+
+    def __init__(self, *args, study: Study, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.fields["question"].queryset = study.questions.all()
 
 
 def _megabytes(limit: int) -> str:
@@ -203,7 +237,8 @@ def _megabytes(limit: int) -> str:
 class CheckpointSystemForm(forms.Form):
     name = forms.CharField(max_length=60, help_text="shown to you only; participants never see it")
     role = forms.ChoiceField(choices=[(System.Role.MODEL, "model"), (System.Role.BAD, "BAD (an early or weakened checkpoint)")])
-    temperature = forms.FloatField(initial=1.0, min_value=0.0001, help_text="sampling temperature")
+    temperature = forms.FloatField(initial=1.0, min_value=TEMPERATURE.low, max_value=TEMPERATURE.high,
+                                   help_text="sampling temperature")
     checkpoint = forms.FileField(help_text=f"a .safetensors checkpoint of this project, "
                                            f"{_megabytes(settings.MAX_CHECKPOINT_UPLOAD_BYTES)}")
 
@@ -213,8 +248,9 @@ class SystemEditForm(forms.Form):
 
     name = forms.CharField(max_length=System._meta.get_field("name").max_length,
                            help_text="shown to you only; participants never see it")
-    temperature = forms.FloatField(min_value=0.0001, help_text="sampling temperature: a new one deletes the system's "
-                                                               "clips; generating the stimuli samples them again")
+    temperature = forms.FloatField(min_value=TEMPERATURE.low, max_value=TEMPERATURE.high,
+                                   help_text="sampling temperature: a new one deletes the system's clips; generating "
+                                             "the stimuli samples them again")
 
     def __init__(self, *args, sampled: bool = True, **kwargs) -> None:
         super().__init__(*args, **kwargs)
@@ -291,7 +327,7 @@ class VideoSystemForm(forms.Form):
 
 class HeldOutControlsForm(MotionUnitsForm):
     seconds = forms.FloatField(initial=4.0, min_value=0.5, max_value=60.0, help_text="each clip is cut to this")
-    count = forms.IntegerField(required=False, min_value=1, initial=6,
+    count = forms.IntegerField(required=False, min_value=1, max_value=1000, initial=6,
                                help_text="how many held-out clips, spread over their content labels (empty: all)")
     lead_in = forms.FloatField(required=False, initial=1.0, min_value=0.0, max_value=60.0, label="Lead-in",
                                help_text="seconds of each take before its clip, which path-controlled models warm up "

@@ -21,7 +21,7 @@ from datetime import datetime
 from django.db.models import Count, Q
 from django.utils import timezone
 
-from studyapp.models import Participant, PlatformAction, Study
+from studyapp.models import Participant, PlatformAction, Study, json_object
 from studyapp.participants.assignment import is_idle
 from studyapp.participants.views import SESSION_PARAMETERS
 from studyapp.platforms.rules import Standing, Submission, study_minutes, suggest
@@ -80,14 +80,15 @@ def participant_rows(study: Study) -> list[ParticipantRow]:
                                                participant.exclusion_reason if participant.excluded else ""), minutes)
         finished = participant.finished_at
         rows.append(ParticipantRow(
-            platform_id=participant.platform_id, session=participant.platform_data.get(session, "") if session else "",
+            platform_id=participant.platform_id,
+            session=json_object(participant, "platform_data").get(session, "") if session else "",
             status=str(participant.standing), started=participant.started_at, finished=finished,
             minutes_taken=round(_minutes(participant), 1) if finished else None,
             ratings=participant.rating_count, early_answers=participant.refused_early + participant.flagged,
             failed_checks=participant.failed_checks, excluded=participant.excluded,
             exclusion_reason=participant.exclusion_reason, suggested_action=suggestion.action,
             action_reason=suggestion.reason, sent_to_platform=sent.get(participant.pk, ""),
-            answers=participant.answers))
+            answers=json_object(participant, "answers")))
     return rows
 
 

@@ -33,7 +33,7 @@ from studyapp.researchers.duplication import duplicate_study
 from studyapp.researchers.editing import EditRefused, edit_system, rename_control
 from studyapp.researchers.export import ratings_csv, rules_json
 from studyapp.researchers.forms import (CheckpointSystemForm, ControlEditForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
-                            LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, StudyForm,
+                            LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, QuestionRemovalForm, StudyForm,
                             SubmittedMotionSystemForm, SystemEditForm, VideoSystemForm)
 from studyapp.researchers.monitor import study_monitor
 from studyapp.researchers.monitor_figures import live_figures
@@ -381,12 +381,14 @@ def entry_link(request: HttpRequest, study: Study) -> str:
 @require_safe
 def study_monitor_page(request: HttpRequest, pk: int) -> HttpResponse:
     study = _study(request, pk)
-    context = {
-        "study": study, "monitor": study_monitor(study), "entry_link": entry_link(request, study),
-        "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study),
-        "open_warnings": open_warnings(study), "figures": live_figures(study),
-        "rules": StudyRules.of(study).described(),
-    }
+    context = {"study": study, "entry_link": entry_link(request, study),
+               "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study),
+               "open_warnings": open_warnings(study), "figures": live_figures(study),
+               "rules": StudyRules.of(study).described()}
+    try:
+        context["monitor"] = study_monitor(study)
+    except AnalysisInputError as error:  # rows changed outside the study pages (a rating without its value)
+        context["unreadable"] = str(error)
     return render(request, "studyapp/researcher/monitor.html", context)
 
 
@@ -435,15 +437,19 @@ def study_questions(request: HttpRequest, pk: int) -> HttpResponse:
             messages.error(request, "Participants have started: the questions are fixed.")
             return redirect("study-questions", pk=study.pk)
         if request.POST.get("action") == "remove":
-            question = get_object_or_404(Question, pk=request.POST.get("question"), study=study)
-            question.delete()
-            messages.success(request, f"Removed “{question.text}”.")
-            return redirect("study-questions", pk=study.pk)
-        form = QuestionForm(request.POST, instance=Question(study=study))
-        if form.is_valid():
-            form.instance.order = question_order.last_place(form.instance)
-            messages.success(request, f"Added “{form.save().text}”.")
-            return redirect("study-questions", pk=study.pk)
+            removal = QuestionRemovalForm(request.POST, study=study)
+            if removal.is_valid():
+                question = removal.cleaned_data["question"]
+                question.delete()
+                messages.success(request, f"Removed “{question.text}”.")
+                return redirect("study-questions", pk=study.pk)
+            messages.error(request, "Nothing removed: " + " ".join(removal.errors["question"]))
+        else:
+            form = QuestionForm(request.POST, instance=Question(study=study))
+            if form.is_valid():
+                form.instance.order = question_order.last_place(form.instance)
+                messages.success(request, f"Added “{form.save().text}”.")
+                return redirect("study-questions", pk=study.pk)
         status = 400
     # In the order participants meet them: the questions before the ratings first.
     questions = study.questions.order_by("-part", "order", "created", "pk")

@@ -54,6 +54,7 @@ INSTALLED_APPS = [
 
 MIDDLEWARE = [
     "studyapp.server.upload_limit.UploadLimitMiddleware",  # before anything reads the body
+    "studyapp.server.unreadable_forms.UnreadableFormMiddleware",  # a body no form parse can read: 400, not 500
     "django.middleware.security.SecurityMiddleware",
     "django.contrib.sessions.middleware.SessionMiddleware",
     "django.middleware.common.CommonMiddleware",
@@ -62,6 +63,7 @@ MIDDLEWARE = [
     "django.contrib.auth.middleware.AuthenticationMiddleware",
     "django.contrib.messages.middleware.MessageMiddleware",
     "django.middleware.clickjacking.XFrameOptionsMiddleware",
+    "studyapp.server.broken_rows.BrokenRowMiddleware",  # a row the code cannot read: 409 naming it, not 500
 ]
 
 ROOT_URLCONF = "studyapp.urls"

@@ -33,10 +33,11 @@ from django.utils import timezone
 
 import numpy as np
 
-from generation.control import PathControl, control_from_dict
+from generation.control import PathControl
 from generation.motion.root import root_trajectory
 from generation.motion.types import Motion
 from generation.render import Camera, render_video
+from generation.render.video_check import VideoError, check_rendered_video
 from studyapp.designs.registry import design_of
 from studyapp.models import ControlSignal, Stimulus, Study, System
 from studyapp.stimuli.controls import study_options
@@ -156,7 +157,9 @@ def motion_row(stimulus: Stimulus) -> Stimulus:
 
 
 def render_stimulus(stimulus: Stimulus) -> float:
-    """Write the stimulus's video atomically; its duration in seconds."""
+    """Write the stimulus's video atomically and check it whole against its clip (every
+    frame decodes, as many frames lasting as long as the motion); its duration in seconds.
+    A video that fails the check is removed, so no finished row points at it."""
     remove_partial_files(stimulus)
     if stimulus.control is None:
         raise ValueError("an uploaded video has nothing to generate")
@@ -165,9 +168,13 @@ def render_stimulus(stimulus: Stimulus) -> float:
     motion, floor, drawn = clip.motion, clip.floor, None
     if design_of(study).mismatched_clips:
         motion, floor, drawn = over_shown_control(stimulus, clip)
-    render_video(motion, stimulus.video_path(), camera=Camera.from_dict(study.camera),
-                 size=(study.video_width, study.video_height), root_path=floor, control_path=drawn)
-    return motion.n_frames / motion.fps
+    path = render_video(motion, stimulus.video_path(), camera=Camera.from_dict(study.camera),
+                        size=(study.video_width, study.video_height), root_path=floor, control_path=drawn)
+    try:
+        return check_rendered_video(path, motion).seconds
+    except VideoError:
+        path.unlink(missing_ok=True)
+        raise
 
 
 def over_shown_control(stimulus: Stimulus, clip: Clip) -> tuple[Motion, np.ndarray, np.ndarray | None]:
@@ -175,7 +182,7 @@ def over_shown_control(stimulus: Stimulus, clip: Clip) -> tuple[Motion, np.ndarr
     starts and cut to the shown control's length; the figure's own floor path; the shown
     control's path, None for a label control). Every system's clip of one page's control,
     matched or not, is then drawn over the same path by a camera following it."""
-    shown = control_from_dict((stimulus.shown_control or stimulus.control).control)
+    shown = (stimulus.shown_control or stimulus.control).signal()
     root = study_options(stimulus.study).root
     motion = clip.on_control_path(shown.n_frames, root)
     path = shown.path().xz[:motion.n_frames] if isinstance(shown, PathControl) else None

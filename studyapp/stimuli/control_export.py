@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from generation import registry
-from generation.control import PathControl, control_from_dict
+from generation.control import PathControl
 from generation.motion.bvh import bvh_text, motion_to_bvh
 from generation.motion.root import root_trajectory, to_root_frame
 from generation.motion.types import Motion
@@ -143,7 +143,7 @@ def bundle_files(study: Study, natural: bool = False) -> dict[str, bytes]:
     entries = []
     kinds = set()
     for control in controls:
-        signal = control_from_dict(control.control)
+        signal = control.signal()
         ident = control_id(control)
         entry = {"id": ident, "name": control.name, "origin": control.origin, "frames": signal.n_frames,
                  "fps": signal.fps, "seconds": control.seconds}

@@ -52,14 +52,14 @@ def training_options(study: Study) -> DatasetOptions:
     systems = list(study.systems.exclude(checkpoint=""))
     if not systems:
         raise ControlError("register a model checkpoint first: controls follow the data and frame rate it was trained on")
-    variants: dict[str, list[str]] = {}
+    variants: dict[DatasetOptions, list[str]] = {}
     for system in systems:
-        variants.setdefault(json.dumps(system.metadata["dataset_options"], sort_keys=True), []).append(system.name)
+        variants.setdefault(system.dataset_options(), []).append(system.name)
     if len(variants) > 1:
         groups = "; ".join(", ".join(names) for names in variants.values())
         raise ControlError(f"the study's checkpoints were trained on differently prepared data ({groups}); "
                            "one study needs one dataset")
-    return DatasetOptions.from_dict(systems[0].metadata["dataset_options"])
+    return next(iter(variants))
 
 
 def study_options(study: Study) -> DatasetOptions:
@@ -68,16 +68,14 @@ def study_options(study: Study) -> DatasetOptions:
     its first held-out takes were read with, else the defaults (20 fps)."""
     if study.systems.exclude(checkpoint="").exists():
         return training_options(study)
-    recorded = next((c.natural for c in study.controls.exclude(source_clip="") if c.natural), None)
-    return DatasetOptions.from_dict(recorded["options"]) if recorded else DatasetOptions()
+    recorded = next((options for c in study.controls.exclude(source_clip="") if (options := c.recorded_options())), None)
+    return recorded or DatasetOptions()
 
 
 def natural_options(control: ControlSignal) -> DatasetOptions:
     """The dataset options a held-out control's take is read with: those recorded when
     it was added (controls added before they were recorded: the checkpoints')."""
-    if control.natural:
-        return DatasetOptions.from_dict(control.natural["options"])
-    return training_options(control.study)
+    return control.recorded_options() or training_options(control.study)
 
 
 def control_kind(study: Study) -> str:
@@ -96,13 +94,12 @@ def control_kind(study: Study) -> str:
 
 def study_labels(study: Study) -> tuple[list[str], list[str]]:
     """The actions and styles every label-controlled system of the study knows."""
-    systems = [s for s in study.systems.exclude(checkpoint="") if s.metadata.get("labels")]
-    if not systems:
+    labels = [found for s in study.systems.exclude(checkpoint="") if (found := s.labels())]
+    if not labels:
         return [], []
-    known = [systems[0].metadata["labels"][kind] for kind in ("actions", "styles")]
-    for system in systems[1:]:
-        known = [[name for name in names if name in system.metadata["labels"][kind]]
-                 for names, kind in zip(known, ("actions", "styles"))]
+    known = [labels[0][kind] for kind in ("actions", "styles")]
+    for other in labels[1:]:
+        known = [[name for name in names if name in other[kind]] for names, kind in zip(known, ("actions", "styles"))]
     return known[0], known[1]
 
 

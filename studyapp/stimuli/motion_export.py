@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from generation.control import PathControl, control_from_dict, following_arrays
+from generation.control import PathControl, following_arrays
 from generation.files import atomic_folder, write_atomic
 from generation.motion.bvh import bvh_text, motion_to_bvh
 from generation.motion.npz import save_motion_npz
@@ -75,7 +75,7 @@ def adherence_arrays(stimulus: Stimulus, clip: Clip) -> dict[str, np.ndarray]:
     (``generation.control.following_arrays``): the path it was asked to follow and where
     its root went, in the frame where every control's path starts (natural motion moved
     there); none for a label control."""
-    signal = control_from_dict(stimulus.control.control)
+    signal = stimulus.control.signal()
     if not isinstance(signal, PathControl):
         return {}
     root = study_options(stimulus.study).root

@@ -23,11 +23,11 @@ from typing import Protocol
 import numpy as np
 from django.conf import settings
 
-from generation.control import PathControl, control_from_dict, in_control_frame
+from generation.control import PathControl, in_control_frame
 from generation.motion.npz import load_motion_npz, save_motion_npz
 from generation.motion.root import RootOptions, root_trajectory
 from generation.motion.types import Motion
-from studyapp.models import ControlSignal, Stimulus, System
+from studyapp.models import ControlSignal, Stimulus, StoredDataError, System, json_object
 from studyapp.stimuli.controls import natural_options, study_options
 from studyapp.stimuli.natural import natural_motion
 from studyapp.stimuli.submissions import read_stored_motion
@@ -70,7 +70,7 @@ class MotionSource(Protocol):
 def commanded_floor(control: ControlSignal, motion: Motion) -> np.ndarray:
     """The floor path drawn under a generated clip: the path it was told to follow, or,
     for label controls, where its root went."""
-    signal = control_from_dict(control.control)
+    signal = control.signal()
     if isinstance(signal, PathControl):
         return signal.path().xz
     return root_trajectory(motion, study_options(control.study).root).xz
@@ -142,7 +142,7 @@ class CheckpointSource:
         checked = []
         for stimulus in todo:
             try:
-                signal = control_from_dict(stimulus.control.control)
+                signal = stimulus.control.signal()
                 generator.check_control(signal)
             except ValueError as error:
                 failed[stimulus.pk] = error
@@ -165,7 +165,7 @@ class CheckpointSource:
         if sampled.is_file():
             motion = load_motion_npz(sampled)
         else:
-            signal = control_from_dict(stimulus.control.control)
+            signal = stimulus.control.signal()
             motion = self._loaded(stimulus.system).sample(signal, n=1, seed=stimulus.seed,
                                                           temperature=stimulus.system.temperature)[0]
             save_motion_npz(motion, sampled)  # the study's motion, for export_motion
@@ -204,13 +204,15 @@ class SubmittedMotion:
     samples = False
 
     def controls(self, system: System, controls: list[ControlSignal]) -> list[ControlSignal]:
-        stored = set(system.metadata.get("controls", []))
+        stored = set(json_object(system, "metadata").get("controls") or [])
         return [c for c in controls if c.name in stored]
 
     def identity(self, system: System, control: ControlSignal, seed: int) -> dict:
         return {"source": f"submitted:{system.checkpoint_digest}:{control.name}", "seed": None, "temperature": None}
 
     def clip(self, stimulus: Stimulus) -> Clip:
+        if not isinstance(json_object(stimulus.system, "metadata").get("folder"), str):
+            raise StoredDataError(stimulus.system, "metadata", "names no folder of submitted motion")
         motion = read_stored_motion(stimulus.system, stimulus.control)
         return Clip(motion, commanded_floor(stimulus.control, motion))
 
@@ -239,11 +241,11 @@ SOURCES: dict[str, MotionSource] = {
 
 
 def source_of(system: System) -> MotionSource:
-    """The source of a system's motion (ValueError for a system that has none)."""
+    """The source of a system's motion (StoredDataError, a ValueError, for a system that has none)."""
     source = SOURCES.get(system.source_kind)
     if source is None:
-        raise ValueError(f"system {system.name!r} has no source of motion: no checkpoint, and kind "
-                         f"{system.kind!r} is none of {', '.join(SOURCES)}")
+        raise StoredDataError(system, "kind", f"{system.kind!r} names no source of motion, and it has no checkpoint "
+                                              f"(sources: {', '.join(SOURCES)})")
     return source
 
 

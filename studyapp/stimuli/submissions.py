@@ -24,15 +24,16 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import struct
 import tempfile
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
 from django.conf import settings
 from django.core.files import File
 
-from generation.control import control_from_dict
 from generation.motion.kinematics import subtree_motion
 from generation.motion.npz import load_motion_npz, save_motion_npz
 from generation.motion.root import RootOptions, hips_index
@@ -72,11 +73,18 @@ def _max_bytes() -> int:
 
 
 def read_zip(stream) -> dict[str, bytes]:
-    """The motion files of a zip by file name (folders inside it ignored)."""
+    """The motion files of a zip by file name (folders inside it ignored).
+
+    A damaged archive fails in many ways inside zipfile (a CRC that does not match, a
+    member that inflates past its declared size, a cut deflate stream, a compression
+    method it lacks, headers that contradict each other); each is refused naming the
+    member.
+    """
     limit = _max_bytes()
+    damaged = (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError, OSError, ValueError, struct.error)
     try:
         archive = zipfile.ZipFile(stream)
-    except (zipfile.BadZipFile, OSError) as error:
+    except damaged as error:
         raise UploadRefused(f"not a zip file ({error})") from None
     with archive:
         members = [info for info in archive.infolist() if not info.is_dir()]
@@ -89,8 +97,11 @@ def read_zip(stream) -> dict[str, bytes]:
         for info in members:
             if info.flag_bits & 0x1:
                 raise UploadRefused(f"{info.filename}: encrypted zip members are not read")
-            with archive.open(info) as member:
-                data = member.read(info.file_size + 1)  # never past what the directory declares
+            try:
+                with archive.open(info) as member:
+                    data = member.read(info.file_size + 1)  # never past what the directory declares
+            except damaged as error:
+                raise UploadRefused(f"{info.filename}: a damaged zip member ({error})") from None
             if len(data) > info.file_size:
                 raise UploadRefused(f"{info.filename}: unpacks to more than its declared {info.file_size} bytes")
             files[info.filename] = data
@@ -140,7 +151,7 @@ def check_submission(study: Study, files: dict[str, bytes], reading: Reading = R
     if not by_id:
         raise SubmissionRefused(["the study has no controls yet: add them, export them, then submit motion"])
     named = _motion_files(files)
-    controls = {ident: control_from_dict(control.control) for ident, control in by_id.items()}
+    controls = {ident: control.signal() for ident, control in by_id.items()}
     with tempfile.TemporaryDirectory() as scratch:
         # prepare_submission reads files: each keeps its name, nothing else of its path.
         paths = [Path(scratch) / name for name in named]

@@ -3,7 +3,8 @@
 Uploads are never trusted: a checkpoint must be a safetensors file of this project that
 loads completely (digest, kind, every tensor's name and shape), can drive the Generator
 and learnt from the data the study's other checkpoints learnt from, prepared the same
-way (``data_match``); a video must be an MP4 whose first frame decodes. Nothing is unpickled or
+way (``data_match``); a video must be an MP4 whose every frame decodes, as long as it
+says it lasts (a file cut short still decodes its first frames). Nothing is unpickled or
 executed, and a refused upload leaves nothing on disk. Accepted checkpoints are kept by
 the project's one checkpoint store (``generation.store.keep``) under ``CHECKPOINT_ROOT``,
 named by their content digest, so the same checkpoint uploaded twice is stored once; what
@@ -31,7 +32,9 @@ from django.db import transaction
 
 from generation import registry
 from generation.files import atomic_output
+from generation.render.video_check import VideoError, read_stream
 from generation.store import SUFFIX as CHECKPOINT_SUFFIX
+from studyapp.bounds import check_field
 from studyapp.models import Stimulus, Study, System, new_token
 from studyapp.server.null_characters import null_character_in
 from studyapp.stimuli.data_match import data_mismatch
@@ -145,8 +148,8 @@ def add_checkpoint_system(study: Study, name: str, upload: File, role: str = Sys
     """A model system (or a BAD one sampled from a weak checkpoint) from an uploaded checkpoint."""
     if role not in (System.Role.MODEL, System.Role.BAD):
         raise UploadRefused(f"a checkpoint makes a model or a BAD system, not {role!r}")
-    if not temperature > 0:
-        raise UploadRefused(f"the sampling temperature must be positive, got {temperature}")
+    if problem := check_field(System, "temperature", temperature):
+        raise UploadRefused(problem)
     check_name(study, name)
     stored = store_checkpoint(upload, lambda meta: data_mismatch(
         study, registry.MODELS[meta.kind].control, meta.features["dataset_options"], meta.data_fingerprint))
@@ -176,23 +179,20 @@ def add_natural_system(study: Study, name: str = "NAT") -> System:
 
 
 def video_duration(path: Path) -> float:
-    """Seconds of an MP4 whose first frame decodes; UploadRefused naming the problem if not."""
+    """Seconds of an MP4 whose every frame decodes, to the end its container declares
+    (``video_check.read_stream``: a file cut short still decodes its first frames);
+    UploadRefused naming the problem if not."""
     with path.open("rb") as stream:
         head = stream.read(12)
     if head[4:8] != b"ftyp":
         raise UploadRefused("not an MP4 file (it has no ftyp box)")
-    frames = imageio_ffmpeg.read_frames(str(path))
     try:
-        meta = next(frames)
-        next(frames)
-    except (RuntimeError, OSError, StopIteration) as error:
-        raise UploadRefused(f"its video does not decode ({str(error).strip().splitlines()[-1] if str(error) else 'no frames'})") from None
-    finally:
-        frames.close()
-    duration = float(meta.get("duration") or 0.0)
-    if not duration > 0:
+        decoded = read_stream(path)
+    except VideoError as error:
+        raise UploadRefused(f"its video does not decode to its end: {str(error).removeprefix(f'{path}: ')}") from None
+    if decoded.declared_seconds is None:
         raise UploadRefused("the video does not say how long it lasts")
-    return duration
+    return decoded.seconds
 
 
 def strip_metadata(source: Path, target: Path) -> None:

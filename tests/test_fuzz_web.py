@@ -1,0 +1,358 @@
+"""Random, oversized, non-finite and wrongly-typed values sent to every participant step
+(the entry link's query included) and every researcher form (the admin's study and
+control forms included): whatever comes in, no answer is a server error, and a refused
+request (4xx) changes no row.
+
+Each drawn form starts from a valid one, so that a hostile value gets past the fields
+before it: some fields get hostile values (NaN, infinities, 5000 digits, 70,000
+characters, JSON, control characters, drawn text and numbers), some are left out, some
+are sent several times (a list where one value is expected), and made-up fields are
+added. Every example runs in a transaction that is rolled back, so each starts from the
+same rows. Examples are drawn reproducibly (``derandomize``) and few enough that each
+test takes seconds.
+"""
+
+from __future__ import annotations
+
+import io
+import zipfile
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import pytest
+from django.contrib.auth.models import Permission, User
+from django.core.files.uploadedfile import SimpleUploadedFile
+from django.db import transaction
+from django.test import Client
+from django.http import HttpResponse
+from django.urls import reverse
+from django.utils import timezone
+from hypothesis import HealthCheck, given
+from hypothesis import settings as fuzz_settings
+from hypothesis import strategies as st
+
+from generation.motion.dataset import DatasetOptions
+from studyapp.models import Assignment, ControlSignal, Participant, Question, Rating, Stimulus, Study, System
+from studyapp.participants.views import _remember
+from tests.study_fixtures import make_study
+from tests.test_hostile_numbers import study_fields
+
+pytestmark = pytest.mark.django_db
+
+EXAMPLES = 40
+FUZZ = fuzz_settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
+                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture,
+                                            HealthCheck.data_too_large])
+
+HOSTILE = ["nan", "NaN", "-nan", "inf", "-inf", "Infinity", "1e308", "-1e308", "1e400", "1e-320", "9" * 400,
+           "9" * 5000, "-" + "9" * 400, "-1", "0", "1", "2147483648", "99999999999", "1.5", "0x10", "1_000", "",
+           " ", "true", "None", "null", "[]", "{}", '{"a": NaN}', "\x00", "\x0b", "\u2028", "é", "٣", "²",
+           "<script>alert(1)</script>", "'; DROP TABLE studyapp_study; --", "../../etc/passwd", "a" * 70_000]
+# Half the values are the tokens above, half drawn text and numbers (integers of any size).
+VALUE = st.one_of(st.sampled_from(HOSTILE), st.one_of(st.text(max_size=30), st.integers().map(str),
+                                                      st.floats(allow_nan=True, allow_infinity=True).map(repr)))
+ODD_NAMES = ["value-" + "9" * 5000, "value-²", "value-0", "value--1", "value-99", "started_s-" + "9" * 400,
+             "q-", "page", "action", "agree", "index", "id", "pk", "owner", "study", "key", "camera"]
+
+
+@st.composite
+def hostile_form(draw, valid: dict) -> dict:
+    """``valid`` with drawn fields given hostile values (or several), left out, or added."""
+    form = dict(valid)
+    names = sorted(valid)
+    for name in draw(st.lists(st.sampled_from(names), max_size=min(4, len(names)), unique=True)) if names else []:
+        form[name] = draw(st.one_of(VALUE, st.lists(VALUE, min_size=2, max_size=3)))
+    for name in draw(st.lists(st.sampled_from(names), max_size=2, unique=True)) if names else []:
+        if draw(st.booleans()):
+            form.pop(name, None)
+    for name in draw(st.lists(st.sampled_from(ODD_NAMES), max_size=2, unique=True)):
+        form[name] = draw(VALUE)
+    return form
+
+
+MODELS = (Study, System, ControlSignal, Stimulus, Participant, Question, Assignment, Rating, User)
+
+
+def rows() -> dict[str, list[tuple]]:
+    return {model.__name__: list(model.objects.order_by("pk").values_list()) for model in MODELS}
+
+
+def post_in_a_rolled_back_transaction(client: Client, url: str, form: dict) -> int:
+    """Post ``form``; assert no server error and, on a refusal, no row changed. Nothing stays."""
+    with transaction.atomic():
+        before = rows()
+        response = client.post(url, form)
+        shown = {name: (str(value)[:40] + "...") if len(str(value)) > 40 else value for name, value in form.items()}
+        assert response.status_code < 500, (url, shown, response.status_code)
+        if 400 <= response.status_code < 500:
+            assert rows() == before, (url, shown, response.status_code)
+        transaction.set_rollback(True)
+    return response.status_code
+
+
+# --- participants ----------------------------------------------------------------------
+
+@dataclass
+class OnStep:
+    """A participant's browser on a step, the step's form URL and a valid form of it."""
+
+    client: Client
+    url: str
+    valid: dict
+    tokens: dict = field(default_factory=dict)  # "<name>" placeholders in drawn values, by the real value
+
+
+def _browser(participant: Participant) -> Client:
+    """A browser holding the participant's cookie, as the entry link leaves it."""
+    client = Client(raise_request_exception=False)
+    client.cookies.update(_remember(HttpResponse(), participant).cookies)
+    return client
+
+
+def _participant(study: Study, **progress) -> Participant:
+    from studyapp.participants.assignment import enrol
+
+    participant = enrol(study, "fuzz-participant", {"PROLIFIC_PID": "fuzz-participant"})
+    Participant.objects.filter(pk=participant.pk).update(**progress)
+    participant.assignments.update(shown_at=timezone.now() - timezone.timedelta(hours=1))  # never answered too soon
+    participant.refresh_from_db()
+    return participant
+
+
+def _steps_done(participant: Participant, through: str) -> dict:
+    now = timezone.now()
+    order = ["device_checked_at", "consented_at", "screened_at", "instructed_at", "training_done"]
+    done = order[:order.index(through) + 1] if through else []
+    return {name: (len(participant.training) if name == "training_done" else now) for name in done}
+
+
+def on_step(step: str) -> OnStep:
+    design = {"rate (side-by-side)": {"design": "side-by-side", "scale_min": 0, "scale_max": 100,
+                                      "pages_per_participant": 2},
+              "rate (pairwise)": {"design": "pairwise", "pages_per_participant": 4, "bad_checks": 0,
+                                  "preference_strengths": 3}}.get(step, {})
+    study = make_study(device_check=step == "device", min_screen_width=800, min_screen_height=600, **design)
+    before = {"screening": "consented_at", "device": "", "consent": "device_checked_at"}
+    Question.objects.create(study=study, part=Question.Part.BEFORE, name="language", text="English first?",
+                            choices="yes\nno", accepted="yes")
+    Question.objects.create(study=study, part=Question.Part.BEFORE, name="age", text="Age?", kind=Question.Kind.NUMBER)
+    Question.objects.create(study=study, part=Question.Part.AFTER, name="hours", text="Hours?",
+                            kind=Question.Kind.NUMBER)
+    Question.objects.create(study=study, part=Question.Part.AFTER, name="notes", text="Notes?", kind=Question.Kind.TEXT,
+                            required=False)
+    participant = _participant(study)
+    through = before.get(step, "training_done")
+    progress = _steps_done(participant, through)
+    if step == "instructions":
+        progress.pop("instructed_at"), progress.pop("training_done")
+    if step == "practice":
+        progress.pop("training_done")
+    if step == "survey":
+        progress["finished_at"] = timezone.now()
+    Participant.objects.filter(pk=participant.pk).update(**progress)
+    participant.refresh_from_db()
+    unrated = participant.assignments.filter(rating__isnull=True).order_by("position")
+    first = unrated.first()
+    times = {"started_s": "0.1", "ended_s": "4.2", "answered_s": "5.0", "played_until_s": "4.0"}
+    slots = list(unrated.filter(page=first.page).values_list("slot", flat=True)) if first else []
+    valid = {
+        "device": {"width": "1024", "height": "768"},
+        "consent": {"agree": "yes"},
+        "screening": {"q-language": "yes", "q-age": "30"},
+        "instructions": {},
+        "practice": {"index": "0", "value": "3"},
+        "rate (single)": {"assignment": "<token>", "value": "4", **times},
+        "rate (side-by-side)": {"page": "<token>", **{f"value-{slot}": "50" for slot in slots},
+                                **{f"{name}-{slot}": value for slot in slots for name, value in times.items()}},
+        "rate (pairwise)": {"page": "<token>", "answer": "left", "strength": "2",
+                            **{f"{name}-{slot}": value for slot in slots for name, value in times.items()}},
+        "survey": {"q-hours": "12", "q-notes": "fine"},
+    }[step]
+    url_step = step.split(" ")[0]  # every design's pages post to one step, "rate"
+    return OnStep(_browser(participant), reverse(f"participant-{url_step}", args=[study.key]), valid,
+                  {"<token>": first.token if first else ""})
+
+
+PARTICIPANT_STEPS = ["device", "consent", "screening", "instructions", "practice", "rate (single)",
+                     "rate (side-by-side)", "rate (pairwise)", "survey"]
+
+
+@pytest.fixture
+def on(step: str) -> OnStep:
+    return on_step(step)
+
+
+@pytest.mark.parametrize("step", PARTICIPANT_STEPS)
+@FUZZ
+@given(data=st.data())
+def test_hostile_values_on_a_participant_step_never_answer_500_and_a_refusal_changes_nothing(step, on, data):
+    form = data.draw(hostile_form(on.valid))
+    form = {name: on.tokens.get(value, value) if isinstance(value, str) else value for name, value in form.items()}
+    post_in_a_rolled_back_transaction(on.client, on.url, form)
+
+
+ENTRY_LINKS = {Study.Platform.PROLIFIC: {"PROLIFIC_PID": "p-1", "STUDY_ID": "s", "SESSION_ID": "x"},
+               Study.Platform.MTURK: {"workerId": "w-1", "assignmentId": "a", "hitId": "h",
+                                      "turkSubmitTo": "https://workersandbox.mturk.com"},
+               Study.Platform.LINK: {"pid": "p-1"}}
+
+
+@pytest.fixture
+def open_study(platform: str) -> Study:
+    return make_study(platform=platform)
+
+
+@pytest.mark.parametrize("platform", ENTRY_LINKS)
+@FUZZ
+@given(data=st.data())
+def test_hostile_entry_links_never_answer_500_and_a_refusal_enrols_nobody(platform, open_study, data):
+    query = data.draw(hostile_form(ENTRY_LINKS[platform]))
+    with transaction.atomic():
+        before = rows()
+        response = Client(raise_request_exception=False).get(reverse("participant-enter", args=[open_study.key]),
+                                                              query)
+        assert response.status_code < 500, (query, response.status_code)
+        if response.status_code >= 400:
+            assert rows() == before
+        transaction.set_rollback(True)
+
+
+# --- researchers -----------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Upload:
+    """A file field of a valid form: its name and content (drawn forms replace either)."""
+
+    name: str
+    content: bytes
+
+
+@dataclass
+class Lab:
+    """A logged-in researcher's study with every kind of row the forms touch."""
+
+    client: Client
+    study: Study
+    ids: dict[str, str]  # "<name>" placeholders in the forms, by the real id
+
+
+def _zip(members: dict[str, bytes]) -> bytes:
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, data in members.items():
+            archive.writestr(name, data)
+    return buffer.getvalue()
+
+
+@pytest.fixture
+def lab(client, settings, tmp_path) -> Lab:
+    from generation.control import preset_path
+    from studyapp.server.celery import app as celery_app
+    from studyapp.server.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
+
+    settings.MEDIA_ROOT, settings.CHECKPOINT_ROOT = tmp_path / "media", tmp_path / "checkpoints"
+    settings.VAR_DIR = tmp_path / "var"
+    settings.MOTION_DATA = tmp_path / "no-motion-data"  # held-out controls are refused quickly, naming it
+    saved = celery_app.conf.broker_url, celery_app.conf.broker_transport_options  # queued stimuli stay here
+    celery_app.conf.broker_url = FILESYSTEM_BROKER_URL
+    celery_app.conf.broker_transport_options = filesystem_broker_options(tmp_path / "broker")
+    owner = User.objects.create_user("researcher", is_staff=True)
+    owner.user_permissions.set(Permission.objects.filter(content_type__app_label="studyapp"))
+    client.force_login(owner)
+    study = Study.objects.create(owner=owner, title="Gait", video_width=160, video_height=120, clips_per_participant=3)
+    moglow = System.objects.create(study=study, name="MoGlow", checkpoint="model.safetensors", kind="moglow",
+                                   checkpoint_digest="1" * 64,
+                                   metadata={"dataset_options": DatasetOptions().to_dict(), "control": "path"})
+    System.objects.create(study=study, name="NAT", role=System.Role.NATURAL, kind="natural")
+    controls = [ControlSignal.objects.create(study=study, name=name, origin="synthetic", seconds=4.0,
+                                             control=preset_path(name, 20.0).to_dict())
+                for name in ("walk-straight", "walk-circle")]
+    for control in controls:
+        Stimulus.objects.create(study=study, system=moglow, control=control, content_key=control.name,
+                                status=Stimulus.Status.DONE, duration_s=4.0)
+    question = Question.objects.create(study=study, part=Question.Part.AFTER, name="notes", text="Notes?",
+                                       kind=Question.Kind.TEXT)
+    other = make_study(owner_name="another-researcher")
+    yield Lab(client, study, {"<moglow>": str(moglow.pk), "<control>": str(controls[0].pk),
+                              "<question>": str(question.pk), "<other-question>": str(
+                                  Question.objects.create(study=other, part="after", name="x", text="x",
+                                                          kind="text").pk)})
+    celery_app.conf.broker_url, celery_app.conf.broker_transport_options = saved
+
+
+GOOD_RATINGS = ("participant,system,stimulus,value,scale_min,scale_max\n" +
+                "".join(f"p{p},{s},{s}-{c},{(p + c) % 5 + 1},1,5\n" for p in range(4) for s in ("NAT", "MoGlow")
+                        for c in range(3))).encode()
+
+
+def _study_form(lab: Lab) -> dict:
+    return {name: str(value) for name, value in study_fields().items()}
+
+
+RESEARCHER_FORMS: dict[str, tuple[Callable[[Lab], str], Callable[[Lab], dict]]] = {
+    "new study": (lambda lab: reverse("study-create"), _study_form),
+    "study settings": (lambda lab: reverse("study-edit", args=[lab.study.pk]), _study_form),
+    "checkpoint system": (lambda lab: reverse("study-systems", args=[lab.study.pk]), lambda lab: {
+        "action": "checkpoint", "name": "New", "role": "model", "temperature": "1.0",
+        "checkpoint": Upload("model.safetensors", b"\x10\x00\x00\x00\x00\x00\x00\x00" + b'{"a": {"b": 1}}  ')}),
+    "natural system": (lambda lab: reverse("study-systems", args=[lab.study.pk]), lambda lab: {
+        "action": "natural", "name": "NAT-2"}),
+    "submitted motion": (lambda lab: reverse("study-systems", args=[lab.study.pk]), lambda lab: {
+        "action": "motion", "name": "Lab-B", "role": "model",
+        "motion": Upload("motion.zip", _zip({"walk-straight.npz": b"PK", "walk-circle.bvh": b"HIERARCHY\n"}))}),
+    "video system": (lambda lab: reverse("study-systems", args=[lab.study.pk]), lambda lab: {
+        "action": "videos", "name": "BAD", "role": "bad",
+        "videos": Upload("bad.mp4", b"\x00\x00\x00\x18ftypisom" + b"\x00" * 64)}),
+    "system edit": (lambda lab: f"/studies/{lab.study.pk}/systems/{lab.ids['<moglow>']}/edit/", lambda lab: {
+        "name": "MoGlow-warm", "temperature": "0.8"}),
+    "control edit": (lambda lab: f"/studies/{lab.study.pk}/controls/{lab.ids['<control>']}/edit/", lambda lab: {
+        "name": "renamed"}),
+    "held-out controls": (lambda lab: reverse("study-controls", args=[lab.study.pk]), lambda lab: {
+        "action": "held_out", "seconds": "4", "count": "2", "lead_in": "1"}),
+    "preset controls": (lambda lab: reverse("study-controls", args=[lab.study.pk]), lambda lab: {
+        "action": "presets", "presets": ["sidestep-left", "stand-still"]}),
+    "control file": (lambda lab: reverse("study-controls", args=[lab.study.pk]), lambda lab: {
+        "action": "file", "description": Upload("path.json", b'{"segments": [{"type": "straight", "seconds": 2}]}')}),
+    "label controls": (lambda lab: reverse("study-controls", args=[lab.study.pk]), lambda lab: {
+        "action": "labels", "actions": ["walk"], "styles": ["normal"], "seconds": "4"}),
+    "generate stimuli": (lambda lab: reverse("study-stimuli", args=[lab.study.pk]), lambda lab: {"seed": "1"}),
+    "add a question": (lambda lab: reverse("study-questions", args=[lab.study.pk]), lambda lab: {
+        "action": "add", "part": "before", "name": "age", "text": "Age?", "kind": "number", "required": "on",
+        "minimum": "0", "maximum": "120", "whole_numbers": "on"}),
+    "remove a question": (lambda lab: reverse("study-questions", args=[lab.study.pk]), lambda lab: {
+        "action": "remove", "question": "<question>"}),
+    "open the study": (lambda lab: reverse("study-open", args=[lab.study.pk]), lambda lab: {"open": "1"}),
+    "analysis upload": (lambda lab: reverse("analysis"), lambda lab: {
+        "ratings": Upload("ratings.csv", GOOD_RATINGS), "reference": "NAT"}),
+    "admin: a study": (lambda lab: "/admin/studyapp/study/add/", lambda lab: {
+        **_study_form(lab), "camera": '{"azimuth": 30}'}),
+    "admin: a control": (lambda lab: f"/admin/studyapp/controlsignal/{lab.ids['<control>']}/change/", lambda lab: {
+        "study": str(lab.study.pk), "name": "walk-straight", "origin": "synthetic", "seconds": "4",
+        "control": '{"type": "path", "fps": 20, "velocities": [[100, 0, 0], [100, 0, 0]]}'}),
+}
+HOSTILE_FILES = st.one_of(st.binary(max_size=600), st.sampled_from([
+    b"", b"\x00" * 5000, b"\xff" * 8 + b"{}", _zip({"../../escape.npz": b"x", "a/b/walk-straight.bvh": b"\x00"}),
+    b'{"segments": [{"type": "straight", "seconds": 1e400}]}', b"segments: [{type: curve, turn_rate: .nan}]",
+    GOOD_RATINGS.replace(b",1,5", b",1,1e20"), GOOD_RATINGS.replace(b"NAT", b"=cmd|' /C calc'!A0")]))
+# Any name a client can send (Django's test client itself refuses an empty one).
+FILE_NAMES = st.sampled_from(["model.safetensors", "motion.zip", "bad.mp4", "path.json", "path.yaml", "ratings.csv",
+                              " ", ".zip", "../../x.mp4", "a" * 300 + ".zip", "x\x00.json", "noextension"])
+
+
+def _posted(value: object, draw) -> object:
+    """A drawn form value as the client sends it: an upload becomes a file, sometimes drawn anew."""
+    if isinstance(value, Upload):
+        name = draw(st.one_of(st.just(value.name), FILE_NAMES))
+        content = draw(st.one_of(st.just(value.content), HOSTILE_FILES))
+        return SimpleUploadedFile(name, content)
+    return value
+
+
+@pytest.mark.parametrize("url, valid", RESEARCHER_FORMS.values(), ids=RESEARCHER_FORMS.keys())
+@FUZZ
+@given(data=st.data())
+def test_hostile_values_on_a_researcher_form_never_answer_500_and_a_refusal_changes_nothing(url, valid, lab, data):
+    form = data.draw(hostile_form(valid(lab)))
+    form = {name: _posted(lab.ids.get(value, value) if isinstance(value, str) else value, data.draw)
+            for name, value in form.items()}
+    post_in_a_rolled_back_transaction(lab.client, url(lab), form)

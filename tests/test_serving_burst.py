@@ -1,0 +1,166 @@
+"""Every documented way of serving a study holds a crowd arriving at once: 100 new
+connections opened together each get an answer, even while the server's processes
+cannot accept them (paused, as on a loaded machine), which is when a short listen queue
+drops them (Django's runserver queues 10: about 90 of 100 are lost this way).
+
+The ways are those the documentation names: ``manage.py serve`` (what ``make demo``
+runs), gunicorn as ``compose.yaml``'s web service runs it, and gunicorn as the image's
+own command (``Dockerfile``). The commands are read from those files, so a change there
+is what is tested. Each server runs on the embedded SQLite database in a fresh folder;
+every connection asks for a participant page (an unknown study's, one database query).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tests.conftest import REPO
+
+CONNECTIONS = 100
+CONNECT_TIMEOUT_S = 3.0  # past the kernel's first SYN retry (1 s): a dropped connection stays dropped
+ANSWER_TIMEOUT_S = 60.0
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def _with_bind(command: list[str], port: int) -> list[str]:
+    """A gunicorn command of the docs, bound to a local port instead of the container's."""
+    command = [word for word in command if not word.startswith("0.0.0.0:")]
+    if "--bind" in command:
+        command.remove("--bind")
+    return [sys.executable, "-m", *command, "--bind", f"127.0.0.1:{port}"]
+
+
+def compose_web_command(port: int) -> list[str]:
+    compose = yaml.safe_load((REPO / "compose.yaml").read_text())
+    return _with_bind(compose["services"]["web"]["command"], port)
+
+
+def dockerfile_command(port: int) -> list[str]:
+    cmd = re.search(r"^CMD (\[.*\])$", (REPO / "Dockerfile").read_text(), re.MULTILINE)
+    return _with_bind(json.loads(cmd.group(1)), port)
+
+
+def manage_serve_command(port: int) -> list[str]:
+    return [sys.executable, "manage.py", "serve", "--noreload", f"127.0.0.1:{port}"]
+
+
+SERVERS = {"manage.py serve (make demo)": manage_serve_command, "gunicorn as compose.yaml's web": compose_web_command,
+           "gunicorn as the Dockerfile's command": dockerfile_command}
+
+
+@pytest.fixture(scope="module")
+def environment(tmp_path_factory) -> dict[str, str]:
+    """The embedded defaults in a fresh folder, its database migrated."""
+    var = tmp_path_factory.mktemp("serving") / "var"
+    env = {**os.environ, "STUDYAPP_VAR_DIR": str(var), "MEDIA_ROOT": str(var / "media"), "DEBUG": "0",
+           "ALLOWED_HOSTS": "127.0.0.1"}
+    env.pop("DATABASE_URL", None)
+    subprocess.run([sys.executable, "manage.py", "migrate", "--noinput", "-v", "0"], cwd=REPO, env=env, check=True)
+    return env
+
+
+def _wait_until_listening(port: int, server: subprocess.Popen, timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if server.poll() is not None:
+            raise RuntimeError(f"the server exited with status {server.returncode}")
+        try:
+            with socket.create_connection(("127.0.0.1", port), timeout=1):
+                return
+        except OSError:
+            time.sleep(0.2)
+    raise RuntimeError(f"nothing listens on port {port} after {timeout_s:g} s")
+
+
+def burst(port: int, server: subprocess.Popen, count: int = CONNECTIONS) -> list[str]:
+    """Open ``count`` connections together while the server's processes are paused, as on a
+    machine too loaded to let them accept (only the kernel's listen queue holds the crowd),
+    then let them go on and send a request on each; each one's status line, or what went wrong."""
+    ready = threading.Barrier(count)
+    connections: list[socket.socket | None] = [None] * count
+    outcomes = [""] * count
+
+    def connect(index: int) -> None:
+        try:
+            ready.wait(timeout=30)  # every thread connects at the same moment
+            connections[index] = socket.create_connection(("127.0.0.1", port), timeout=CONNECT_TIMEOUT_S)
+        except (OSError, threading.BrokenBarrierError) as error:
+            outcomes[index] = f"connecting: {type(error).__name__}: {error}"
+
+    def ask(index: int) -> None:
+        connection = connections[index]
+        if connection is None:
+            return
+        try:
+            with connection:
+                connection.settimeout(ANSWER_TIMEOUT_S)
+                connection.sendall(b"GET /p/no-such-study/ HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n")
+                answer = b""
+                while chunk := connection.recv(65536):
+                    answer += chunk
+            outcomes[index] = answer.split(b"\r\n", 1)[0].decode() or "no answer"
+        except OSError as error:
+            outcomes[index] = f"asking: {type(error).__name__}: {error}"
+
+    os.killpg(server.pid, signal.SIGSTOP)
+    try:
+        _run_together(connect, count)
+    finally:
+        os.killpg(server.pid, signal.SIGCONT)
+    _run_together(ask, count)
+    return outcomes
+
+
+def _run_together(work, count: int) -> None:
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(count)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("command", SERVERS.values(), ids=SERVERS.keys())
+def test_every_documented_server_answers_100_connections_opened_at_once(command, environment):
+    port = _free_port()
+    server = subprocess.Popen(command(port), cwd=REPO, env=environment, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        _wait_until_listening(port, server)
+        outcomes = burst(port, server)
+    finally:
+        server.terminate()
+        try:
+            server.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            server.wait()
+    answered = [outcome for outcome in outcomes if outcome.startswith("HTTP/1.") and outcome.endswith("404 Not Found")]
+    assert len(answered) == CONNECTIONS, sorted(set(outcomes))
+
+
+def test_the_tested_commands_are_the_documented_ones():
+    assert compose_web_command(8000)[2:] == ["gunicorn", "studyapp.server.wsgi", "--workers", "3", "--worker-class",
+                                             "gthread", "--threads", "8", "--access-logfile", "-", "--bind",
+                                             "127.0.0.1:8000"]
+    assert dockerfile_command(8000)[2:] == ["gunicorn", "studyapp.server.wsgi", "--access-logfile", "-", "--bind",
+                                            "127.0.0.1:8000"]
+    assert "manage.py serve" in (REPO / "README.md").read_text()
+    assert '"manage.py", "serve"' in Path(REPO / "studyapp" / "server" / "demo.py").read_text()
