@@ -37,4 +37,5 @@ urlpatterns = [
     path("<int:pk>/motion.zip", views.study_motion_download, name="study-motion-download"),
     path("<int:pk>/adherence/", views.study_adherence, name="study-adherence"),
     path("<int:pk>/report/", views.study_report, name="study-report"),
+    path("<int:pk>/plan/", views.study_plan, name="study-plan"),
 ]
