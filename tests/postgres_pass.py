@@ -25,9 +25,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 # The modules of the database's work: migrations, assignment and its concurrency, ratings,
 # their export and the monitor, the study designs, stimuli claimed by tasks, removal, the
-# plan locked at opening and its deviations, the
-# admin's scoping and the hostile inputs of the participant's and the researcher's forms
-# and uploads. Their tests that never meet the test database are left out
+# plan locked at opening and its deviations, the admin's scoping and the hostile inputs of
+# the participant's and the researcher's forms and uploads. Their tests that never meet the test database are left out
 # (pytest_collection_modifyitems). A new module of database tests belongs here too.
 DATABASE_TESTS = (
     "tests/test_migrations.py",
