@@ -20,7 +20,7 @@ from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Study
 
-ALPHA = 0.05  # the report's (``analysis.report.build_report``'s default)
+ALPHA = 0.05  # the report's (``analysis.report.build_report``'s default); its power is ``POWER``
 # The settings that shape what participants see and answer, and how many answers are
 # sought, besides the design's own (``Design.settings``, its count field); the rules'
 # settings (thresholds, early answers, full play) are planned as rules instead.

@@ -21,11 +21,12 @@ import random
 from collections import Counter
 from itertools import combinations
 
+from analysis.design_report import POWER
 from analysis.designs import design_named as analysed_design
 from studyapp.designs.base import PlannedPage
 from studyapp.designs.registry import design_of
 from studyapp.models import Stimulus, Study, System
-from studyapp.plan.contents import ALPHA, POWER
+from studyapp.plan.contents import ALPHA
 
 # Past this many simulated participants the targets' number is not worth the time it takes.
 MOST_SIMULATED = 20_000
@@ -47,9 +48,10 @@ def simulated_pages(study: Study) -> list[list[PlannedPage]]:
     return participants
 
 
-def _units_per_participant(participants: list[list[PlannedPage]], per_pair: bool) -> float:
-    """What the least served compared system (or pair of them) gets from one participant on
-    average: its clips (per system) or the pages showing both (per pair)."""
+def compared_units(participants: list[list[PlannedPage]], per_pair: bool) -> tuple[int, float]:
+    """How many systems the pages compare (every one shown but BAD: an ABX page's
+    reference is no clip of the page), and what the least served of them (or of their
+    pairs) gets from one participant on average: its clips, or the pages showing both."""
     counts: Counter = Counter()
     systems = set()
     for pages in participants:
@@ -58,7 +60,7 @@ def _units_per_participant(participants: list[list[PlannedPage]], per_pair: bool
             systems.update(shown)
             counts.update(combinations(shown, 2) if per_pair else shown)
     wanted = list(combinations(sorted(systems), 2)) if per_pair else sorted(systems)
-    return min((counts[unit] for unit in wanted), default=0) / len(participants)
+    return len(systems), min((counts[unit] for unit in wanted), default=0) / max(len(participants), 1)
 
 
 def planned_participants(study: Study) -> dict:
@@ -71,21 +73,21 @@ def planned_participants(study: Study) -> dict:
     section = {"targets_admit": admitted if admitted < MOST_SIMULATED else None, "alpha": ALPHA, "power": POWER,
                "expected_effect": study.expected_effect}
     if study.expected_effect is None:
-        why = "" if admitted else "the study had no clips when it opened"
-        return {**section, "source": "targets", "planned": section["targets_admit"] if admitted else None, "why": why}
+        why = ("the study had no clips when it opened" if not admitted else
+               f"its targets admit more than {MOST_SIMULATED:,} participants" if admitted >= MOST_SIMULATED else "")
+        return {**section, "source": "targets", "planned": None if why else admitted, "why": why}
     analysed = analysed_design(study.design)
-    compared = study.systems.exclude(role=System.Role.BAD).count()
+    compared, rate = compared_units(participants, analysed.units_per_pair)
     section.update(source="power", effect_words=analysed.effect_words, unit=analysed.planned_unit,
                    per_pair=analysed.units_per_pair, compared_systems=compared)
     if compared < 2:
-        return {**section, "planned": None, "why": "fewer than two systems are compared"}
+        return {**section, "planned": None, "why": "its pages compare fewer than two systems"}
     try:
         units = analysed.planned_units(study.expected_effect, compared, ALPHA, POWER)
     except ValueError as error:  # an effect saved past the form's check (Study.clean)
         return {**section, "planned": None, "why": str(error)}
-    rate = _units_per_participant(participants, analysed.units_per_pair) if participants else 0.0
     if not rate:
         return {**section, "planned": None, "units": units,
-                "why": "the study's pages do not show every compared system (or pair) to its participants"}
+                "why": "its pages never show some pair of the compared systems together"}
     return {**section, "planned": math.ceil(units / rate), "units": units, "units_per_participant": round(rate, 6),
             "why": ""}
