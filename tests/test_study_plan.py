@@ -39,7 +39,7 @@ def open_it(client, study, open_: bool = True) -> None:
 
 def settings_form(study, **changes) -> dict:
     """The study form's fields as its page posts them, with ``changes``."""
-    from studyapp.researchers.forms import StudyForm
+    from studyapp.researchers.setup.forms import StudyForm
     form = StudyForm(instance=study)
     data = {name: form[name].value() for name in form.fields}
     data.update(changes)
