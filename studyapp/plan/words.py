@@ -42,15 +42,17 @@ def _shown(value: object) -> str:
 
 def _setting_label(name: str) -> str:
     try:
-        return str(Study._meta.get_field(name).verbose_name)
+        label = str(Study._meta.get_field(name).verbose_name)
     except FieldDoesNotExist:  # a setting of a later version of the study, read from an older plan's data
-        return name.replace("_", " ")
+        label = name.replace("_", " ")
+    return label[:1].upper() + label[1:]
 
 
 def _system_line(name: str, system: dict) -> str:
     source = f"checkpoint {system['checkpoint_digest'][:12]} ({system['kind']})" if system["checkpoint_digest"] \
         else system["source"]
-    return f"{name}: {system['role']}, {source}, temperature {system['temperature']:g}"
+    return ", ".join(part for part in (f"{name}: {system['role']}", source, f"temperature {system['temperature']:g}")
+                     if part)
 
 
 def _control_line(name: str, control: dict) -> str:
@@ -70,7 +72,7 @@ def participants_sentence(section: dict) -> str:
              if admit is not None and admit < section["planned"] else "")
     return (f"{section['planned']} participants, from the power of the design's test: an expected effect of "
             f"{section['expected_effect']:g} ({section['effect_words']}) needs {section['units']} "
-            f"{section['unit']} {'per pair' if section['per_pair'] else 'per system'} at α = {section['alpha']:g} "
+            f"{section['unit']}{' per pair' if section['per_pair'] else ''} at α = {section['alpha']:g} "
             f"split over the pairs of {section['compared_systems']} compared systems, with "
             f"{section['power'] * 100:g} % power; a participant gives at least {section['units_per_participant']:.3g} "
             f"of them.{short}")
@@ -90,7 +92,7 @@ def deviation_text(row: dict) -> str:
         changed = [f"{key} {_shown(old.get(key))} → {_shown(new.get(key))}"
                    for key in sorted(old.keys() | new.keys()) if old.get(key) != new.get(key)]
         return f"{kind} {name} changed: {', '.join(changed)}"
-    what = {"setting": lambda: f"setting “{_setting_label(name)}”", "rule": lambda: f"rule {name}"}.get(
+    what = {"setting": lambda: f"setting “{_setting_label(name).lower()}”", "rule": lambda: f"rule {name}"}.get(
         kind, lambda: field)()
     return f"{what}: {_shown(old)} → {_shown(new)}"
 
