@@ -14,10 +14,11 @@ import json
 import pytest
 from django.utils import timezone
 
-from studyapp.models import Participant, PlanDeviation, StudyPlan, System
-from studyapp.models import ImmutableRow
+from studyapp.models import ImmutableRow, Participant, PlanDeviation, StudyPlan, System
+from studyapp.participants.assignment import StudyFull, enrol
 from studyapp.plan.contents import canonical_json
 from studyapp.plan.lock import build_plan, deviations, preregistration, restore_preregistration
+from tests.appropriateness_fixtures import make_appropriateness_study
 from tests.study_fixtures import make_study
 from tests.test_study_monitor import store_ratings
 
@@ -184,3 +185,20 @@ def test_a_plan_restored_elsewhere_keeps_its_hash_and_deviations_and_refuses_a_c
         restore_preregistration(copy, tampered)
     restore_preregistration(copy, data)
     assert preregistration(copy) == data
+
+
+@pytest.mark.parametrize("make, fields", [
+    (make_study, {"design": "single"}), (make_study, {"design": "side-by-side", "scale_min": 0, "scale_max": 100}),
+    (make_study, {"design": "pairwise", "pages_per_participant": 4}),
+    (make_appropriateness_study, {"ratings_per_stimulus": 2})], ids=["single", "side-by-side", "pairwise",
+                                                                    "appropriateness"])
+def test_the_targets_planned_participants_are_those_enrolment_admits(db, settings, tmp_path, make, fields):
+    settings.MEDIA_ROOT = tmp_path
+    study = make(**fields)
+    section = json.loads(StudyPlan.objects.get(study=study).canonical)["participants"]
+    admitted = 0
+    with pytest.raises(StudyFull):
+        while True:  # each holds their pages, as one who answers them all would
+            enrol(study, f"p{admitted}", {})
+            admitted += 1
+    assert section["source"] == "targets" and section["planned"] == admitted > 0
