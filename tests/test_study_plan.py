@@ -14,7 +14,7 @@ import json
 import pytest
 from django.utils import timezone
 
-from studyapp.models import ImmutableRow, Participant, PlanDeviation, StudyPlan, System
+from studyapp.models import ControlSignal, ImmutableRow, Participant, PlanDeviation, StudyPlan, System
 from studyapp.participants.assignment import StudyFull, enrol
 from studyapp.plan.contents import canonical_json
 from studyapp.plan.lock import build_plan, deviations, preregistration, restore_preregistration
@@ -135,23 +135,26 @@ def test_a_threshold_changed_after_opening_appears_in_the_reports_deviations(cli
     assert PlanDeviation.objects.filter(study=study).count() == 1
 
 
-def test_a_removed_system_and_participants_past_the_plan_are_deviations(client, closed_study):
+def test_a_removed_system_an_added_control_and_participants_past_the_plan_are_deviations(client, closed_study):
     study = closed_study
     open_it(client, study)
     rnn = System.objects.get(study=study, name="RNN")
     assert client.post(f"/studies/{study.pk}/systems/{rnn.pk}/remove/").status_code == 302
     assert not System.objects.filter(pk=rnn.pk).exists()
+    ControlSignal.objects.create(study=study, name="walk-extra", origin=ControlSignal.Origin.SYNTHETIC,
+                                 control={"type": "path"}, seconds=4.0)
     planned = json.loads(StudyPlan.objects.get(study=study).canonical)["participants"]["planned"]
     now = timezone.now()
     for index in range(planned + 2):
         Participant.objects.create(study=study, platform_id=f"p{index}", finished_at=now)
     Participant.objects.create(study=study, platform_id="screened", finished_at=now, screened_out_at=now)
     rows = deviations(study)
-    assert [row["field"] for row in rows] == ["system.RNN", "participants"]
+    assert [row["field"] for row in rows] == ["system.RNN", "control.walk-extra", "participants"]
+    assert rows[1]["old"] is None and rows[1]["new"]["origin"] == ControlSignal.Origin.SYNTHETIC
     assert rows[0]["new"] is None and rows[0]["old"]["role"] == System.Role.MODEL
-    assert (rows[1]["old"], rows[1]["new"], rows[1]["recorded"]) == (planned, planned + 2, False)
+    assert (rows[2]["old"], rows[2]["new"], rows[2]["recorded"]) == (planned, planned + 2, False)
     page = client.get(f"/studies/{study.pk}/plan/").content.decode()
-    assert "system RNN removed" in page
+    assert "system RNN removed" in page and "control walk-extra added" in page
     assert f"{planned + 2} participants finished where the plan counted on {planned}" in page
 
 
