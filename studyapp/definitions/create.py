@@ -32,6 +32,7 @@ from studyapp.definitions.errors import DefinitionError
 from studyapp.definitions.reading import Located, Path, read_definition
 from studyapp.designs import registry as designs
 from studyapp.models import SAFE_ID, ControlSignal, Question, Study, System
+from studyapp.researchers.editing import EditRefused, rename_control
 from studyapp.researchers.forms import CAMERA_PREFIX, QuestionForm, StudyForm
 from studyapp.stimuli.controls import (ControlError, add_held_out_controls, add_label_controls, add_path_control,
                                        add_preset_controls)
@@ -223,10 +224,13 @@ class _Builder:
         if spec.get("kind", system.kind) != system.kind:
             raise self.fail((*where, "kind"), f"the checkpoint {digest[:12]} is a {system.kind} model, not {spec['kind']}")
 
-    def submitted_system(self, study: Study, path: Path, given: dict) -> None:
+    def submitted_spec(self, path: Path, given: dict) -> dict:
+        spec = self.mapping((*path, "submitted"), given["submitted"], layout.SUBMITTED_KEYS, required=("digest",))
+        spec["controls"] = self.texts((*path, "submitted", "controls"), spec.get("controls", []))
+        return spec
+
+    def submitted_system(self, study: Study, path: Path, given: dict, spec: dict) -> None:
         where = (*path, "submitted")
-        spec = self.mapping(where, given["submitted"], layout.SUBMITTED_KEYS, required=("digest",))
-        self.stop()
         digest = self.digest((*where, "digest"), spec["digest"])
         folder = FilePath(settings.CHECKPOINT_ROOT) / SUBMITTED_FOLDER / digest
         if not folder.is_dir():
@@ -240,11 +244,10 @@ class _Builder:
             raise self.fail((*where, "digest"), f"the stored motion {digest[:12]} reads as other motion "
                                                 f"({system.checkpoint_digest[:12]})")
 
-    def controls(self, study: Study) -> None:
-        """Each control made by its service under a passing name, then given its own name
-        and export id (so no control's first name collides with another's own)."""
+    def control_entries(self) -> list[tuple[Path, dict, str]]:
+        """Each control's path, settings and what it is made from, checked."""
         types = {"name": str, "export_id": str, **layout.CONTROL_SOURCES}
-        made: list[tuple[Path, dict, ControlSignal]] = []
+        found = []
         for i, entry in enumerate(self.items("controls")):
             path = ("controls", i)
             given = self.mapping(path, entry, types, required=("name",))
@@ -252,34 +255,49 @@ class _Builder:
             if len(sources) != 1:
                 self.problem(path, f"{_where(path)}: give one of {', '.join(layout.CONTROL_SOURCES)}"
                                    + (f", not {' and '.join(sources)}" if sources else ""))
-            self.stop()
+            else:
+                found.append((path, given, sources[0]))
+        self.stop()
+        return found
+
+    def controls(self, study: Study, entries: list[tuple[Path, dict, str]]) -> None:
+        """Controls made by their services under passing names, then renamed to their own
+        and given their export ids (so no control's first name collides with another's own)."""
+        made: list[tuple[Path, dict, ControlSignal]] = []
+        for path, given, source in entries:
             try:
-                control = self.control(study, path, sources[0], given[sources[0]])
+                control = self.control(study, path, source, given[source], given["name"])
             except ControlError as error:
-                raise self.fail((*path, sources[0]), f"{_where(path)}: {error}") from None
+                raise self.fail((*path, source), f"{_where(path)}: {error}") from None
             control.name = f"~{secrets.token_hex(8)}"
             control.save(update_fields=["name"])
             made.append((path, given, control))
-        exported = {}
+        exported = set(study.controls.exclude(export_id="").exclude(pk__in=[c.pk for _, _, c in made])
+                       .values_list("export_id", flat=True))  # those of the controls made before
         for path, given, control in made:
-            control.name, control.export_id = given["name"], given.get("export_id", control.export_id)
+            try:
+                rename_control(control, given["name"])  # as the controls page renames: its description too
+                control.export_id = given.get("export_id", control.export_id)
+                control.full_clean()
+            except EditRefused as error:
+                self.problem((*path, "name"), f"{_where(path)}: {error}")
+                continue
+            except ValidationError as error:
+                for name, messages in error.message_dict.items():
+                    self.problem((*path, name), f"{_where(path)}: {name}: {' '.join(messages)}")
+                continue
             if control.export_id and not SAFE_ID.fullmatch(control.export_id):
                 self.problem((*path, "export_id"), f"{_where(path)}: an export id is a plain file name (letters, "
                                                    f"digits, _ . + -), not {control.export_id[:100]!r}")
             elif control.export_id in exported:
                 self.problem((*path, "export_id"), f"{_where(path)}: the export id {control.export_id!r} is "
-                                                   f"{_where(exported[control.export_id])}'s too")
-            exported.setdefault(control.export_id or None, path)
-            try:
-                control.full_clean()
-            except ValidationError as error:
-                for name, messages in error.message_dict.items():
-                    self.problem((*path, name), f"{_where(path)}: {name}: {' '.join(messages)}")
-                continue
-            control.save()
+                                                   f"another control's too")
+            elif control.export_id:
+                exported.add(control.export_id)
+            control.save(update_fields=["export_id"])
         self.stop()
 
-    def control(self, study: Study, path: Path, source: str, value: object) -> ControlSignal:
+    def control(self, study: Study, path: Path, source: str, value: object, given_name: str) -> ControlSignal:
         where = (*path, source)
         if source == "preset":
             return add_preset_controls(study, [value])[0]
@@ -292,7 +310,7 @@ class _Builder:
             self.stop()
             try:
                 velocities = np.asarray(spec["velocities"], dtype=np.float64)
-                signal = PathControl(velocities, float(spec["fps"]), "path")
+                signal = PathControl(velocities, float(spec["fps"]), given_name)
             except (ValueError, TypeError) as error:
                 raise self.fail((*where, "velocities"), f"{_where(where)}: not a path ({error})") from None
             return add_path_control(study, signal)
@@ -327,10 +345,17 @@ class _Builder:
                 if given["role"] != System.Role.NATURAL:
                     raise self.fail((*path, "role"), f"{_where(path)}: a {given['role']} system needs a checkpoint, "
                                                      "submitted motion or videos; only NAT (role natural) has none")
-        self.controls(study)  # submitted motion is matched to them
-        for path, given, source in systems:
-            if source == "submitted":
-                self.submitted_system(study, path, given)
+        # Submitted motion is matched to the controls there are when it is added: each after
+        # the controls it has clips of (fewest first), the other controls after them all.
+        entries = self.control_entries()
+        submitted = sorted(((path, given, self.submitted_spec(path, given)) for path, given, source in systems
+                            if source == "submitted"), key=lambda item: len(item[2]["controls"]))
+        self.stop()
+        for path, given, spec in submitted:
+            self.controls(study, [entry for entry in entries if entry[1]["name"] in spec["controls"]])
+            entries = [entry for entry in entries if entry[1]["name"] not in spec["controls"]]
+            self.submitted_system(study, path, given, spec)
+        self.controls(study, entries)
         try:  # the settings again, now that the systems and controls they may depend on are there
             study.full_clean()
         except ValidationError as error:

@@ -46,7 +46,8 @@ def _system(system: System) -> dict:
                                "file": metadata.get("file") or Path(system.checkpoint).name, "kind": system.kind}
         entry["temperature"] = system.temperature
     elif kind == System.SourceKind.SUBMITTED:
-        entry["submitted"] = {"digest": system.checkpoint_digest, "file": metadata.get("file", "")}
+        entry["submitted"] = {"digest": system.checkpoint_digest, "file": metadata.get("file", ""),
+                              "controls": list(metadata.get("controls", []))}
     elif kind == System.SourceKind.VIDEO:
         entry["videos"] = list(metadata.get("videos", []))
     return entry

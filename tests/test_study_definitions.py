@@ -1,0 +1,225 @@
+"""A study as one file: describe -> create -> describe gives the same file, for every
+kind of study the researcher's pages make.
+
+Each builder makes a study the way the pages do, through the same services: tiny
+MoGlows and an ERD trained on real clips (``study_setup``), held-out takes of those
+clips, presets, files of paths, submitted motion (the study's own exported natural
+clips), questions, and every design. Making the definition into a new study must give
+the same file and the same rows: the same controls frame by frame, the same checkpoints.
+"""
+
+from __future__ import annotations
+
+import io
+from types import SimpleNamespace
+
+import pytest
+from django.contrib.auth.models import User
+from django.core.files import File
+from django.core.files.uploadedfile import SimpleUploadedFile
+from django.core.management import call_command
+
+from generation.render.camera import Camera
+from studyapp.definitions import create_study_from_definition, definition_yaml, describe_study
+from studyapp.models import Question, Study, System
+from studyapp.researchers.editing import rename_control
+from studyapp.stimuli.control_export import write_bundle
+from studyapp.stimuli.controls import (add_control_file, add_held_out_controls, add_label_controls,
+                                       add_preset_controls)
+from studyapp.stimuli.submissions import add_submitted_system, read_folder
+from studyapp.stimuli.systems import add_checkpoint_system, add_natural_system
+from tests.study_setup import study_files
+
+
+@pytest.fixture(scope="module")
+def files(motion_data, tmp_path_factory) -> SimpleNamespace:
+    return study_files(motion_data, tmp_path_factory.getbasetemp())
+
+
+@pytest.fixture
+def site(settings, tmp_path, files):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    settings.CHECKPOINT_ROOT = tmp_path / "checkpoints"
+    settings.VAR_DIR = tmp_path / "var"
+    settings.VAR_DIR.mkdir()
+    (settings.VAR_DIR / "cache").symlink_to(files.root / "var" / "cache")  # the checkpoints' training data
+    settings.MOTION_DATA = files.clips
+    return SimpleNamespace(root=tmp_path, files=files, settings=settings)
+
+
+def new_study(**fields) -> Study:
+    owner, _ = User.objects.get_or_create(username="researcher")
+    study = Study(owner=owner, title="Locomotion", video_width=160, video_height=120, **fields)
+    study.full_clean()  # as the study page checks it
+    study.save()
+    return study
+
+
+def checkpoint(study: Study, path, name: str, role: str = System.Role.MODEL, temperature: float = 1.0) -> System:
+    with File(path.open("rb"), name=path.name) as upload:
+        return add_checkpoint_system(study, name, upload, role, temperature)
+
+
+def path_file(study: Study) -> None:
+    """Two paths of a file: one named as a file name, one whose name is none (no export id)."""
+    add_control_file(study, SimpleUploadedFile("paths.yaml", b"- segments: [{type: straight, speed: 100, seconds: 1},"
+                                                             b" {type: curve, turn_rate: 20, seconds: 1}]\n"
+                                                             b"- name: a slow sidestep\n"
+                                                             b"  segments: [{type: sidestep, speed: 40, seconds: 2}]\n"))
+
+
+def questions(study: Study) -> None:
+    Question.objects.create(study=study, part="before", name="device", text="Which device do you use?",
+                            choices="computer\nphone\ntablet", accepted="computer\ntablet", order=0)
+    Question.objects.create(study=study, part="after", name="comments", text="Anything else?", kind="text",
+                            required=False, order=1)
+    Question.objects.create(study=study, part="after", name="age", text="How old are you?", kind="number",
+                            minimum=18, maximum=99, order=0)
+
+
+def models_study(site, **fields) -> Study:
+    """MoGlow, an early MoGlow as BAD at another temperature, NAT; held-out takes with a
+    lead-in, presets (one renamed: its export id stays) and a file of paths."""
+    study = new_study(**fields)
+    checkpoint(study, site.files.good, "MoGlow")
+    checkpoint(study, site.files.early, "Early", System.Role.BAD, temperature=0.8)
+    add_natural_system(study)
+    add_held_out_controls(study, 1.0, None, 0.5)
+    add_preset_controls(study, ["walk-circle", "stand-still"])
+    rename_control(study.controls.get(name="walk-circle"), "circle")  # as the controls page renames
+    path_file(study)
+    return study
+
+
+def single_with_everything(site) -> Study:
+    study = models_study(site, platform=Study.Platform.PROLIFIC, completion_code="C0MPL3TE",
+                         screen_out_code="SCREENED", stopped_code="STOPPED",
+                         redirect_url="https://app.prolific.com/submissions/complete?cc=C0MPL3TE",
+                         instructions="Watch each clip.\nThen rate it.", instructed_checks=2,
+                         stop_after_failed_checks=1, bad_threshold=3.5, device_check=True, min_screen_width=1024,
+                         min_screen_height=600, training_clips=2, require_full_play=False,
+                         camera={**Camera().to_dict(), "azimuth": 10.0, "distance": 300.0, "follow": False})
+    questions(study)
+    return study
+
+
+def side_by_side(site) -> Study:
+    return models_study(site, design="side-by-side", scale_min=0, scale_max=100, pages_per_participant=5)
+
+
+def side_by_side_on_five_points(site) -> Study:  # not the design's own 0-100
+    return models_study(site, design="side-by-side", pages_per_participant=5)
+
+
+def pairwise(site) -> Study:
+    return models_study(site, design="pairwise", platform=Study.Platform.MTURK, completion_code="MTURK-1")
+
+
+def pairwise_abx_with_strengths(site) -> Study:
+    return models_study(site, design="pairwise", abx=True, preference_strengths=3, natural_checks=0)
+
+
+def appropriateness(site) -> Study:
+    study = models_study(site, design="appropriateness", pages_per_participant=6)
+    questions(study)
+    return study
+
+
+def label_controlled(site) -> Study:
+    """An ERD (actions and styles): held-out label controls and chosen pairs."""
+    site.settings.MOTION_DATA = site.files.labelled
+    study = new_study()
+    checkpoint(study, site.files.erd, "ERD")
+    add_natural_system(study)
+    add_held_out_controls(study, 1.0)
+    add_label_controls(study, ["walk"], ["happy", "normal"], 1.0)
+    return study
+
+
+def submitted_motion(site) -> Study:
+    """No checkpoint: held-out takes of a folder, NAT, another lab's motion for them (the
+    study's own natural clips, exported as the controls page exports them), and a preset
+    added after it, which the lab's motion has no clip of."""
+    study = new_study(design="pairwise")
+    add_held_out_controls(study, 1.5, 2, folders=[str(site.files.clips)])
+    add_natural_system(study)
+    exported = site.root / "exported"
+    write_bundle(study, exported, natural=True)
+    add_submitted_system(study, "Lab", read_folder(exported / "natural"), System.Role.MODEL, "lab.zip")
+    add_preset_controls(study, ["walk-straight"])
+    return study
+
+
+BUILDERS = [single_with_everything, side_by_side, side_by_side_on_five_points, pairwise, pairwise_abx_with_strengths,
+            appropriateness, label_controlled, submitted_motion]
+
+
+def reading(natural: dict) -> dict:
+    """Where a held-out take was found and how it is read: the recorded options but the
+    content labels the seeded split chose its takes among, which a take named again
+    (as a definition names it) is not chosen by."""
+    return {**natural, "options": {k: v for k, v in natural["options"].items() if k != "contents"}} if natural else {}
+
+
+def rows(study: Study) -> dict:
+    """What a study's definition must carry over: its systems and controls as stored."""
+    return {
+        "systems": sorted((s.name, s.role, s.kind, s.checkpoint, s.checkpoint_digest, s.temperature,
+                           s.metadata.get("file"), s.metadata.get("controls")) for s in study.systems.all()),
+        "controls": sorted((c.name, c.origin, c.control, c.export_id, c.source_clip, reading(c.natural), c.seconds)
+                           for c in study.controls.all()),
+        "questions": [(q.part, q.order, q.name, q.choices, q.accepted) for q in study.questions.all()],
+        "camera": study.camera,
+    }
+
+
+@pytest.mark.django_db
+@pytest.mark.parametrize("build", BUILDERS, ids=lambda build: build.__name__)
+def test_describe_create_describe_is_a_fixed_point(site, build):
+    study = build(site)
+    text = definition_yaml(study)
+
+    made = create_study_from_definition(text, study.owner, source="study.yaml")
+
+    assert made.pk != study.pk and not made.is_open
+    assert definition_yaml(made) == text
+    assert rows(made) == rows(study)
+
+
+@pytest.mark.django_db
+def test_the_definition_names_systems_by_digest_and_controls_by_how_they_are_made(site):
+    study = single_with_everything(site)
+    definition = describe_study(study)
+    systems = {s["name"]: s for s in definition["systems"]}
+    moglow = study.systems.get(name="MoGlow")
+    assert systems["MoGlow"]["checkpoint"] == {"digest": moglow.checkpoint_digest, "file": "moglow.safetensors",
+                                               "kind": "moglow"}
+    assert systems["Early"]["role"] == "bad" and systems["Early"]["temperature"] == 0.8
+    assert systems["NAT"] == {"name": "NAT", "role": "natural"}
+    controls = {c["name"]: c for c in definition["controls"]}
+    assert controls["circle"] == {"name": "circle", "export_id": "walk-circle", "preset": "walk-circle"}
+    assert controls["a slow sidestep"]["export_id"] == "" and controls["a slow sidestep"]["path"]["fps"] == 20.0
+    held_out = [c["held_out"] for c in definition["controls"] if "held_out" in c]
+    assert held_out and all(h["lead_in"] == 0.5 and h["seconds"] == 1.0 and h["take"].startswith("data/")
+                            for h in held_out)
+    assert [(q["part"], q["name"]) for q in definition["questions"]] == [
+        ("after", "age"), ("after", "comments"), ("before", "device")]
+    assert definition["crowd_platform"]["stopped_code"] == "STOPPED"
+    assert definition["video_and_camera"]["camera"]["follow"] is False
+
+
+@pytest.mark.django_db
+def test_the_commands_write_a_definition_and_make_a_study_of_it(site):
+    study = pairwise_abx_with_strengths(site)
+    out = site.root / "study.yaml"
+    said = io.StringIO()
+    call_command("describe_study", study.key, "--out", str(out), stdout=said)
+    assert out.read_text() == definition_yaml(study) and str(out) in said.getvalue()
+    printed = io.StringIO()
+    call_command("describe_study", str(study.pk), stdout=printed)
+    assert printed.getvalue() == out.read_text()
+
+    made = io.StringIO()
+    call_command("create_study", "researcher", "--from", str(out), stdout=made)
+    copy = Study.objects.get(pk=int(made.getvalue()))
+    assert definition_yaml(copy) == out.read_text() and copy.owner.username == "researcher"
