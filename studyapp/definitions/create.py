@@ -220,7 +220,8 @@ class _Builder:
         except UploadRefused as error:
             raise self.fail(path, f"{_where(path)}: {error}") from None
         if system.checkpoint_digest != digest:
-            raise self.fail((*where, "digest"), f"the stored checkpoint {digest} reads as another ({system.checkpoint_digest})")
+            raise self.fail((*where, "digest"), f"the stored checkpoint {digest} reads as another "
+                                                f"({system.checkpoint_digest})")
         if spec.get("kind", system.kind) != system.kind:
             raise self.fail((*where, "kind"), f"the checkpoint {digest[:12]} is a {system.kind} model, not {spec['kind']}")
 
@@ -335,16 +336,16 @@ class _Builder:
                 self.checkpoint_system(study, path, given)
         for path, given, source in systems:
             if source == "videos":
-                raise self.fail(path, f"{_where(path)}: a system of uploaded videos cannot be made from a definition, "
-                                      "which does not hold its videos; add it on the systems page")
+                raise self.fail((*path, "videos"), f"{_where(path)}: a system of uploaded videos cannot be made from a "
+                                                   "definition, which does not hold its videos; add it on the systems page")
+            if source is None and given["role"] != System.Role.NATURAL:
+                raise self.fail((*path, "role"), f"{_where(path)}: a {given['role']} system needs a checkpoint, "
+                                                 "submitted motion or videos; only NAT (role natural) has none")
             if source is None:
                 try:
-                    add_natural_system(study, given["name"]) if given["role"] == System.Role.NATURAL else None
+                    add_natural_system(study, given["name"])
                 except UploadRefused as error:
                     raise self.fail(path, f"{_where(path)}: {error}") from None
-                if given["role"] != System.Role.NATURAL:
-                    raise self.fail((*path, "role"), f"{_where(path)}: a {given['role']} system needs a checkpoint, "
-                                                     "submitted motion or videos; only NAT (role natural) has none")
         # Submitted motion is matched to the controls there are when it is added: each after
         # the controls it has clips of (fewest first), the other controls after them all.
         entries = self.control_entries()

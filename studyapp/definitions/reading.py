@@ -22,6 +22,7 @@ MAX_DEFINITION_BYTES = 4_000_000
 MAX_DEPTH = 20
 MAX_NODES = 500_000
 Path = tuple[str | int, ...]
+PLAIN_COLLECTIONS = ("tag:yaml.org,2002:map", "tag:yaml.org,2002:seq")
 
 
 @dataclass
@@ -55,6 +56,8 @@ class _Reader:
         if len(path) > MAX_DEPTH:
             raise self.fail(node, f"nested more than {MAX_DEPTH} levels deep: not a study definition")
         self.lines.setdefault(path, node.start_mark.line + 1)
+        if isinstance(node, yaml.CollectionNode) and node.tag not in PLAIN_COLLECTIONS:  # !!set, !!python/...
+            raise self.fail(node, f"not a plain YAML value (tag {node.tag})")
         if isinstance(node, yaml.MappingNode):
             return self.mapping(node, path)
         if isinstance(node, yaml.SequenceNode):
