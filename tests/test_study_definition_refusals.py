@@ -14,6 +14,7 @@ from django.core.management.base import CommandError
 from studyapp.definitions import DefinitionError, create_study_from_definition, definition_yaml
 from studyapp.definitions.reading import MAX_DEFINITION_BYTES, MAX_NODES
 from studyapp.models import ControlSignal, Question, Study, System
+from tests.study_fixtures import make_study
 
 # A study with a question, NAT and two presets: nothing it needs is outside the file.
 VALID = """\
@@ -214,6 +215,18 @@ def test_the_study_page_offers_its_definition_to_its_owner_only(client, owner):
     assert response.status_code == 200 and response["Content-Type"].startswith("application/yaml")
     assert response["Content-Disposition"] == f'attachment; filename="study-{study.pk}.yaml"'
     assert response.content.decode() == definition_yaml(study)
+
+
+@pytest.mark.django_db
+def test_a_study_whose_rows_cannot_be_read_has_no_definition_and_says_which_row(client, owner):
+    study = make_study(owner_name="researcher", controls=1)  # its control is stored as {"type": "path"}
+    client.force_login(owner)
+    response = client.get(f"/studies/{study.pk}/definition.yaml", follow=True)
+    assert response.redirect_chain[-1][0] == f"/studies/{study.pk}/monitor/"
+    assert "No definition: control signal &#x27;control-0&#x27;" in response.content.decode()
+    with pytest.raises(CommandError) as error:
+        call_command("describe_study", str(study.pk))
+    assert error.value.returncode == 2 and "its control is no control description" in str(error.value)
 
 
 @pytest.mark.django_db

@@ -139,7 +139,9 @@ def label_controlled(site) -> Study:
 def submitted_motion(site) -> Study:
     """No checkpoint: held-out takes of a folder, NAT, another lab's motion for them (the
     study's own natural clips, exported as the controls page exports them), and a preset
-    added after it, which the lab's motion has no clip of."""
+    added after it, which the lab's motion has no clip of. The takes are of a folder
+    outside MOTION_DATA."""
+    site.settings.MOTION_DATA = site.root / "no-motion-data"  # the takes are found where the definition says
     study = new_study(design="pairwise")
     add_held_out_controls(study, 1.5, 2, folders=[str(site.files.clips)])
     add_natural_system(study)
@@ -201,7 +203,7 @@ def test_the_definition_names_systems_by_digest_and_controls_by_how_they_are_mad
     assert controls["a slow sidestep"]["export_id"] == "" and controls["a slow sidestep"]["path"]["fps"] == 20.0
     held_out = [c["held_out"] for c in definition["controls"] if "held_out" in c]
     assert held_out and all(h["lead_in"] == 0.5 and h["seconds"] == 1.0 and h["take"].startswith("data/")
-                            for h in held_out)
+                            and "folders" not in h for h in held_out)  # MOTION_DATA's, wherever it is
     assert [(q["part"], q["name"]) for q in definition["questions"]] == [
         ("after", "age"), ("after", "comments"), ("before", "device")]
     assert definition["crowd_platform"]["stopped_code"] == "STOPPED"
@@ -223,3 +225,13 @@ def test_the_commands_write_a_definition_and_make_a_study_of_it(site):
     call_command("create_study", "researcher", "--from", str(out), stdout=made)
     copy = Study.objects.get(pk=int(made.getvalue()))
     assert definition_yaml(copy) == out.read_text() and copy.owner.username == "researcher"
+
+
+@pytest.mark.django_db
+def test_takes_outside_motion_data_are_named_with_their_folder_and_unit(site):
+    study = submitted_motion(site)
+    held_out = [c["held_out"] for c in describe_study(study)["controls"] if "held_out" in c]
+    assert held_out and all(h["folders"] == [str(site.files.clips)] and h["unit"] == 1.0 and h["up"] == "y"
+                            for h in held_out)
+    lab = next(s for s in describe_study(study)["systems"] if s["name"] == "Lab")
+    assert lab["submitted"]["file"] == "lab.zip" and len(lab["submitted"]["controls"]) == 2
