@@ -125,6 +125,11 @@ MISTAKES = [
      "the path is at 30 fps and the study's motion at 20 fps"),
     ("two controls of one name", replaced("- name: walk-straight", "- name: circle"), 18,
      "this study already has a control named 'circle'"),
+    ("a system name past its column", replaced("- name: NAT", "- name: " + "N" * 61), 13,
+     "systems[0]: name Ensure this value has at most 60 characters (it has 61)"),
+    ("a control name past its column", replaced("- name: circle", "- name: " + "c" * 101), 16,
+     "controls[0]: name Ensure this value has at most 100 characters (it has 101)"),
+    ("a NUL character", replaced("title: Gait", 'title: "Ga\\0it"'), 3, "holds a NUL character"),
     ("an export id that is no file name", replaced("  preset: walk-circle", "  preset: walk-circle\n  export_id: ../x"),
      18, "an export id is a plain file name"),
 ]

@@ -11,6 +11,8 @@ the same file and the same rows: the same controls frame by frame, the same chec
 from __future__ import annotations
 
 import io
+import os
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -235,3 +237,23 @@ def test_takes_outside_motion_data_are_named_with_their_folder_and_unit(site):
                             for h in held_out)
     lab = next(s for s in describe_study(study)["systems"] if s["name"] == "Lab")
     assert lab["submitted"]["file"] == "lab.zip" and len(lab["submitted"]["controls"]) == 2
+
+
+@pytest.mark.django_db
+def test_the_documented_definition_is_the_demos_study_and_makes_it_again(settings, tmp_path, motion_data, motion_data_2):
+    """docs/running-a-study.md's example, made on the demo's data with its committed models."""
+    from generation.store import keep
+    from studyapp.server import demo
+
+    guide = (Path(__file__).resolve().parents[1] / "docs" / "running-a-study.md").read_text()
+    text = guide.split("as `describe_study` writes it:\n\n```yaml\n", 1)[1].split("```\n", 1)[0]
+    settings.CHECKPOINT_ROOT, settings.VAR_DIR = tmp_path / "checkpoints", tmp_path / "var"
+    settings.MOTION_DATA = os.pathsep.join(map(str, (motion_data, motion_data_2)))  # the demo's data
+    for _, _, _, file, _ in demo.DEMO_MODELS:
+        keep(demo.COMMITTED_MODELS / file, settings.CHECKPOINT_ROOT)
+    owner = User.objects.create_user("researcher")
+
+    study = create_study_from_definition(text, owner, source="running-a-study.md")
+
+    assert study.title == demo.DEMO_STUDY and definition_yaml(study) == text
+    assert sorted(study.systems.values_list("name", flat=True)) == ["BAD", "MoGlow", "NAT", "RNN", "VAE"]

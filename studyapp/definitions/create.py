@@ -27,6 +27,7 @@ from django.db import transaction
 from generation.control import PathControl
 from generation.render.camera import Camera
 from generation.store import SUFFIX as CHECKPOINT_SUFFIX
+from studyapp.bounds import check_field
 from studyapp.definitions import layout
 from studyapp.definitions.errors import DefinitionError
 from studyapp.definitions.reading import Located, Path, read_definition
@@ -196,6 +197,8 @@ class _Builder:
             path = ("systems", i)
             given = self.mapping(path, entry, types, required=("name", "role"))
             sources = [key for key in layout.SYSTEM_SOURCES if key in given]
+            if "name" in given and (problem := check_field(System, "name", given["name"])):
+                self.problem((*path, "name"), f"{_where(path)}: {problem}")
             if len(sources) > 1:
                 self.problem(path, f"{_where(path)}: give one of {', '.join(layout.SYSTEM_SOURCES)}, not "
                                    f"{' and '.join(sources)}")
@@ -253,6 +256,8 @@ class _Builder:
             path = ("controls", i)
             given = self.mapping(path, entry, types, required=("name",))
             sources = [key for key in layout.CONTROL_SOURCES if key in given]
+            if "name" in given and (problem := check_field(ControlSignal, "name", given["name"])):
+                self.problem((*path, "name"), f"{_where(path)}: {problem}")
             if len(sources) != 1:
                 self.problem(path, f"{_where(path)}: give one of {', '.join(layout.CONTROL_SOURCES)}"
                                    + (f", not {' and '.join(sources)}" if sources else ""))

@@ -121,6 +121,6 @@ _Dumper.add_representer(list, _list)
 
 
 def definition_yaml(study: Study) -> str:
-    """The study's definition as YAML text, with a first line that says what it is."""
+    """The study's definition as YAML text, with a first line that says what it is and how to use it."""
     body = yaml.dump(describe_study(study), Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=100)
-    return f"# The study {study.title!r} as a definition: manage.py create_study --from FILE makes it again.\n{body}"
+    return f"# A study definition: python manage.py create_study USERNAME --from FILE makes it again.\n{body}"

@@ -5,7 +5,8 @@ text is composed into YAML's node tree (``yaml.compose`` with the safe loader, w
 builds no object), and each node is turned into a value here, so every value keeps its
 line. A hostile text is refused before it costs anything: past ``MAX_DEFINITION_BYTES``,
 nested past ``MAX_DEPTH``, expanding past ``MAX_NODES`` values through aliases (a
-"billion laughs"), with a key twice, or a number that is not finite.
+"billion laughs"), with a key twice, a number that is not finite or text with a NUL
+character (PostgreSQL cannot store one).
 """
 
 from __future__ import annotations
@@ -84,6 +85,8 @@ class _Reader:
             raise self.fail(node, f"not a plain YAML value ({error.problem})") from None
         if isinstance(value, float) and not math.isfinite(value):
             raise self.fail(node, f"numbers must be finite, not {node.value}")
+        if isinstance(value, str) and "\0" in value:
+            raise self.fail(node, "the text holds a NUL character (\\0), which no database stores")
         if value is not None and not isinstance(value, str | int | float | bool):
             raise self.fail(node, f"{node.value!r} reads as a {type(value).__name__}: quote it if it is text")
         return value
