@@ -98,6 +98,8 @@ MISTAKES = [
     ("NaN", replaced("pages_per_participant: 6", "pages_per_participant: .nan"), 6, "numbers must be finite, not .nan"),
     ("infinity", VALID + "attention_checks_and_early_answers: {bad_threshold: -.inf}\n", 20,
      "numbers must be finite, not -.inf"),
+    ("a key that is a number", replaced("  title: Gait", "  title: Gait\n  7: seven"), 4,
+     "a key must be a name (text), not '7'"),
     ("a key twice", replaced("  title: Gait", "  title: Gait\n  title: Walk"), 4, "'title' is given twice"),
     ("a date", replaced("title: Gait", "title: 2024-01-01"), 3, "reads as a date: quote it if it is text"),
     ("a Python object", replaced("title: Gait", "title: !!python/object:os.system [ls]"), 3, "not a plain YAML value"),
@@ -140,6 +142,13 @@ def test_a_mistaken_definition_is_one_error_with_its_line_and_leaves_nothing(own
     error = refused(text, owner)
     assert f"study.yaml:{line}: " in str(error) and message in str(error), str(error)
     assert "\n" not in str(error)
+
+
+@pytest.mark.django_db
+def test_empty_sections_and_lists_are_empty(owner):
+    study = create_study_from_definition("version: 1\nthe_study: {title: Gait}\ndesign:\nquestions:\nsystems:\n", owner,
+                                         source="study.yaml")
+    assert study.design == "single" and not study.questions.exists() and not study.systems.exists()
 
 
 def test_a_document_over_the_size_limit_is_refused_before_it_is_read(owner):

@@ -22,7 +22,7 @@ from django.core.files.uploadedfile import SimpleUploadedFile
 from django.core.management import call_command
 
 from generation.render.camera import Camera
-from studyapp.definitions import create_study_from_definition, definition_yaml, describe_study
+from studyapp.definitions import DefinitionError, create_study_from_definition, definition_yaml, describe_study
 from studyapp.models import Question, Study, System
 from studyapp.researchers.editing import rename_control
 from studyapp.stimuli.control_export import write_bundle
@@ -257,3 +257,48 @@ def test_the_documented_definition_is_the_demos_study_and_makes_it_again(setting
 
     assert study.title == demo.DEMO_STUDY and definition_yaml(study) == text
     assert sorted(study.systems.values_list("name", flat=True)) == ["BAD", "MoGlow", "NAT", "RNN", "VAE"]
+
+
+HELD_OUT = """\
+version: 1
+the_study:
+  title: Takes
+systems:
+- name: NAT
+  role: natural
+controls:
+- name: a take
+  held_out:
+    take: {take}
+    seconds: {seconds}
+    up: {up}
+"""
+
+
+@pytest.mark.django_db
+@pytest.mark.parametrize("take, seconds, up, problems", [
+    ("data/dataset-1_walk_old_002.bvh", 100, "x", [
+        "study.yaml:11: controls[0].held_out.seconds: Ensure this value is less than or equal to 60.0.",
+        "study.yaml:12: controls[0].held_out.up: Select a valid choice. x is not one of the available choices."]),
+    ("data/no_such_take.bvh", 1, "y", ["study.yaml:9: controls[0]: cannot read the motion data at"]),
+])
+def test_held_out_takes_are_checked_as_the_controls_page_checks_them(site, take, seconds, up, problems):
+    owner = User.objects.create_user("researcher")
+    with pytest.raises(DefinitionError) as error:
+        create_study_from_definition(HELD_OUT.format(take=take, seconds=seconds, up=up), owner, source="study.yaml")
+    assert [line[:len(problem)] for line, problem in zip(error.value.lines(), problems)] == problems
+    assert len(error.value.lines()) == len(problems) and not Study.objects.exists()
+
+
+@pytest.mark.django_db
+def test_label_controls_are_checked_as_the_controls_page_checks_them(site):
+    site.settings.MOTION_DATA = site.files.labelled
+    study = label_controlled(site)
+    text = definition_yaml(study).replace("action: walk", "action: moonwalk", 1)
+    with pytest.raises(DefinitionError) as error:
+        create_study_from_definition(text, study.owner, source="study.yaml")
+    line = text.splitlines().index("    action: moonwalk") + 1
+    first = next(i for i, control in enumerate(describe_study(study)["controls"]) if "labels" in control)
+    assert str(error.value) == (f"study.yaml:{line}: controls[{first}].labels.action: Select a valid choice. moonwalk "
+                                "is not one of the available choices.")
+    assert Study.objects.count() == 1

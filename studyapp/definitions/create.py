@@ -19,11 +19,13 @@ import secrets
 from pathlib import Path as FilePath
 
 import numpy as np
+from django import forms
 from django.conf import settings
 from django.core.exceptions import ValidationError
 from django.core.files import File
 from django.db import transaction
 
+from generation import registry
 from generation.control import PathControl
 from generation.render.camera import Camera
 from generation.store import SUFFIX as CHECKPOINT_SUFFIX
@@ -34,9 +36,10 @@ from studyapp.definitions.reading import Located, Path, read_definition
 from studyapp.designs import registry as designs
 from studyapp.models import SAFE_ID, ControlSignal, Question, Study, System
 from studyapp.researchers.editing import EditRefused, rename_control
-from studyapp.researchers.forms import CAMERA_PREFIX, QuestionForm, StudyForm
+from studyapp.researchers.forms import (CAMERA_PREFIX, HeldOutControlsForm, LabelControlsForm, QuestionForm,
+                                       StudyForm)
 from studyapp.stimuli.controls import (ControlError, add_held_out_controls, add_label_controls, add_path_control,
-                                       add_preset_controls)
+                                       add_preset_controls, control_kind, study_labels)
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER, Reading, add_submitted_system, read_folder
 from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system, add_natural_system
 
@@ -104,7 +107,8 @@ class _Builder:
         return checked
 
     def items(self, key: str) -> list:
-        value = self.located.value.get(key, [])
+        value = self.located.value.get(key)
+        value = [] if value is None else value  # "questions:" with none under it
         if not isinstance(value, list):
             self.problem((key,), f"{key} must be a list, not {_kind(value)}")
             return []
@@ -115,6 +119,14 @@ class _Builder:
             if not isinstance(item, str):
                 self.problem((*path, i), f"{_where((*path, i))} must be text, not {_kind(item)}")
         return [item for item in value if isinstance(item, str)]
+
+    def form_problems(self, form: forms.Form, path: Path, keys: dict[str, str]) -> None:
+        """Raise a page form's refusals of the values under ``path`` (``keys``: a form field's key there)."""
+        if not form.is_valid():
+            for name, messages in form.errors.items():
+                where = (*path, keys.get(name, name)) if name != "__all__" else path
+                self.problem(where, f"{_where(where)}: {' '.join(messages)}")
+            self.stop()
 
     def digest(self, path: Path, value: str) -> str:
         if not DIGEST.fullmatch(value):
@@ -140,7 +152,8 @@ class _Builder:
             section_types = {name: types[name] for name in names}
             if key == camera_section:
                 section_types[layout.CAMERA_KEY] = dict
-            for name, value in self.mapping((key,), top.get(key, {}), section_types).items():
+            section = top.get(key)
+            for name, value in self.mapping((key,), {} if section is None else section, section_types).items():
                 given[name], home[name] = value, (key, name)
         camera = self.mapping((camera_section, layout.CAMERA_KEY), given.pop(layout.CAMERA_KEY, {}), layout.camera_types())
         self.stop()
@@ -307,10 +320,13 @@ class _Builder:
         where = (*path, source)
         if source == "preset":
             return add_preset_controls(study, [value])[0]
-        if source == "labels":
+        if source == "labels":  # checked as the controls page checks its label pairs
             spec = self.mapping(where, value, layout.LABEL_KEYS, required=tuple(layout.LABEL_KEYS))
             self.stop()
-            return add_label_controls(study, [spec["action"]], [spec["style"]], spec["seconds"])[0]
+            form = LabelControlsForm({"actions": [spec["action"]], "styles": [spec["style"]],
+                                      "seconds": spec["seconds"]}, labels=study_labels(study))
+            self.form_problems(form, where, {"actions": "action", "styles": "style"})
+            return add_label_controls(study, [spec["action"]], [spec["style"]], form.cleaned_data["seconds"])[0]
         if source == "path":
             spec = self.mapping(where, value, layout.PATH_KEYS, required=tuple(layout.PATH_KEYS))
             self.stop()
@@ -324,8 +340,18 @@ class _Builder:
         folders = self.texts((*where, "folders"), spec.get("folders", []))
         self.stop()
         take = spec["take"]
-        controls = add_held_out_controls(study, spec["seconds"], None, spec.get("lead_in", 0.0), folders or None,
-                                         [FilePath(take).stem], spec.get("unit"), spec.get("up"))
+        # Checked as the controls page checks its held-out form; the unit and up axis only
+        # where the study has no checkpoint to fix them (the service refuses them otherwise).
+        trained = study.systems.exclude(checkpoint="").exists()
+        form = HeldOutControlsForm({"seconds": spec["seconds"], "lead_in": spec.get("lead_in", 0.0),
+                                    "takes": FilePath(take).stem, "unit": "auto" if spec.get("unit") is None else str(spec["unit"]),
+                                    "up": spec.get("up") or "auto"},
+                                   paths=control_kind(study) == registry.PATH, trained=trained)
+        self.form_problems(form, where, {"takes": "take"})
+        chosen = form.cleaned_data
+        controls = add_held_out_controls(study, chosen["seconds"], None, chosen.get("lead_in") or 0.0, folders or None,
+                                         chosen["takes"], chosen.get("unit", spec.get("unit")),
+                                         chosen.get("up", spec.get("up")))
         control = next((c for c in controls if c.source_clip == take), None)
         if control is None:
             raise self.fail((*where, "take"), f"{_where(where)}: {take} is not among the held-out takes of "

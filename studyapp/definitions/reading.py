@@ -70,8 +70,8 @@ class _Reader:
         for key_node, value_node in node.value:
             key = self.scalar(key_node) if isinstance(key_node, yaml.ScalarNode) else None
             if not isinstance(key, str):
-                raise self.fail(key_node, "a key must be a name (text), "
-                                          f"not {'a ' + type(key).__name__ if key is not None else 'a list or mapping'}")
+                shown = repr(key_node.value) if isinstance(key_node, yaml.ScalarNode) else "a list or mapping"
+                raise self.fail(key_node, f"a key must be a name (text), not {shown}")
             if key in result:
                 raise self.fail(key_node, f"{key!r} is given twice")
             self.lines[(*path, key)] = key_node.start_mark.line + 1
