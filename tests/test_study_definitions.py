@@ -302,3 +302,17 @@ def test_label_controls_are_checked_as_the_controls_page_checks_them(site):
     assert str(error.value) == (f"study.yaml:{line}: controls[{first}].labels.action: Select a valid choice. moonwalk "
                                 "is not one of the available choices.")
     assert Study.objects.count() == 1
+
+
+@pytest.mark.django_db
+def test_submitted_motion_that_no_longer_matches_its_controls_is_refused_on_one_line(site):
+    study = submitted_motion(site)
+    exported = next(c for c in describe_study(study)["controls"] if "held_out" in c)["export_id"]
+    text = definition_yaml(study).replace(f"export_id: {exported}", "export_id: renamed-elsewhere")
+    with pytest.raises(DefinitionError) as error:
+        create_study_from_definition(text, study.owner, source="study.yaml")
+    line = next(i for i, row in enumerate(text.splitlines(), 1) if row == "- name: Lab")
+    said = str(error.value)
+    assert said.startswith(f"study.yaml:{line}: systems[") and "the submitted motion was not registered: " in said
+    assert "renamed-elsewhere: no file: refused" in said and "\n" not in said
+    assert Study.objects.count() == 1

@@ -147,18 +147,17 @@ class _Builder:
                          f"{layout.VERSION_KEY} must be {layout.VERSION}, the version of study definitions this "
                          f"server reads, not {top.get(layout.VERSION_KEY)!r}")
         types, camera_section = layout.study_types(), layout.camera_section()
-        given, home = {}, {}
+        camera_path = (camera_section, layout.CAMERA_KEY)
+        home = {name: (key, name) for key, names in sections for name in names}
+        given = {}
         for key, names in sections:
-            section_types = {name: types[name] for name in names}
-            if key == camera_section:
-                section_types[layout.CAMERA_KEY] = dict
+            section_types = {name: types[name] for name in names} | ({layout.CAMERA_KEY: dict} if key == camera_section
+                                                                     else {})
             section = top.get(key)
-            for name, value in self.mapping((key,), {} if section is None else section, section_types).items():
-                given[name], home[name] = value, (key, name)
-        camera = self.mapping((camera_section, layout.CAMERA_KEY), given.pop(layout.CAMERA_KEY, {}), layout.camera_types())
+            given |= self.mapping((key,), {} if section is None else section, section_types)
+        camera = self.mapping(camera_path, given.pop(layout.CAMERA_KEY, {}), layout.camera_types())
         self.stop()
-        data = {name: Study._meta.get_field(name).get_default() for _, names in sections for name in names}
-        data |= given
+        data = {name: Study._meta.get_field(name).get_default() for name in home} | given
         scale = designs.DESIGNS.get(data["design"]) and designs.design_named(data["design"]).default_scale
         if scale and not {"scale_min", "scale_max"} & set(given):  # the design's own, as the study page gives it
             data["scale_min"], data["scale_max"] = scale
@@ -166,13 +165,15 @@ class _Builder:
         form = StudyForm(data, instance=Study(owner=self.owner, design=data["design"]))
         if not form.is_valid():
             for name, messages in form.errors.items():
-                if name.startswith(CAMERA_PREFIX):
-                    path = (camera_section, layout.CAMERA_KEY, name.removeprefix(CAMERA_PREFIX))
-                else:
-                    path = home.get(name, (next((k for k, names in sections if name in names), ""), name))
+                if name in home:
+                    path, where = home[name], _where(home[name])
+                elif name.startswith(CAMERA_PREFIX):
+                    path = (*camera_path, name.removeprefix(CAMERA_PREFIX))
+                    where = _where(path)
+                else:  # Study.clean's word on the whole study (its camera, as the study page shows it)
+                    path, where = camera_path, "the study"
                 for message in messages:
-                    self.problem(path if name != "__all__" else (camera_section, layout.CAMERA_KEY),
-                                 f"{_where(path) if name != '__all__' else 'the study'}: {message}")
+                    self.problem(path, f"{where}: {message}")
             self.stop()
         study = form.save(commit=False)
         study.owner = self.owner
@@ -184,9 +185,12 @@ class _Builder:
         for i, entry in enumerate(self.items("questions")):
             path = ("questions", i)
             given = self.mapping(path, entry, types, required=("part", "name", "text"))
-            for name in layout.QUESTION_LISTS:
-                if name in given:
-                    given[name] = "\n".join(self.texts((*path, name), given[name]))
+            for name in layout.QUESTION_LISTS:  # one choice a line, as the questions page takes them
+                items = self.texts((*path, name), given.get(name, []))
+                for j, item in enumerate(items):
+                    if "\n" in item or "\r" in item:
+                        self.problem((*path, name, j), f"{_where((*path, name, j))}: a choice is one line")
+                given[name] = "\n".join(items)
             if self.problems:
                 continue
             data = {name: Question._meta.get_field(name).get_default() for name in types} | given
@@ -196,7 +200,8 @@ class _Builder:
                 form.save()
             for name, messages in form.errors.items():
                 for message in messages:
-                    self.problem((*path, name) if name in types else path, f"{_where((*path, name))}: {message}")
+                    where = (*path, name) if name in types else path
+                    self.problem(where, f"{_where(where)}: {message}")
         self.stop()
 
     # Systems and controls, through the services of the systems and controls pages.
@@ -255,8 +260,9 @@ class _Builder:
         try:  # the stored clips are already the body, on the control's path: read again, as they are
             system = add_submitted_system(study, given["name"], read_folder(folder), given["role"], spec.get("file", ""),
                                           Reading(keep_root=True))
-        except (UploadRefused, ControlError) as error:
-            raise self.fail(path, f"{_where(path)}: {error}") from None
+        except (UploadRefused, ControlError) as error:  # a submission's report: one control a line
+            said = "; ".join(getattr(error, "lines", None) or [str(error)])
+            raise self.fail(path, f"{_where(path)}: the submitted motion was not registered: {said}") from None
         if system.checkpoint_digest != digest:
             raise self.fail((*where, "digest"), f"the stored motion {digest[:12]} reads as other motion "
                                                 f"({system.checkpoint_digest[:12]})")
