@@ -24,7 +24,7 @@ from django.core.management import call_command
 from generation.render.camera import Camera
 from studyapp.definitions import DefinitionError, create_study_from_definition, definition_yaml, describe_study
 from studyapp.models import Question, Study, System
-from studyapp.researchers.editing import rename_control
+from studyapp.researchers.setup.editing import rename_control
 from studyapp.stimuli.control_export import write_bundle
 from studyapp.stimuli.controls import (add_control_file, add_held_out_controls, add_label_controls,
                                        add_preset_controls)

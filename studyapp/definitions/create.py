@@ -35,8 +35,8 @@ from studyapp.definitions.errors import DefinitionError
 from studyapp.definitions.reading import Located, Path, read_definition
 from studyapp.designs import registry as designs
 from studyapp.models import SAFE_ID, ControlSignal, Question, Study, System
-from studyapp.researchers.editing import EditRefused, rename_control
-from studyapp.researchers.forms import (CAMERA_PREFIX, HeldOutControlsForm, LabelControlsForm, QuestionForm,
+from studyapp.researchers.setup.editing import EditRefused, rename_control
+from studyapp.researchers.setup.forms import (CAMERA_PREFIX, HeldOutControlsForm, LabelControlsForm, QuestionForm,
                                        StudyForm)
 from studyapp.stimuli.controls import (ControlError, add_held_out_controls, add_label_controls, add_path_control,
                                        add_preset_controls, control_kind, study_labels)

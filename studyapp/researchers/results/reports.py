@@ -29,7 +29,7 @@ from analysis.exclusions import ExclusionRules
 from analysis.ratings import read_ratings
 from analysis.report import Report, build_report, summary_text, write_report
 from generation.files import atomic_folder
-from studyapp.researchers.table_format import readable_table
+from studyapp.researchers.results.table_format import readable_table
 from studyapp.designs.registry import design_named
 
 REPORTS_FOLDER = "reports"
