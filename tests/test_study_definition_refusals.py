@@ -67,6 +67,17 @@ def test_a_valid_definition_makes_a_closed_study_of_it(owner):
     assert study.questions.get().name == "age" and study.systems.get().role == "natural"
 
 
+@pytest.mark.django_db
+def test_text_of_several_lines_is_a_block_and_comes_back_the_same(owner):
+    study = create_study_from_definition(VALID, owner, source="study.yaml")
+    Study.objects.filter(pk=study.pk).update(instructions="Watch each clip.\r\nThen rate it.")  # as a browser sends it
+    study.refresh_from_db()
+    text = definition_yaml(study)
+    assert "  instructions: |-\n    Watch each clip.\n    Then rate it.\n" in text
+    copy = create_study_from_definition(text, owner, source="study.yaml")
+    assert copy.instructions == "Watch each clip.\nThen rate it." and definition_yaml(copy) == text
+
+
 def replaced(old: str, new: str) -> str:
     assert old in VALID
     return VALID.replace(old, new)

@@ -108,6 +108,7 @@ class _Dumper(yaml.SafeDumper):
 
 
 def _text(dumper: yaml.SafeDumper, text: str) -> yaml.Node:
+    text = text.replace("\r\n", "\n")  # a browser's line ends, as the text reads: a block, not "\r\n" escapes
     return dumper.represent_scalar("tag:yaml.org,2002:str", text, style="|" if "\n" in text else None)
 
 
