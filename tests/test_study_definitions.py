@@ -99,7 +99,7 @@ def single_with_everything(site) -> Study:
                          redirect_url="https://app.prolific.com/submissions/complete?cc=C0MPL3TE",
                          instructions="Watch each clip.\nThen rate it.", instructed_checks=2,
                          stop_after_failed_checks=1, bad_threshold=3.5, device_check=True, min_screen_width=1024,
-                         min_screen_height=600, training_clips=2, require_full_play=False,
+                         min_screen_height=600, training_clips=2, require_full_play=False, expected_effect=0.5,
                          camera={**Camera().to_dict(), "azimuth": 10.0, "distance": 300.0, "follow": False})
     questions(study)
     return study

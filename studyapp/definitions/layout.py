@@ -46,15 +46,20 @@ def camera_section() -> str:
 
 
 def field_type(model: type[models.Model], name: str) -> type | tuple[type, ...]:
-    """The YAML value type a model field takes: true/false, a whole number, a number or text."""
+    """The YAML value type a model field takes: true/false, a whole number, a number or text,
+    or empty where the field may be empty (null=True, as a plan's optional expected effect)."""
     field = model._meta.get_field(name)
     if isinstance(field, models.BooleanField):
-        return bool
-    if isinstance(field, models.IntegerField):
-        return int
-    if isinstance(field, models.FloatField):
-        return Number
-    return str
+        kind = (bool,)
+    elif isinstance(field, models.IntegerField):
+        kind = (int,)
+    elif isinstance(field, models.FloatField):
+        kind = Number
+    else:
+        kind = (str,)
+    if not field.null:
+        return kind if len(kind) > 1 else kind[0]
+    return (*kind, type(None))
 
 
 def camera_types() -> dict[str, type | tuple[type, ...]]:
