@@ -154,17 +154,24 @@ def _body(motion: Motion, root: RootOptions) -> Motion:
     return subtree_motion(motion, hips_index(motion.skeleton, root.hips))
 
 
+def stored_motion_digest(folder: Path) -> str:
+    """The digest that names a folder of stored clips: of each control id and its file's
+    bytes, in the order of the ids (the folder's name in the store)."""
+    digest = hashlib.sha256()
+    for path in sorted(folder.glob("*.npz"), key=lambda p: p.stem):
+        digest.update(path.stem.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
 def _store(accepted: list[Accepted]) -> tuple[str, str]:
     """Write the accepted clips under CHECKPOINT_ROOT; (folder relative to it, digest)."""
     root = Path(settings.CHECKPOINT_ROOT) / SUBMITTED_FOLDER
     root.mkdir(parents=True, exist_ok=True)
     scratch = Path(tempfile.mkdtemp(dir=root, prefix=".upload-"))
     try:
-        digest = hashlib.sha256()
-        for item in sorted(accepted, key=lambda a: control_id(a.control)):
-            path = save_motion_npz(item.motion, scratch / f"{control_id(item.control)}.npz")
-            digest.update(control_id(item.control).encode() + b"\0" + path.read_bytes())
-        final = root / digest.hexdigest()
+        for item in accepted:
+            save_motion_npz(item.motion, scratch / f"{control_id(item.control)}.npz")
+        final = root / stored_motion_digest(scratch)
         if not final.exists():  # the same motion submitted twice is stored once
             os.chmod(scratch, 0o755)
             os.replace(scratch, final)
@@ -213,4 +220,4 @@ def read_stored_motion(system: System, control: ControlSignal) -> Motion:
 
 
 __all__ = ["Reading", "SubmissionRefused", "add_submitted_system", "add_submitted_upload", "check_submission",
-           "read_folder", "read_stored_motion", "read_zip"]
+           "read_folder", "read_stored_motion", "read_zip", "stored_motion_digest"]
