@@ -1,5 +1,10 @@
 """A read bundle re-created as a new study: all of it, or nothing.
 
+The study's settings, systems, controls and questions are made from the bundle's
+records, which hold every value exactly (the control arrays among them), and its
+definition (``study.yaml``) must be read as a definition and describe the study made:
+a bundle whose two descriptions disagree is refused at the first line that differs.
+
 Every row is made in one transaction, each checked as the pages check it
 (``full_clean``); every file (checkpoints, submitted motion, sampled motion, videos) is
 checked as an upload of its kind is, written under a temporary name beside its place
@@ -40,6 +45,8 @@ from generation.store import CheckpointError, content_digest, read_header
 from studyapp.bundles import records
 from studyapp.bundles.manifest import BundleRefused
 from studyapp.bundles.reading import ReadBundle, read_bundle
+from studyapp.definitions import DefinitionError, definition_yaml
+from studyapp.definitions.reading import read_definition
 from studyapp.models import (Assignment, ControlSignal, Participant, PreviousRun, Question, Rating, Stimulus,
                              StoredDataError, Study, System, new_token)
 from studyapp.stimuli.clips import CODE_VERSION, content_key
@@ -265,6 +272,24 @@ def _previous_run(bundle: ReadBundle, study: Study) -> None:
                        code_version=bundle.manifest.code_version), "the previous run")
 
 
+def _check_definition(bundle: ReadBundle, study: Study) -> None:
+    """The bundle's definition must describe the study its records made (DefinitionError
+    with its line where it is no definition; BundleRefused where it describes another)."""
+    path = bundle.path(records.DEFINITION_FILE)
+    if not path.is_file():
+        raise BundleRefused(f"{records.DEFINITION_FILE}: missing from the bundle")
+    text = path.read_bytes()
+    read_definition(text, records.DEFINITION_FILE)
+    lines, made = text.decode(errors="replace").splitlines(), definition_yaml(study).splitlines()
+    for number, (given, expected) in enumerate(zip(lines, made), start=1):
+        if given != expected:
+            raise BundleRefused(f"{records.DEFINITION_FILE}:{number}: describes another study than the bundle's "
+                                f"records ({given.strip()[:80]!r} where they give {expected.strip()[:80]!r})")
+    if len(lines) != len(made):
+        raise BundleRefused(f"{records.DEFINITION_FILE}: describes another study than the bundle's records "
+                            "(its length differs)")
+
+
 def import_study(stream: BinaryIO | str, owner, rerun: bool = False) -> Study:
     """The bundle in ``stream`` (a file object or a path) as a new, closed study of ``owner``;
     BundleRefused naming what is wrong, with nothing left behind."""
@@ -275,12 +300,13 @@ def import_study(stream: BinaryIO | str, owner, rerun: bool = False) -> Study:
             with transaction.atomic(), ExitStack() as placing:  # files move into place just before the commit
                 run = _Import(bundle, placing)
                 study = run.make_study(owner)
+                _check_definition(bundle, study)
                 run.make_stimuli(study)
                 if rerun:
                     _previous_run(bundle, study)
                 else:
                     run.make_participants(study)
-        except (records.RecordError, UploadRefused, MotionFileError) as error:
+        except (records.RecordError, DefinitionError, UploadRefused, MotionFileError) as error:
             raise BundleRefused(str(error).replace(f"{scratch}/", "")) from None
     return study
 

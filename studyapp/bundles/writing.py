@@ -1,6 +1,7 @@
 """A study written as one bundle (a zip), for another server, a reviewer or a rerun.
 
     manifest.json           every other file's SHA-256 and size, the format and code versions (``manifest``)
+    study.yaml              the study's definition (``studyapp.definitions``), for people and ``create_study --from``
     study.json              the study's settings, systems, controls and questions as records (``records``)
     stimuli.json            its stimuli: system, control, seed, content key, token, duration
     participants.json       its participants (platform ids pseudonymous), their pages and their answers
@@ -26,6 +27,7 @@ from generation.checkpoint import code_version
 from generation.files import atomic_output
 from studyapp.bundles import records
 from studyapp.bundles.manifest import MANIFEST_NAME, VERSION, Entry, Manifest, entry_of, file_entry
+from studyapp.definitions import definition_yaml
 from studyapp.bundles.pseudonyms import pseudonym, pseudonymous_data
 from studyapp.models import Participant, Rating, Stimulus, Study, System, json_object
 from studyapp.researchers.export import ratings_csv, rules_json
@@ -111,7 +113,8 @@ def stored_files(study: Study, with_videos: bool) -> tuple[dict[str, Path], set[
 def written_files(study: Study, key: bytes, with_videos: bool) -> tuple[dict[str, bytes], dict[str, Path]]:
     """The bundle's files: those made here by name, and those copied from the study's stores."""
     stored, videos = stored_files(study, with_videos)
-    made = {records.STUDY_FILE: _json(study_record(study)),
+    made = {records.DEFINITION_FILE: definition_yaml(study).encode(),
+            records.STUDY_FILE: _json(study_record(study)),
             records.STIMULI_FILE: _json(stimuli_record(study, videos)),
             records.PARTICIPANTS_FILE: _json(participants_record(study, key)),
             records.RATINGS_FILE: ratings_csv(study),
