@@ -81,6 +81,7 @@ def _saved(row, where: str, stamped: dict | None = None):
     """``row`` checked as the pages check it, and saved; ``stamped`` sets afterwards the
     times Django stamps on saving."""
     try:
+        row.clean_fields()  # every field of its type before the model's own checks compare them
         row.full_clean()
     except ValidationError as error:
         problems = "; ".join(f"{field}: {' '.join(messages)}" for field, messages in error.message_dict.items())
