@@ -3,7 +3,7 @@ and the problem, exit status 2, and nothing left behind: no row in the database 
 (not even a temporary one) in the checkpoint store, the media or the sampled motion.
 
 The bundle taken apart here is a real export: a tiny MoGlow with two preset paths, NAT, a
-question, its clips rendered small, with their videos. Each test changes it in one way,
+question, its clips rendered, with their videos. Each test changes it in one way,
 writing a manifest that lists the change where the change is not the manifest's lie.
 """
 
@@ -32,21 +32,25 @@ from tests.test_study_researcher import files, new_study, researcher, site  # no
 pytestmark = pytest.mark.django_db
 
 
-@pytest.fixture
-def bundle(researcher, site, files, tmp_path, settings) -> Path:
-    """A study's bundle, exported; then the study and its files are gone and the media,
-    checkpoint and var folders point somewhere empty, as on another server."""
+def small_study(researcher, files) -> Study:
+    """A tiny MoGlow on two preset paths, NAT and a question, its clips rendered."""
     study = new_study(researcher)
     with File(files.good.open("rb"), name="moglow.safetensors") as upload:
         add_checkpoint_system(study, "MoGlow", upload)
     add_natural_system(study)
     add_preset_controls(study, ["walk-circle", "stand-still"])
-    ControlSignal.objects.filter(study=study).update(seconds=0.5)
     Question.objects.create(study=study, part="after", name="age", text="Your age?", kind="number")
     for stimulus in plan_stimuli(study)[0]:
         Stimulus.objects.filter(pk=stimulus.pk).update(status="done", duration_s=render_stimulus(stimulus))
+    return study
+
+
+@pytest.fixture
+def bundle(researcher, site, files, tmp_path, settings) -> Path:
+    """A study's bundle, exported; then the study and its files are gone and the media,
+    checkpoint and var folders point somewhere empty, as on another server."""
     path = tmp_path / "study.zip"
-    write_study_bundle(study, path, export_key(None), with_videos=True)
+    write_study_bundle(small_study(researcher, files), path, export_key(None), with_videos=True)
     Study.objects.all().delete()
     root = tmp_path / "another-server"
     settings.MEDIA_ROOT, settings.CHECKPOINT_ROOT, settings.VAR_DIR = root / "media", root / "checkpoints", root / "var"
