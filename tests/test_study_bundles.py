@@ -119,3 +119,54 @@ def test_an_exported_study_imported_elsewhere_renders_the_same_clips_and_gives_t
     assert any(name.endswith(".svg") for name in imported_report) and any(n.endswith(".png") for n in imported_report)
     for name, data in original_report.items():
         assert imported_report[name] == data, name
+
+
+def test_a_rerun_adds_a_system_renders_only_its_clips_and_reports_beside_the_previous_ratings(
+        client, researcher, site, files, queue, settings, tmp_path):
+    from pandas import read_csv
+
+    from tests.test_study_rules import SCORES, take_part
+
+    original = finished_study(client, researcher, files, tmp_path, SINGLE_RULES)
+    bundle = tmp_path / "study.zip"
+    call_command("export_study", str(original.pk), "--out", str(bundle), "--with-videos", stdout=io.StringIO())
+    out = io.StringIO()
+    call_command("import_study", str(bundle), "--owner", "researcher", "--rerun", stdout=out)
+    rerun = Study.objects.get(pk=int(out.getvalue().split()[-1]))
+    assert not rerun.participants.exists() and rerun.previous_runs.get().ratings_csv == ratings_csv(original).decode()
+    old = dict(original.stimuli.values_list("content_key", "system__name"))
+    assert dict(rerun.stimuli.filter(status="done").values_list("content_key", "system__name")) == old
+
+    # One more system: generating makes and renders its clips only; the others keep their keys and files.
+    upload_checkpoint(client, rerun, files.early.read_bytes(), name="Early")
+    assert client.post(f"/studies/{rerun.pk}/stimuli/", {"seed": "0"}).status_code == 302
+    queued = Stimulus.objects.filter(study=rerun, status="queued")
+    assert {s.system.name for s in queued} == {"Early"} and queued.count() == rerun.controls.count()
+    render_all(client, rerun)
+    assert rerun.stimuli.exclude(system__name="Early").count() == len(old)
+
+    Study.objects.filter(pk=rerun.pk).update(is_open=True)
+    rerun.refresh_from_db()
+    for pid, scores in SCORES.items():
+        take_part(rerun, f"new-{pid}", {**scores, "Early": 1})
+    response = client.post(f"/studies/{rerun.pk}/report/")
+    page = client.get(response["Location"]).content.decode()
+    assert "This run beside the previous run" in page
+
+    # The table, as the command line writes it from both runs' files, against the kept ratings counted here.
+    (tmp_path / "previous.csv").write_bytes(ratings_csv(original))
+    (tmp_path / "previous-rules.json").write_text(rules_json(original))
+    (tmp_path / "this.csv").write_bytes(ratings_csv(rerun))
+    (tmp_path / "this-rules.json").write_text(rules_json(rerun))
+    assert analysis_main(["report", str(tmp_path / "this.csv"), "--rules", str(tmp_path / "this-rules.json"),
+                          "--previous", str(tmp_path / "previous.csv"), "--previous-rules",
+                          str(tmp_path / "previous-rules.json"), "--out", str(tmp_path / "rerun-report")]) == 0
+    table = read_csv(tmp_path / "rerun-report" / "tables" / "previous_run.csv").set_index(["system", "run"])
+    for study, run in ((original, "previous"), (rerun, "this")):
+        kept = Rating.objects.filter(assignment__participant__study=study, assignment__participant__excluded=False,
+                                     answered_before_end=False).exclude(assignment__stimulus__system__role="bad")
+        for system in {r.assignment.stimulus.system.export_name for r in kept}:
+            values = [r.value for r in kept if r.assignment.stimulus.system.export_name == system]
+            assert table.loc[(system, run), "ratings"] == len(values)
+            assert table.loc[(system, run), "mean"] == pytest.approx(sum(values) / len(values))
+    assert ("Early", "previous") not in table.index and table.loc[("Early", "this"), "mean"] == 1
