@@ -59,6 +59,10 @@ DATABASE_TESTS = (
     "tests/test_stored_data.py",
     "tests/test_study_video_check.py",
     "tests/test_fuzz_web.py",
+    "tests/test_researcher_tools.py",
+    "tests/test_study_appropriateness.py",
+    "tests/test_study_rules.py",
+    "tests/test_study_submissions.py",
 )
 
 

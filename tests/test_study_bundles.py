@@ -22,7 +22,7 @@ from django.core.management import call_command
 
 from analysis.cli import main as analysis_main
 from studyapp.models import Participant, Rating, Stimulus, Study, System
-from studyapp.researchers.export import ratings_csv, rules_json
+from studyapp.researchers.results.export import ratings_csv, rules_json
 from studyapp.stimuli.clips import plan_stimuli
 from studyapp.tasks import sample_stimuli
 from tests.test_study_researcher import (files, new_study, queue, researcher, run_task, site,  # noqa: F401 (fixtures)

@@ -15,8 +15,8 @@ from django.utils import timezone
 from analysis.designs import DESIGNS as ANALYSED_DESIGNS
 from studyapp.designs import registry
 from studyapp.models import Participant, Rating, Study
-from studyapp.researchers.export import ratings_rows
-from studyapp.researchers.preview import preview_pages
+from studyapp.researchers.results.export import ratings_rows
+from studyapp.researchers.setup.preview import preview_pages
 from tests import toy_design
 from tests.study_fixtures import make_study
 from tests.test_study_participant import enter, post

@@ -14,8 +14,8 @@ from django.urls import reverse
 from analysis.cli import main as analysis_main
 from analysis.exclusions import ExclusionRules
 from studyapp.models import Participant, System
-from studyapp.researchers.monitor import study_monitor
-from studyapp.researchers.reports import html_table, report_folder
+from studyapp.researchers.results.monitor import study_monitor
+from studyapp.researchers.results.reports import html_table, report_folder
 from tests.study_fixtures import current_clip, current_page, make_study
 from tests.test_study_designs import PAIRWISE, SIDE_BY_SIDE, compare, rate_page
 from tests.test_study_designs import through_practice as through_page_practice

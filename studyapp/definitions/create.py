@@ -32,7 +32,7 @@ from studyapp.definitions.errors import DefinitionError
 from studyapp.definitions.reading import Located, Path, read_definition
 from studyapp.designs import registry as designs
 from studyapp.models import SAFE_ID, ControlSignal, Question, Study, System
-from studyapp.researchers.forms import CAMERA_PREFIX, QuestionForm, StudyForm
+from studyapp.researchers.setup.forms import CAMERA_PREFIX, QuestionForm, StudyForm
 from studyapp.stimuli.controls import (ControlError, add_held_out_controls, add_label_controls, add_path_control,
                                        add_preset_controls)
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER, Reading, add_submitted_system, read_folder

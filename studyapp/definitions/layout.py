@@ -17,7 +17,7 @@ from django.db import models
 
 from generation.render.camera import Camera
 from studyapp.models import Question, Study
-from studyapp.researchers.forms import QuestionForm, StudyForm
+from studyapp.researchers.setup.forms import QuestionForm, StudyForm
 
 VERSION_KEY, VERSION = "version", 1
 CAMERA_KEY = "camera"

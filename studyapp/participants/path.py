@@ -15,7 +15,7 @@ redirects to the one page URL; the last step has no form) and what the researche
 preview shows of it (``preview``; by default its page, where a new participant meets
 it). ``stage()`` reads the table, ``participants.views`` renders and guards the steps
 through it, ``urls`` gives each form its URL, /p/KEY/<step name>/, and
-``researchers.preview`` walks it. A new page type (a questionnaire) is one entry here
+``researchers.setup.preview`` walks it. A new page type (a questionnaire) is one entry here
 and one template.
 
 Nothing on these pages names a system: clips are served by random tokens and the rating

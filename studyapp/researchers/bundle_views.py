@@ -23,7 +23,7 @@ from studyapp.bundles.manifest import BundleRefused
 from studyapp.bundles.pseudonyms import export_key
 from studyapp.bundles.writing import ExportError, write_study_bundle
 from studyapp.models import StoredDataError, Study
-from studyapp.researchers.forms import BundleImportForm
+from studyapp.researchers.setup.forms import BundleImportForm
 
 
 @never_cache

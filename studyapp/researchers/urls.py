@@ -2,7 +2,8 @@
 
 from django.urls import path
 
-from studyapp.researchers import bundle_views, platform_views, views
+from studyapp.researchers import bundle_views, views
+from studyapp.researchers.crowd import platform_views
 
 urlpatterns = [
     path("", views.study_list, name="study-list"),

@@ -26,22 +26,22 @@ from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.participants.views import PLATFORM_PARAMETERS
-from studyapp.researchers import question_order
-from studyapp.researchers.adherence import adherence_tables
-from studyapp.researchers.completion_time import completion_minutes
-from studyapp.researchers.duplication import duplicate_study
-from studyapp.researchers.editing import EditRefused, edit_system, rename_control
-from studyapp.researchers.export import ratings_csv, rules_json
-from studyapp.researchers.forms import (CheckpointSystemForm, ControlEditForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
+from studyapp.researchers.setup import question_order
+from studyapp.researchers.results.adherence import adherence_tables
+from studyapp.researchers.crowd.completion_time import completion_minutes
+from studyapp.researchers.setup.duplication import duplicate_study
+from studyapp.researchers.setup.editing import EditRefused, edit_system, rename_control
+from studyapp.researchers.results.export import ratings_csv, rules_json
+from studyapp.researchers.setup.forms import (CheckpointSystemForm, ControlEditForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
                             LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, QuestionRemovalForm, StudyForm,
                             SubmittedMotionSystemForm, SystemEditForm, VideoSystemForm)
-from studyapp.researchers.monitor import study_monitor
-from studyapp.researchers.monitor_figures import live_figures
-from studyapp.researchers.participant_list import participant_rows, participants_csv, question_names
-from studyapp.researchers.preview import preview_pages
-from studyapp.researchers.readiness import open_problems, open_warnings
-from studyapp.researchers.removal import SystemsFixed, removal_summary, remove, remove_study, require_not_started
-from studyapp.researchers.reports import AnalysisInputError, create_report, html_table
+from studyapp.researchers.results.monitor import study_monitor
+from studyapp.researchers.results.monitor_figures import live_figures
+from studyapp.researchers.crowd.participant_list import participant_rows, participants_csv, question_names
+from studyapp.researchers.setup.preview import preview_pages
+from studyapp.researchers.setup.readiness import open_problems, open_warnings
+from studyapp.researchers.setup.removal import SystemsFixed, removal_summary, remove, remove_study, require_not_started
+from studyapp.researchers.results.reports import AnalysisInputError, create_report, html_table
 from studyapp.server.celery import app as celery_app
 from studyapp.server.health import collect_health
 from studyapp.stimuli.clips import progress

@@ -36,7 +36,7 @@ from analysis.ratings import read_ratings
 from analysis.report import Report, build_report, summary_text, write_report
 from analysis.tables import write_table
 from generation.files import atomic_folder
-from studyapp.researchers.table_format import readable_table
+from studyapp.researchers.results.table_format import readable_table
 from studyapp.designs.registry import design_named
 
 REPORTS_FOLDER = "reports"

@@ -26,7 +26,7 @@ from analysis.exclusions import compared_ratings
 from analysis.motion_io import load_motion_sets
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Study
-from studyapp.researchers.monitor import flagged_ratings
+from studyapp.researchers.results.monitor import flagged_ratings
 from studyapp.stimuli.motion_export import write_motion
 
 
