@@ -198,6 +198,19 @@ def test_a_record_of_unknown_fields_or_wrong_types_is_refused_naming_it(bundle, 
                                                      settings)
 
 
+def test_a_record_naming_a_file_outside_its_folder_is_refused(bundle, settings, tmp_path):
+    stimuli = json.loads(members(bundle)["stimuli.json"])
+    stimuli[0]["token"] = "../../../outside"
+    assert "stimuli.json[0]: its token '../../../outside' is no token" in refused(
+        rewritten(bundle, {"stimuli.json": json.dumps(stimuli).encode()}), settings)
+    record = json.loads(members(bundle)["study.json"])
+    system = next(s for s in record["systems"] if s["checkpoint"])
+    system["checkpoint_digest"], system["checkpoint"] = "../../outside", "../../outside.safetensors"
+    assert "its digest '../../outside' is no digest" in refused(
+        rewritten(bundle, {"study.json": json.dumps(record).encode()}), settings)
+    assert not list(tmp_path.rglob("outside*"))
+
+
 def test_something_that_is_no_zip_is_refused(bundle, settings, tmp_path):
     (tmp_path / "not.zip").write_bytes(b"PK\x03\x04 and then nothing")
     assert "not a zip file" in refused(tmp_path / "not.zip", settings)

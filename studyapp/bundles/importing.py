@@ -29,6 +29,7 @@ report compares with the new ratings.
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import tempfile
 from contextlib import ExitStack
@@ -53,6 +54,16 @@ from studyapp.stimuli.clips import CODE_VERSION, content_key
 from studyapp.stimuli.sources import sampled_folder
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER, stored_motion_digest
 from studyapp.stimuli.systems import UploadRefused, checked_checkpoint, video_duration
+
+# What names a file (a digest, a stimulus's token) must look like before it becomes part of a path.
+DIGEST, TOKEN = re.compile(r"[0-9a-f]{64}"), re.compile(r"[0-9A-Za-z_-]{1,32}")
+
+
+def _file_name(value: object, pattern: re.Pattern, what: str, where: str) -> str:
+    if not isinstance(value, str) or not pattern.fullmatch(value):
+        raise records.RecordError(f"{where}: its {what} {str(value)[:80]!r} is no {what} (it names a file)")
+    return value
+
 
 def _json(bundle: ReadBundle, name: str) -> object:
     path = bundle.path(name)
@@ -137,7 +148,9 @@ class _Import:
     def system_files(self, system: System) -> None:
         """Check and place the files a system's motion comes from."""
         where = f"{records.STUDY_FILE}: system {system.name!r}"
-        digest = system.checkpoint_digest
+        if not (system.checkpoint or system.source_kind == System.SourceKind.SUBMITTED):
+            return
+        digest = _file_name(system.checkpoint_digest, DIGEST, "digest", where)
         if system.checkpoint:
             name = f"{digest}.safetensors"
             if system.checkpoint != name:
@@ -179,7 +192,7 @@ class _Import:
             system, control, shown, video = (_pop(item, key, here) for key in
                                              ("system", "control", "shown_control", "video"))
             values = records.row_values(Stimulus, item, here)
-            recorded_token = values.get("token")
+            recorded_token = _file_name(values.get("token"), TOKEN, "token", here)
             stimulus = Stimulus(study=study, system=self._named(self.systems, system, here),
                                 control=self._named(self.controls, control, here) if control is not None else None,
                                 shown_control=self._named(self.controls, shown, here) if shown is not None else None,
