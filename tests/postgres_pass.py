@@ -44,6 +44,7 @@ DATABASE_TESTS = (
     "tests/test_crowd_questionnaires.py",
     "tests/test_crowd_researcher.py",
     "tests/test_study_control_export.py",
+    "tests/test_study_definition_refusals.py",
     "tests/test_hostile_web.py",
     "tests/test_hostile_checkpoints.py",
     "tests/test_hostile_ratings.py",

@@ -19,22 +19,27 @@ import secrets
 from pathlib import Path as FilePath
 
 import numpy as np
+from django import forms
 from django.conf import settings
 from django.core.exceptions import ValidationError
 from django.core.files import File
 from django.db import transaction
 
+from generation import registry
 from generation.control import PathControl
 from generation.render.camera import Camera
 from generation.store import SUFFIX as CHECKPOINT_SUFFIX
+from studyapp.bounds import check_field
 from studyapp.definitions import layout
 from studyapp.definitions.errors import DefinitionError
 from studyapp.definitions.reading import Located, Path, read_definition
 from studyapp.designs import registry as designs
 from studyapp.models import SAFE_ID, ControlSignal, Question, Study, System
-from studyapp.researchers.setup.forms import CAMERA_PREFIX, QuestionForm, StudyForm
+from studyapp.researchers.setup.editing import EditRefused, rename_control
+from studyapp.researchers.setup.forms import (CAMERA_PREFIX, HeldOutControlsForm, LabelControlsForm, QuestionForm,
+                                       StudyForm)
 from studyapp.stimuli.controls import (ControlError, add_held_out_controls, add_label_controls, add_path_control,
-                                       add_preset_controls)
+                                       add_preset_controls, control_kind, study_labels)
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER, Reading, add_submitted_system, read_folder
 from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system, add_natural_system
 
@@ -102,7 +107,8 @@ class _Builder:
         return checked
 
     def items(self, key: str) -> list:
-        value = self.located.value.get(key, [])
+        value = self.located.value.get(key)
+        value = [] if value is None else value  # "questions:" with none under it
         if not isinstance(value, list):
             self.problem((key,), f"{key} must be a list, not {_kind(value)}")
             return []
@@ -113,6 +119,14 @@ class _Builder:
             if not isinstance(item, str):
                 self.problem((*path, i), f"{_where((*path, i))} must be text, not {_kind(item)}")
         return [item for item in value if isinstance(item, str)]
+
+    def form_problems(self, form: forms.Form, path: Path, keys: dict[str, str]) -> None:
+        """Raise a page form's refusals of the values under ``path`` (``keys``: a form field's key there)."""
+        if not form.is_valid():
+            for name, messages in form.errors.items():
+                where = (*path, keys.get(name, name)) if name != "__all__" else path
+                self.problem(where, f"{_where(where)}: {' '.join(messages)}")
+            self.stop()
 
     def digest(self, path: Path, value: str) -> str:
         if not DIGEST.fullmatch(value):
@@ -133,17 +147,17 @@ class _Builder:
                          f"{layout.VERSION_KEY} must be {layout.VERSION}, the version of study definitions this "
                          f"server reads, not {top.get(layout.VERSION_KEY)!r}")
         types, camera_section = layout.study_types(), layout.camera_section()
-        given, home = {}, {}
+        camera_path = (camera_section, layout.CAMERA_KEY)
+        home = {name: (key, name) for key, names in sections for name in names}
+        given = {}
         for key, names in sections:
-            section_types = {name: types[name] for name in names}
-            if key == camera_section:
-                section_types[layout.CAMERA_KEY] = dict
-            for name, value in self.mapping((key,), top.get(key, {}), section_types).items():
-                given[name], home[name] = value, (key, name)
-        camera = self.mapping((camera_section, layout.CAMERA_KEY), given.pop(layout.CAMERA_KEY, {}), layout.camera_types())
+            section_types = {name: types[name] for name in names} | ({layout.CAMERA_KEY: dict} if key == camera_section
+                                                                     else {})
+            section = top.get(key)
+            given |= self.mapping((key,), {} if section is None else section, section_types)
+        camera = self.mapping(camera_path, given.pop(layout.CAMERA_KEY, {}), layout.camera_types())
         self.stop()
-        data = {name: Study._meta.get_field(name).get_default() for _, names in sections for name in names}
-        data |= given
+        data = {name: Study._meta.get_field(name).get_default() for name in home} | given
         scale = designs.DESIGNS.get(data["design"]) and designs.design_named(data["design"]).default_scale
         if scale and not {"scale_min", "scale_max"} & set(given):  # the design's own, as the study page gives it
             data["scale_min"], data["scale_max"] = scale
@@ -151,13 +165,15 @@ class _Builder:
         form = StudyForm(data, instance=Study(owner=self.owner, design=data["design"]))
         if not form.is_valid():
             for name, messages in form.errors.items():
-                if name.startswith(CAMERA_PREFIX):
-                    path = (camera_section, layout.CAMERA_KEY, name.removeprefix(CAMERA_PREFIX))
-                else:
-                    path = home.get(name, (next((k for k, names in sections if name in names), ""), name))
+                if name in home:
+                    path, where = home[name], _where(home[name])
+                elif name.startswith(CAMERA_PREFIX):
+                    path = (*camera_path, name.removeprefix(CAMERA_PREFIX))
+                    where = _where(path)
+                else:  # Study.clean's word on the whole study (its camera, as the study page shows it)
+                    path, where = camera_path, "the study"
                 for message in messages:
-                    self.problem(path if name != "__all__" else (camera_section, layout.CAMERA_KEY),
-                                 f"{_where(path) if name != '__all__' else 'the study'}: {message}")
+                    self.problem(path, f"{where}: {message}")
             self.stop()
         study = form.save(commit=False)
         study.owner = self.owner
@@ -169,9 +185,12 @@ class _Builder:
         for i, entry in enumerate(self.items("questions")):
             path = ("questions", i)
             given = self.mapping(path, entry, types, required=("part", "name", "text"))
-            for name in layout.QUESTION_LISTS:
-                if name in given:
-                    given[name] = "\n".join(self.texts((*path, name), given[name]))
+            for name in layout.QUESTION_LISTS:  # one choice a line, as the questions page takes them
+                items = self.texts((*path, name), given.get(name, []))
+                for j, item in enumerate(items):
+                    if "\n" in item or "\r" in item:
+                        self.problem((*path, name, j), f"{_where((*path, name, j))}: a choice is one line")
+                given[name] = "\n".join(items)
             if self.problems:
                 continue
             data = {name: Question._meta.get_field(name).get_default() for name in types} | given
@@ -181,7 +200,8 @@ class _Builder:
                 form.save()
             for name, messages in form.errors.items():
                 for message in messages:
-                    self.problem((*path, name) if name in types else path, f"{_where((*path, name))}: {message}")
+                    where = (*path, name) if name in types else path
+                    self.problem(where, f"{_where(where)}: {message}")
         self.stop()
 
     # Systems and controls, through the services of the systems and controls pages.
@@ -195,6 +215,8 @@ class _Builder:
             path = ("systems", i)
             given = self.mapping(path, entry, types, required=("name", "role"))
             sources = [key for key in layout.SYSTEM_SOURCES if key in given]
+            if "name" in given and (problem := check_field(System, "name", given["name"])):
+                self.problem((*path, "name"), f"{_where(path)}: {problem}")
             if len(sources) > 1:
                 self.problem(path, f"{_where(path)}: give one of {', '.join(layout.SYSTEM_SOURCES)}, not "
                                    f"{' and '.join(sources)}")
@@ -219,14 +241,18 @@ class _Builder:
         except UploadRefused as error:
             raise self.fail(path, f"{_where(path)}: {error}") from None
         if system.checkpoint_digest != digest:
-            raise self.fail((*where, "digest"), f"the stored checkpoint {digest} reads as another ({system.checkpoint_digest})")
+            raise self.fail((*where, "digest"), f"the stored checkpoint {digest} reads as another "
+                                                f"({system.checkpoint_digest})")
         if spec.get("kind", system.kind) != system.kind:
             raise self.fail((*where, "kind"), f"the checkpoint {digest[:12]} is a {system.kind} model, not {spec['kind']}")
 
-    def submitted_system(self, study: Study, path: Path, given: dict) -> None:
+    def submitted_spec(self, path: Path, given: dict) -> dict:
+        spec = self.mapping((*path, "submitted"), given["submitted"], layout.SUBMITTED_KEYS, required=("digest",))
+        spec["controls"] = self.texts((*path, "submitted", "controls"), spec.get("controls", []))
+        return spec
+
+    def submitted_system(self, study: Study, path: Path, given: dict, spec: dict) -> None:
         where = (*path, "submitted")
-        spec = self.mapping(where, given["submitted"], layout.SUBMITTED_KEYS, required=("digest",))
-        self.stop()
         digest = self.digest((*where, "digest"), spec["digest"])
         folder = FilePath(settings.CHECKPOINT_ROOT) / SUBMITTED_FOLDER / digest
         if not folder.is_dir():
@@ -234,65 +260,85 @@ class _Builder:
         try:  # the stored clips are already the body, on the control's path: read again, as they are
             system = add_submitted_system(study, given["name"], read_folder(folder), given["role"], spec.get("file", ""),
                                           Reading(keep_root=True))
-        except (UploadRefused, ControlError) as error:
-            raise self.fail(path, f"{_where(path)}: {error}") from None
+        except (UploadRefused, ControlError) as error:  # a submission's report: one control a line
+            said = "; ".join(getattr(error, "lines", None) or [str(error)])
+            raise self.fail(path, f"{_where(path)}: the submitted motion was not registered: {said}") from None
         if system.checkpoint_digest != digest:
             raise self.fail((*where, "digest"), f"the stored motion {digest[:12]} reads as other motion "
                                                 f"({system.checkpoint_digest[:12]})")
 
-    def controls(self, study: Study) -> None:
-        """Each control made by its service under a passing name, then given its own name
-        and export id (so no control's first name collides with another's own)."""
+    def control_entries(self) -> list[tuple[Path, dict, str]]:
+        """Each control's path, settings and what it is made from, checked."""
         types = {"name": str, "export_id": str, **layout.CONTROL_SOURCES}
-        made: list[tuple[Path, dict, ControlSignal]] = []
+        found = []
         for i, entry in enumerate(self.items("controls")):
             path = ("controls", i)
             given = self.mapping(path, entry, types, required=("name",))
             sources = [key for key in layout.CONTROL_SOURCES if key in given]
+            if "name" in given and (problem := check_field(ControlSignal, "name", given["name"])):
+                self.problem((*path, "name"), f"{_where(path)}: {problem}")
             if len(sources) != 1:
                 self.problem(path, f"{_where(path)}: give one of {', '.join(layout.CONTROL_SOURCES)}"
                                    + (f", not {' and '.join(sources)}" if sources else ""))
-            self.stop()
+            else:
+                found.append((path, given, sources[0]))
+        self.stop()
+        return found
+
+    def controls(self, study: Study, entries: list[tuple[Path, dict, str]]) -> None:
+        """Controls made by their services under passing names, then renamed to their own
+        and given their export ids (so no control's first name collides with another's own)."""
+        made: list[tuple[Path, dict, ControlSignal]] = []
+        for path, given, source in entries:
             try:
-                control = self.control(study, path, sources[0], given[sources[0]])
+                control = self.control(study, path, source, given[source], given["name"])
             except ControlError as error:
-                raise self.fail((*path, sources[0]), f"{_where(path)}: {error}") from None
+                raise self.fail((*path, source), f"{_where(path)}: {error}") from None
             control.name = f"~{secrets.token_hex(8)}"
             control.save(update_fields=["name"])
             made.append((path, given, control))
-        exported = {}
+        exported = set(study.controls.exclude(export_id="").exclude(pk__in=[c.pk for _, _, c in made])
+                       .values_list("export_id", flat=True))  # those of the controls made before
         for path, given, control in made:
-            control.name, control.export_id = given["name"], given.get("export_id", control.export_id)
+            try:
+                rename_control(control, given["name"])  # as the controls page renames: its description too
+                control.export_id = given.get("export_id", control.export_id)
+                control.full_clean()
+            except EditRefused as error:
+                self.problem((*path, "name"), f"{_where(path)}: {error}")
+                continue
+            except ValidationError as error:
+                for name, messages in error.message_dict.items():
+                    self.problem((*path, name), f"{_where(path)}: {name}: {' '.join(messages)}")
+                continue
             if control.export_id and not SAFE_ID.fullmatch(control.export_id):
                 self.problem((*path, "export_id"), f"{_where(path)}: an export id is a plain file name (letters, "
                                                    f"digits, _ . + -), not {control.export_id[:100]!r}")
             elif control.export_id in exported:
                 self.problem((*path, "export_id"), f"{_where(path)}: the export id {control.export_id!r} is "
-                                                   f"{_where(exported[control.export_id])}'s too")
-            exported.setdefault(control.export_id or None, path)
-            try:
-                control.full_clean()
-            except ValidationError as error:
-                for name, messages in error.message_dict.items():
-                    self.problem((*path, name), f"{_where(path)}: {name}: {' '.join(messages)}")
-                continue
-            control.save()
+                                                   f"another control's too")
+            elif control.export_id:
+                exported.add(control.export_id)
+            control.save(update_fields=["export_id"])
         self.stop()
 
-    def control(self, study: Study, path: Path, source: str, value: object) -> ControlSignal:
+    def control(self, study: Study, path: Path, source: str, value: object, given_name: str) -> ControlSignal:
         where = (*path, source)
         if source == "preset":
             return add_preset_controls(study, [value])[0]
-        if source == "labels":
+        if source == "labels":  # checked as the controls page checks its label pairs
             spec = self.mapping(where, value, layout.LABEL_KEYS, required=tuple(layout.LABEL_KEYS))
             self.stop()
-            return add_label_controls(study, [spec["action"]], [spec["style"]], spec["seconds"])[0]
+            form = LabelControlsForm({"actions": [spec["action"]], "styles": [spec["style"]],
+                                      "seconds": spec["seconds"]}, labels=study_labels(study))
+            self.form_problems(form, where, {"actions": "action", "styles": "style"})
+            return add_label_controls(study, [spec["action"]], [spec["style"]], form.cleaned_data["seconds"])[0]
         if source == "path":
             spec = self.mapping(where, value, layout.PATH_KEYS, required=tuple(layout.PATH_KEYS))
             self.stop()
             try:
                 velocities = np.asarray(spec["velocities"], dtype=np.float64)
-                signal = PathControl(velocities, float(spec["fps"]), "path")
+                signal = PathControl(velocities, float(spec["fps"]), given_name)
             except (ValueError, TypeError) as error:
                 raise self.fail((*where, "velocities"), f"{_where(where)}: not a path ({error})") from None
             return add_path_control(study, signal)
@@ -300,8 +346,18 @@ class _Builder:
         folders = self.texts((*where, "folders"), spec.get("folders", []))
         self.stop()
         take = spec["take"]
-        controls = add_held_out_controls(study, spec["seconds"], None, spec.get("lead_in", 0.0), folders or None,
-                                         [FilePath(take).stem], spec.get("unit"), spec.get("up"))
+        # Checked as the controls page checks its held-out form; the unit and up axis only
+        # where the study has no checkpoint to fix them (the service refuses them otherwise).
+        trained = study.systems.exclude(checkpoint="").exists()
+        form = HeldOutControlsForm({"seconds": spec["seconds"], "lead_in": spec.get("lead_in", 0.0),
+                                    "takes": FilePath(take).stem, "unit": "auto" if spec.get("unit") is None else str(spec["unit"]),
+                                    "up": spec.get("up") or "auto"},
+                                   paths=control_kind(study) == registry.PATH, trained=trained)
+        self.form_problems(form, where, {"takes": "take"})
+        chosen = form.cleaned_data
+        controls = add_held_out_controls(study, chosen["seconds"], None, chosen.get("lead_in") or 0.0, folders or None,
+                                         chosen["takes"], chosen.get("unit", spec.get("unit")),
+                                         chosen.get("up", spec.get("up")))
         control = next((c for c in controls if c.source_clip == take), None)
         if control is None:
             raise self.fail((*where, "take"), f"{_where(where)}: {take} is not among the held-out takes of "
@@ -317,20 +373,27 @@ class _Builder:
                 self.checkpoint_system(study, path, given)
         for path, given, source in systems:
             if source == "videos":
-                raise self.fail(path, f"{_where(path)}: a system of uploaded videos cannot be made from a definition, "
-                                      "which does not hold its videos; add it on the systems page")
+                raise self.fail((*path, "videos"), f"{_where(path)}: a system of uploaded videos cannot be made from a "
+                                                   "definition, which does not hold its videos; add it on the systems page")
+            if source is None and given["role"] != System.Role.NATURAL:
+                raise self.fail((*path, "role"), f"{_where(path)}: a {given['role']} system needs a checkpoint, "
+                                                 "submitted motion or videos; only NAT (role natural) has none")
             if source is None:
                 try:
-                    add_natural_system(study, given["name"]) if given["role"] == System.Role.NATURAL else None
+                    add_natural_system(study, given["name"])
                 except UploadRefused as error:
                     raise self.fail(path, f"{_where(path)}: {error}") from None
-                if given["role"] != System.Role.NATURAL:
-                    raise self.fail((*path, "role"), f"{_where(path)}: a {given['role']} system needs a checkpoint, "
-                                                     "submitted motion or videos; only NAT (role natural) has none")
-        self.controls(study)  # submitted motion is matched to them
-        for path, given, source in systems:
-            if source == "submitted":
-                self.submitted_system(study, path, given)
+        # Submitted motion is matched to the controls there are when it is added: each after
+        # the controls it has clips of (fewest first), the other controls after them all.
+        entries = self.control_entries()
+        submitted = sorted(((path, given, self.submitted_spec(path, given)) for path, given, source in systems
+                            if source == "submitted"), key=lambda item: len(item[2]["controls"]))
+        self.stop()
+        for path, given, spec in submitted:
+            self.controls(study, [entry for entry in entries if entry[1]["name"] in spec["controls"]])
+            entries = [entry for entry in entries if entry[1]["name"] not in spec["controls"]]
+            self.submitted_system(study, path, given, spec)
+        self.controls(study, entries)
         try:  # the settings again, now that the systems and controls they may depend on are there
             study.full_clean()
         except ValidationError as error:

@@ -6,7 +6,9 @@ checkpoint store and the file name it was uploaded as, submitted motion by the d
 its stored clips, NAT by its role alone. A control is written by how it is made again:
 a preset by name, a held-out control by its take, length and lead-in, a label control by
 its action, style and length, any other path by its velocities frame by frame. Its
-export id (the name other labs' files carry) is kept.
+export id (the name other labs' files carry) is kept. A held-out take found in the
+folders of ``MOTION_DATA`` is named without them, so the definition reads the same
+server's data wherever it is created.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from generation.control import PRESETS, AttributeControl, PathControl, preset_pa
 from generation.render.camera import Camera
 from studyapp.definitions import layout
 from studyapp.models import ControlSignal, Question, Study, System
+from studyapp.stimuli.natural import data_folders
 
 
 def _plain(value: object) -> object:
@@ -46,7 +49,8 @@ def _system(system: System) -> dict:
                                "file": metadata.get("file") or Path(system.checkpoint).name, "kind": system.kind}
         entry["temperature"] = system.temperature
     elif kind == System.SourceKind.SUBMITTED:
-        entry["submitted"] = {"digest": system.checkpoint_digest, "file": metadata.get("file", "")}
+        entry["submitted"] = {"digest": system.checkpoint_digest, "file": metadata.get("file", ""),
+                              "controls": list(metadata.get("controls", []))}
     elif kind == System.SourceKind.VIDEO:
         entry["videos"] = list(metadata.get("videos", []))
     return entry
@@ -68,7 +72,9 @@ def _control(control: ControlSignal, trained: bool) -> dict:
     if control.origin == ControlSignal.Origin.HELD_OUT:
         held_out = {"take": control.source_clip, "seconds": control.seconds, "lead_in": control.lead_in_seconds}
         if control.natural:
-            held_out["folders"] = list(control.natural.get("folders", []))
+            folders = list(control.natural.get("folders", []))
+            if folders != [str(folder.absolute()) for folder in data_folders()]:  # else MOTION_DATA's, wherever it is
+                held_out["folders"] = folders
             if not trained:  # checkpoints fix how their data is read; other takes were read in this unit and axis
                 options = control.recorded_options()
                 held_out |= {"unit": options.scale, "up": options.up}
@@ -115,6 +121,6 @@ _Dumper.add_representer(list, _list)
 
 
 def definition_yaml(study: Study) -> str:
-    """The study's definition as YAML text, with a first line that says what it is."""
+    """The study's definition as YAML text, with a first line that says what it is and how to use it."""
     body = yaml.dump(describe_study(study), Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=100)
-    return f"# The study {study.title!r} as a definition: manage.py create_study --from FILE makes it again.\n{body}"
+    return f"# A study definition: python manage.py create_study USERNAME --from FILE makes it again.\n{body}"

@@ -77,7 +77,7 @@ def question_types() -> dict[str, type | tuple[type, ...]]:
 # What each kind of system and control is written as, besides its name (and a system's role).
 SYSTEM_SOURCES = ("checkpoint", "submitted", "videos")  # none of them: the natural clips
 CHECKPOINT_KEYS = {"digest": str, "file": str, "kind": str}
-SUBMITTED_KEYS = {"digest": str, "file": str}
+SUBMITTED_KEYS = {"digest": str, "file": str, "controls": list}  # the controls it has clips of
 CONTROL_SOURCES = {
     "preset": str,
     "path": dict,  # fps and the velocities, frame by frame

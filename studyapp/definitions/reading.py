@@ -5,7 +5,8 @@ text is composed into YAML's node tree (``yaml.compose`` with the safe loader, w
 builds no object), and each node is turned into a value here, so every value keeps its
 line. A hostile text is refused before it costs anything: past ``MAX_DEFINITION_BYTES``,
 nested past ``MAX_DEPTH``, expanding past ``MAX_NODES`` values through aliases (a
-"billion laughs"), with a key twice, or a number that is not finite.
+"billion laughs"), with a key twice, a number that is not finite or text with a NUL
+character (PostgreSQL cannot store one).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ MAX_DEFINITION_BYTES = 4_000_000
 MAX_DEPTH = 20
 MAX_NODES = 500_000
 Path = tuple[str | int, ...]
+PLAIN_COLLECTIONS = ("tag:yaml.org,2002:map", "tag:yaml.org,2002:seq")
 
 
 @dataclass
@@ -55,6 +57,8 @@ class _Reader:
         if len(path) > MAX_DEPTH:
             raise self.fail(node, f"nested more than {MAX_DEPTH} levels deep: not a study definition")
         self.lines.setdefault(path, node.start_mark.line + 1)
+        if isinstance(node, yaml.CollectionNode) and node.tag not in PLAIN_COLLECTIONS:  # !!set, !!python/...
+            raise self.fail(node, f"not a plain YAML value (tag {node.tag})")
         if isinstance(node, yaml.MappingNode):
             return self.mapping(node, path)
         if isinstance(node, yaml.SequenceNode):
@@ -66,8 +70,8 @@ class _Reader:
         for key_node, value_node in node.value:
             key = self.scalar(key_node) if isinstance(key_node, yaml.ScalarNode) else None
             if not isinstance(key, str):
-                raise self.fail(key_node, "a key must be a name (text), "
-                                          f"not {'a ' + type(key).__name__ if key is not None else 'a list or mapping'}")
+                shown = repr(key_node.value) if isinstance(key_node, yaml.ScalarNode) else "a list or mapping"
+                raise self.fail(key_node, f"a key must be a name (text), not {shown}")
             if key in result:
                 raise self.fail(key_node, f"{key!r} is given twice")
             self.lines[(*path, key)] = key_node.start_mark.line + 1
@@ -81,6 +85,8 @@ class _Reader:
             raise self.fail(node, f"not a plain YAML value ({error.problem})") from None
         if isinstance(value, float) and not math.isfinite(value):
             raise self.fail(node, f"numbers must be finite, not {node.value}")
+        if isinstance(value, str) and "\0" in value:
+            raise self.fail(node, "the text holds a NUL character (\\0), which no database stores")
         if value is not None and not isinstance(value, str | int | float | bool):
             raise self.fail(node, f"{node.value!r} reads as a {type(value).__name__}: quote it if it is text")
         return value
