@@ -81,3 +81,40 @@ def test_the_import_page_needs_a_login_and_csrf_and_answers_a_refused_bundle_wit
 def test_the_import_page_takes_a_bundle_as_large_as_the_bundle_limit(settings):
     assert request_limit("/studies/import/") == settings.MAX_BUNDLE_UPLOAD_BYTES + FORM_MARGIN_BYTES
     assert request_limit("/studies/new/") < request_limit("/studies/import/")
+
+
+def test_platform_ids_leave_as_keyed_hashes_and_user_agents_not_at_all(client, researcher, site, files, tmp_path):
+    import hashlib
+    import hmac
+
+    from django.core.management import call_command
+    from django.core.management.base import CommandError
+
+    study = small_study(researcher, files)
+    Participant.objects.create(study=study, platform_id="PID-5f3a", user_agent="Mozilla/5.0 (X11; Linux) Firefox/133",
+                               platform_data={"PROLIFIC_PID": "PID-5f3a", "SESSION_ID": "session-77"})
+    key = tmp_path / "key.txt"
+    key.write_text("a key the researcher keeps\n")
+
+    def exported(name: str, *options: str) -> dict[str, bytes]:
+        call_command("export_study", str(study.pk), "--out", str(tmp_path / name), *options, stdout=io.StringIO())
+        with zipfile.ZipFile(tmp_path / name) as archive:
+            return {member: archive.read(member) for member in archive.namelist()}
+
+    keyed, keyed_again = (exported(name, "--pseudonym-key-file", str(key)) for name in ("a.zip", "b.zip"))
+    unkeyed, unkeyed_again = exported("c.zip"), exported("d.zip")
+    for bundle in (keyed, unkeyed):
+        assert not any(b"PID-5f3a" in data or b"session-77" in data or b"Firefox" in data for data in bundle.values())
+    participant = json.loads(keyed["participants.json"])["participants"][0]
+    expected = hmac.new(b"a key the researcher keeps", b"PID-5f3a", hashlib.sha256).hexdigest()
+    assert participant["platform_id"] == expected and "user_agent" not in participant
+    assert participant["platform_data"]["SESSION_ID"] == hmac.new(b"a key the researcher keeps", b"session-77",
+                                                                  hashlib.sha256).hexdigest()
+    assert keyed["participants.json"] == keyed_again["participants.json"]  # the same key links exports
+    assert unkeyed["participants.json"] != unkeyed_again["participants.json"]  # a key drawn per export links nothing
+
+    key.write_text("short")
+    with pytest.raises(CommandError) as refused:
+        call_command("export_study", str(study.pk), "--out", str(tmp_path / "e.zip"), "--pseudonym-key-file", str(key))
+    assert refused.value.returncode == 2 and "at least 16 characters" in str(refused.value)
+    assert not (tmp_path / "e.zip").exists()
