@@ -12,16 +12,13 @@ from __future__ import annotations
 
 import hashlib
 import io
-import json
-import zipfile
 from pathlib import Path
 
 import pytest
-from django.conf import settings as django_settings
 from django.core.management import call_command
 
 from analysis.cli import main as analysis_main
-from studyapp.models import Participant, Rating, Stimulus, Study, System
+from studyapp.models import Participant, Rating, Stimulus, Study
 from studyapp.researchers.results.export import ratings_csv, rules_json
 from studyapp.stimuli.clips import plan_stimuli
 from studyapp.tasks import sample_stimuli
