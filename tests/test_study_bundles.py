@@ -133,6 +133,7 @@ def test_a_rerun_adds_a_system_renders_only_its_clips_and_reports_beside_the_pre
     assert not rerun.participants.exists() and rerun.previous_runs.get().ratings_csv == ratings_csv(original).decode()
     old = dict(original.stimuli.values_list("content_key", "system__name"))
     assert dict(rerun.stimuli.filter(status="done").values_list("content_key", "system__name")) == old
+    assert all(stimulus.video_path().is_file() for stimulus in rerun.stimuli.all())  # under tokens of its own here
 
     # One more system: generating makes and renders its clips only; the others keep their keys and files.
     upload_checkpoint(client, rerun, files.early.read_bytes(), name="Early")
