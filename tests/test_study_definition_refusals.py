@@ -7,6 +7,8 @@ import io
 
 import pytest
 from django.contrib.auth.models import User
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from django.core.files.uploadedfile import SimpleUploadedFile
 from django.core.management import call_command
 from django.core.management.base import CommandError
@@ -67,6 +69,17 @@ def test_a_valid_definition_makes_a_closed_study_of_it(owner):
     assert study.questions.get().name == "age" and study.systems.get().role == "natural"
 
 
+@pytest.mark.django_db
+def test_text_of_several_lines_is_a_block_and_comes_back_the_same(owner):
+    study = create_study_from_definition(VALID, owner, source="study.yaml")
+    Study.objects.filter(pk=study.pk).update(instructions="Watch each clip.\r\nThen rate it.")  # as a browser sends it
+    study.refresh_from_db()
+    text = definition_yaml(study)
+    assert "  instructions: |-\n    Watch each clip.\n    Then rate it.\n" in text
+    copy = create_study_from_definition(text, owner, source="study.yaml")
+    assert copy.instructions == "Watch each clip.\nThen rate it." and definition_yaml(copy) == text
+
+
 def replaced(old: str, new: str) -> str:
     assert old in VALID
     return VALID.replace(old, new)
@@ -100,6 +113,8 @@ MISTAKES = [
      "numbers must be finite, not -.inf"),
     ("a key that is a number", replaced("  title: Gait", "  title: Gait\n  7: seven"), 4,
      "a key must be a name (text), not '7'"),
+    ("a control character", replaced("title: Gait", "title: Ga\x1fit"), 3,
+     "not valid YAML: the character '\\x1f' cannot be in a YAML file"),
     ("a key twice", replaced("  title: Gait", "  title: Gait\n  title: Walk"), 4, "'title' is given twice"),
     ("a date", replaced("title: Gait", "title: 2024-01-01"), 3, "reads as a date: quote it if it is text"),
     ("a Python object", replaced("title: Gait", "title: !!python/object:os.system [ls]"), 3, "not a plain YAML value"),
@@ -280,3 +295,45 @@ def test_the_upload_needs_a_login_and_csrf(owner):
     strict.force_login(owner)
     response = strict.post("/studies/new/from-definition/", {"definition": SimpleUploadedFile("g.yaml", VALID.encode())})
     assert response.status_code == 403 and nothing_left()
+
+
+# --- fuzzed definitions -------------------------------------------------------------
+
+HOSTILE_VALUES = [".nan", "-.inf", "1e400", "9" * 400, "-1", "0", "~", "[]", "{}", "[[[", "'", '"\\0"', "!!binary AA==",
+                  "!!set {a}", "*nowhere", "&a x", "2024-01-01", "yes", "é" * 300, "<<: {a: 1}", "? [a]", "- -", ": :"]
+
+
+@st.composite
+def mutated_definition(draw) -> str:
+    """VALID with values replaced, lines dropped, repeated or indented otherwise."""
+    lines = VALID.splitlines()
+    for _ in range(draw(st.integers(1, 4))):
+        i = draw(st.integers(0, len(lines) - 1))
+        action = draw(st.sampled_from(["value", "drop", "repeat", "indent"]))
+        if action == "value":
+            key = lines[i].split(":", 1)[0] if ":" in lines[i] else lines[i]
+            token = draw(st.one_of(st.sampled_from(HOSTILE_VALUES), st.text(max_size=12),
+                                   st.floats(allow_nan=True, allow_infinity=True).map(repr)))
+            lines[i] = f"{key}: {token}"
+        elif action == "drop" and len(lines) > 1:
+            del lines[i]
+        elif action == "repeat":
+            lines.insert(i, lines[i])
+        else:
+            lines[i] = " " * draw(st.integers(0, 5)) + lines[i].lstrip()
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.django_db
+@settings(max_examples=100, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(text=mutated_definition())
+def test_a_fuzzed_definition_makes_a_study_or_one_error_and_nothing(owner, text):
+    try:
+        study = create_study_from_definition(text, owner, source="study.yaml")
+    except DefinitionError as error:
+        assert str(error).startswith("study.yaml") and "\n" not in str(error)
+        assert nothing_left()
+    else:
+        assert definition_yaml(study).startswith("# A study definition")
+        study.delete()

@@ -21,6 +21,7 @@ from pathlib import Path as FilePath
 import numpy as np
 from django import forms
 from django.conf import settings
+from django.contrib.auth.base_user import AbstractBaseUser
 from django.core.exceptions import ValidationError
 from django.core.files import File
 from django.db import transaction
@@ -70,7 +71,7 @@ def _words(expected: type | tuple[type, ...]) -> str:
 class _Builder:
     """One definition being made into a study: its values, their lines, the problems found."""
 
-    def __init__(self, located: Located, owner, source: str) -> None:
+    def __init__(self, located: Located, owner: AbstractBaseUser, source: str) -> None:
         self.located, self.owner, self.source = located, owner, source
         self.problems: list[tuple[int | None, str]] = []
 
@@ -401,7 +402,7 @@ class _Builder:
         return study
 
 
-def create_study_from_definition(text: str | bytes, owner, *, source: str) -> Study:
+def create_study_from_definition(text: str | bytes, owner: AbstractBaseUser, *, source: str) -> Study:
     """A new, closed study owned by ``owner``, made from a definition's YAML ``text``
     (``describe.definition_yaml`` writes one); DefinitionError naming ``source`` and the
     line of each problem if it cannot be made, and then nothing is kept."""

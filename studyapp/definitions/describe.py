@@ -7,8 +7,8 @@ its stored clips, NAT by its role alone. A control is written by how it is made 
 a preset by name, a held-out control by its take, length and lead-in, a label control by
 its action, style and length, any other path by its velocities frame by frame. Its
 export id (the name other labs' files carry) is kept. A held-out take found in the
-folders of ``MOTION_DATA`` is named without them, so the definition reads the same
-server's data wherever it is created.
+folders of ``MOTION_DATA`` is named without them: created on another server, the
+definition reads the take from that server's ``MOTION_DATA``.
 """
 
 from __future__ import annotations
@@ -108,6 +108,7 @@ class _Dumper(yaml.SafeDumper):
 
 
 def _text(dumper: yaml.SafeDumper, text: str) -> yaml.Node:
+    text = text.replace("\r\n", "\n")  # a browser's line ends, as the text reads: a block, not "\r\n" escapes
     return dumper.represent_scalar("tag:yaml.org,2002:str", text, style="|" if "\n" in text else None)
 
 

@@ -92,6 +92,10 @@ class _Reader:
         return value
 
 
+def _character(code: int | str) -> str:
+    return chr(code) if isinstance(code, int) else code
+
+
 def read_definition(text: str | bytes, source: str) -> Located:
     """The values of a definition's YAML text and their lines (DefinitionError naming
     ``source`` and the line where the text is no YAML or too large)."""
@@ -109,8 +113,12 @@ def read_definition(text: str | bytes, source: str) -> Located:
         mark = error.problem_mark or error.context_mark
         raise DefinitionError(source, [(mark.line + 1 if mark else None,
                                         f"not valid YAML: {error.problem or error.context}")]) from None
+    except yaml.reader.ReaderError as error:  # a character YAML does not allow (no mark: its position instead)
+        raise DefinitionError(source, [(text[:error.position].count("\n") + 1,
+                                        f"not valid YAML: the character {_character(error.character)!r} cannot be in "
+                                        "a YAML file")]) from None
     except yaml.YAMLError as error:
-        raise DefinitionError(source, [(None, f"not valid YAML: {error}")]) from None
+        raise DefinitionError(source, [(None, f"not valid YAML: {' '.join(str(error).split())}")]) from None
     except RecursionError:  # the composer recurses per level of nesting
         raise DefinitionError(source, [(None, "nested too deeply to be a study definition")]) from None
     if root is None:
