@@ -3,7 +3,7 @@ and the problem, exit status 2, and nothing left behind: no row in the database 
 (not even a temporary one) in the checkpoint store, the media or the sampled motion.
 
 The bundle taken apart here is a real export: a tiny MoGlow with two preset paths, NAT, a
-question, its clips rendered, with their videos. Each test changes it in one way,
+question, its clips rendered, with their videos, and an uploaded BAD video. Each test changes it in one way,
 writing a manifest that lists the change where the change is not the manifest's lie.
 """
 
@@ -26,18 +26,20 @@ from studyapp.bundles.writing import write_study_bundle
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.stimuli.clips import plan_stimuli, render_stimulus
 from studyapp.stimuli.controls import add_preset_controls
-from studyapp.stimuli.systems import add_checkpoint_system, add_natural_system
+from studyapp.stimuli.systems import add_checkpoint_system, add_natural_system, add_video_system
 from tests.test_study_researcher import files, new_study, researcher, site  # noqa: F401 (fixtures)
 
 pytestmark = pytest.mark.django_db
 
 
 def small_study(researcher, files) -> Study:
-    """A tiny MoGlow on two preset paths, NAT and a question, its clips rendered."""
+    """A tiny MoGlow on two preset paths, NAT, an uploaded BAD video and a question, its clips rendered."""
     study = new_study(researcher)
     with File(files.good.open("rb"), name="moglow.safetensors") as upload:
         add_checkpoint_system(study, "MoGlow", upload)
     add_natural_system(study)
+    with File(files.video.open("rb"), name="bad.mp4") as video:
+        add_video_system(study, "BAD", [video])
     add_preset_controls(study, ["walk-circle", "stand-still"])
     Question.objects.create(study=study, part="after", name="age", text="Your age?", kind="number")
     for stimulus in plan_stimuli(study)[0]:
@@ -99,9 +101,12 @@ def refused(path: Path, settings) -> str:
 def test_the_unchanged_bundle_imports_with_its_files(bundle, settings):
     call_command("import_study", str(bundle), "--owner", "researcher", stdout=io.StringIO())
     study = Study.objects.get()
-    assert study.stimuli.filter(status="done").count() == 2 + 0  # MoGlow's two presets; NAT has no held-out control
+    # MoGlow's two presets and the uploaded video (NAT has no held-out control to show)
+    assert study.stimuli.filter(status="done").count() == 2 + 1
     assert all(stimulus.video_path().is_file() for stimulus in study.stimuli.all())
     assert len(files_under(Path(settings.CHECKPOINT_ROOT))) == 1
+    recorded = next(s for s in json.loads(members(bundle)["stimuli.json"]) if s["system"] == "BAD")
+    assert study.systems.get(name="BAD").stimuli.get().content_key == recorded["content_key"]
 
 
 def test_bad_yaml_in_the_definition_is_refused_with_its_line(bundle, settings):
