@@ -756,3 +756,20 @@ class PlanDeviation(models.Model):
         if not self._state.adding:
             raise ImmutableRow(f"deviation {self.pk} of study {self.study_id} is recorded: it is written once")
         super().save(*args, **kwargs)
+
+
+class PreviousRun(models.Model):
+    """The ratings of the study a rerun was imported from (``studyapp.bundles``): its ratings
+    table and rules as its bundle held them, which the rerun's report compares with its own."""
+
+    study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="previous_runs")
+    ratings_csv = models.TextField(help_text="the previous study's ratings table (docs/ratings-schema.md)")
+    rules_json = models.TextField(help_text="the rules it was collected under, as the analysis reads them")
+    code_version = models.CharField(max_length=100, blank=True, help_text="the code that exported it")
+    imported_at = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["study", "imported_at", "pk"]
+
+    def __str__(self) -> str:
+        return f"previous run of {self.study}"

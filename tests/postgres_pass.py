@@ -66,6 +66,9 @@ DATABASE_TESTS = (
     "tests/test_study_rules.py",
     "tests/test_study_submissions.py",
     "tests/test_study_plan.py",
+    "tests/test_study_bundles.py",
+    "tests/test_hostile_bundles.py",
+    "tests/test_study_bundle_pages.py",
 )
 
 

@@ -2,14 +2,16 @@
 
 from django.urls import path
 
-from studyapp.researchers import definition_views, views
+from studyapp.researchers import bundle_views, definition_views, views
 from studyapp.researchers.crowd import platform_views
 
 urlpatterns = [
     path("", views.study_list, name="study-list"),
     path("new/", views.study_edit, name="study-create"),
     path("new/from-definition/", definition_views.study_from_definition, name="study-from-definition"),
+    path("import/", bundle_views.study_import, name="study-import"),
     path("<int:pk>/", views.study_edit, name="study-edit"),
+    path("<int:pk>/bundle.zip", bundle_views.study_bundle_download, name="study-bundle-download"),
     path("<int:pk>/delete/", views.study_delete, name="study-delete"),
     path("<int:pk>/duplicate/", views.study_duplicate, name="study-duplicate"),
     path("<int:pk>/systems/", views.study_systems, name="study-systems"),

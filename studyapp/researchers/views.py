@@ -594,8 +594,10 @@ def study_report(request: HttpRequest, pk: int) -> HttpResponse:
     try:
         # As `python -m analysis report ratings.csv --rules rules.json` makes it: the study's
         # rules, and NAT as the reference where it was rated.
+        previous = study.previous_runs.last()  # a rerun's: its ratings are shown beside the previous run's
         digest = create_report(settings.MEDIA_ROOT, ratings_csv(study), None, request.user.pk,
-                               StudyRules.of(study).exclusion, preregistration(study))
+                               StudyRules.of(study).exclusion, preregistration(study),
+                               (previous.ratings_csv, previous.rules_json) if previous else None)
     except AnalysisInputError as error:
         messages.error(request, f"No report yet: {error}")
         return redirect("study-monitor", pk=study.pk)

@@ -376,3 +376,21 @@ class ControlFileForm(forms.Form):
 class GenerateForm(forms.Form):
     seed = forms.IntegerField(initial=0, min_value=0, max_value=Stimulus.MAX_SEED,
                               help_text="random seed of every model's samples")
+
+
+class BundleImportForm(forms.Form):
+    bundle = forms.FileField(help_text=f"a study bundle (.zip) that export_study or a study page wrote, "
+                                       f"{_megabytes(settings.MAX_BUNDLE_UPLOAD_BYTES)}")
+    rerun = forms.BooleanField(required=False, label="Rerun",
+                               help_text="import the design, systems, controls and clips but not the participants: "
+                                         "a new run for new participants, whose report compares its ratings with "
+                                         "the bundle's")
+
+    def clean_bundle(self):
+        bundle = self.cleaned_data["bundle"]
+        if not bundle.name.lower().endswith(".zip"):
+            raise forms.ValidationError(f"{bundle.name}: a study bundle is a .zip file")
+        if bundle.size > settings.MAX_BUNDLE_UPLOAD_BYTES:
+            raise forms.ValidationError(f"{bundle.name}: {bundle.size / 1e6:.1f} MB is over the "
+                                        f"{_megabytes(settings.MAX_BUNDLE_UPLOAD_BYTES)} limit")
+        return bundle
