@@ -26,7 +26,7 @@ from django.core.management.base import CommandError
 
 from analysis.motion_io import SystemClips
 from analysis.objective import objective_metrics
-from generation.motion.dataset import load_body_motion
+from generation.motion.dataset import load_body_motion, read_labels
 from generation.motion.npz import load_motion_npz
 from generation.motion.types import Motion
 from studyapp.models import Stimulus, Study, System
@@ -208,3 +208,9 @@ def test_a_label_models_exported_bvh_gives_its_clip_back_joint_for_joint(client,
     # ERD's clip is forward kinematics on its rig: the rotations found from it give it back.
     assert_rotation_bvh_of(out / "ERD" / "walk-happy-1s.bvh", load_motion_npz(out / "ERD" / "walk-happy-1s.npz"),
                            exact=True)
+    # The labels it was asked for lie beside it as the BVH reader's side file, where
+    # hvrnn-label lists them beside what the attribute classifiers see.
+    assert read_labels(out / "ERD" / "walk-happy-1s.bvh") == ("walk", "happy")
+    assert sorted(p.name for p in (out / "ERD").iterdir()) == [f"walk-happy-1s.{suffix}" for suffix in ("bvh", "json", "npz")]
+    page = client.get(f"/studies/{study.pk}/adherence/").content.decode()  # says where the label adherence comes from
+    assert "no path adherence to measure" in page and "hvrnn-label FOLDER --classifiers FILE" in page
