@@ -33,6 +33,8 @@ def thumbs(tmp_path, settings, monkeypatch):
     (tmp_path / "studyapp" / "participant" / "thumbs.html").write_text(toy_design.TEMPLATE)
     settings.TEMPLATES = [{**settings.TEMPLATES[0], "DIRS": [tmp_path]}]
     monkeypatch.setitem(registry.DESIGNS, "thumbs", registry.DesignEntry("thumbs up or down", "tests.toy_design:Thumbs"))
+    # and its analysis, whose rules and tests the plan locked at opening states (studyapp.plan)
+    monkeypatch.setitem(ANALYSED_DESIGNS, "thumbs", "tests.toy_analysis_design:Thumbs")
 
 
 @pytest.mark.django_db

@@ -26,6 +26,8 @@ from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.participants.views import PLATFORM_PARAMETERS
+from studyapp.plan.lock import preregistration
+from studyapp.plan.words import in_words
 from studyapp.researchers.setup import question_order
 from studyapp.researchers.results.adherence import adherence_tables
 from studyapp.researchers.crowd.completion_time import completion_minutes
@@ -385,6 +387,8 @@ def study_monitor_page(request: HttpRequest, pk: int) -> HttpResponse:
                "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study),
                "open_warnings": open_warnings(study), "figures": live_figures(study),
                "rules": StudyRules.of(study).described()}
+    plan = preregistration(study)
+    context.update(plan_locked=plan["locked"], deviation_count=len(plan["deviations"]))
     try:
         context["monitor"] = study_monitor(study)
     except AnalysisInputError as error:  # rows changed outside the study pages (a rating without its value)
@@ -573,6 +577,15 @@ def study_adherence(request: HttpRequest, pk: int) -> HttpResponse:
                   {"study": study, "tables": [(title, html_table(table)) for title, table in tables], "notes": notes})
 
 
+@never_cache
+@login_required
+@require_safe
+def study_plan(request: HttpRequest, pk: int) -> HttpResponse:
+    """The plan locked when the study first opened, in words, and every deviation from it since."""
+    study = _study(request, pk)
+    return render(request, "studyapp/researcher/plan.html", {"study": study, "plan": in_words(preregistration(study))})
+
+
 @login_required
 @require_POST
 def study_report(request: HttpRequest, pk: int) -> HttpResponse:
@@ -582,7 +595,7 @@ def study_report(request: HttpRequest, pk: int) -> HttpResponse:
         # As `python -m analysis report ratings.csv --rules rules.json` makes it: the study's
         # rules, and NAT as the reference where it was rated.
         digest = create_report(settings.MEDIA_ROOT, ratings_csv(study), None, request.user.pk,
-                               StudyRules.of(study).exclusion)
+                               StudyRules.of(study).exclusion, preregistration(study))
     except AnalysisInputError as error:
         messages.error(request, f"No report yet: {error}")
         return redirect("study-monitor", pk=study.pk)

@@ -2,7 +2,9 @@
 
 The app runs exactly the ``analysis`` package's report (the same tables and figures as
 ``python -m analysis report``), with the exclusion rules it is given (a study's own, for
-the study's report), which the folder keeps as rules.json and the page states; the
+the study's report), which the folder keeps as rules.json and the page states. A
+study's report keeps its locked plan and deviations too (``studyapp.plan``): plan.json
+as data, plan.md in words, and the page states the plan's hash, time and deviations. The
 design of the table says which tables the page shows (``Design.report_tables``). A
 report lives in ``MEDIA_ROOT/reports/<digest>/``, named by the SHA-256 of the
 researcher, the ratings file and the rules, so the same upload twice is the same report. A report belongs to the researcher who made it (``owner.txt``): only they
@@ -14,6 +16,7 @@ behind and a half-written report is never served.
 from __future__ import annotations
 
 import hashlib
+import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,12 +34,15 @@ from analysis.report import Report, build_report, summary_text, write_report
 from generation.files import atomic_folder
 from studyapp.researchers.results.table_format import readable_table
 from studyapp.designs.registry import design_named
+from studyapp.plan.words import PlanInWords, in_words, plan_markdown
 
 REPORTS_FOLDER = "reports"
 RATINGS_NAME = "ratings.csv"
 REFERENCE_NAME = "reference.txt"
 RULES_NAME = "rules.json"
 OWNER_NAME = "owner.txt"
+PLAN_NAME = "plan.json"  # a study's report: its locked plan and deviations (``plan.lock.preregistration``)
+PLAN_WORDS_NAME = "plan.md"
 
 
 @dataclass(frozen=True)
@@ -50,6 +56,7 @@ class ReportPage:
     figures: list[str]  # paths relative to MEDIA_ROOT
     files: list[str]  # every table file (CSV, Markdown, LaTeX, JSON), relative to MEDIA_ROOT
     notes: list[str]
+    plan: PlanInWords | None = None  # a study's report: its plan and deviations (None for an uploaded table)
 
 
 def report_folder(media_root: Path, digest: str) -> Path:
@@ -67,13 +74,15 @@ def report_owner(media_root: Path, digest: str) -> int | None:
 
 
 def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, owner_id: int,
-                  rules: ExclusionRules = ExclusionRules()) -> str:
+                  rules: ExclusionRules = ExclusionRules(), preregistration: dict | None = None) -> str:
     """Analyse a ratings CSV with ``rules`` into its report folder, owned by ``owner_id``; returns the digest.
+    A study's ``preregistration`` (its locked plan and deviations) is kept beside it.
 
     Raises AnalysisInputError (naming what is wrong) for a table that cannot be analysed.
     """
+    plan = json.dumps(preregistration, indent=2, sort_keys=True, ensure_ascii=False) + "\n" if preregistration else ""
     digest = hashlib.sha256(f"{owner_id}\0".encode() + ratings_csv + f"\0{reference or ''}\0".encode()
-                            + rules.to_json().encode()).hexdigest()
+                            + rules.to_json().encode() + (f"\0{plan}".encode() if plan else b"")).hexdigest()
     final = report_folder(media_root, digest)
     if final.is_dir():
         return digest
@@ -82,6 +91,9 @@ def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, o
         (work / REFERENCE_NAME).write_text(reference or "")
         (work / RULES_NAME).write_text(rules.to_json())
         (work / OWNER_NAME).write_text(str(owner_id))
+        if preregistration:
+            (work / PLAN_NAME).write_text(plan, encoding="utf-8")
+            (work / PLAN_WORDS_NAME).write_text(plan_markdown(preregistration), encoding="utf-8")
         try:
             report = _analyse(work)
         except AnalysisInputError as error:  # say "the upload", not where the server keeps it
@@ -125,8 +137,10 @@ def report_page(media_root: Path, digest: str, owner_id: int) -> ReportPage:
               for title, table in design_named(table_design(report.flagged)).report_tables(report)]
     figures = sorted(str(p.relative_to(media_root)) for p in (folder / "figures").glob("*.svg"))
     files = sorted(str(p.relative_to(media_root)) for p in (folder / "tables").iterdir())
+    plan_file = folder / PLAN_NAME
+    plan = in_words(json.loads(plan_file.read_text(encoding="utf-8"))) if plan_file.is_file() else None
     return ReportPage(digest, _paragraphs(summary_text(report)), report.design.described(report.rules), tables,
-                      figures, files, report.notes)
+                      figures, files, report.notes, plan)
 
 
 __all__ = ["AnalysisInputError", "ReportPage", "create_report", "html_table", "report_folder", "report_owner",
