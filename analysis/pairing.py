@@ -4,7 +4,7 @@ The next pair is the one whose vote is expected to tell most about the ranking u
 the current fit, with a floor of uniform exploration and the sides balanced per pair.
 
 Current fit. The weighted Bradley-Terry model of `analysis.leaderboard` on the votes so
-far (a clear win 4, a slight one 2, no preference 1 for each side), plus a weak prior of
+far (2 wins per degree of preference, a plain one 4, no preference 1 for each side), plus a weak prior of
 ``PRIOR_TIES`` page without preference per pair, so that a fit exists from the first
 vote and a system that has not lost yet is not placed at infinity.
 
