@@ -70,6 +70,7 @@ class Answer:
     values: dict[int, int] = field(default_factory=dict)
     choice: str = ""
     strength: int | None = None
+    moved: frozenset[int] = frozenset()  # the slots whose slider the participant moved (side-by-side)
 
 
 @dataclass(frozen=True)
