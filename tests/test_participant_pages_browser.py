@@ -194,7 +194,8 @@ def test_side_by_side_end_labels_stay_on_one_line_with_four_or_five_clips(browse
     labels = page.eval_on_selector_all(".clip .ends span", "spans => spans.map((s) => [s.getClientRects().length, "
                                                           "s.getBoundingClientRect().top])")
     assert all(lines == 1 for lines, _ in labels)  # no label broken over two lines
-    assert len({top for _, top in labels}) == 1  # each clip's two labels on one line, every clip's at one height
+    tops = [top for _, top in labels]
+    assert max(tops) - min(tops) < 1  # each clip's two labels on one line, every clip's at one height
     assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth")
 
 
