@@ -266,9 +266,12 @@ def every_page(study: Study, page, prefix: str) -> None:
     page.wait_for_selector("text=(not recorded)")
     look("practice")
     participant = skip_to_ratings(page, study, "tour")
-    slots = page.eval_on_selector_all("video[data-slot]", "videos => videos.map((v) => v.dataset.slot)")
-    play_to_end(page, slots[0])
+    if study.design == "single":  # its clip plays by itself
+        page.wait_for_function("() => document.getElementById('clip').ended", timeout=20_000)
+    else:
+        play_to_end(page, slots_on_page(page)[0])
     if study.design == "side-by-side":
+        slots = slots_on_page(page)
         page.locator(f"#value-{slots[0]}").evaluate("(s) => { s.value = 70; s.dispatchEvent(new Event('input')); }")
     look("rating")
     pages = list(participant.assignments.order_by("position"))
