@@ -261,6 +261,7 @@ def every_page(study: Study, page, prefix: str) -> None:
     look("screening")
     page.get_by_role("button", name="Continue").click()
     page.get_by_role("button", name="Start").wait_for()
+    assert ("scale" in page.inner_text(".task").lower()) is (study.design == "single")  # the design's own task
     look("instructions")
     page.get_by_role("button", name="Start").click()
     page.wait_for_selector("text=(not recorded)")

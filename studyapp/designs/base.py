@@ -239,6 +239,11 @@ class Design:
             "instruction": self.instruction(study, expected) if any(expected) else "",
         }
 
+    def task(self, study: Study) -> str:
+        """What the instructions page says each page asks of the participant."""
+        return (f"For each clip you will answer: {study.question} On a scale from {study.scale_min} "
+                f"({study.label_min}) to {study.scale_max} ({study.label_max}).")
+
     # Answers.
 
     def read_answer(self, study: Study, form: QueryDict) -> Answer:

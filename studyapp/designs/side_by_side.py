@@ -154,6 +154,11 @@ class SideBySide(MultiClip):
     def page_context(self, study: Study, page: Page) -> dict:
         return {**super().page_context(study, page), "middle": self.middle(study)}
 
+    def task(self, study: Study) -> str:
+        moved = " Move every slider before you answer." if study.sliders_must_move else ""
+        return (f"Each page shows several clips side by side. {study.question} Rate each clip on its slider, from "
+                f"{study.scale_min} ({study.label_min}) to {study.scale_max} ({study.label_max}).{moved}")
+
     def read_answer(self, study: Study, form: QueryDict) -> Answer:
         # A slot is ASCII digits: "²" passes isdigit() but not int(), nor do 5000 digits (a made-up slot of 18 is refused).
         slots = sorted({int(name.removeprefix("value-")) for name in form if SLOT_FIELD.fullmatch(name)})

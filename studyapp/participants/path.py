@@ -147,6 +147,11 @@ def _device_check(request: HttpRequest, study: Study, participant: Participant) 
     return _passing("device_checked_at")(request, study, participant)
 
 
+def _instructions_page(study: Study, participant: Participant) -> dict:
+    """What each page of the study's design will ask."""
+    return {"task": design_of(study).task(study)}
+
+
 def _questions_preview(part: str) -> Callable[[Study], list[dict]]:
     """The questions' page in the preview, where the study asks any."""
     def preview(study: Study) -> list[dict]:
@@ -274,7 +279,7 @@ PATH: tuple[Step, ...] = (
     Step("screening", "questions.html", pending=lambda p: p.screened_at is None,
          page=questions_page(Question.Part.BEFORE), submit=_screening, preview=_questions_preview(Question.Part.BEFORE)),
     Step("instructions", "instructions.html", pending=lambda p: p.instructed_at is None,
-         submit=_passing("instructed_at")),
+         page=_instructions_page, submit=_passing("instructed_at")),
     Step("practice", _design_template, pending=lambda p: p.training_done < len(p.training), page=practice_page,
          submit=_practice, preview=preview_practice_pages),
     Step("rate", _design_template, pending=lambda p: p.finished_at is None, page=rating_page, submit=_rate,
