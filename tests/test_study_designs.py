@@ -198,6 +198,16 @@ def test_the_sliders_setting_is_side_by_sides_alone_and_harmless_left_on_elsewhe
     assert 'data-sliders-must-move' in _first_rated_page(side)
 
 
+def test_the_new_study_form_shows_the_sliders_setting_for_side_by_side_ticked(client):
+    from django.contrib.auth.models import User
+
+    client.force_login(User.objects.create_user("researcher"))
+    html = client.get(reverse("study-create")).content.decode()
+    row = re.search(r'<div class="field check" data-designs="([^"]*)"[^>]*>\s*<label for="id_sliders_must_move">'
+                    r'Each slider must be moved before answering</label>\s*<div class="input">(<input[^>]*>)', html)
+    assert row and row.group(1) == "side-by-side" and "checked" in row.group(2)
+
+
 def _first_rated_page(study: Study) -> str:
     client = Client()
     through_practice(client, study)
