@@ -6,6 +6,7 @@ import io
 import re
 
 import pytest
+from django.contrib.auth.models import User
 from django.core.exceptions import ValidationError
 from django.test import Client
 from django.urls import reverse
@@ -199,8 +200,6 @@ def test_the_sliders_setting_is_side_by_sides_alone_and_harmless_left_on_elsewhe
 
 
 def test_the_new_study_form_shows_the_sliders_setting_for_side_by_side_ticked(client):
-    from django.contrib.auth.models import User
-
     client.force_login(User.objects.create_user("researcher"))
     html = client.get(reverse("study-create")).content.decode()
     row = re.search(r'<div class="field check" data-designs="([^"]*)"[^>]*>\s*<label for="id_sliders_must_move">'
