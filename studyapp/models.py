@@ -187,6 +187,9 @@ class Study(models.Model):
     require_full_play = models.BooleanField(
         default=True, help_text="the rating buttons unlock when the clip has played to its end, and answers sent "
                                 "sooner after the page than the clip lasts are refused")
+    sliders_must_move = models.BooleanField(
+        default=True, help_text="side-by-side: a page's answer is taken only once each of its sliders has been moved "
+                                "(as webMUSHRA asks), so that no clip keeps the starting value unread")
     reservation_minutes = models.PositiveIntegerField(
         default=90, help_text="an unfinished participant's unrated clips stop counting towards the target after this idle time",
         validators=[Within(1, 7 * 24 * 60, "a week")])
@@ -252,7 +255,9 @@ class Study(models.Model):
         if problems := design.problems(self):
             raise ValidationError(problems)
         for name, owners in designs.foreign_settings(self.design).items():
-            if getattr(self, name) is True:  # a switch of another design's, turned on
+            # A switch of another design's, turned on (one that is on unless turned off, as
+            # side-by-side's sliders_must_move, does nothing in the designs that do not read it).
+            if getattr(self, name) is True and self._meta.get_field(name).default is not True:
                 raise ValidationError({name: f"{self._meta.get_field(name).verbose_name} goes with the "
                                              f"{' or '.join(owners)} design"})
         if self.stop_after_failed_checks > self.instructed_checks:

@@ -172,6 +172,7 @@ def on_step(step: str) -> OnStep:
         "practice": {"index": "0", "value": "3"},
         "rate (single)": {"assignment": "<token>", "value": "4", **times},
         "rate (side-by-side)": {"page": "<token>", **{f"value-{slot}": "50" for slot in slots},
+                                **{f"moved-{slot}": "1" for slot in slots},
                                 **{f"{name}-{slot}": value for slot in slots for name, value in times.items()}},
         "rate (pairwise)": {"page": "<token>", "answer": "left", "strength": "2",
                             **{f"{name}-{slot}": value for slot in slots for name, value in times.items()}},

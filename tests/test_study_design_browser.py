@@ -4,7 +4,8 @@ For each design (and pairwise's ABX variant): a careful participant on a phone a
 played to its end, the instructed check followed), one who fails the checks (NAT rated
 low or BAD preferred, the instructed check ignored) and one who tries to answer before
 playing (the buttons stay disabled; forcing the form sends an answer the server refuses
-as too soon, and counts). Practice is the design's own page, played and answered the
+as too soon, and counts). On the phone the clips are shown one at a time, picked by their
+tabs; on the desktop side by side. Practice is the design's own page, played and answered the
 same way. The export, read back by the analysis, must hold what each one did.
 """
 
@@ -29,9 +30,17 @@ def video(slot: int) -> str:
     return f"document.querySelector('video[data-slot=\"{slot}\"]')"
 
 
+def show_clip(page, slot) -> None:
+    """Bring clip ``slot`` on screen: a phone shows one clip at a time, picked by its tab."""
+    tab = page.locator(f'.clip-tabs [data-tab="{slot}"]')
+    if tab.is_visible():
+        tab.click()
+
+
 def play_every_clip(page) -> None:
     """Play each clip on the page (ABX's reference X too) to its end, one after the other."""
     for slot in page.eval_on_selector_all("video[data-slot]", "videos => videos.map((v) => v.dataset.slot)"):
+        show_clip(page, slot)
         page.locator(f'button[data-play="{slot}"]').click()
         page.wait_for_function(f"() => {video(slot)}.ended", timeout=20_000)
 
@@ -40,6 +49,7 @@ def one_plays_at_a_time(page) -> bool:
     """Start A, then B: A is paused."""
     page.locator('button[data-play="1"]').click()
     page.wait_for_function(f"() => !{video(1)}.paused")
+    show_clip(page, 2)
     page.locator('button[data-play="2"]').click()
     page.wait_for_function(f"() => !{video(2)}.paused")
     return page.evaluate(f"{video(1)}.paused")
@@ -74,11 +84,21 @@ def careless_choice(clips) -> str:
     return "left" if bad[0] else "right"  # BAD preferred where there is one
 
 
-def answer_page(page, study: Study, clips, careful: bool) -> None:
-    """Answer the page of ``clips`` (none: a practice page, answered anyhow)."""
+def force_the_buttons(page) -> None:
+    """Unlock the page's buttons, as a participant editing the page could."""
+    page.evaluate("document.querySelectorAll('#page-form button').forEach((b) => { b.disabled = false; })")
+
+
+def answer_page(page, study: Study, clips, careful: bool, forced: bool = False) -> None:
+    """Answer the page of ``clips`` (none: a practice page, answered anyhow); ``forced``: with its buttons unlocked."""
     if study.design == "side-by-side":
         for clip in clips:
             set_slider(page, clip.slot, (careful_value if careful else careless_value)(study, clip))
+        if not clips:  # practice: each slider moved too, as the study asks
+            for slot in page.eval_on_selector_all(".clips video[data-slot]", "videos => videos.map((v) => v.dataset.slot)"):
+                set_slider(page, int(slot), 60)
+        if forced:  # after the sliders, whose moves lock the button again until every clip has played
+            force_the_buttons(page)
         page.get_by_role("button", name="Submit ratings").click()
         return
     choice = (careful_choice if careful else careless_choice)(clips) if clips else "left"
@@ -108,15 +128,18 @@ def take_part(browser, live_server, study: Study, pid: str, screen: dict, carefu
         assert page.eval_on_selector_all("#page-form button[type=submit]",  # nothing played yet
                                          "buttons => buttons.every((b) => b.disabled)")
         if first:
-            assert one_plays_at_a_time(page)
             assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth")  # no sideways scroll
-            boxes = [page.locator(f'video[data-slot="{slot}"]').bounding_box() for slot in (1, 2)]
-            stacked = boxes[1]["y"] >= boxes[0]["y"] + boxes[0]["height"]
-            assert stacked is (screen is PHONE)  # one above the other on a phone, side by side on a desktop
+            if screen is PHONE:  # one clip at a time, the others a tab away
+                assert page.locator('video[data-slot="1"]').is_visible()
+                assert not page.locator('video[data-slot="2"]').is_visible()
+            else:  # side by side
+                boxes = [page.locator(f'video[data-slot="{slot}"]').bounding_box() for slot in (1, 2)]
+                assert boxes[1]["x"] >= boxes[0]["x"] + boxes[0]["width"] and boxes[1]["y"] == boxes[0]["y"]
+            assert one_plays_at_a_time(page)
         answered = False
         if hasty and first:
-            page.evaluate("document.querySelectorAll('#page-form button').forEach((b) => { b.disabled = false; })")
-            answer_page(page, study, clips, careful)
+            force_the_buttons(page)
+            answer_page(page, study, clips, careful, forced=True)
             # Sooner than the clips last by the server's clock: refused. Later (a slow
             # machine), but with no clip seen to its end: taken, and flagged early.
             page.wait_for_function(f"() => document.body.innerText.includes('Please watch every clip') "

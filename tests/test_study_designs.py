@@ -6,6 +6,7 @@ import io
 import re
 
 import pytest
+from django.contrib.auth.models import User
 from django.core.exceptions import ValidationError
 from django.test import Client
 from django.urls import reverse
@@ -47,12 +48,17 @@ def page_token(html: str) -> str:
     return re.search(r'name="page" value="([0-9a-f]+)"', html).group(1)
 
 
+def moved(slots) -> dict:
+    """What the page's script sends of sliders the participant has moved."""
+    return {f"moved-{slot}": "1" for slot in slots}
+
+
 def rate_page(client: Client, study: Study, participant: Participant, value_of=lambda a: 50, **extra):
-    """Answer the side-by-side page on screen; ``value_of(assignment)`` gives each slider's value."""
+    """Answer the side-by-side page on screen (every slider moved); ``value_of(assignment)`` gives each slider's value."""
     html = page_html(client, study)
     page = current_page(participant)
     make_shown_long_ago(participant)
-    values = {f"value-{a.slot}": value_of(a) for a in page}
+    values = {f"value-{a.slot}": value_of(a) for a in page} | moved(a.slot for a in page)
     return post(client, study, "rate", page=page_token(html), **{**values, **watched(a.slot for a in page), **extra})
 
 
@@ -73,7 +79,7 @@ def test_a_side_by_side_page_shows_every_system_of_one_control_under_neutral_lab
     assert [a.slot for a in page] == [1, 2, 3, 4]
     for a in page:
         assert f'src="{a.stimulus.video_url}"' in html
-    assert re.findall(r"<h2>Clip (\w)</h2>", html) == ["A", "B", "C", "D"]
+    assert re.findall(r"<h2>Clip (\w)\b", html) == ["A", "B", "C", "D"]
     assert html.count('type="range"') == 4 and 'min="0" max="100"' in html
     for system in System.objects.filter(study=study):
         assert not re.search(rf"\b{re.escape(system.name)}\b", html), system.name
@@ -95,7 +101,7 @@ def test_practice_shows_the_designs_own_page_locked_until_played_and_records_not
         html = page_html(client, study)
         assert "Practice page" in html and "(not recorded)" in html and answer_field in html
         assert re.search(r'<button type="submit"[^>]* disabled', html)  # until every clip has played
-        assert re.findall(r"<h2>Clip (\w)</h2>", html)[:2] == ["A", "B"]
+        assert re.findall(r"<h2>Clip (\w)\b", html)[:2] == ["A", "B"]
         assert post(client, study, "practice", index=participant.training_done, answer="left",
                     **{"value-1": 50}).status_code == 302
         pages += 1
@@ -142,6 +148,71 @@ def test_a_side_by_side_page_without_every_rating_or_off_the_scale_is_refused_an
     assert not Rating.objects.exists()
 
 
+def test_an_untouched_slider_is_refused_where_each_slider_must_move_and_stores_nothing():
+    study = make_study(**SIDE_BY_SIDE, bad_checks=0)  # three clips a page: MoGlow, RNN, NAT
+    assert study.sliders_must_move  # a new study's default
+    client = Client()
+    participant = through_practice(client, study)
+    html = page_html(client, study)
+    make_shown_long_ago(participant)
+    untouched = {f"value-{slot}": 50 for slot in (1, 2, 3)}  # where every slider starts
+    response = post(client, study, "rate", page=page_token(html), **untouched, **moved((1, 3)), **watched((1, 2, 3)))
+    assert response.status_code == 400
+    assert "not moved: the slider of clip B" in response.content.decode()
+    assert not Rating.objects.exists()
+    # The script's word that a slider was moved (and back to the middle) is enough.
+    assert post(client, study, "rate", page=page_token(html), **untouched, **moved((1, 2, 3)),
+                **watched((1, 2, 3))).status_code == 302
+    assert Rating.objects.count() == 3
+
+
+def test_without_the_pages_script_a_value_other_than_the_start_counts_as_moved():
+    study = make_study(**SIDE_BY_SIDE, bad_checks=0)  # three clips a page: MoGlow, RNN, NAT
+    client = Client()
+    participant = through_practice(client, study)
+    html = page_html(client, study)
+    make_shown_long_ago(participant)
+    plain = {"value-1": 50, "value-2": 70, "value-3": 0}  # a form posted without the script: no moved-* fields
+    response = post(client, study, "rate", page=page_token(html), **plain, **watched((1, 2, 3)))
+    assert response.status_code == 400 and "not moved: the slider of clip A" in response.content.decode()
+    plain["value-1"] = 51
+    assert post(client, study, "rate", page=page_token(html), **plain, **watched((1, 2, 3))).status_code == 302
+
+
+def test_untouched_sliders_are_taken_where_the_study_turns_the_rule_off():
+    study = make_study(**SIDE_BY_SIDE, bad_checks=0, sliders_must_move=False)
+    client = Client()
+    participant = through_practice(client, study)
+    html = page_html(client, study)
+    make_shown_long_ago(participant)
+    assert post(client, study, "rate", page=page_token(html), **{f"value-{slot}": 50 for slot in (1, 2, 3)},
+                **watched((1, 2, 3))).status_code == 302
+    assert 'data-sliders-must-move' not in html
+
+
+def test_the_sliders_setting_is_side_by_sides_alone_and_harmless_left_on_elsewhere():
+    assert StudyForm.field_designs("sliders_must_move") == ["side-by-side"]
+    single = make_study()  # left on, as a new study has it: the single design does not read it
+    assert single.sliders_must_move
+    single.full_clean()
+    side = make_study(owner_name="other", **SIDE_BY_SIDE)
+    assert 'data-sliders-must-move' in _first_rated_page(side)
+
+
+def test_the_new_study_form_shows_the_sliders_setting_for_side_by_side_ticked(client):
+    client.force_login(User.objects.create_user("researcher"))
+    html = client.get(reverse("study-create")).content.decode()
+    row = re.search(r'<div class="field check" data-designs="([^"]*)"[^>]*>\s*<label for="id_sliders_must_move">'
+                    r'Each slider must be moved before answering</label>\s*<div class="input">(<input[^>]*>)', html)
+    assert row and row.group(1) == "side-by-side" and "checked" in row.group(2)
+
+
+def _first_rated_page(study: Study) -> str:
+    client = Client()
+    through_practice(client, study)
+    return page_html(client, study)
+
+
 @pytest.mark.parametrize("settings", [SIDE_BY_SIDE, PAIRWISE])
 def test_a_page_answered_sooner_than_its_clips_last_is_refused_with_409_and_counted(settings):
     from studyapp.researchers.results.monitor import study_monitor
@@ -151,7 +222,8 @@ def test_a_page_answered_sooner_than_its_clips_last_is_refused_with_409_and_coun
     participant = through_practice(client, study)
     html = page_html(client, study)  # the server has just sent the page: its 4 s clips cannot have played
     page = current_page(participant)
-    answer = {f"value-{a.slot}": 50 for a in page} if settings is SIDE_BY_SIDE else {"answer": "left"}
+    answer = {f"value-{a.slot}": 50 for a in page} | moved(a.slot for a in page) if settings is SIDE_BY_SIDE \
+        else {"answer": "left"}
     answer.update(watched(a.slot for a in page))  # whatever the browser claims
     response = post(client, study, "rate", page=page_token(html), **answer)
     assert response.status_code == 409 and "Please watch every clip to its end" in response.content.decode()
@@ -301,7 +373,7 @@ def test_made_up_clips_and_numbers_in_a_page_form_are_refused_with_a_message():
     client = Client()
     participant = through_practice(client, study)
     token = page_token(page_html(client, study))
-    values = {f"value-{slot}": 50 for slot in (1, 2, 3)}
+    values = {f"value-{slot}": 50 for slot in (1, 2, 3)} | moved((1, 2, 3))
     for extra in ({"value-99999999999": 50}, {"value-2": "fifty"}, {"started_s-1": "soon"}):
         response = post(client, study, "rate", page=token, **{**values, **watched((1, 2, 3)), **extra})
         assert response.status_code == 400, extra

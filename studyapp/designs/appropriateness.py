@@ -107,6 +107,10 @@ class Appropriateness(Pairwise):
         rng.shuffle(pages)
         return [s.id for pair in pages for s in rng.sample(pair, 2)]
 
+    def task(self, study: Study) -> str:
+        return ("Each page shows two clips, A and B, of a character asked to move in a certain way: say which "
+                "clip's motion fits what it was asked better.")
+
     def page_context(self, study: Study, page: Page) -> dict:
         clips = page.clips
         shown = next((c.shown_control_id for c in clips if c.shown_control_id), clips[0].control_id if clips else None)

@@ -70,6 +70,7 @@ class Answer:
     values: dict[int, int] = field(default_factory=dict)
     choice: str = ""
     strength: int | None = None
+    moved: frozenset[int] = frozenset()  # the slots whose slider the participant moved (side-by-side)
 
 
 @dataclass(frozen=True)
@@ -237,6 +238,11 @@ class Design:
             "upcoming": page.upcoming, "time_fields": TIME_FIELDS,
             "instruction": self.instruction(study, expected) if any(expected) else "",
         }
+
+    def task(self, study: Study) -> str:
+        """What the instructions page says each page asks of the participant."""
+        return (f"For each clip you will answer: {study.question} On a scale from {study.scale_min} "
+                f"({study.label_min}) to {study.scale_max} ({study.label_max}).")
 
     # Answers.
 

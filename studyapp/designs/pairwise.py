@@ -202,6 +202,11 @@ class Pairwise(MultiClip):
     def follows_instruction(self, study: Study, expected: list[str], answer: Answer) -> bool:
         return answer.choice == expected[0]
 
+    def task(self, study: Study) -> str:
+        if study.abx:
+            return "Each page shows a reference clip X and two clips, A and B: say which of them is closer to X."
+        return f"Each page shows two clips, A and B. {study.question} Say which clip is better."
+
     def page_context(self, study: Study, page: Page) -> dict:
         return {**super().page_context(study, page), "strengths": list(self.strengths(study)),
                 "reference": self._reference(study, page)}

@@ -10,6 +10,12 @@ with the defaults: a NAT clip below 25 or a BAD clip at 75 or above excludes the
 participant, as GENEA does). An instructed check asks for one clip's slider at the top
 (its value in the top tenth of the scale). Practice shows pages of this kind too, about
 ``training_clips`` clips in whole pages, of controls the participant does not rate.
+
+With the study's ``sliders_must_move`` (as webMUSHRA offers; on for a new study) every
+slider starts in the middle of the scale and the answer is taken only once each has been
+moved. The page's script says so in a hidden field per slider (``moved-<slot>``, set at
+the slider's first move, even one back to the middle); a browser without scripts cannot
+tell, so there a value other than the starting one counts as moved.
 """
 
 from __future__ import annotations
@@ -66,7 +72,7 @@ def _williams_order(clips: list[Stimulus], orders: Counter, offset: int) -> list
 class SideBySide(MultiClip):
     template = "side_by_side.html"
     default_scale = (0, 100)
-    settings = ("pages_per_participant",)
+    settings = ("pages_per_participant", "sliders_must_move")
     export_columns = ("design", "page", "position")
 
     def clips_per_page(self, study: Study) -> float:
@@ -140,9 +146,18 @@ class SideBySide(MultiClip):
         return all((value := answer.values.get(slot)) is not None and value >= floor
                    for slot, want in enumerate(expected, start=1) if want == MAX)
 
+    @staticmethod
+    def middle(study: Study) -> int:
+        """Where every slider starts."""
+        return (study.scale_min + study.scale_max) // 2
+
     def page_context(self, study: Study, page: Page) -> dict:
-        return {**super().page_context(study, page),
-                "middle": (study.scale_min + study.scale_max) // 2}  # where every slider starts
+        return {**super().page_context(study, page), "middle": self.middle(study)}
+
+    def task(self, study: Study) -> str:
+        moved = " Move every slider before you answer." if study.sliders_must_move else ""
+        return (f"Each page shows several clips side by side. {study.question} Rate each clip on its slider, from "
+                f"{study.scale_min} ({study.label_min}) to {study.scale_max} ({study.label_max}).{moved}")
 
     def read_answer(self, study: Study, form: QueryDict) -> Answer:
         # A slot is ASCII digits: "²" passes isdigit() but not int(), nor do 5000 digits (a made-up slot of 18 is refused).
@@ -153,7 +168,9 @@ class SideBySide(MultiClip):
             if value is None:
                 raise AnswerRefused(f"clip {clip_label(slot)} has no rating")
             values[slot] = value
-        return Answer(form.get(self.form_field, ""), self.slot_times(form, slots), values=values)
+        moved = frozenset(slot for slot, value in values.items()
+                          if form.get(f"moved-{slot}") == "1" or value != self.middle(study))
+        return Answer(form.get(self.form_field, ""), self.slot_times(form, slots), values=values, moved=moved)
 
     def check_answer(self, study: Study, answer: Answer, slots: list[int]) -> None:
         for slot, value in answer.values.items():
@@ -165,6 +182,9 @@ class SideBySide(MultiClip):
             raise AnswerRefused(f"every clip on the page needs a rating; missing: clip "
                                 f"{', '.join(map(clip_label, missing))}" if missing
                                 else "ratings were sent for clips that are not on this page")
+        if study.sliders_must_move and (unmoved := sorted(set(slots) - answer.moved)):
+            raise AnswerRefused(f"please move each clip's slider before you answer; not moved: the slider of clip "
+                                f"{', '.join(map(clip_label, unmoved))}")
 
     def exclusion_reason(self, rules: ExclusionRules, study: Study, page: list[OnPage], answer: Answer) -> str:
         return rated_clip_exclusion(rules, study, page, answer)

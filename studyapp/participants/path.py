@@ -106,6 +106,19 @@ def _consent(request: HttpRequest, study: Study, participant: Participant) -> Ht
     return _next_page(study)
 
 
+def screen_need(study: Study) -> str:
+    """The screen size the study's device check asks for, naming only the sides it sets."""
+    width, height = study.min_screen_width, study.min_screen_height
+    if width and height:
+        return f"at least {width} × {height} pixels"
+    return f"at least {width} pixels wide" if width else f"at least {height} pixels high"
+
+
+def _device_context(study: Study, clip: Stimulus) -> dict:
+    return {"video_url": clip.video_url, "min_width": study.min_screen_width, "min_height": study.min_screen_height,
+            "screen_need": screen_need(study)}
+
+
 def _device_page(study: Study, participant: Participant) -> dict:
     """A clip the participant will see anyway (their first), played before they consent."""
     practice = participant.practice_ids()
@@ -114,14 +127,12 @@ def _device_page(study: Study, participant: Participant) -> dict:
     stimulus = Stimulus.objects.filter(pk=first).first()
     if stimulus is None:
         raise Http404("no clip for the device check")
-    return {"video_url": stimulus.video_url, "min_width": study.min_screen_width,
-            "min_height": study.min_screen_height}
+    return _device_context(study, stimulus)
 
 
 def _device_preview(study: Study) -> list[dict]:
     clip = preview_clip(study) if study.device_check else None
-    return [{"video_url": clip.video_url, "min_width": study.min_screen_width,
-             "min_height": study.min_screen_height}] if clip else []
+    return [_device_context(study, clip)] if clip else []
 
 
 def _device_check(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
@@ -131,10 +142,14 @@ def _device_check(request: HttpRequest, study: Study, participant: Participant) 
     except ValueError:
         raise AnswerRefused("the device check needs the screen's width and height in whole pixels") from None
     if width < study.min_screen_width or height < study.min_screen_height:
-        raise AnswerRefused(f"this study needs a screen at least {study.min_screen_width} × "
-                             f"{study.min_screen_height} pixels, and this one is {width} × {height}: please open "
-                             f"the link on a larger screen (or turn your device)", status=409)
+        raise AnswerRefused(f"this study needs a screen {screen_need(study)}, and this one is {width} × {height}: "
+                             f"please open the link on a larger screen (or turn your device)", status=409)
     return _passing("device_checked_at")(request, study, participant)
+
+
+def _instructions_page(study: Study, participant: Participant) -> dict:
+    """What each page of the study's design will ask."""
+    return {"task": design_of(study).task(study)}
 
 
 def _questions_preview(part: str) -> Callable[[Study], list[dict]]:
@@ -264,7 +279,7 @@ PATH: tuple[Step, ...] = (
     Step("screening", "questions.html", pending=lambda p: p.screened_at is None,
          page=questions_page(Question.Part.BEFORE), submit=_screening, preview=_questions_preview(Question.Part.BEFORE)),
     Step("instructions", "instructions.html", pending=lambda p: p.instructed_at is None,
-         submit=_passing("instructed_at")),
+         page=_instructions_page, submit=_passing("instructed_at")),
     Step("practice", _design_template, pending=lambda p: p.training_done < len(p.training), page=practice_page,
          submit=_practice, preview=preview_practice_pages),
     Step("rate", _design_template, pending=lambda p: p.finished_at is None, page=rating_page, submit=_rate,

@@ -59,7 +59,7 @@ class StudyForm(forms.ModelForm):
     """
 
     INSTRUMENT = ("design", "abx", "question", "scale_min", "scale_max", "label_min", "label_max", "preference_strengths",
-                  "bad_threshold", "natural_threshold", "video_width", "video_height")
+                  "bad_threshold", "natural_threshold", "video_width", "video_height", "sliders_must_move")
     SECTIONS = (
         ("The study", ("title", "instructions", "consent_text")),
         ("Design", ("design", "pages_per_participant", "abx", "preference_strengths", "adaptive_pairing")),
@@ -68,7 +68,7 @@ class StudyForm(forms.ModelForm):
                                "reservation_minutes")),
         ("Attention checks and early answers", ("bad_checks", "natural_checks", "bad_threshold", "natural_threshold",
                                                 "instructed_checks", "stop_after_failed_checks",
-                                                "require_full_play", "discard_early")),
+                                                "require_full_play", "sliders_must_move", "discard_early")),
         ("Plan", ("expected_effect",)),
         ("Crowd platform", ("platform", "completion_code", "redirect_url", "screen_out_code", "stopped_code",
                             "is_open")),
@@ -177,6 +177,7 @@ class StudyForm(forms.ModelForm):
             "instructed_checks": "Instructed checks per participant",
             "stop_after_failed_checks": "Stop after failed instructed checks",
             "require_full_play": "Answers unlock when the clip has played",
+            "sliders_must_move": "Each slider must be moved before answering",
             "discard_early": "Flag answers given before the clip ended",
             "completion_code": "Completion code",
             "is_open": "Open to participants",

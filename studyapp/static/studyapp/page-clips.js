@@ -9,10 +9,20 @@
   const submits = [...form.querySelectorAll("button[type=submit]")];
   const note = document.getElementById("play-note");
   const ended = new Set();
+  // The sliders sit beside their clips, outside the form (form="page-form"): form.elements holds them.
+  const sliders = [...form.elements].filter((element) => element.type === "range");
+  const moved = (slider) => field(`moved-${slider.dataset.slot}`).value === "1";
+  const moveNote = document.getElementById("move-note");  // only where each slider must be moved
   const update = () => {
-    const ready = ended.size === videos.length;
-    submits.forEach((button) => { button.disabled = !ready; });
-    note.hidden = ready;
+    const played = ended.size === videos.length;
+    const unmoved = moveNote ? sliders.filter((slider) => !moved(slider)) : [];
+    submits.forEach((button) => { button.disabled = !played || unmoved.length > 0; });
+    note.hidden = played;
+    if (moveNote) {
+      moveNote.hidden = !unmoved.length;
+      moveNote.textContent = `Move each clip's slider to your rating before you answer (not yet moved: clip ${
+        unmoved.map((slider) => slider.dataset.label).join(", ")}).`;
+    }
   };
   // Paused at once, not only on the "play" event (queued after play() returns), so that two
   // clips never play together, not even for a moment.
@@ -24,6 +34,7 @@
     video.addEventListener("ended", () => {
       if (!field(`ended_s-${slot}`).value) field(`ended_s-${slot}`).value = now();
       ended.add(slot);
+      document.querySelectorAll(`[data-played="${slot}"]`).forEach((mark) => { mark.hidden = false; });
       update();
     });
     document.querySelector(`button[data-play="${slot}"]`).addEventListener("click", () => {
@@ -32,10 +43,30 @@
       video.play();
     });
   });
-  form.querySelectorAll("input[type=range]").forEach((slider) => {
-    const output = form.querySelector(`output[for="${slider.id}"]`);
-    slider.addEventListener("input", () => { output.value = slider.value; });
+  sliders.forEach((slider) => {
+    const output = document.querySelector(`output[for="${slider.id}"]`);
+    slider.addEventListener("input", () => {
+      output.value = slider.value;
+      field(`moved-${slider.dataset.slot}`).value = "1";  // even a move back to the start counts
+      update();
+    });
   });
+  // On a narrow screen the clips would stack beyond the screen: one is shown at a time, with
+  // tabs to switch between them (every slider stays in the form, hidden or not).
+  const tabs = document.querySelector(".clip-tabs");
+  if (tabs) {
+    const sections = [...document.querySelectorAll(".clips > .clip")];
+    const buttons = [...tabs.querySelectorAll("[data-tab]")];
+    const show = (slot) => {
+      videos.forEach((video) => video.pause());
+      sections.forEach((section) => section.classList.toggle("current", section.id === `clip-${slot}`));
+      buttons.forEach((button) => button.setAttribute("aria-selected", String(button.dataset.tab === slot)));
+    };
+    buttons.forEach((button) => button.addEventListener("click", () => show(button.dataset.tab)));
+    document.querySelector(".clips").classList.add("tabbed");
+    tabs.hidden = false;
+    show(buttons[0].dataset.tab);
+  }
   let sent = false;
   form.addEventListener("submit", (event) => {
     const strengths = [...form.querySelectorAll("input[name=strength]")];

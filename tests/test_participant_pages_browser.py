@@ -1,0 +1,325 @@
+"""The participant's pages in a real browser (headless Debian Chromium), on a desktop
+(1366×768) and a phone (390×844): what the multi-clip pages' script does (the slider's
+number, the sliders that must be moved, the played marks, one clip at a time on a phone),
+what each page shows where (above the fold, on one line, no dark edge on a clip), and every
+page of every design with nothing wider than the screen. With $SHOTS_DIR set, each page is
+also saved there as a PNG, to be looked at."""
+
+from __future__ import annotations
+
+import io
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from django.utils import timezone
+from PIL import Image
+
+from studyapp.models import Assignment, ControlSignal, Participant, Question, Rating, Stimulus, Study, System
+from tests.appropriateness_fixtures import make_appropriateness_study
+from tests.study_fixtures import make_study
+from tests.test_study_browser import browser, clip_video  # noqa: F401 (fixtures)
+
+CLIP_SECONDS = 1.0
+DESKTOP = {"viewport": {"width": 1366, "height": 768}}
+PHONE = {"viewport": {"width": 390, "height": 844}, "is_mobile": True, "has_touch": True}
+SCREENS = {"desktop": DESKTOP, "phone": PHONE}
+SHOTS = os.environ.get("SHOTS_DIR")
+SIDE_BY_SIDE = {"design": "side-by-side", "scale_min": 0, "scale_max": 100, "pages_per_participant": 2}
+
+
+def shoot(page, name: str) -> None:
+    if SHOTS:
+        Path(SHOTS).mkdir(parents=True, exist_ok=True)
+        page.screenshot(path=str(Path(SHOTS) / f"{name}.png"), full_page=True)
+
+
+def enter(browser, live_server, study: Study, screen: dict, pid: str = "p1"):
+    """A participant's browser tab on the study's first page."""
+    page = browser.new_context(**screen).new_page()
+    page.goto(f"{live_server.url}/p/{study.key}/?PROLIFIC_PID={pid}&STUDY_ID=S1&SESSION_ID=X1")
+    return page
+
+
+def skip_to_ratings(page, study: Study, pid: str = "p1") -> Participant:
+    """Past consent, instructions and practice (as if passed), on the first rated page."""
+    participant = Participant.objects.get(study=study, platform_id=pid)
+    now = timezone.now()
+    Participant.objects.filter(pk=participant.pk).update(device_checked_at=now, consented_at=now, screened_at=now,
+                                                         instructed_at=now, training_done=len(participant.training))
+    page.reload()
+    page.wait_for_selector("video")
+    return participant
+
+
+def visible_clips(page) -> list[str]:
+    return page.eval_on_selector_all(".clips > .clip", "sections => sections.filter((s) => s.offsetParent !== null)"
+                                                       ".map((s) => s.id)")
+
+
+def show_clip(page, slot) -> None:
+    """Bring clip ``slot`` on screen: its tab on a phone (nothing to do on a desktop)."""
+    tab = page.locator(f'.clip-tabs [data-tab="{slot}"]')
+    if tab.is_visible():
+        tab.click()
+
+
+def play_to_end(page, slot) -> None:
+    show_clip(page, slot)
+    page.locator(f'button[data-play="{slot}"]').click()
+    page.wait_for_function(f"() => document.querySelector('video[data-slot=\"{slot}\"]').ended", timeout=20_000)
+
+
+def slots_on_page(page) -> list[str]:
+    return page.eval_on_selector_all(".clips video[data-slot]", "videos => videos.map((v) => v.dataset.slot)")
+
+
+def add_system(study: Study, name: str) -> None:
+    """Another model with a finished clip of every control (a copy of an existing clip's file)."""
+    system = System.objects.create(study=study, name=name, checkpoint=f"{name}.safetensors",
+                                   checkpoint_digest=name * 8, kind="moglow")
+    for control in ControlSignal.objects.filter(study=study):
+        model = study.stimuli.filter(control=control, system__name="MoGlow").first()
+        stimulus = Stimulus.objects.create(study=study, system=system, control=control, status=Stimulus.Status.DONE,
+                                           content_key=f"{name}-{control.name}", duration_s=model.duration_s)
+        if model.video_path().exists():
+            stimulus.video_path().write_bytes(model.video_path().read_bytes())
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("device", SCREENS)
+def test_the_sliders_number_follows_dragging_keys_and_script(browser, live_server, clip_video, settings, tmp_path,
+                                                            device):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, bad_checks=0, **SIDE_BY_SIDE)
+    page = enter(browser, live_server, study, SCREENS[device])
+    skip_to_ratings(page, study)
+    number = page.locator('output[for="value-1"]')
+    assert number.inner_text() == "50"
+    slider = page.locator("#value-1")
+    box = slider.bounding_box()
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] * 0.9, box["y"] + box["height"] / 2, steps=5)
+    page.mouse.up()
+    dragged = slider.input_value()
+    assert int(dragged) > 70 and number.inner_text() == dragged
+    slider.focus()
+    page.keyboard.press("ArrowLeft")
+    page.keyboard.press("ArrowLeft")
+    assert number.inner_text() == str(int(dragged) - 2) == slider.input_value()
+    slider.evaluate("(s) => { s.value = 17; s.dispatchEvent(new Event('input')); }")
+    assert number.inner_text() == "17"
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("device", SCREENS)
+def test_the_answer_waits_for_every_slider_to_move_and_each_played_clip_is_marked(browser, live_server, clip_video,
+                                                                                 settings, tmp_path, device):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, bad_checks=0, **SIDE_BY_SIDE)
+    page = enter(browser, live_server, study, SCREENS[device])
+    participant = skip_to_ratings(page, study)
+    submit = page.get_by_role("button", name="Submit ratings")
+    slots = slots_on_page(page)
+    for slot in slots:
+        assert not page.locator(f'.clip [data-played="{slot}"]').is_visible()
+        play_to_end(page, slot)
+        assert page.locator(f'.clip [data-played="{slot}"]').is_visible()  # "played ✓" by its clip
+        if device == "phone":
+            assert page.locator(f'.clip-tabs [data-played="{slot}"]').is_visible()  # and on its tab
+    note = page.locator("#move-note")
+    assert submit.is_disabled() and "not yet moved: clip A, B, C" in note.inner_text()
+    for slot in slots[:-1]:
+        show_clip(page, slot)
+        page.locator(f"#value-{slot}").focus()
+        page.keyboard.press("ArrowRight")
+    assert submit.is_disabled() and "not yet moved: clip C" in note.inner_text()
+    show_clip(page, slots[-1])
+    page.locator(f"#value-{slots[-1]}").focus()
+    page.keyboard.press("ArrowRight")
+    page.keyboard.press("ArrowLeft")  # back to the start: still moved
+    assert submit.is_enabled() and not note.is_visible()
+    submit.click()
+    page.wait_for_function("() => document.body.innerText.includes('Page 2 of')")
+    assert sorted(Rating.objects.filter(assignment__participant=participant).values_list("value", flat=True)) == \
+        [50, 51, 51]
+
+
+@pytest.mark.django_db(transaction=True)
+def test_a_phone_shows_one_clip_at_a_time_with_every_slider_in_the_form(browser, live_server, clip_video, settings,
+                                                                       tmp_path):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, bad_checks=0, **SIDE_BY_SIDE)
+    page = enter(browser, live_server, study, PHONE)
+    skip_to_ratings(page, study)
+    assert visible_clips(page) == ["clip-1"]
+    video = page.locator('video[data-slot="1"]').bounding_box()
+    assert video["y"] + video["height"] <= 844  # the clip and its play button on the screen at once
+    assert page.locator('button[data-play="1"]').bounding_box()["y"] < 844
+    page.locator('.clip-tabs [data-tab="2"]').click()
+    assert visible_clips(page) == ["clip-2"]
+    assert page.locator('.clip-tabs [data-tab="2"]').get_attribute("aria-selected") == "true"
+    assert page.evaluate("[...document.getElementById('page-form').elements].filter((e) => e.type === 'range')"
+                         ".map((e) => e.name)") == ["value-1", "value-2", "value-3"]
+    desktop = enter(browser, live_server, study, DESKTOP, pid="p2")
+    skip_to_ratings(desktop, study, "p2")
+    assert not desktop.locator(".clip-tabs").is_visible() and len(visible_clips(desktop)) == 3
+
+
+@pytest.mark.django_db(transaction=True)
+def test_the_single_clip_pages_hints_and_end_labels_are_above_the_fold(browser, live_server, clip_video, settings,
+                                                                      tmp_path):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2)
+    page = enter(browser, live_server, study, DESKTOP)
+    skip_to_ratings(page, study)
+    for selector in ("#lock-hint", "#keys-hint", ".scale .ends"):
+        box = page.locator(selector).bounding_box()
+        assert box["y"] + box["height"] <= 768, selector
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("models", [2, 3])  # with NAT and the BAD anchor: 4 and 5 clips
+def test_side_by_side_end_labels_stay_on_one_line_with_four_or_five_clips(browser, live_server, clip_video, settings,
+                                                                          tmp_path, models):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, bad_checks=2, **SIDE_BY_SIDE)
+    if models == 3:
+        add_system(study, "VAE")
+    page = enter(browser, live_server, study, DESKTOP)
+    skip_to_ratings(page, study)
+    assert len(slots_on_page(page)) == models + 2
+    labels = page.eval_on_selector_all(".clip .ends span", "spans => spans.map((s) => [s.getClientRects().length, "
+                                                          "s.getBoundingClientRect().top])")
+    assert all(lines == 1 for lines, _ in labels)  # no label broken over two lines
+    tops = [top for _, top in labels]
+    assert max(tops) - min(tops) < 1  # each clip's two labels on one line, every clip's at one height
+    assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth")
+
+
+@pytest.mark.django_db(transaction=True)
+def test_the_pairwise_question_and_its_prompt_are_two_lines(browser, live_server, clip_video, settings, tmp_path):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, design="pairwise",
+                       pages_per_participant=3)
+    page = enter(browser, live_server, study, DESKTOP)
+    skip_to_ratings(page, study)
+    question, prompt = page.locator("p.question"), page.locator("p.prompt")
+    assert question.inner_text() == study.question and prompt.inner_text() == "Which clip is better?"
+    assert prompt.bounding_box()["y"] >= question.bounding_box()["y"] + question.bounding_box()["height"]
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("width, height, said", [(320, 0, "at least 320 pixels wide"),
+                                                 (0, 400, "at least 400 pixels high"),
+                                                 (320, 400, "at least 320 × 400 pixels")])
+def test_the_device_check_names_only_the_sizes_the_study_sets(browser, live_server, clip_video, settings, tmp_path,
+                                                             width, height, said):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, device_check=True,
+                       min_screen_width=width, min_screen_height=height)
+    page = enter(browser, live_server, study, PHONE)
+    assert f"Your screen is {said}:" in page.locator("#check-screen").inner_text()
+    small = enter(browser, live_server, study, {"viewport": {"width": 300, "height": 300}}, pid="p2")
+    small.wait_for_function("() => !document.getElementById('device-problem').hidden")
+    assert f"This study needs a screen {said}." in small.locator("#device-problem").inner_text()
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("device", SCREENS)
+def test_a_played_clip_has_no_dark_edge(browser, live_server, clip_video, settings, tmp_path, device):
+    """The clip's frame covers its box to the last pixel column (the box's black shows nowhere)."""
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, bad_checks=0, **SIDE_BY_SIDE)
+    page = enter(browser, live_server, study, SCREENS[device])
+    skip_to_ratings(page, study)
+    for slot in slots_on_page(page):
+        play_to_end(page, slot)
+        frame = np.asarray(Image.open(io.BytesIO(page.locator(f'video[data-slot="{slot}"]').screenshot())).convert("L"))
+        inner = frame[4:-4]  # the rounded corners aside
+        assert inner[:, -1].mean() > 200 and inner[:, 0].mean() > 200, (slot, inner[:, -3:].mean(axis=0))
+
+
+def every_page(study: Study, page, prefix: str) -> None:
+    """Walk ``page``'s participant through every page of ``study``, checking each fits the
+    screen and saving it as ``prefix-<page>``; what is not reached by answering is reached
+    by setting the participant's progress as answering would."""
+    def look(name: str) -> None:
+        assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth"), name
+        shoot(page, f"{prefix}-{name}")
+
+    page.wait_for_function("() => document.getElementById('device-ok') && !document.getElementById('device-ok')"
+                           ".disabled", timeout=20_000)
+    look("device-check")
+    page.get_by_role("button", name="Continue").click()
+    page.get_by_role("button", name="I agree to take part").wait_for()
+    look("consent")
+    page.get_by_role("button", name="I agree to take part").click()
+    page.get_by_role("radio", name="yes").check()
+    look("screening")
+    page.get_by_role("button", name="Continue").click()
+    page.get_by_role("button", name="Start").wait_for()
+    assert ("scale" in page.inner_text(".task").lower()) is (study.design == "single")  # the design's own task
+    look("instructions")
+    page.get_by_role("button", name="Start").click()
+    page.wait_for_selector("text=(not recorded)")
+    look("practice")
+    participant = skip_to_ratings(page, study, "tour")
+    if study.design == "single":  # its clip plays by itself
+        page.wait_for_function("() => document.getElementById('clip').ended", timeout=20_000)
+    else:
+        play_to_end(page, slots_on_page(page)[0])
+    if study.design == "side-by-side":
+        slots = slots_on_page(page)
+        page.locator(f"#value-{slots[0]}").evaluate("(s) => { s.value = 70; s.dispatchEvent(new Event('input')); }")
+    look("rating")
+    pages = list(participant.assignments.order_by("position"))
+    check = next(a.page for a in pages if a.expected)
+    answer_by_hand([a for a in pages if a.page < check])
+    page.reload()
+    page.wait_for_selector(".instruction")
+    look("instructed-check")
+    answer_by_hand([a for a in pages if a.page >= check])
+    Participant.objects.filter(pk=participant.pk).update(finished_at=timezone.now())
+    page.reload()
+    look("survey")
+    Participant.objects.filter(pk=participant.pk).update(surveyed_at=timezone.now())
+    page.reload()
+    look("end")
+    Participant.objects.filter(pk=participant.pk).update(stopped_at=timezone.now())
+    page.reload()
+    look("stopped")
+    Participant.objects.filter(pk=participant.pk).update(screened_out_at=timezone.now())
+    page.reload()
+    look("screened-out")
+
+
+def answer_by_hand(assignments: list[Assignment]) -> None:
+    """Store an answer for each of ``assignments`` as the page would have."""
+    for assignment in assignments:
+        study = assignment.participant.study
+        on_scale = study.design in ("single", "side-by-side")
+        Rating.objects.create(assignment=assignment, value=study.scale_min if on_scale else None,
+                              answer="" if on_scale else Rating.Answer.LEFT, client_answered_s=5.0)
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("design", ["single", "side-by-side", "pairwise", "appropriateness"])
+@pytest.mark.parametrize("device", SCREENS)
+def test_every_participant_page_of_every_design_fits_the_screen(browser, live_server, clip_video, settings, tmp_path,
+                                                                design, device):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    common = {"video": clip_video, "clip_seconds": CLIP_SECONDS, "training_clips": 1, "instructed_checks": 1,
+              "device_check": True, "min_screen_width": 360, "stopped_code": "ST0PPED", "screen_out_code": "SCR33N"}
+    fields = {"single": {"clips_per_participant": 4}, "side-by-side": SIDE_BY_SIDE,
+              "pairwise": {"design": "pairwise", "pages_per_participant": 3, "preference_strengths": 3}}
+    study = (make_appropriateness_study(**common) if design == "appropriateness"
+             else make_study(controls=2, **common, **fields[design]))
+    Question.objects.create(study=study, part=Question.Part.BEFORE, name="vision",
+                            text="Do you have normal or corrected-to-normal vision?", choices="yes\nno", accepted="yes")
+    Question.objects.create(study=study, part=Question.Part.AFTER, name="comments", text="Any comments?",
+                            kind=Question.Kind.TEXT, required=False)
+    page = enter(browser, live_server, study, SCREENS[device], pid="tour")
+    every_page(study, page, f"{design}-{device}")
