@@ -1,11 +1,14 @@
 // The clips of a side-by-side or pairwise page: one plays at a time, each clip's times
 // are recorded (seconds after the page was shown; the server judges early answers with
 // them), and the answer can be sent only once every clip has been played to its end.
-(function () {
+// next-page.js sets the page up, on load and again for each page it swaps in: ``shownAt``
+// is the moment (performance.now()) the page was shown, ``signal`` ends its listeners.
+window.studyappSetUpPage = (shownAt, signal) => {
   const form = document.getElementById("page-form");
   const videos = [...document.querySelectorAll("video[data-slot]")];
+  const on = (target, type, listener) => target.addEventListener(type, listener, { signal });
   const field = (name) => form.elements.namedItem(name);
-  const now = () => (performance.now() / 1000).toFixed(3);
+  const now = () => ((performance.now() - shownAt) / 1000).toFixed(3);
   const submits = [...form.querySelectorAll("button[type=submit]")];
   const note = document.getElementById("play-note");
   const ended = new Set();
@@ -19,25 +22,24 @@
   const pauseOthers = (video) => videos.forEach((other) => { if (other !== video) other.pause(); });
   videos.forEach((video) => {
     const slot = video.dataset.slot;
-    video.addEventListener("play", () => pauseOthers(video));  // started some other way (native controls)
-    video.addEventListener("playing", () => { if (!field(`started_s-${slot}`).value) field(`started_s-${slot}`).value = now(); });
-    video.addEventListener("ended", () => {
+    on(video, "play", () => pauseOthers(video));  // started some other way (native controls)
+    on(video, "playing", () => { if (!field(`started_s-${slot}`).value) field(`started_s-${slot}`).value = now(); });
+    on(video, "ended", () => {
       if (!field(`ended_s-${slot}`).value) field(`ended_s-${slot}`).value = now();
       ended.add(slot);
       update();
     });
-    document.querySelector(`button[data-play="${slot}"]`).addEventListener("click", () => {
+    on(document.querySelector(`button[data-play="${slot}"]`), "click", () => {
       pauseOthers(video);
       video.currentTime = 0;
       video.play();
     });
   });
-  form.querySelectorAll("input[type=range]").forEach((slider) => {
-    const output = form.querySelector(`output[for="${slider.id}"]`);
-    slider.addEventListener("input", () => { output.value = slider.value; });
+  document.querySelectorAll("input[type=range][form=page-form]").forEach((slider) => {
+    const output = document.querySelector(`output[for="${slider.id}"]`);
+    on(slider, "input", () => { output.value = slider.value; });
   });
-  let sent = false;
-  form.addEventListener("submit", (event) => {
+  on(form, "submit", (event) => {
     const strengths = [...form.querySelectorAll("input[name=strength]")];
     const choice = event.submitter ? event.submitter.value : "";
     if (choice === "none") strengths.forEach((radio) => { radio.checked = false; });
@@ -46,8 +48,8 @@
       document.getElementById("strength-note").hidden = false;
       return;
     }
-    if (sent) { event.preventDefault(); return; }
-    sent = true;
+    if (form.dataset.sent) { event.preventDefault(); return; }  // once (next-page.js clears it on a refusal)
+    form.dataset.sent = "yes";
     videos.forEach((video) => {
       const slot = video.dataset.slot;
       field(`answered_s-${slot}`).value = now();
@@ -55,4 +57,4 @@
     });
   });
   update();
-})();
+};
