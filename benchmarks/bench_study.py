@@ -126,8 +126,9 @@ def setup_study(participants: int) -> str:
 
 
 def setup_browser_study(video: str) -> str:
-    """Migrate, and create an open study whose every clip is ``video`` (``BROWSER_CLIP_S``
-    long), with ``BROWSER_ANSWERS`` clips per participant and no practice."""
+    """Migrate, collect the static files (the pages' scripts, which the server serves from
+    STATIC_ROOT as in production), and create an open study whose every clip is ``video``
+    (``BROWSER_CLIP_S`` long), with ``BROWSER_ANSWERS`` clips per participant and no practice."""
     import django
 
     django.setup()
@@ -136,6 +137,7 @@ def setup_browser_study(video: str) -> str:
     from tests.study_fixtures import make_study
 
     call_command("migrate", verbosity=0)
+    call_command("collectstatic", interactive=False, verbosity=0)
     study = make_study(owner_name="bench", controls=2 * BROWSER_ANSWERS, clips_per_participant=BROWSER_ANSWERS,
                        ratings_per_stimulus=40, training_clips=0, clip_seconds=BROWSER_CLIP_S, video=Path(video))
     return study.key
@@ -375,7 +377,8 @@ def answer_to_play(video: Path, code: Path = REPO) -> dict:
     if not chromium:
         raise SystemExit("answer to play: Debian's chromium is not installed (scripts/ensure-chromium.sh)")
     with tempfile.TemporaryDirectory(prefix="bench-browser-") as folder:
-        env = server_env(f"sqlite:///{folder}/db.sqlite3", code, MEDIA_ROOT=f"{folder}/media")
+        env = server_env(f"sqlite:///{folder}/db.sqlite3", code, MEDIA_ROOT=f"{folder}/media",
+                         STATIC_ROOT=f"{folder}/static")
         key = django_step(env, "--setup-browser", str(video), code=code)
         port = free_port()
         with serving(server_command("serve", port, code), env, port, Path(folder) / "server.log", code) as (url, _), \
