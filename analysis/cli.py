@@ -1,6 +1,7 @@
 """Command line (or ``motion-analysis``):
 
     python -m analysis report RATINGS.csv --out report/ [--rules RULES.json] [--motion DIR ...]
+                              [--previous OLD_RATINGS.csv --previous-rules OLD_RULES.json]
     python -m analysis objective DIR ... --out objective/ [--appropriateness RATINGS.csv]
     python -m analysis hvrnn-scores OUTPUTS.npz --out scores/
     python -m analysis leaderboard RATINGS.csv --out leaderboard/   (and the other commands
@@ -31,6 +32,7 @@ from analysis.exclusions import ExclusionRules, apply_exclusions
 from analysis.motion_io import SystemClips, load_motion_sets
 from analysis.objective import objective_metrics
 from analysis.rankings_cli import add_commands as add_ranking_commands
+from analysis.previous_run import previous_run_comparison
 from analysis.ratings import read_ratings
 from analysis.report import build_report, require_design_taking_motion, write_report
 from analysis.tables import objective_table, to_markdown, write_table
@@ -72,6 +74,11 @@ def _parser() -> argparse.ArgumentParser:
                                               "found by name)")
     report.add_argument("--foot-kind", choices=("heel", "toe"), default="heel",
                         help="heel for bipeds (default), toe for quadrupeds")
+    report.add_argument("--previous", metavar="RATINGS.csv",
+                        help="the ratings of a previous run of the study (a rerun with more systems): each run's "
+                             "kept ratings per system, side by side, in tables/previous_run")
+    report.add_argument("--previous-rules", metavar="RULES.json",
+                        help="the rules the previous run was collected under (default: this run's)")
     _add_unit_arguments(report)
     _add_objective_parser(commands)
     scores = commands.add_parser(
@@ -220,6 +227,20 @@ def _mean_scores(args: argparse.Namespace) -> pd.Series:
 
 
 
+def _previous_run(args: argparse.Namespace, ratings: pd.DataFrame, rules: ExclusionRules, out: Path) -> list[Path]:
+    """The previous run's table beside this one's (``analysis.previous_run``)."""
+    previous_rules = rules
+    if args.previous_rules:
+        try:
+            text = Path(args.previous_rules).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as error:
+            raise AnalysisInputError(f"cannot read --previous-rules {args.previous_rules} ({error})") from None
+        previous_rules = ExclusionRules.from_json(text, source=args.previous_rules)
+    table = previous_run_comparison(ratings, rules, read_ratings(args.previous), previous_rules)
+    return write_table(table, out / "tables", "previous_run",
+                       caption="Each run's kept ratings per system: the previous run of the study and this one.")
+
+
 def _split(text: str | None) -> list[str] | None:
     return [t.strip() for t in text.split(",") if t.strip()] if text else None
 
@@ -263,6 +284,8 @@ def _run(args: argparse.Namespace) -> int:
                               continuity_correction=args.continuity_correction,
                               foot_joints=_split(args.foot_joints), foot_kind=args.foot_kind)
         written = [out / path.relative_to(work) for path in write_report(report, work)]
+        if args.previous:
+            written += [out / path.relative_to(work) for path in _previous_run(args, ratings, rules, work)]
     print(f"wrote {len(written)} files to {out} (summary: {written[0]})")
     for note in report.notes:
         print(f"note: {note}")

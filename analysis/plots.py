@@ -153,8 +153,11 @@ def save_figure(fig: Figure, folder: str | Path, name: str) -> list[Path]:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     paths = [folder / f"{name}.png", folder / f"{name}.svg"]
-    with plt.rc_context({"svg.fonttype": "none"}):  # text stays text in the SVG
+    # Text stays text in the SVG. Matplotlib dates an SVG and names its clip paths by a
+    # random salt: without the date and with a fixed salt, the same figure is the same
+    # file, so a report computed again (an imported study's) is byte for byte the original.
+    with plt.rc_context({"svg.fonttype": "none", "svg.hashsalt": "motion-study"}):
         for path in paths:
-            fig.savefig(path, dpi=110)
+            fig.savefig(path, dpi=110, metadata={"Date": None} if path.suffix == ".svg" else None)
     plt.close(fig)
     return paths

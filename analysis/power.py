@@ -205,6 +205,46 @@ def _finish(rows: list[dict], alpha_pair: float, unit: str) -> pd.DataFrame:
     return table.assign(alpha_pair=alpha_pair, unit=unit)
 
 
+# Planning before any rating exists: the same tests' closed forms, from an expected effect
+# instead of an observed one (the study app's plan, locked when a study opens).
+
+
+def pairs_of(systems: int) -> int:
+    """The pairs among ``systems`` compared systems, which share alpha (Bonferroni)."""
+    return max(1, systems * (systems - 1) // 2)
+
+
+def ratings_per_system_for_effect(d: float, pairs: int, alpha: float = 0.05, power: float = 0.8) -> int:
+    """Ratings per system at which the two-sample z approximation detects a standardised
+    difference of means ``d`` (Cohen's d, equal variances) at alpha / pairs with ``power``:
+    ``n = 2 (z_{1-a/2} + z_power)^2 / d^2``, as `single_pairs` with s_a = s_b = 1."""
+    _check_effect(d, 0, np.inf, "a standardised difference")
+    return int(np.ceil(2 * _z(alpha / pairs, power) ** 2 / d**2))
+
+
+def pages_for_page_effect(d: float, pairs: int, alpha: float = 0.05, power: float = 0.8) -> int:
+    """Pages at which the Wilcoxon signed-rank test detects a mean per-page difference of
+    ``d`` standard deviations of the differences (normal differences), by Noether's formula
+    as `side_by_side_pairs` applies it: p' = P(D + D' > 0) = Phi(sqrt(2) d)."""
+    _check_effect(d, 0, np.inf, "a standardised difference")
+    effect = float(sps.norm.cdf(np.sqrt(2) * d)) - 0.5
+    return int(np.ceil(_z(alpha / pairs, power) ** 2 / (3 * effect**2)))
+
+
+def pages_for_preference(share: float, pairs: int, alpha: float = 0.05, power: float = 0.8) -> int:
+    """Pages with a preference at which the exact sign test detects ``share`` of them
+    preferring the better system (`sign_test_trials_for_power`, at alpha / pairs)."""
+    _check_effect(share, 0.5, 1, "a share of pages")
+    return int(sign_test_trials_for_power(share, alpha / pairs, power))
+
+
+def _check_effect(effect: float, low: float, high: float, what: str) -> None:
+    """A ValueError unless ``low < effect <= high`` (no test detects no effect)."""
+    if not (np.isfinite(effect) and low < effect <= high):
+        limit = f" and at most {high:g}" if np.isfinite(high) else ""
+        raise ValueError(f"the expected effect, {what}, must lie above {low:g}{limit}; got {effect:g}")
+
+
 def power_summary(table: pd.DataFrame, alpha: float = 0.05, power: float = 0.8) -> str:
     """`more_ratings_for_power` output in words, with `SEQUENTIAL_LOOKS_NOTE`."""
     if table.empty:

@@ -2,7 +2,8 @@
 the metrics are stated in (footstep tolerances in cm/s, bone errors in cm).
 
 Given, or detected from the clips: the up axis is the one along which the figures
-stand tallest, and the unit the one common unit that makes that height a human's
+stand tallest (``measures.units.up_axis``, the rule ``generation`` reads BVH files by),
+and the unit the one common unit that makes that height a human's
 (``measures.units.unit_for_height``, the rule ``generation`` reads BVH files by), clip
 by clip: clips that different units make human-sized are an error naming them.
 """
@@ -16,7 +17,7 @@ import numpy as np
 
 from analysis.errors import AnalysisInputError
 from analysis.motion_io import SystemClips
-from measures.units import HUMAN_HEIGHT_CM, UNITS, UP_AXES, Z_UP_TO_Y_UP, unit_for_height
+from measures.units import HUMAN_HEIGHT_CM, UNITS, UP_AXES, Z_UP_TO_Y_UP, unit_for_height, up_axis
 
 
 def to_centimetres_y_up(motion: dict[str, SystemClips], scale: float | None = None,
@@ -27,7 +28,7 @@ def to_centimetres_y_up(motion: dict[str, SystemClips], scale: float | None = No
         raise AnalysisInputError(f"--up must be auto, y or z, got {up!r}")
     how = f"scale {'detected' if scale is None else 'given'}, up axis {'detected' if up is None else 'given'}"
     if up is None:
-        up = max(UP_AXES, key=lambda axis: _median_height(motion, UP_AXES[axis]))
+        up = up_axis([clip[:, _figure(system)] for system in motion.values() for clip in system.clips])
     if scale is None:
         scale = _detect_scale(motion, UP_AXES[up])
     rotation = Z_UP_TO_Y_UP if up == "z" else np.eye(3)
@@ -72,16 +73,16 @@ def _detect_scale(motion: dict[str, SystemClips], axis: int) -> float:
     return UNITS[common]
 
 
-def _median_height(motion: dict[str, SystemClips], axis: int) -> float:
-    """The median over all frames of all clips of the figures' extent along ``axis``."""
-    return float(np.median(np.concatenate([h for system in motion.values() for h in _heights(system, axis)])))
+def _figure(system: SystemClips) -> list[int]:
+    """The joints of the figure. A root joint with a single child is a reference on the
+    floor that stays behind as the figure walks off (as in the Bandai-Namco rig), not
+    part of the figure."""
+    parents = np.asarray(system.parents)
+    root = int(np.flatnonzero(parents < 0)[0])
+    return [j for j in range(len(parents)) if not (j == root and (parents == root).sum() == 1)]
 
 
 def _heights(system: SystemClips, axis: int) -> list[np.ndarray]:
-    """Per clip, the figure's extent along ``axis`` in every frame. A root joint with a
-    single child is a reference on the floor that stays behind as the figure walks off
-    (as in the Bandai-Namco rig), not part of the figure."""
-    parents = np.asarray(system.parents)
-    root = int(np.flatnonzero(parents < 0)[0])
-    figure = [j for j in range(len(parents)) if not (j == root and (parents == root).sum() == 1)]
+    """Per clip, the figure's extent along ``axis`` in every frame."""
+    figure = _figure(system)
     return [np.ptp(clip[:, figure, axis], axis=-1) for clip in system.clips]

@@ -7,6 +7,11 @@ puts that length at a different number. The window is narrower than the ratio of
 units (inches to CMU units, 2.22, is the closest), so at most one unit fits.
 ``generation`` measures a skeleton at rest, ``analysis`` the figures of its clips; both
 ask ``unit_for_height``.
+
+The up axis follows from the figure too: a standing or walking person is taller than
+they are long or wide, so along the up axis the figure's extent (its highest joint above
+its lowest) is the largest, in most frames. ``up_axis`` takes the median over every
+frame; ``generation`` asks it of a BVH file's body, ``analysis`` of its clips' figures.
 """
 
 from __future__ import annotations
@@ -31,6 +36,19 @@ def unit_for_height(height: float) -> str | None:
     human-sized, or None when no unit does."""
     fits = [name for name, factor in UNITS.items() if HUMAN_HEIGHT_CM[0] <= height * factor <= HUMAN_HEIGHT_CM[1]]
     return fits[0] if len(fits) == 1 else None
+
+
+def up_axis(figures: list[np.ndarray]) -> str:
+    """The up axis (a key of ``UP_AXES``) of figures given as joint positions, each an
+    array (frames, joints, 3) of the figure's joints only (no reference joint left on the
+    floor): the axis along which the figures' extent is largest over all their frames,
+    by the median."""
+    frames = [np.asarray(figure, dtype=float) for figure in figures]
+    if not frames or any(f.ndim != 3 or f.shape[-1] != 3 or f.shape[0] == 0 or f.shape[1] == 0 for f in frames):
+        raise ValueError("up_axis needs one or more non-empty (frames, joints, 3) arrays of joint positions")
+    extent = {axis: float(np.median(np.concatenate([np.ptp(f[..., i], axis=-1) for f in frames])))
+              for axis, i in UP_AXES.items()}
+    return max(extent, key=extent.get)
 
 
 def unit_name(scale: float) -> str:

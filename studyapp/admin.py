@@ -11,7 +11,7 @@ from django.core.exceptions import ValidationError
 from django.db import models
 
 from studyapp.models import Assignment, ControlSignal, Participant, Rating, Stimulus, Study, System
-from studyapp.researchers.removal import remove_study
+from studyapp.researchers.setup.removal import remove_study
 
 
 class ReadableJSONField(forms.JSONField):

@@ -6,3 +6,8 @@ from django.apps import AppConfig
 class StudyappConfig(AppConfig):
     name = "studyapp"
     verbose_name = "Motion rating study"
+
+    def ready(self) -> None:
+        from studyapp.plan import lock
+
+        lock.connect()  # opening a study locks its plan; later changes are recorded as deviations

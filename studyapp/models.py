@@ -17,6 +17,7 @@ from django.conf import settings
 from django.core.exceptions import ValidationError
 from django.db import models
 
+from analysis.designs import design_named as analysed_design
 from generation.control import Control, control_from_dict
 from generation.motion.dataset import DatasetOptions
 from generation.render.camera import Camera
@@ -207,6 +208,12 @@ class Study(models.Model):
     camera = models.JSONField(default=default_camera, validators=[storable_json])
     video_width = models.PositiveSmallIntegerField(default=640, validators=[VIDEO_SIDE])
     video_height = models.PositiveSmallIntegerField(default=480, validators=[VIDEO_SIDE])
+    expected_effect = models.FloatField(
+        null=True, blank=True, validators=[Within(0, 5, "a standardised difference or a share")],
+        help_text="the smallest effect the study should detect (the design says in what terms: a standardised "
+                  "difference of means, or the share of pages preferring the better system); given, the plan "
+                  "locked at opening takes its participants from the power of the design's test (empty: from "
+                  "the targets)")
     is_open = models.BooleanField(default=False, help_text="accepting participants")
     previewed_at = models.DateTimeField(null=True, blank=True, help_text="when the researcher last saw the preview")
     created = models.DateTimeField(auto_now_add=True)
@@ -248,6 +255,11 @@ class Study(models.Model):
             raise ValidationError({"stop_after_failed_checks": f"a participant meets {self.instructed_checks} "
                                                                f"instructed check(s): stopping after "
                                                                f"{self.stop_after_failed_checks} failed never happens"})
+        if self.expected_effect is not None:  # in the terms of the design's test, which checks its range
+            try:
+                analysed_design(self.design).planned_units(self.expected_effect, 2, 0.05, 0.8)
+            except ValueError as error:
+                raise ValidationError({"expected_effect": str(error)}) from None
         problem = camera_problem(self.camera)
         if problem:  # not keyed to "camera": the study form shows the camera as one field per setting
             raise ValidationError(f"camera: not a camera description: {problem}")
@@ -698,3 +710,66 @@ class PlatformAction(models.Model):
 
     def __str__(self) -> str:
         return f"{self.action} {self.key} [{self.outcome}]"
+
+
+class ImmutableRow(ValueError):
+    """A row that is written once (a locked plan) was asked to change."""
+
+
+class StudyPlan(models.Model):
+    """A study's plan as it stood when the study first opened (``studyapp.plan``): its
+    design and settings, rules, systems, controls, planned analysis and number of
+    participants, as canonical JSON with its SHA-256. Written once: reopening a closed
+    study keeps it, and every later change is a ``PlanDeviation``."""
+
+    study = models.OneToOneField(Study, on_delete=models.CASCADE, related_name="plan")
+    canonical = models.TextField(help_text="the plan as canonical JSON (sorted keys, no spaces, UTF-8)")
+    sha256 = models.CharField(max_length=64, help_text="SHA-256 of the canonical JSON's UTF-8 bytes")
+    locked_at = models.DateTimeField()
+
+    def __str__(self) -> str:
+        return f"plan of {self.study} ({self.sha256[:12]}, {self.locked_at:%Y-%m-%d %H:%M})"
+
+    def save(self, *args, **kwargs) -> None:
+        if not self._state.adding:
+            raise ImmutableRow(f"the plan of study {self.study_id} is locked: it is written once")
+        super().save(*args, **kwargs)
+
+
+class PlanDeviation(models.Model):
+    """One change to a locked plan: which part of it (``field``, as ``studyapp.plan``
+    names it), its value before and after (None: absent), and when. Written once."""
+
+    study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="plan_deviations")
+    at = models.DateTimeField()
+    field = models.CharField(max_length=200)
+    old = models.JSONField(null=True)
+    new = models.JSONField(null=True)
+
+    class Meta:
+        ordering = ["study", "at", "pk"]
+
+    def __str__(self) -> str:
+        return f"{self.field}: {self.old!r} -> {self.new!r}"
+
+    def save(self, *args, **kwargs) -> None:
+        if not self._state.adding:
+            raise ImmutableRow(f"deviation {self.pk} of study {self.study_id} is recorded: it is written once")
+        super().save(*args, **kwargs)
+
+
+class PreviousRun(models.Model):
+    """The ratings of the study a rerun was imported from (``studyapp.bundles``): its ratings
+    table and rules as its bundle held them, which the rerun's report compares with its own."""
+
+    study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="previous_runs")
+    ratings_csv = models.TextField(help_text="the previous study's ratings table (docs/ratings-schema.md)")
+    rules_json = models.TextField(help_text="the rules it was collected under, as the analysis reads them")
+    code_version = models.CharField(max_length=100, blank=True, help_text="the code that exported it")
+    imported_at = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["study", "imported_at", "pk"]
+
+    def __str__(self) -> str:
+        return f"previous run of {self.study}"

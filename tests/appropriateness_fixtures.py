@@ -39,7 +39,9 @@ def make_appropriateness_study(owner_name: str = "researcher", video: Path | Non
     defaults = {"title": "Does the motion follow its path?", "design": "appropriateness", "pages_per_participant": 6,
                 "ratings_per_stimulus": 10, "training_clips": 2, "bad_checks": 1, "completion_code": "C0MPL3TE",
                 "is_open": True, "platform": Study.Platform.PROLIFIC}
-    study = Study.objects.create(owner=owner, **{**defaults, **fields})
+    fields = {**defaults, **fields}
+    is_open = fields.pop("is_open")  # opened once its clips exist, as a researcher opens one (studyapp.plan)
+    study = Study.objects.create(owner=owner, **fields)
     for name, segments in TAKES.items():
         control = synthetic_path({"name": name, "segments": segments}, 20.0)
         ControlSignal.objects.create(study=study, name=name, origin=ControlSignal.Origin.HELD_OUT,
@@ -60,4 +62,7 @@ def make_appropriateness_study(owner_name: str = "researcher", video: Path | Non
         for stimulus in stimuli:
             stimulus.video_path().parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(video, stimulus.video_path())
+    if is_open:
+        study.is_open = True
+        study.save(update_fields=["is_open"])
     return study

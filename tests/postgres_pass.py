@@ -25,9 +25,10 @@ REPO = Path(__file__).resolve().parents[1]
 
 # The modules of the database's work: migrations, assignment and its concurrency, ratings,
 # their export and the monitor, the study designs, stimuli claimed by tasks, removal, the
-# admin's scoping and the hostile inputs of the participant's and the researcher's forms
-# and uploads. Their tests that never meet the test database are left out
-# (pytest_collection_modifyitems). A new module of database tests belongs here too.
+# plan locked at opening and its deviations, the admin's scoping and the hostile inputs of
+# the participant's and the researcher's forms and uploads. Their tests that never meet the
+# test database are left out (pytest_collection_modifyitems). A new module of database
+# tests belongs here too.
 DATABASE_TESTS = (
     "tests/test_migrations.py",
     "tests/test_study_concurrency.py",
@@ -44,6 +45,7 @@ DATABASE_TESTS = (
     "tests/test_crowd_questionnaires.py",
     "tests/test_crowd_researcher.py",
     "tests/test_study_control_export.py",
+    "tests/test_study_definition_refusals.py",
     "tests/test_hostile_web.py",
     "tests/test_hostile_checkpoints.py",
     "tests/test_hostile_ratings.py",
@@ -59,6 +61,14 @@ DATABASE_TESTS = (
     "tests/test_stored_data.py",
     "tests/test_study_video_check.py",
     "tests/test_fuzz_web.py",
+    "tests/test_researcher_tools.py",
+    "tests/test_study_appropriateness.py",
+    "tests/test_study_rules.py",
+    "tests/test_study_submissions.py",
+    "tests/test_study_plan.py",
+    "tests/test_study_bundles.py",
+    "tests/test_hostile_bundles.py",
+    "tests/test_study_bundle_pages.py",
 )
 
 

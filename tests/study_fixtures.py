@@ -38,7 +38,10 @@ def make_study(owner_name: str = "researcher", controls: int = 3, video: Path | 
     defaults = {"title": "Naturalness of locomotion", "clips_per_participant": 6, "ratings_per_stimulus": 3,
                 "training_clips": 2, "completion_code": "C0MPL3TE", "is_open": True,
                 "platform": Study.Platform.PROLIFIC}
-    study = Study.objects.create(owner=owner, **{**defaults, **fields})
+    fields = {**defaults, **fields}
+    # Opened once its systems and clips exist, as a researcher opens one: opening locks its plan (studyapp.plan).
+    is_open = fields.pop("is_open")
+    study = Study.objects.create(owner=owner, **fields)
     signals = [ControlSignal.objects.create(study=study, name=f"control-{i}", origin=ControlSignal.Origin.HELD_OUT,
                                             control={"type": "path"}, source_clip=f"clip-{i}", seconds=clip_seconds)
                for i in range(controls)]
@@ -50,6 +53,9 @@ def make_study(owner_name: str = "researcher", controls: int = 3, video: Path | 
             if video is not None:
                 stimulus.video_path().parent.mkdir(parents=True, exist_ok=True)
                 shutil.copyfile(video, stimulus.video_path())
+    if is_open:
+        study.is_open = True
+        study.save(update_fields=["is_open"])
     return study
 
 

@@ -13,8 +13,9 @@ import pytest
 from scipy import stats
 
 from analysis.exclusions import apply_exclusions
-from analysis.power import (SEQUENTIAL_LOOKS_NOTE, more_ratings_for_power, power_summary,
-                            sign_test_power, sign_test_trials_for_power, walsh_positive_share)
+from analysis.power import (SEQUENTIAL_LOOKS_NOTE, more_ratings_for_power, pages_for_page_effect,
+                            pages_for_preference, power_summary, ratings_per_system_for_effect, sign_test_power,
+                            sign_test_trials_for_power, walsh_positive_share)
 from analysis.ratings import validate_ratings
 from analysis.simulate import simulate_pairwise, simulate_ratings, simulate_side_by_side
 
@@ -127,3 +128,42 @@ def test_the_participants_needed_bring_the_pages_needed_under_random_pairing():
     # so the participants asked for bring the pages needed (a little more: 1 / rate is convex)
     brought = (table["participants_more"] * rate / table["n_more"]).mean()
     assert 0.9 <= brought <= 1.25
+
+
+# Planning from an expected effect (the study app's plan, locked when a study opens).
+
+
+@pytest.mark.parametrize("d, pairs", [(0.5, 3), (0.3, 1), (0.8, 6)])
+def test_planned_ratings_per_system_match_statsmodels_normal_power(d, pairs):
+    from statsmodels.stats.power import NormalIndPower
+    expected = NormalIndPower().solve_power(effect_size=d, alpha=0.05 / pairs, power=0.8, ratio=1)
+    assert ratings_per_system_for_effect(d, pairs) == int(np.ceil(expected))
+
+
+def test_planned_preference_pages_are_the_first_with_the_exact_sign_tests_power():
+    share, pairs = 0.65, 3
+    n = pages_for_preference(share, pairs)
+
+    def exact_power(trials: int) -> float:  # every outcome the two-sided binomial test rejects, by scipy
+        return sum(stats.binom.pmf(k, trials, share) for k in range(trials + 1)
+                   if stats.binomtest(k, trials, 0.5).pvalue <= 0.05 / pairs)
+
+    assert exact_power(n) >= 0.8 > exact_power(n - 1)
+    assert all(exact_power(m) >= 0.8 for m in range(n, n + 15))  # it saw-tooths, but no longer below
+
+
+def test_planned_side_by_side_pages_give_the_wilcoxon_test_its_power_in_simulation():
+    d, pairs = 0.4, 3
+    n = pages_for_page_effect(d, pairs)
+    rng = np.random.default_rng(7)
+    rejected = [stats.wilcoxon(rng.normal(d, 1, n)).pvalue <= 0.05 / pairs for _ in range(600)]
+    assert abs(np.mean(rejected) - 0.8) < 0.06
+
+
+@pytest.mark.parametrize("plan, effect, words", [(ratings_per_system_for_effect, 0.0, "above 0"),
+                                                  (pages_for_page_effect, float("nan"), "above 0"),
+                                                  (pages_for_preference, 0.5, "above 0.5 and at most 1"),
+                                                  (pages_for_preference, 1.2, "above 0.5 and at most 1")])
+def test_an_effect_no_test_can_plan_for_is_refused_by_name(plan, effect, words):
+    with pytest.raises(ValueError, match=f"expected effect.*must lie {words}"):
+        plan(effect, 3)

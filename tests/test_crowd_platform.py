@@ -14,7 +14,7 @@ from django.urls import reverse
 from django.utils import timezone
 
 from studyapp.models import Assignment, Participant, Rating, Stimulus, Study, System
-from studyapp.researchers.participant_list import participant_rows, spreadsheet_safe
+from studyapp.researchers.crowd.participant_list import participant_rows, spreadsheet_safe
 from tests.study_fixtures import make_study
 
 pytestmark = pytest.mark.django_db

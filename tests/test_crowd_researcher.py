@@ -13,9 +13,9 @@ from django.utils import timezone
 from scipy import stats
 
 from studyapp.models import Assignment, Participant, Question, Rating, Study
-from studyapp.researchers.checklist import checklist
-from studyapp.researchers.forms import StudyForm
-from studyapp.researchers.monitor import study_monitor
+from studyapp.researchers.setup.checklist import checklist
+from studyapp.researchers.setup.forms import StudyForm
+from studyapp.researchers.results.monitor import study_monitor
 from tests.study_fixtures import make_study
 
 pytestmark = pytest.mark.django_db

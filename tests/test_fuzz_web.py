@@ -1,7 +1,8 @@
 """Random, oversized, non-finite and wrongly-typed values sent to every participant step
-(the entry link's query included) and every researcher form (the admin's study and
-control forms included): whatever comes in, no answer is a server error, and a refused
-request (4xx) changes no row.
+(every design's rating step and the entry link's query included) and every researcher
+form (the study's and its items' edits, moves, removals, copies and retries, the report,
+the crowd platform's page and the admin's study and control forms included): whatever
+comes in, no answer is a server error, and a refused request (4xx) changes no row.
 
 Each drawn form starts from a valid one, so that a hostile value gets past the fields
 before it: some fields get hostile values (NaN, infinities, 5000 digits, 70,000
@@ -15,6 +16,7 @@ test takes seconds.
 from __future__ import annotations
 
 import io
+import re
 import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -32,8 +34,11 @@ from hypothesis import settings as fuzz_settings
 from hypothesis import strategies as st
 
 from generation.motion.dataset import DatasetOptions
-from studyapp.models import Assignment, ControlSignal, Participant, Question, Rating, Stimulus, Study, System
+from studyapp.models import (Assignment, ControlSignal, Participant, PlatformAction, Question, Rating, Stimulus, Study,
+                             System)
 from studyapp.participants.views import _remember
+from tests.appropriateness_fixtures import make_appropriateness_study
+from tests.platform_standins import ProlificStandIn
 from tests.study_fixtures import make_study
 from tests.test_hostile_numbers import study_fields
 
@@ -70,7 +75,7 @@ def hostile_form(draw, valid: dict) -> dict:
     return form
 
 
-MODELS = (Study, System, ControlSignal, Stimulus, Participant, Question, Assignment, Rating, User)
+MODELS = (Study, System, ControlSignal, Stimulus, Participant, Question, Assignment, Rating, PlatformAction, User)
 
 
 def rows() -> dict[str, list[tuple]]:
@@ -131,7 +136,11 @@ def on_step(step: str) -> OnStep:
                                       "pages_per_participant": 2},
               "rate (pairwise)": {"design": "pairwise", "pages_per_participant": 4, "bad_checks": 0,
                                   "preference_strengths": 3}}.get(step, {})
-    study = make_study(device_check=step == "device", min_screen_width=800, min_screen_height=600, **design)
+    screen = {"device_check": step == "device", "min_screen_width": 800, "min_screen_height": 600}
+    if step == "rate (appropriateness)":
+        study = make_appropriateness_study(training_clips=0, pages_per_participant=3, **screen)
+    else:
+        study = make_study(**screen, **design)
     before = {"screening": "consented_at", "device": "", "consent": "device_checked_at"}
     Question.objects.create(study=study, part=Question.Part.BEFORE, name="language", text="English first?",
                             choices="yes\nno", accepted="yes")
@@ -166,6 +175,8 @@ def on_step(step: str) -> OnStep:
                                 **{f"{name}-{slot}": value for slot in slots for name, value in times.items()}},
         "rate (pairwise)": {"page": "<token>", "answer": "left", "strength": "2",
                             **{f"{name}-{slot}": value for slot in slots for name, value in times.items()}},
+        "rate (appropriateness)": {"page": "<token>", "answer": "right", "strength": "1",
+                                   **{f"{name}-{slot}": value for slot in slots for name, value in times.items()}},
         "survey": {"q-hours": "12", "q-notes": "fine"},
     }[step]
     url_step = step.split(" ")[0]  # every design's pages post to one step, "rate"
@@ -174,7 +185,7 @@ def on_step(step: str) -> OnStep:
 
 
 PARTICIPANT_STEPS = ["device", "consent", "screening", "instructions", "practice", "rate (single)",
-                     "rate (side-by-side)", "rate (pairwise)", "survey"]
+                     "rate (side-by-side)", "rate (pairwise)", "rate (appropriateness)", "survey"]
 
 
 @pytest.fixture
@@ -270,10 +281,13 @@ def lab(client, settings, tmp_path) -> Lab:
     for control in controls:
         Stimulus.objects.create(study=study, system=moglow, control=control, content_key=control.name,
                                 status=Stimulus.Status.DONE, duration_s=4.0)
+    failed = Stimulus.objects.create(study=study, system=System.objects.get(study=study, name="NAT"),
+                                     control=controls[1], content_key="failed", status=Stimulus.Status.FAILED)
     question = Question.objects.create(study=study, part=Question.Part.AFTER, name="notes", text="Notes?",
                                        kind=Question.Kind.TEXT)
+    Question.objects.create(study=study, part=Question.Part.AFTER, name="hours", text="Hours?", kind="number")
     other = make_study(owner_name="another-researcher")
-    yield Lab(client, study, {"<moglow>": str(moglow.pk), "<control>": str(controls[0].pk),
+    yield Lab(client, study, {"<moglow>": str(moglow.pk), "<control>": str(controls[0].pk), "<failed>": str(failed.pk),
                               "<question>": str(question.pk), "<other-question>": str(
                                   Question.objects.create(study=other, part="after", name="x", text="x",
                                                           kind="text").pk)})
@@ -321,6 +335,18 @@ RESEARCHER_FORMS: dict[str, tuple[Callable[[Lab], str], Callable[[Lab], dict]]] 
         "minimum": "0", "maximum": "120", "whole_numbers": "on"}),
     "remove a question": (lambda lab: reverse("study-questions", args=[lab.study.pk]), lambda lab: {
         "action": "remove", "question": "<question>"}),
+    "edit a question": (lambda lab: reverse("study-question-edit", args=[lab.study.pk, lab.ids["<question>"]]),
+                        lambda lab: {"part": "before", "name": "remarks", "text": "Remarks?", "kind": "text",
+                                     "required": "on"}),
+    "move a question": (lambda lab: reverse("study-question-move", args=[lab.study.pk, lab.ids["<question>"]]),
+                        lambda lab: {"direction": "down"}),
+    "remove a system": (lambda lab: f"/studies/{lab.study.pk}/systems/{lab.ids['<moglow>']}/remove/", lambda lab: {}),
+    "remove a control": (lambda lab: f"/studies/{lab.study.pk}/controls/{lab.ids['<control>']}/remove/",
+                         lambda lab: {}),
+    "retry a stimulus": (lambda lab: f"/studies/{lab.study.pk}/stimuli/{lab.ids['<failed>']}/retry/", lambda lab: {}),
+    "delete the study": (lambda lab: reverse("study-delete", args=[lab.study.pk]), lambda lab: {}),
+    "duplicate the study": (lambda lab: reverse("study-duplicate", args=[lab.study.pk]), lambda lab: {}),
+    "the study's report": (lambda lab: reverse("study-report", args=[lab.study.pk]), lambda lab: {}),
     "open the study": (lambda lab: reverse("study-open", args=[lab.study.pk]), lambda lab: {"open": "1"}),
     "analysis upload": (lambda lab: reverse("analysis"), lambda lab: {
         "ratings": Upload("ratings.csv", GOOD_RATINGS), "reference": "NAT"}),
@@ -356,3 +382,50 @@ def test_hostile_values_on_a_researcher_form_never_answer_500_and_a_refusal_chan
     form = {name: _posted(lab.ids.get(value, value) if isinstance(value, str) else value, data.draw)
             for name, value in form.items()}
     post_in_a_rolled_back_transaction(lab.client, url(lab), form)
+
+
+# --- the crowd platform's page ------------------------------------------------------------
+
+TOKEN = "prolific-token-fuzz"
+
+
+@pytest.fixture
+def crowd(client, settings) -> Lab:
+    """A Prolific study with one participant to approve and one to reject, a stand-in of
+    Prolific's API, and the researcher's token kept; ``<calls>`` are the dry run's."""
+    study = make_study(platform=Study.Platform.PROLIFIC, instructed_checks=3, stop_after_failed_checks=2)
+    now = timezone.now()
+    for pid, failed in (("good", 0), ("cheat", 2)):
+        created = Participant.objects.create(study=study, platform_id=pid, platform_data={
+            "PROLIFIC_PID": pid, "STUDY_ID": "PS1", "SESSION_ID": f"sub-{pid}"})
+        Participant.objects.filter(pk=created.pk).update(started_at=now - timezone.timedelta(minutes=10),
+                                                        finished_at=now, failed_checks=failed)
+    submissions = {f"sub-{pid}": {"id": f"sub-{pid}", "participant_id": pid, "study_id": "PS1",
+                                  "status": "AWAITING REVIEW"} for pid in ("good", "cheat")}
+    with ProlificStandIn(TOKEN, submissions) as stand_in:
+        settings.PROLIFIC_API_URL = stand_in.url
+        client.force_login(study.owner)
+        assert client.post(reverse("study-platform", args=[study.pk]), {"token": TOKEN}).status_code == 302
+        plan = client.post(reverse("study-platform-dry-run", args=[study.pk]), {"kind": "decisions"}).content.decode()
+        calls = re.findall(r'name="call" value="([0-9a-f]{64})" checked', plan)
+        assert len(calls) == 2
+        yield Lab(client, study, {"<calls>": calls})
+
+
+PLATFORM_FORMS: dict[str, tuple[str, Callable[[Lab], dict]]] = {
+    "credentials": ("study-platform", lambda crowd: {"token": TOKEN}),
+    "forget the credentials": ("study-platform", lambda crowd: {"action": "forget"}),
+    "dry run of the decisions": ("study-platform-dry-run", lambda crowd: {"kind": "decisions"}),
+    "dry run of bonuses": ("study-platform-dry-run", lambda crowd: {
+        "kind": "bonuses", "bonuses": "good,1.50\ncheat,0.25", "reason": "thanks"}),
+    "send the decisions": ("study-platform-apply", lambda crowd: {"kind": "decisions", "call": crowd.ids["<calls>"]}),
+    "read back": ("study-platform-read", lambda crowd: {}),
+}
+
+
+@pytest.mark.parametrize("name, valid", PLATFORM_FORMS.values(), ids=PLATFORM_FORMS.keys())
+@FUZZ
+@given(data=st.data())
+def test_hostile_values_on_the_platform_page_never_answer_500_and_a_refusal_changes_nothing(name, valid, crowd, data):
+    form = data.draw(hostile_form(valid(crowd)))
+    post_in_a_rolled_back_transaction(crowd.client, reverse(name, args=[crowd.study.pk]), form)

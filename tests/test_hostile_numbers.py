@@ -232,7 +232,7 @@ def test_a_temperature_past_its_bound_is_refused_on_the_systems_pages(temperatur
 
 
 def test_the_temperature_bound_holds_for_the_services_the_command_line_calls():
-    from studyapp.researchers.editing import EditRefused, edit_system
+    from studyapp.researchers.setup.editing import EditRefused, edit_system
     from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system
 
     study = make_study(controls=1)

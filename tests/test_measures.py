@@ -1,7 +1,8 @@
-"""Unit detection exists once (``measures.units``): at most one unit makes any figure
-human-sized, and ``generation`` (from a BVH skeleton) and ``analysis`` (from motion
-arrays) read the same real figure in the same unit, also at the edge of the window, and
-refuse the same scale with the same words on their command lines.
+"""Unit and up-axis detection exist once (``measures.units``): at most one unit makes any
+figure human-sized, and ``generation`` (from a BVH skeleton) and ``analysis`` (from motion
+arrays) read the same real figure in the same unit, also at the edge of the window, with
+the same up axis on real rigs, and refuse the same scale with the same words on their
+command lines.
 """
 
 from __future__ import annotations
@@ -18,7 +19,9 @@ from generation.cli import main as generation_main
 from generation.motion.bvh import load_motion, motion_to_bvh, write_bvh
 from generation.motion.types import Motion, Skeleton
 from generation.motion.unit_detection import choose_units
-from measures.units import HUMAN_HEIGHT_CM, UNITS, parse_scale, unit_for_height
+from generation.motion.units import detect_up
+from measures.units import HUMAN_HEIGHT_CM, UNITS, Z_UP_TO_Y_UP, parse_scale, unit_for_height, up_axis
+from tests.test_real_rigs import RIG_FILES
 
 
 def test_the_human_window_is_narrower_than_any_two_units_so_at_most_one_fits():
@@ -51,6 +54,41 @@ def test_generation_and_analysis_read_a_real_figure_in_the_same_unit(factor, uni
     converted, said = to_centimetres_y_up(clips)
     assert said.startswith(f"motion units: {unit}, y up")
     np.testing.assert_allclose(converted["NAT"].clips[0], walk.positions * UNITS[unit])
+
+
+def rig_motion(rig: str, clip_path) -> Motion:
+    if rig == "shared data":
+        return load_motion(clip_path("walk_normal_001"))
+    path, _, unit, _, _ = RIG_FILES[rig]
+    return load_motion(path, UNITS[unit])
+
+
+@pytest.mark.parametrize("rig", ["shared data", *sorted(RIG_FILES)])
+@pytest.mark.parametrize("up", ["y", "z"])
+def test_generation_and_analysis_find_the_same_up_axis_on_real_rigs(rig, up, clip_path):
+    """The real takes as they are (y up) and turned z up: the BVH reader's rule (on the
+    body below the hips) and the analysis' (on every joint but a reference on the floor)
+    are one rule, and both find the axis the take stands along."""
+    motion = rig_motion(rig, clip_path)
+    # Z_UP_TO_Y_UP maps z-up points to y-up ones (p -> R p); its transpose turns them back.
+    positions = motion.positions @ Z_UP_TO_Y_UP if up == "z" else motion.positions
+    turned = Motion(positions, motion.fps, motion.skeleton)
+    assert detect_up(turned) == up
+    skeleton = motion.skeleton
+    clips = {"NAT": SystemClips("NAT", motion.fps, skeleton.names, skeleton.parents, skeleton.offsets, [positions])}
+    converted, said = to_centimetres_y_up(clips, scale=1.0)
+    assert said.startswith(f"motion units: cm, {up} up")
+    np.testing.assert_allclose(converted["NAT"].clips[0], motion.positions, atol=1e-9)
+
+
+def test_the_up_axis_is_where_a_figure_is_tallest_in_most_frames():
+    standing = np.zeros((5, 3, 3))
+    standing[:, 1, 1], standing[:, 2, 1] = 90.0, 170.0  # hips and head above a foot, y up
+    lying = standing[:2][:, :, [0, 2, 1]]  # two frames with the figure along z
+    assert up_axis([standing]) == "y" and up_axis([standing, lying]) == "y"
+    assert up_axis([standing[:, :, [0, 2, 1]]]) == "z"
+    with pytest.raises(ValueError, match=r"non-empty \(frames, joints, 3\) arrays"):
+        up_axis([np.zeros((0, 3, 3))])
 
 
 @pytest.mark.parametrize("text, scale", [("auto", None), ("M", 100.0), (" cmu ", 2.54 / 0.45), ("2.5", 2.5)])

@@ -18,7 +18,7 @@ from django.utils import timezone
 from studyapp.models import Participant, Study
 from studyapp.platforms.rules import (APPROVE, NOTHING, REJECT, REQUEST_RETURN, Standing, Submission,
                                       checks_for_rejection, suggest)
-from studyapp.researchers.participant_list import participant_rows
+from studyapp.researchers.crowd.participant_list import participant_rows
 from tests.study_fixtures import make_study
 
 pytestmark = pytest.mark.django_db

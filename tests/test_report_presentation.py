@@ -23,8 +23,8 @@ from analysis.plots import means_plot, rating_scale
 from analysis.report import build_report, report_figures
 from analysis.simulate import simulate_ratings, simulate_side_by_side
 from studyapp.models import Assignment, Participant, Rating
-from studyapp.researchers.monitor_figures import live_figures
-from studyapp.researchers.table_format import readable_table
+from studyapp.researchers.results.monitor_figures import live_figures
+from studyapp.researchers.results.table_format import readable_table
 from tests.study_fixtures import make_study
 
 

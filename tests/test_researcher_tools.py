@@ -18,7 +18,7 @@ from django.utils import timezone
 
 from studyapp.models import Assignment, Participant, Question, Rating, Stimulus, Study, System
 from studyapp.participants.questionnaires import questions as questions_of
-from studyapp.researchers.forms import StudyForm
+from studyapp.researchers.setup.forms import StudyForm
 from tests.study_fixtures import make_study
 
 pytestmark = pytest.mark.django_db

@@ -5,6 +5,7 @@ entry points (the registry, checkpoint headers) free of torch."""
 from __future__ import annotations
 
 import ast
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -197,3 +198,82 @@ def test_every_registered_kind_names_its_class_and_builds_every_preset_and_ablat
         assert set(registry.training_knobs(kind, name)) >= {"learning_rate", "grad_clip", "batch_size"}
     with pytest.raises(KeyError, match="unknown model kind 'gan'"):
         registry.model_class("gan")
+
+
+# Folders whose files the architecture doc names as a whole: Django's numbered migrations.
+NAMED_AS_A_FOLDER = ("studyapp/migrations/",)
+PY_PATH = re.compile(r"(?<![\w/.])((?:\w+/)*\w+\.py)\b")
+FOLDER_ENTRY = re.compile(r"^(\s*)((?:\w+/)+)(?:\s|$)")
+
+
+def doc_named_paths(text: str) -> set[str]:
+    """The module files and folders (repository paths, folders ending in '/') that an
+    architecture doc names: a full path or a dotted module name anywhere; inside a
+    package's section (a heading naming ``PACKAGE/``), a path relative to the package, in
+    prose or in a tree drawn by indentation, where a file's folder is the entry above it
+    with less indentation."""
+    named: set[str] = set()
+    for path in PY_PATH.findall(text):
+        named.add(path)
+    for dotted in re.findall(r"\b(?:%s)(?:\.\w+)+" % "|".join(PACKAGES), text):
+        parts = dotted.split(".")
+        # "generation.store.keep": every prefix may be the module; those that are not never match a file.
+        named.update("/".join(parts[:end]) + ".py" for end in range(2, len(parts) + 1))
+    package = None
+    stack: list[tuple[int, str]] = []
+    for line in text.splitlines():
+        if heading := re.match(r"^#{1,2} `?(\w+)/`?\s*$", line):
+            package, stack = heading.group(1), []
+            continue
+        if package is None or not line.strip():
+            continue
+        indent = len(line) - len(line.lstrip())
+        while stack and stack[-1][0] >= indent:
+            stack.pop()
+        folder = "".join(name for _, name in stack)
+        for path in PY_PATH.findall(line):
+            named.add(f"{package}/{folder}{path}")
+        if entry := FOLDER_ENTRY.match(line):
+            name = "" if entry.group(2) == f"{package}/" and not stack else entry.group(2)
+            stack.append((indent, name))
+            parts = (folder + name).split("/")[:-1]
+            named.update(f"{package}/{'/'.join(parts[:end])}/" for end in range(1, len(parts) + 1))
+    # A path through a folder names the folder too ("sqlite_backend/base.py").
+    named.update(path[:slash + 1] for path in list(named) for slash in [i for i, c in enumerate(path) if c == "/"])
+    return named
+
+
+def unnamed_modules(text: str) -> list[str]:
+    """The project's module files the doc does not name; a package's ``__init__.py`` is
+    named by its folder (a tree's entry, or a path through it)."""
+    named = doc_named_paths(text)
+    missing = []
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            relative = path.relative_to(ROOT).as_posix()
+            if relative.startswith(NAMED_AS_A_FOLDER):
+                continue
+            if path.name == "__init__.py":
+                folder = relative.removesuffix("__init__.py")
+                if folder.count("/") == 1 or folder in named:
+                    continue
+            elif relative in named:
+                continue
+            missing.append(relative)
+    return missing
+
+
+def test_the_doc_reader_finds_modules_in_trees_prose_and_dotted_names():
+    text = ("# Architecture\n\nSee `generation.store.keep`.\n\n## `generation/`\n\n```\ngeneration/\n"
+            "  train.py        the loop\n  motion/   arrays\n    bvh.py  types.py   files\n"
+            "  cli/\n    data.py  commands\n```\n\nThe unit rule is `motion/units.py`'s.\n\n## `analysis/`\n\n"
+            "One module per statistic (`stats.py`).\n")
+    named = doc_named_paths(text)
+    assert {"generation/store.py", "generation/train.py", "generation/motion/bvh.py", "generation/motion/types.py",
+            "generation/cli/data.py", "generation/motion/units.py", "analysis/stats.py",
+            "generation/motion/", "generation/cli/"} <= named
+    assert "generation/bvh.py" not in named and "analysis/train.py" not in named and "generation/stats.py" not in named
+
+
+def test_the_architecture_doc_names_every_module():
+    assert unnamed_modules((ROOT / "docs" / "architecture.md").read_text()) == []

@@ -16,7 +16,7 @@ from analysis.ratings import read_ratings
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Participant, Stimulus, System
 from studyapp.participants.assignment import enrol
-from studyapp.researchers.export import ratings_csv
+from studyapp.researchers.results.export import ratings_csv
 from studyapp.stimuli.clips import plan_stimuli
 from studyapp.stimuli.mismatched import study_pairings
 from tests.appropriateness_fixtures import MODELS, make_appropriateness_study

@@ -31,7 +31,7 @@ from generation.render.camera import Camera
 from generation.train import TrainOptions, train
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Participant, Stimulus, Study
-from studyapp.researchers.export import ratings_csv
+from studyapp.researchers.results.export import ratings_csv
 from studyapp.stimuli.clips import over_shown_control, motion_row
 from studyapp.stimuli.motion_export import write_motion
 from studyapp.stimuli.sources import source_of

@@ -17,7 +17,7 @@ from studyapp.designs.rules import StudyRules
 from studyapp.models import Assignment
 from studyapp.participants import assignment
 from studyapp.participants.simulated import SimulatedParticipant
-from studyapp.researchers.export import ratings_csv
+from studyapp.researchers.results.export import ratings_csv
 from tests.appropriateness_fixtures import make_appropriateness_study
 
 PREFER_MATCHED = {"MoGlow": 0.8, "RNN": 0.55, "NAT": 0.95}

@@ -16,7 +16,7 @@ import pytest
 
 from analysis.ratings import read_ratings
 from studyapp.models import Participant, Rating, Study, System
-from studyapp.researchers.export import ratings_csv
+from studyapp.researchers.results.export import ratings_csv
 from tests.study_fixtures import current_page, make_study
 from tests.test_study_browser import browser, clip_video  # noqa: F401 (fixtures)
 

@@ -15,7 +15,7 @@ from studyapp.designs.multi_clip import page_loads
 from tests.study_fixtures import current_clip, current_page
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Participant, Rating, System
-from studyapp.researchers.export import ratings_csv
+from studyapp.researchers.results.export import ratings_csv
 from tests.study_fixtures import make_study
 from tests.test_study_designs import PAIRWISE, SIDE_BY_SIDE, compare, page_html, rate_page, through_practice
 from tests.test_study_participant import post, rate_current

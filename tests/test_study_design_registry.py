@@ -15,8 +15,8 @@ from django.utils import timezone
 from analysis.designs import DESIGNS as ANALYSED_DESIGNS
 from studyapp.designs import registry
 from studyapp.models import Participant, Rating, Study
-from studyapp.researchers.export import ratings_rows
-from studyapp.researchers.preview import preview_pages
+from studyapp.researchers.results.export import ratings_rows
+from studyapp.researchers.setup.preview import preview_pages
 from tests import toy_design
 from tests.study_fixtures import make_study
 from tests.test_study_participant import enter, post
@@ -33,6 +33,8 @@ def thumbs(tmp_path, settings, monkeypatch):
     (tmp_path / "studyapp" / "participant" / "thumbs.html").write_text(toy_design.TEMPLATE)
     settings.TEMPLATES = [{**settings.TEMPLATES[0], "DIRS": [tmp_path]}]
     monkeypatch.setitem(registry.DESIGNS, "thumbs", registry.DesignEntry("thumbs up or down", "tests.toy_design:Thumbs"))
+    # and its analysis, whose rules and tests the plan locked at opening states (studyapp.plan)
+    monkeypatch.setitem(ANALYSED_DESIGNS, "thumbs", "tests.toy_analysis_design:Thumbs")
 
 
 @pytest.mark.django_db

@@ -12,8 +12,8 @@ from django.urls import reverse
 
 from analysis.ratings import read_ratings
 from studyapp.models import Participant, Rating, Stimulus, Study, System
-from studyapp.researchers.export import ratings_csv
-from studyapp.researchers.forms import StudyForm
+from studyapp.researchers.results.export import ratings_csv
+from studyapp.researchers.setup.forms import StudyForm
 from tests.study_fixtures import current_page, make_study
 from tests.test_study_participant import enter, make_shown_long_ago, post
 
@@ -144,7 +144,7 @@ def test_a_side_by_side_page_without_every_rating_or_off_the_scale_is_refused_an
 
 @pytest.mark.parametrize("settings", [SIDE_BY_SIDE, PAIRWISE])
 def test_a_page_answered_sooner_than_its_clips_last_is_refused_with_409_and_counted(settings):
-    from studyapp.researchers.monitor import study_monitor
+    from studyapp.researchers.results.monitor import study_monitor
 
     study = make_study(**settings, bad_checks=0)  # the full-play rule is on by default
     client = Client()
@@ -217,7 +217,7 @@ def answer_everything(study: Study, pids: list[str], value_of=None) -> None:
 
 
 def test_the_monitor_summarises_each_design_with_the_analysis_functions():
-    from studyapp.researchers.monitor import study_monitor
+    from studyapp.researchers.results.monitor import study_monitor
 
     sbs = make_study(**SIDE_BY_SIDE, bad_checks=0, ratings_per_stimulus=10)
     by_system = {"MoGlow": 60, "RNN": 40, "NAT": 90}

@@ -16,8 +16,8 @@ from scipy import stats
 
 from analysis.exclusions import scaled_threshold
 from studyapp.models import Assignment, Participant, Rating, Stimulus
-from studyapp.researchers.export import EXPORT_COLUMNS
-from studyapp.researchers.monitor import study_monitor
+from studyapp.researchers.results.export import EXPORT_COLUMNS
+from studyapp.researchers.results.monitor import study_monitor
 from tests.study_fixtures import make_study
 
 # participant -> ratings as (system, control index, value, answered before the clip ended)

@@ -26,7 +26,7 @@ from django.core.management.base import CommandError
 
 from analysis.motion_io import SystemClips
 from analysis.objective import objective_metrics
-from generation.motion.dataset import load_body_motion
+from generation.motion.dataset import load_body_motion, read_labels
 from generation.motion.npz import load_motion_npz
 from generation.motion.types import Motion
 from studyapp.models import Stimulus, Study, System
@@ -37,6 +37,7 @@ from studyapp.stimuli.sources import sampled_path, source_of
 from studyapp.tasks import sample_stimuli
 from tests.test_study_researcher import (files, new_study, queue, researcher, run_task, site,  # noqa: F401 (fixtures)
                                          upload_checkpoint)
+from tests.hvrnn_setup import TINY_CLASSIFIERS, data  # noqa: F401 (fixture)
 from tests.study_fixtures import make_study
 from tests.test_study_submissions import other_labs_motion, upload_motion, zipped
 
@@ -208,3 +209,42 @@ def test_a_label_models_exported_bvh_gives_its_clip_back_joint_for_joint(client,
     # ERD's clip is forward kinematics on its rig: the rotations found from it give it back.
     assert_rotation_bvh_of(out / "ERD" / "walk-happy-1s.bvh", load_motion_npz(out / "ERD" / "walk-happy-1s.npz"),
                            exact=True)
+    # The labels it was asked for lie beside it as the BVH reader's side file, where
+    # hvrnn-label lists them beside what the attribute classifiers see.
+    assert read_labels(out / "ERD" / "walk-happy-1s.bvh") == ("walk", "happy")
+    assert sorted(p.name for p in (out / "ERD").iterdir()) == [f"walk-happy-1s.{suffix}" for suffix in ("bvh", "json", "npz")]
+    page = client.get(f"/studies/{study.pk}/adherence/").content.decode()  # says where the label adherence comes from
+    assert "no path adherence to measure" in page and "hvrnn-label FOLDER --classifiers FILE" in page
+
+
+@pytest.mark.django_db
+def test_hvrnn_label_on_a_label_models_export_compares_what_the_classifiers_see_with_the_asked_labels(
+        client, researcher, site, files, settings, data, tmp_path, capsys):  # noqa: F811
+    import csv
+
+    import torch
+
+    from generation.cli import main
+    from generation.hvrnn.classifiers import train_classifiers
+
+    settings.MOTION_DATA = files.labelled
+    study = new_study(researcher)
+    assert upload_checkpoint(client, study, files.erd.read_bytes(), name="ERD").status_code == 302
+    client.post(f"/studies/{study.pk}/controls/", {"action": "labels", "actions": ["walk"], "styles": ["happy"],
+                                                   "seconds": "2"})
+    (stimulus,), _ = plan_stimuli(study)
+    source_of(stimulus.system).clip(stimulus)
+    Stimulus.objects.filter(pk=stimulus.pk).update(status=Stimulus.Status.DONE)
+    write_motion(study, tmp_path / "motion")
+    torch.set_num_threads(1)
+    classifiers, _ = train_classifiers(data, TINY_CLASSIFIERS, seed=0)
+    path = classifiers.save(tmp_path / "classifiers.safetensors", data.dataset.fingerprint, {})
+    out = tmp_path / "labels.csv"
+    assert main(["hvrnn-label", str(tmp_path / "motion" / "ERD"), "--classifiers", str(path), "--out", str(out),
+                 "--cache-dir", str(tmp_path / "cache")]) == 0, capsys.readouterr().err
+    said = capsys.readouterr().out
+    assert "1 clips, 0 without labels" in said and "the classifiers agree on the action in" in said
+    with out.open() as f:
+        (row,) = list(csv.DictReader(f))
+    assert (row["content"], row["style"]) == ("walk", "happy")
+    assert row["predicted_action"] in classifiers.vocabularies["action"].names

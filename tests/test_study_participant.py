@@ -16,7 +16,7 @@ from studyapp.designs.rules import StudyRules
 from studyapp.designs.single import stimulus_loads
 from studyapp.models import Participant, Rating, Stimulus, Study, System
 from studyapp.participants.assignment import StudyFull, enrol
-from studyapp.researchers.export import ratings_rows
+from studyapp.researchers.results.export import ratings_rows
 from tests.study_fixtures import current_clip, make_study
 
 pytestmark = pytest.mark.django_db

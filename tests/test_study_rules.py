@@ -14,12 +14,13 @@ from django.urls import reverse
 from analysis.cli import main as analysis_main
 from analysis.exclusions import ExclusionRules
 from studyapp.models import Participant, System
-from studyapp.researchers.monitor import study_monitor
-from studyapp.researchers.reports import html_table, report_folder
+from studyapp.researchers.results.monitor import study_monitor
+from studyapp.researchers.results.reports import html_table, report_folder
+from tests.appropriateness_fixtures import make_appropriateness_study
 from tests.study_fixtures import current_clip, current_page, make_study
-from tests.test_study_designs import PAIRWISE, SIDE_BY_SIDE, compare, rate_page
+from tests.test_study_designs import PAIRWISE, SIDE_BY_SIDE, compare, page_html, page_token, rate_page, watched
 from tests.test_study_designs import through_practice as through_page_practice
-from tests.test_study_participant import rate_current, through_practice
+from tests.test_study_participant import make_shown_long_ago, post, rate_current, through_practice
 
 pytestmark = pytest.mark.django_db
 
@@ -27,6 +28,7 @@ pytestmark = pytest.mark.django_db
 SINGLE_RULES = {"natural_threshold": 4.5, "bad_threshold": 3.0}  # NAT below 4.5 or BAD at 3 or above excludes
 SIDE_BY_SIDE_RULES = {**SIDE_BY_SIDE, "natural_threshold": 4.5, "bad_threshold": 3.0}  # on 0-100: 87.5 and 50
 PAIRWISE_RULES = {**PAIRWISE, "discard_early": False, "require_full_play": False}  # early answers are kept
+APPROPRIATENESS_RULES = {"design": "appropriateness", "discard_early": False, "require_full_play": False}
 
 
 def value_of(scores: dict[str, int]):
@@ -58,7 +60,9 @@ def take_part(study, pid: str, answers) -> None:
     participant = through_page_practice(client, study, pid)
     early = {"ended_s-1": "", "ended_s-2": ""}  # the browser saw no end: answered early
     while page := current_page(participant):
-        if study.design == "side-by-side":
+        if study.design == "appropriateness":
+            answer_appropriateness(client, study, participant, page, answers, early)
+        elif study.design == "side-by-side":
             rate_page(client, study, participant, value_of(sliders(answers)))
         else:
             roles = [a.stimulus.system.role for a in page]
@@ -67,7 +71,23 @@ def take_part(study, pid: str, answers) -> None:
             compare(client, study, participant, side, **(early if answers == "hasty" else {}))
 
 
+def answer_appropriateness(client: Client, study, participant, page, answers: str, early: dict) -> None:
+    """The matched clip clearly preferred, but on a check page by "careless" (the
+    mismatched one), and answered before the clips could end by "hasty"."""
+    matched = "left" if page[0].stimulus.shown_control_id is None else "right"
+    side = {"left": "right", "right": "left"}[matched] if answers == "careless" and page[0].is_check else matched
+    html = page_html(client, study)
+    make_shown_long_ago(participant)
+    response = post(client, study, "rate", page=page_token(html), answer=side, strength=2,
+                    **{**watched((1, 2)), **(early if answers == "hasty" else {})})
+    assert response.status_code == 302, response.content[:300]
+
+
 def populate(study) -> None:
+    if study.design == "appropriateness":
+        for pid in ("careful", "careless", "hasty", "other"):
+            take_part(study, pid, pid)
+        return
     if study.design == "pairwise":
         for pid, answers in (("careful", "careful"), ("prefers-bad", "prefers BAD"), ("hasty", "hasty"),
                              ("other", "careful")):
@@ -75,6 +95,13 @@ def populate(study) -> None:
         return
     for pid, scores in SCORES.items():
         take_part(study, pid, scores)
+
+
+def make_ruled_study(fields: dict):
+    if fields.get("design") == "appropriateness":
+        return make_appropriateness_study(pages_per_participant=6, training_clips=0,
+                                          **{k: v for k, v in fields.items() if k != "design"})
+    return make_study(controls=3, clips_per_participant=7, ratings_per_stimulus=10, training_clips=0, **fields)
 
 
 def in_app_report(client: Client, study, settings) -> Path:
@@ -104,11 +131,11 @@ def test_the_in_app_report_excludes_the_participants_the_study_excludes(settings
     assert sum(row["participants_removed"] for row in removed) == excluded == 2  # nat-4 and bad-3
 
 
-@pytest.mark.parametrize("fields", [SINGLE_RULES, SIDE_BY_SIDE_RULES, PAIRWISE_RULES],
-                         ids=["single", "side-by-side", "pairwise"])
+@pytest.mark.parametrize("fields", [SINGLE_RULES, SIDE_BY_SIDE_RULES, PAIRWISE_RULES, APPROPRIATENESS_RULES],
+                         ids=["single", "side-by-side", "pairwise", "appropriateness"])
 def test_monitor_in_app_report_and_command_line_report_agree_under_the_studys_rules(fields, settings, tmp_path):
     settings.MEDIA_ROOT = tmp_path / "media"
-    study = make_study(controls=3, clips_per_participant=7, ratings_per_stimulus=10, training_clips=0, **fields)
+    study = make_ruled_study(fields)
     populate(study)
     client = Client()
     client.force_login(study.owner)
@@ -123,7 +150,7 @@ def test_monitor_in_app_report_and_command_line_report_agree_under_the_studys_ru
         assert (app / "tables" / name).read_bytes() == (cli / "tables" / name).read_bytes(), name
 
     excluded = {p.platform_id for p in Participant.objects.filter(study=study, excluded=True)}
-    assert excluded == ({"prefers-bad"} if study.design == "pairwise" else {"nat-4", "bad-3"})
+    assert excluded == {"pairwise": {"prefers-bad"}, "appropriateness": {"careless"}}.get(study.design, {"nat-4", "bad-3"})
     removed = json.loads((app / "tables" / "exclusions.json").read_text())
     monitor = study_monitor(study)
     assert monitor.participants_excluded == sum(row["participants_removed"] for row in removed) == len(excluded)
@@ -141,7 +168,8 @@ def test_monitor_in_app_report_and_command_line_report_agree_under_the_studys_ru
             assert (row.n, row.mean, row.ci_low) == pytest.approx(
                 (means.loc[row.system, "n"], means.loc[row.system, "mean"], means.loc[row.system, "ci_low"]))
     else:
-        name = "system_medians_means" if study.design == "side-by-side" else "preference_pairs"
+        name = {"side-by-side": "system_medians_means", "pairwise": "preference_pairs",
+                "appropriateness": "matched_preference"}[study.design]
         assert monitor.tables[0][1] == html_table(report.table(name))
-    if study.design == "pairwise":  # early answers kept under these rules: the hasty pages count
+    if study.design in ("pairwise", "appropriateness"):  # early answers kept under these rules: the hasty pages count
         assert report.flagged["discarded_early"].sum() == 0 and report.flagged["answered_before_end"].any()

@@ -15,8 +15,8 @@ from django.contrib.auth.models import User
 from django.urls import reverse
 
 from studyapp.models import Stimulus, Study
-from studyapp.researchers.editing import edit_system
-from studyapp.researchers.removal import delete_unreferenced_samples, remove
+from studyapp.researchers.setup.editing import edit_system
+from studyapp.researchers.setup.removal import delete_unreferenced_samples, remove
 from studyapp.stimuli.sources import sampled_folder, sampled_path
 from tests.study_fixtures import make_study
 

@@ -109,7 +109,7 @@ def test_a_new_page_type_is_one_step_in_the_path_and_one_template(path_with_ques
 
 @pytest.mark.django_db
 def test_a_step_added_to_the_path_is_in_the_preview_without_touching_the_preview(path_with_questionnaire):
-    from studyapp.researchers.preview import preview_pages
+    from studyapp.researchers.setup.preview import preview_pages
 
     study = make_study(clips_per_participant=3, training_clips=0)
     pages = preview_pages(study)

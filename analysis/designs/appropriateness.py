@@ -68,6 +68,18 @@ class Appropriateness(Pairwise):
     def power_pairs(self, frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
         raise AnalysisInputError("appropriateness pages compare no two systems: no power per pair of systems")
 
+    planned_tests = (
+        "per system, the share of pages preferring the matched clip (ties split, Wilson interval) with a sign "
+        "test of 50 %",
+        "per system, the mean appropriateness score with a bootstrap interval over participants",
+        "Wilcoxon tests of every pair of systems' scores, Holm corrected, and the raters' side bias",
+    )
+    effect_words = "none: appropriateness pages compare no two systems, so its plan counts the targets' participants"
+
+    def planned_units(self, effect: float, systems: int, alpha: float, power: float) -> int:
+        raise ValueError("appropriateness pages compare no two systems: no power per pair of systems plans its "
+                         "participants; leave the expected effect empty")
+
     # The report.
 
     main_table = "matched_preference"

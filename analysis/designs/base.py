@@ -26,7 +26,7 @@ from matplotlib.figure import Figure
 from analysis import plots
 from analysis.design_report import DesignReport, build_design_report
 from analysis.exclusions import REFERENCE_SCALE, ExclusionRules, scaled_threshold
-from analysis.power import single_pairs
+from analysis.power import pairs_of, ratings_per_system_for_effect, single_pairs
 
 if TYPE_CHECKING:
     from analysis.motion_io import SystemClips
@@ -117,6 +117,21 @@ class RatingDesign:
     def power_pairs(self, frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
         """The pairs of one cell with the ratings their test needs for ``power`` (`analysis.power`)."""
         return single_pairs(frame, alpha, power)
+
+    # The plan, before any rating exists (the study app locks it when a study opens).
+
+    # The report's tests and models in words, the analysis a plan commits to; a design
+    # that names none plans only its report's tables.
+    planned_tests: tuple[str, ...] = ()
+    effect_words = "a standardised difference of two systems' mean ratings (Cohen's d)"
+    planned_unit = "ratings per system"  # what `planned_units` counts
+    units_per_pair = False  # the units are counted per pair of systems (else per system)
+
+    def planned_units(self, effect: float, systems: int, alpha: float, power: float) -> int:
+        """The units (``planned_unit``) at which the design's test of a pair of ``systems``
+        compared systems detects an ``effect`` (``effect_words``) at ``alpha``, split over
+        the pairs, with ``power``; ValueError for an effect outside its range."""
+        return ratings_per_system_for_effect(effect, pairs_of(systems), alpha, power)
 
     # The parts of a `DesignReport` (`analysis.design_report`), for the designs that get one.
 

@@ -33,7 +33,7 @@ from analysis.errors import AnalysisInputError
 from analysis.exclusions import ExclusionRules
 from analysis.leaderboard_report import build_leaderboard, leaderboard_tables, write_heat_maps
 from analysis.pairwise import preference_pages, preference_pairs, side_bias
-from analysis.power import pairwise_pairs
+from analysis.power import pages_for_preference, pairs_of, pairwise_pairs
 from analysis.tables import system_order
 
 _SCALE_COLUMNS = ("value", "scale_min", "scale_max")
@@ -121,6 +121,21 @@ class Pairwise(RatingDesign):
 
     def power_pairs(self, frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
         return pairwise_pairs(frame, alpha, power)
+
+    planned_tests = (
+        "per pair of systems, the share of pages preferring each with its Wilson interval, and the share of "
+        "no preference",
+        "exact two-sided binomial (sign) tests on the pages with a preference, Holm-Bonferroni corrected",
+        "a Bradley-Terry scale with 95 % intervals, and a check of the raters' side bias",
+        "the leaderboard: graded votes weighted, Elo with bootstrap intervals",
+        "the pages needed for 80 % power per pair of systems",
+    )
+    effect_words = "the share of pages preferring the better of two systems (above 0.5, at most 1)"
+    planned_unit = "pages with a preference"
+    units_per_pair = True
+
+    def planned_units(self, effect: float, systems: int, alpha: float, power: float) -> int:
+        return pages_for_preference(effect, pairs_of(systems), alpha, power)
 
     # The report.
 

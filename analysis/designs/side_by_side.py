@@ -22,7 +22,7 @@ from analysis.designs.base import RatingDesign
 from analysis.designs.pages import PAGE, first_row, labels, no_system_twice_on_a_page, page_name, positive_integers
 from analysis.errors import AnalysisInputError
 from analysis.mixed import mixed_model_means
-from analysis.power import side_by_side_pairs
+from analysis.power import pages_for_page_effect, pairs_of, side_by_side_pairs
 from analysis.rater_models import build_rater_models
 from analysis.side_by_side import median_and_mean, signed_rank_pairs
 from analysis.stats import CELL, comparable_cells, too_few_ratings
@@ -51,6 +51,21 @@ class SideBySide(RatingDesign):
 
     def power_pairs(self, frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
         return side_by_side_pairs(frame, alpha, power)
+
+    planned_tests = (
+        "per task and control class, each system's median and mean rating with 95 % intervals",
+        "two-sided Wilcoxon signed-rank tests on the per-page differences of every pair of systems, "
+        "Holm-Bonferroni corrected per task and control class, and their significance matrix",
+        "a linear mixed model of the ratings with a random intercept per participant",
+        "the rater- and clip-aware models and the raters' agreement",
+        "the pages needed for 80 % power per pair of systems",
+    )
+    effect_words = "a standardised mean difference of two systems' ratings on the same page (d of the per-page differences)"
+    planned_unit = "pages"
+    units_per_pair = True
+
+    def planned_units(self, effect: float, systems: int, alpha: float, power: float) -> int:
+        return pages_for_page_effect(effect, pairs_of(systems), alpha, power)
 
     # The report.
 

@@ -19,6 +19,14 @@ from analysis.report import Report, build_single_report
 class Single(RatingDesign):
     name = "single"
     takes_motion = True
+    planned_tests = (
+        "per task and control class, each system's mean rating with its 95 % confidence interval (MoGlow Table 2)",
+        "a one-way ANOVA of the ratings between systems, and Tukey's HSD on every pair of systems",
+        "a linear mixed model of the ratings with a random intercept per participant",
+        "the rater- and clip-aware models: a crossed linear mixed model, a cumulative link mixed model and "
+        "Krippendorff's alpha",
+        "the ratings needed for 80 % power per pair of systems",
+    )
 
     def schema_title(self) -> str:
         return "the minimal schema"

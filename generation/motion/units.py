@@ -5,9 +5,9 @@ A BVH file states neither its unit nor its up axis. The unit follows from the si
 the skeleton: the chain from the tip of a foot through the hips to the head
 (``skeleton_size``) is a little less than the person's height whatever the pose, and
 ``measures.units.unit_for_height`` (the rule ``analysis`` reads motion arrays by) names
-the one unit that makes it a human's. The up axis follows from the floor: along it the
-hips stay high above the lowest joint of the body (a foot on the floor) all the time;
-along a horizontal axis they do not.
+the one unit that makes it a human's. The up axis is the one along which the body
+stands tallest, by the same rule ``analysis`` reads motion arrays by
+(``measures.units.up_axis``).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from measures.units import UP_AXES, check_scale, unit_name
+from measures.units import UP_AXES, check_scale, unit_name, up_axis
 
 from .root import hips_index
 from .symmetry import left_right_pairs
@@ -78,13 +78,7 @@ def skeleton_size(skeleton: Skeleton, hips: str | None = None, pairs: dict[str, 
 
 
 def detect_up(motion: Motion, hips: str | None = None) -> str:
-    """The file's up axis: the one along which the hips stand highest above the body's
-    lowest joint, in the median frame."""
-    h = hips_index(motion.skeleton, hips)
-    _, body = motion.skeleton.subtree(h)
-    positions = motion.positions[:, body]
-    hips_height = {
-        axis: float(np.median(positions[:, 0, i] - positions[:, :, i].min(axis=1)))
-        for axis, i in (("y", 1), ("z", 2))
-    }
-    return max(hips_height, key=hips_height.get)
+    """The file's up axis: the one along which the body (the hips and every joint below
+    them, so no reference joint on the floor) stands tallest (``measures.units.up_axis``)."""
+    _, body = motion.skeleton.subtree(hips_index(motion.skeleton, hips))
+    return up_axis([motion.positions[:, body]])

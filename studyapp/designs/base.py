@@ -8,7 +8,7 @@ of the app asks the study's design (``registry.design_of(study)``) and never com
 design's name. What every design shares is done once around these methods: enrolment
 (``participants.assignment``), storing an answer with the full-play rule
 (``designs.answers``), the page views (``designs.pages``) and the export
-(``researchers.export``).
+(``researchers.results.export``).
 
 Page contexts are plain data (strings, numbers, lists and dicts), so that a view can
 send them as JSON as well as render them.

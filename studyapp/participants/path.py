@@ -16,7 +16,7 @@ the last step has no form) and what the researcher's
 preview shows of it (``preview``; by default its page, where a new participant meets
 it). ``stage()`` reads the table, ``participants.views`` renders and guards the steps
 through it, ``urls`` gives each form its URL, /p/KEY/<step name>/, and
-``researchers.preview`` walks it. A new page type (a questionnaire) is one entry here
+``researchers.setup.preview`` walks it. A new page type (a questionnaire) is one entry here
 and one template.
 
 The design's pages of clips (practice and rating) are answered with one request: their

@@ -26,7 +26,7 @@ from studyapp.platforms.calls import Call, Payee, PlatformError
 from studyapp.platforms.mturk import MTurkAPI
 from studyapp.platforms.prolific import ProlificAPI
 from studyapp.platforms.rules import APPROVE, REJECT, REQUEST_RETURN, Standing
-from studyapp.researchers.participant_list import participant_rows
+from studyapp.researchers.crowd.participant_list import participant_rows
 
 logger = logging.getLogger("studyapp.platforms")
 

@@ -8,8 +8,8 @@ from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import redirect, render
 from django.views.decorators.http import require_safe
 
-from studyapp.researchers.report_files import report_zip
-from studyapp.researchers.reports import AnalysisInputError, create_report, report_page
+from studyapp.researchers.results.report_files import report_zip
+from studyapp.researchers.results.reports import AnalysisInputError, create_report, report_page
 from studyapp.server.views import current_health
 from studyapp.stimuli.gallery import GalleryIndexError, index_path, load_gallery
 

@@ -2,12 +2,16 @@
 
 from django.urls import path
 
-from studyapp.researchers import platform_views, views
+from studyapp.researchers import bundle_views, definition_views, views
+from studyapp.researchers.crowd import platform_views
 
 urlpatterns = [
     path("", views.study_list, name="study-list"),
     path("new/", views.study_edit, name="study-create"),
+    path("new/from-definition/", definition_views.study_from_definition, name="study-from-definition"),
+    path("import/", bundle_views.study_import, name="study-import"),
     path("<int:pk>/", views.study_edit, name="study-edit"),
+    path("<int:pk>/bundle.zip", bundle_views.study_bundle_download, name="study-bundle-download"),
     path("<int:pk>/delete/", views.study_delete, name="study-delete"),
     path("<int:pk>/duplicate/", views.study_duplicate, name="study-duplicate"),
     path("<int:pk>/systems/", views.study_systems, name="study-systems"),
@@ -34,7 +38,9 @@ urlpatterns = [
     path("<int:pk>/open/", views.study_open, name="study-open"),
     path("<int:pk>/ratings.csv", views.study_export, name="study-export"),
     path("<int:pk>/rules.json", views.study_rules, name="study-rules"),
+    path("<int:pk>/definition.yaml", definition_views.study_definition, name="study-definition"),
     path("<int:pk>/motion.zip", views.study_motion_download, name="study-motion-download"),
     path("<int:pk>/adherence/", views.study_adherence, name="study-adherence"),
     path("<int:pk>/report/", views.study_report, name="study-report"),
+    path("<int:pk>/plan/", views.study_plan, name="study-plan"),
 ]

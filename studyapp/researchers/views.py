@@ -26,22 +26,24 @@ from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.participants.views import PLATFORM_PARAMETERS
-from studyapp.researchers import question_order
-from studyapp.researchers.adherence import adherence_tables
-from studyapp.researchers.completion_time import completion_minutes
-from studyapp.researchers.duplication import duplicate_study
-from studyapp.researchers.editing import EditRefused, edit_system, rename_control
-from studyapp.researchers.export import ratings_csv, rules_json
-from studyapp.researchers.forms import (CheckpointSystemForm, ControlEditForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
+from studyapp.plan.lock import preregistration
+from studyapp.plan.words import in_words
+from studyapp.researchers.setup import question_order
+from studyapp.researchers.results.adherence import adherence_tables
+from studyapp.researchers.crowd.completion_time import completion_minutes
+from studyapp.researchers.setup.duplication import duplicate_study
+from studyapp.researchers.setup.editing import EditRefused, edit_system, rename_control
+from studyapp.researchers.results.export import ratings_csv, rules_json
+from studyapp.researchers.setup.forms import (CheckpointSystemForm, ControlEditForm, ControlFileForm, GenerateForm, HeldOutControlsForm,
                             LabelControlsForm, NaturalSystemForm, PresetControlsForm, QuestionForm, QuestionRemovalForm, StudyForm,
                             SubmittedMotionSystemForm, SystemEditForm, VideoSystemForm)
-from studyapp.researchers.monitor import study_monitor
-from studyapp.researchers.monitor_figures import live_figures
-from studyapp.researchers.participant_list import participant_rows, participants_csv, question_names
-from studyapp.researchers.preview import preview_pages
-from studyapp.researchers.readiness import open_problems, open_warnings
-from studyapp.researchers.removal import SystemsFixed, removal_summary, remove, remove_study, require_not_started
-from studyapp.researchers.reports import AnalysisInputError, create_report, html_table
+from studyapp.researchers.results.monitor import study_monitor
+from studyapp.researchers.results.monitor_figures import live_figures
+from studyapp.researchers.crowd.participant_list import participant_rows, participants_csv, question_names
+from studyapp.researchers.setup.preview import preview_pages
+from studyapp.researchers.setup.readiness import open_problems, open_warnings
+from studyapp.researchers.setup.removal import SystemsFixed, removal_summary, remove, remove_study, require_not_started
+from studyapp.researchers.results.reports import AnalysisInputError, create_report, html_table
 from studyapp.server.celery import app as celery_app
 from studyapp.server.health import collect_health
 from studyapp.stimuli.clips import progress
@@ -385,6 +387,8 @@ def study_monitor_page(request: HttpRequest, pk: int) -> HttpResponse:
                "parameters": PLATFORM_PARAMETERS[study.platform], "open_problems": open_problems(study),
                "open_warnings": open_warnings(study), "figures": live_figures(study),
                "rules": StudyRules.of(study).described()}
+    plan = preregistration(study)
+    context.update(plan_locked=plan["locked"], deviation_count=len(plan["deviations"]))
     try:
         context["monitor"] = study_monitor(study)
     except AnalysisInputError as error:  # rows changed outside the study pages (a rating without its value)
@@ -573,6 +577,15 @@ def study_adherence(request: HttpRequest, pk: int) -> HttpResponse:
                   {"study": study, "tables": [(title, html_table(table)) for title, table in tables], "notes": notes})
 
 
+@never_cache
+@login_required
+@require_safe
+def study_plan(request: HttpRequest, pk: int) -> HttpResponse:
+    """The plan locked when the study first opened, in words, and every deviation from it since."""
+    study = _study(request, pk)
+    return render(request, "studyapp/researcher/plan.html", {"study": study, "plan": in_words(preregistration(study))})
+
+
 @login_required
 @require_POST
 def study_report(request: HttpRequest, pk: int) -> HttpResponse:
@@ -581,8 +594,10 @@ def study_report(request: HttpRequest, pk: int) -> HttpResponse:
     try:
         # As `python -m analysis report ratings.csv --rules rules.json` makes it: the study's
         # rules, and NAT as the reference where it was rated.
+        previous = study.previous_runs.last()  # a rerun's: its ratings are shown beside the previous run's
         digest = create_report(settings.MEDIA_ROOT, ratings_csv(study), None, request.user.pk,
-                               StudyRules.of(study).exclusion)
+                               StudyRules.of(study).exclusion, preregistration(study),
+                               (previous.ratings_csv, previous.rules_json) if previous else None)
     except AnalysisInputError as error:
         messages.error(request, f"No report yet: {error}")
         return redirect("study-monitor", pk=study.pk)

@@ -230,7 +230,7 @@ def ensure_side_by_side_study(single):
     from django.db import transaction
 
     from studyapp.models import Stimulus, Study
-    from studyapp.researchers.duplication import copy_contents
+    from studyapp.researchers.setup.duplication import copy_contents
 
     with transaction.atomic():
         study, _ = Study.objects.get_or_create(owner=single.owner, title=SIDE_BY_SIDE_STUDY, defaults={

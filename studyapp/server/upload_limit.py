@@ -21,13 +21,16 @@ FORM_MARGIN_BYTES = 1_000_000
 
 def request_limit(path: str) -> int:
     """The most bytes a request to ``path`` may carry: the systems page takes checkpoints
-    and videos, every other page at most a ratings table or a control file."""
+    and videos, the import page a study bundle, every other page at most a ratings table
+    or a control file."""
     try:
         name = resolve(path).url_name
     except Resolver404:
         name = None
     if name == "study-systems":
         return max(settings.MAX_CHECKPOINT_UPLOAD_BYTES, settings.MAX_VIDEO_UPLOAD_BYTES) + FORM_MARGIN_BYTES
+    if name == "study-import":
+        return settings.MAX_BUNDLE_UPLOAD_BYTES + FORM_MARGIN_BYTES
     return settings.DATA_UPLOAD_MAX_MEMORY_SIZE + FORM_MARGIN_BYTES
 
 

@@ -10,7 +10,7 @@ from django.templatetags.static import static
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_safe
 
-from studyapp.researchers.reports import REPORTS_FOLDER, report_owner
+from studyapp.researchers.results.reports import REPORTS_FOLDER, report_owner
 from studyapp.server.celery import app as celery_app
 from studyapp.server.files import serve_with_ranges
 from studyapp.server.health import HealthReport, collect_health

@@ -30,8 +30,8 @@ from pathlib import Path
 from django.conf import settings
 from django.core.files import File
 
-from generation.control import (AttributeControl, Control, held_out_attributes, held_out_paths, lead_in_frames,
-                                load_control_file, preset_path, take_paths)
+from generation.control import (AttributeControl, Control, PathControl, held_out_attributes, held_out_paths,
+                                lead_in_frames, load_control_file, preset_path, take_paths)
 from generation import registry
 from generation.motion.dataset import (LOCOMOTION, DatasetOptions, build_dataset, contents_or_all, find_bvh_files,
                                        motion_folders)
@@ -255,6 +255,16 @@ def add_preset_controls(study: Study, names: list[str]) -> list[ControlSignal]:
     return [_save(study, control, ControlSignal.Origin.SYNTHETIC) for control in controls]
 
 
+def add_path_control(study: Study, control: PathControl) -> ControlSignal:
+    """A synthetic path given frame by frame (a study definition's custom path), at the
+    frame rate of the study's motion."""
+    _require(study, registry.PATH)
+    fps = study_options(study).fps
+    if abs(control.fps - fps) > 1e-9:
+        raise ControlError(f"the path is at {control.fps:g} fps and the study's motion at {fps:g} fps")
+    return _save(study, control, ControlSignal.Origin.SYNTHETIC)
+
+
 def add_control_file(study: Study, upload: File) -> list[ControlSignal]:
     """Synthetic controls from an uploaded JSON or YAML description (one path or a list)."""
     name = Path(upload.name or "").name
@@ -274,5 +284,5 @@ def add_control_file(study: Study, upload: File) -> list[ControlSignal]:
     return [_save(study, control, ControlSignal.Origin.SYNTHETIC) for control in controls]
 
 
-__all__ = ["ControlError", "add_control_file", "add_held_out_controls", "add_label_controls", "add_preset_controls",
-           "control_kind", "natural_options", "study_labels", "study_options", "training_options"]
+__all__ = ["ControlError", "add_control_file", "add_held_out_controls", "add_label_controls", "add_path_control",
+           "add_preset_controls", "control_kind", "natural_options", "study_labels", "study_options", "training_options"]

@@ -8,6 +8,9 @@ system, one clip in two files.
     OUT/<system>/<control id>.bvh    the same clip as a rotation BVH on the system's rig:
                                      every joint's ZXY rotation and the root's position,
                                      in cm with y up (BVH cannot say so itself)
+    OUT/<system>/<control id>.json   for a label control, the labels it asked for
+                                     ({"content": action, "style": style}: the BVH
+                                     reader's label side file)
 
 The BVH files hold rotations for every kind of system, so the motion loads onto a
 character in Blender, Maya or a game engine: NAT's are the capture's own; every other
@@ -15,7 +18,10 @@ clip is kept as positions (sampled motion of any model kind, submitted motion), 
 rotations are those that inverse kinematics finds on the rig (``generation.motion.ik``:
 the rig's bone lengths, every bone pointing where the clip's does; a label model's
 clip, made by its rig's forward kinematics, comes back joint for joint). The objective
-metrics read the ``.npz`` files only.
+metrics read the ``.npz`` files only. A label model's adherence is how often HVRNN's
+attribute classifiers see the asked labels in its clips: ``python -m generation
+hvrnn-label OUT/<system> --classifiers FILE --out labels.csv`` lists what they see beside
+the side files' labels and says how often they agree.
 
 Systems are named as in the ratings table (``System.export_name``: NAT and BAD for those
 roles, a model system by its name), in each file's ``system`` array and, where the name
@@ -33,13 +39,14 @@ failure leaves nothing behind. ``motion_zip`` gives the same files as a zip.
 from __future__ import annotations
 
 import io
+import json
 import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
-from generation.control import PathControl, following_arrays
+from generation.control import AttributeControl, PathControl, following_arrays
 from generation.files import atomic_folder, write_atomic
 from generation.motion.bvh import bvh_text, motion_to_bvh
 from generation.motion.npz import save_motion_npz
@@ -85,6 +92,15 @@ def adherence_arrays(stimulus: Stimulus, clip: Clip) -> dict[str, np.ndarray]:
     return following_arrays(motion, RootTrajectory(asked.xz[:frames], asked.yaw[:frames]), root)
 
 
+def label_side_file(stimulus: Stimulus) -> bytes | None:
+    """For a clip of a label control, the labels it asked for as the BVH reader's side
+    file reads them (``generation.motion.dataset.read_labels``); None for a path."""
+    signal = stimulus.control.signal()
+    if not isinstance(signal, AttributeControl):
+        return None
+    return json.dumps({"content": signal.action, "style": signal.style}).encode()
+
+
 def first_frames(motion: Motion, frames: int) -> Motion:
     """The first ``frames`` of a motion, its rotations with them (a natural take can run a
     frame past its control, whose arrays lie beside it)."""
@@ -113,6 +129,8 @@ def write_motion(study: Study, out: Path) -> dict[str, int]:
             folder, name = work / folder_name(stimulus.system), clip_name(stimulus)  # a name may hold a dot: "-2.5s"
             save_motion_npz(motion, folder / f"{name}.npz", system=np.array(system), **following)
             write_atomic(folder / f"{name}.bvh", bvh_text(motion_to_bvh(motion)).encode())
+            if (labels := label_side_file(stimulus)) is not None:
+                write_atomic(folder / f"{name}.json", labels)
             counts[system] = counts.get(system, 0) + 1
     return counts
 

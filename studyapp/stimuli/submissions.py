@@ -14,20 +14,18 @@ clips are reduced to the body (the hips and below, as NAT clips are) and stored 
 ``.npz`` under ``CHECKPOINT_ROOT/submitted/<digest>/``; ``sources.SubmittedMotion``
 reads them and the workers render them as they render sampled motion.
 
-A zip is read member by member into memory, never extracted: no member name becomes a
-path (no zip slip), and no member is read past its declared size or the upload cap (no
-zip bomb).
+A zip is read member by member into memory by ``studyapp.server.zips``, never
+extracted: no member name becomes a path (no zip slip), and no member is read past its
+declared size or the upload cap (no zip bomb).
 """
 
 from __future__ import annotations
 
 import hashlib
+import io
 import os
 import shutil
-import struct
 import tempfile
-import zipfile
-import zlib
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
@@ -40,11 +38,11 @@ from generation.motion.root import RootOptions, hips_index
 from generation.motion.types import Motion
 from generation.submission import MOTION_SUFFIXES, prepare_submission
 from studyapp.models import ControlSignal, Study, System
+from studyapp.server.zips import ZipRefused, checked_members, copy_member, opened_zip
 from studyapp.stimuli.control_export import control_id
 from studyapp.stimuli.controls import ControlError, study_options
 from studyapp.stimuli.systems import UploadRefused, check_name
 
-MAX_MEMBERS = 10_000
 SUBMITTED_FOLDER = "submitted"
 
 
@@ -73,38 +71,19 @@ def _max_bytes() -> int:
 
 
 def read_zip(stream) -> dict[str, bytes]:
-    """The motion files of a zip by file name (folders inside it ignored).
-
-    A damaged archive fails in many ways inside zipfile (a CRC that does not match, a
-    member that inflates past its declared size, a cut deflate stream, a compression
-    method it lacks, headers that contradict each other); each is refused naming the
-    member.
-    """
+    """The motion files of a zip by file name (folders inside it ignored), read as
+    ``studyapp.server.zips`` reads any zip from outside; UploadRefused naming the member
+    where it cannot be read."""
     limit = _max_bytes()
-    damaged = (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError, OSError, ValueError, struct.error)
+    files = {}
     try:
-        archive = zipfile.ZipFile(stream)
-    except damaged as error:
-        raise UploadRefused(f"not a zip file ({error})") from None
-    with archive:
-        members = [info for info in archive.infolist() if not info.is_dir()]
-        if len(members) > MAX_MEMBERS:
-            raise UploadRefused(f"the zip holds {len(members)} files; at most {MAX_MEMBERS}")
-        declared = sum(info.file_size for info in members)
-        if declared > limit:
-            raise UploadRefused(f"the zip unpacks to {declared / 1e6:.3g} MB, over the {limit / 1e6:g} MB limit")
-        files = {}
-        for info in members:
-            if info.flag_bits & 0x1:
-                raise UploadRefused(f"{info.filename}: encrypted zip members are not read")
-            try:
-                with archive.open(info) as member:
-                    data = member.read(info.file_size + 1)  # never past what the directory declares
-            except damaged as error:
-                raise UploadRefused(f"{info.filename}: a damaged zip member ({error})") from None
-            if len(data) > info.file_size:
-                raise UploadRefused(f"{info.filename}: unpacks to more than its declared {info.file_size} bytes")
-            files[info.filename] = data
+        with opened_zip(stream) as archive:
+            for info in checked_members(archive, limit):
+                buffer = io.BytesIO()
+                copy_member(archive, info, buffer, limit)
+                files[info.filename] = buffer.getvalue()
+    except ZipRefused as error:
+        raise UploadRefused(str(error)) from None
     return files
 
 
@@ -175,17 +154,24 @@ def _body(motion: Motion, root: RootOptions) -> Motion:
     return subtree_motion(motion, hips_index(motion.skeleton, root.hips))
 
 
+def stored_motion_digest(folder: Path) -> str:
+    """The digest that names a folder of stored clips: of each control id and its file's
+    bytes, in the order of the ids (the folder's name in the store)."""
+    digest = hashlib.sha256()
+    for path in sorted(folder.glob("*.npz"), key=lambda p: p.stem):
+        digest.update(path.stem.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
 def _store(accepted: list[Accepted]) -> tuple[str, str]:
     """Write the accepted clips under CHECKPOINT_ROOT; (folder relative to it, digest)."""
     root = Path(settings.CHECKPOINT_ROOT) / SUBMITTED_FOLDER
     root.mkdir(parents=True, exist_ok=True)
     scratch = Path(tempfile.mkdtemp(dir=root, prefix=".upload-"))
     try:
-        digest = hashlib.sha256()
-        for item in sorted(accepted, key=lambda a: control_id(a.control)):
-            path = save_motion_npz(item.motion, scratch / f"{control_id(item.control)}.npz")
-            digest.update(control_id(item.control).encode() + b"\0" + path.read_bytes())
-        final = root / digest.hexdigest()
+        for item in accepted:
+            save_motion_npz(item.motion, scratch / f"{control_id(item.control)}.npz")
+        final = root / stored_motion_digest(scratch)
         if not final.exists():  # the same motion submitted twice is stored once
             os.chmod(scratch, 0o755)
             os.replace(scratch, final)
@@ -234,4 +220,4 @@ def read_stored_motion(system: System, control: ControlSignal) -> Motion:
 
 
 __all__ = ["Reading", "SubmissionRefused", "add_submitted_system", "add_submitted_upload", "check_submission",
-           "read_folder", "read_stored_motion", "read_zip"]
+           "read_folder", "read_stored_motion", "read_zip", "stored_motion_digest"]

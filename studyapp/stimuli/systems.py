@@ -85,12 +85,29 @@ def preset_name(meta: CheckpointMeta) -> str:
     return "/".join(matches) or "custom"
 
 
+def checked_checkpoint(path: Path, name: str) -> tuple[CheckpointMeta, int]:
+    """The description and parameter count of the checkpoint at ``path`` if it loads
+    completely and can drive sampling (UploadRefused naming the file ``name`` if not)."""
+    from generation.checkpoint import CheckpointError, load_checkpoint
+    from generation.generator import Generator
+
+    try:
+        model, meta = load_checkpoint(path)
+    except CheckpointError as error:
+        raise UploadRefused(f"{name}: {str(error).removeprefix(f'{path}: ')}") from None
+    try:
+        Generator(model, meta)  # the features and statistics sampling needs are there
+    except (KeyError, TypeError, ValueError, AttributeError) as error:
+        raise UploadRefused(f"{name}: a {meta.kind} checkpoint that cannot drive sampling ({error!r})") from None
+    if (where := null_character_in(dataclasses.asdict(meta))) is not None:  # PostgreSQL could not store it
+        raise UploadRefused(f"{name}: the checkpoint's description holds a NUL character (\\0) in {where}")
+    return meta, sum(p.numel() for p in model.parameters())
+
+
 def store_checkpoint(upload: File, fits: Callable[[CheckpointMeta], str | None] = lambda meta: None) -> StoredCheckpoint:
     """Validate an uploaded checkpoint completely and keep it in the checkpoint store
     (UploadRefused if not); ``fits`` says why a valid checkpoint does not fit where it goes
     (None: it fits), before anything is kept."""
-    from generation.checkpoint import CheckpointError, load_checkpoint
-    from generation.generator import Generator
     from generation.store import keep
 
     _check_upload(upload, CHECKPOINT_SUFFIX, settings.MAX_CHECKPOINT_UPLOAD_BYTES, "checkpoint")
@@ -100,19 +117,9 @@ def store_checkpoint(upload: File, fits: Callable[[CheckpointMeta], str | None] 
     with tempfile.TemporaryDirectory(dir=root, prefix=".upload-") as scratch:  # gone whatever happens
         received = Path(scratch) / f"upload{CHECKPOINT_SUFFIX}"
         _copy(upload, received)
-        try:
-            model, meta = load_checkpoint(received)
-        except CheckpointError as error:
-            raise UploadRefused(f"{name}: {str(error).removeprefix(f'{received}: ')}") from None
-        try:
-            Generator(model, meta)  # the features and statistics sampling needs are there
-        except (KeyError, TypeError, ValueError, AttributeError) as error:
-            raise UploadRefused(f"{name}: a {meta.kind} checkpoint that cannot drive sampling ({error!r})") from None
-        if (where := null_character_in(dataclasses.asdict(meta))) is not None:  # PostgreSQL could not store it
-            raise UploadRefused(f"{name}: the checkpoint's description holds a NUL character (\\0) in {where}")
+        meta, parameters = checked_checkpoint(received, name)
         if (problem := fits(meta)) is not None:
             raise UploadRefused(f"{name}: {problem}")
-        parameters = sum(p.numel() for p in model.parameters())
         stored, digest = keep(received, root)
     return StoredCheckpoint(stored.name, digest, meta, parameters)
 
@@ -246,5 +253,5 @@ def add_video_system(study: Study, name: str, uploads: list[File], role: str = S
     return system
 
 
-__all__ = ["UploadRefused", "add_checkpoint_system", "check_name", "add_natural_system", "add_video_system",
+__all__ = ["UploadRefused", "add_checkpoint_system", "check_name", "checked_checkpoint", "add_natural_system", "add_video_system",
            "store_checkpoint", "video_duration"]

@@ -3,7 +3,7 @@
 from django import template
 
 from studyapp.models import Study
-from studyapp.researchers.checklist import checklist
+from studyapp.researchers.setup.checklist import checklist
 
 register = template.Library()
 

@@ -22,7 +22,7 @@ from studyapp.platforms import credentials
 from studyapp.platforms.actions import (BonusListError, PlanChanged, apply, bonus_calls, chosen, decision_calls,
                                         planned, platform_api, read_back, without_submission)
 from studyapp.platforms.calls import Call, PlatformError
-from studyapp.researchers.platform_forms import BonusForm, MTurkCredentialsForm, ProlificCredentialsForm
+from studyapp.researchers.crowd.platform_forms import BonusForm, MTurkCredentialsForm, ProlificCredentialsForm
 
 CREDENTIAL_FORMS = {Study.Platform.PROLIFIC: ProlificCredentialsForm, Study.Platform.MTURK: MTurkCredentialsForm}
 SECRET_FIELDS = ("token", "secret_access_key")

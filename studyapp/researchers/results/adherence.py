@@ -9,7 +9,9 @@ DIR --appropriateness ratings.csv`` gives for the same files: per system the roo
 distance from its control's path and its heading error (``analysis.adherence``), and,
 in an appropriateness study with kept pages, their correlation across systems with the
 mean appropriateness scores. Label-controlled studies have no paths: their adherence is
-the attribute classifiers' (``python -m generation hvrnn-eval``), outside the app.
+how often HVRNN's attribute classifiers see the asked labels in the clips, which the
+export's label side files let ``python -m generation hvrnn-label`` count outside the app
+(LABEL_NOTE); the app keeps no classifiers' file to run them itself.
 """
 
 from __future__ import annotations
@@ -26,8 +28,14 @@ from analysis.exclusions import compared_ratings
 from analysis.motion_io import load_motion_sets
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Study
-from studyapp.researchers.monitor import flagged_ratings
+from studyapp.researchers.results.monitor import flagged_ratings
 from studyapp.stimuli.motion_export import write_motion
+
+
+LABEL_NOTE = ("The clips of label controls follow no path: their adherence is how often HVRNN's attribute classifiers "
+              "see the labels they were asked for. The motion download has each clip's asked labels beside its BVH "
+              "file; python -m generation hvrnn-label FOLDER --classifiers FILE --out labels.csv on a system's "
+              "folder says how often the classifiers agree with them.")
 
 
 def adherence_tables(study: Study) -> tuple[list[tuple[str, pd.DataFrame]], list[str]]:
@@ -38,6 +46,8 @@ def adherence_tables(study: Study) -> tuple[list[tuple[str, pd.DataFrame]], list
         write_motion(study, folder)
         motion = load_motion_sets([folder]) if any(folder.iterdir()) else {}
     adherence, _, notes = path_adherence(motion)
+    if study.controls.filter(control__type="attributes").exists():
+        notes.append(LABEL_NOTE)
     if adherence.empty:
         return [], [*notes, "No clip of the study follows a path, so there is no path adherence to measure."]
     tables = [("Control adherence: the root's distance from the control's path (cm) and its heading error "

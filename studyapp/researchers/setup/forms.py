@@ -69,6 +69,7 @@ class StudyForm(forms.ModelForm):
         ("Attention checks and early answers", ("bad_checks", "natural_checks", "bad_threshold", "natural_threshold",
                                                 "instructed_checks", "stop_after_failed_checks",
                                                 "require_full_play", "discard_early")),
+        ("Plan", ("expected_effect",)),
         ("Crowd platform", ("platform", "completion_code", "redirect_url", "screen_out_code", "stopped_code",
                             "is_open")),
         ("Device check", ("device_check", "min_screen_width", "min_screen_height")),
@@ -178,6 +179,7 @@ class StudyForm(forms.ModelForm):
             "discard_early": "Flag answers given before the clip ended",
             "completion_code": "Completion code",
             "is_open": "Open to participants",
+            "expected_effect": "Expected effect (optional)",
             "device_check": "Check the device before consent",
             "min_screen_width": "Smallest screen width (px)",
             "min_screen_height": "Smallest screen height (px)",
@@ -374,3 +376,21 @@ class ControlFileForm(forms.Form):
 class GenerateForm(forms.Form):
     seed = forms.IntegerField(initial=0, min_value=0, max_value=Stimulus.MAX_SEED,
                               help_text="random seed of every model's samples")
+
+
+class BundleImportForm(forms.Form):
+    bundle = forms.FileField(help_text=f"a study bundle (.zip) that export_study or a study page wrote, "
+                                       f"{_megabytes(settings.MAX_BUNDLE_UPLOAD_BYTES)}")
+    rerun = forms.BooleanField(required=False, label="Rerun",
+                               help_text="import the design, systems, controls and clips but not the participants: "
+                                         "a new run for new participants, whose report compares its ratings with "
+                                         "the bundle's")
+
+    def clean_bundle(self):
+        bundle = self.cleaned_data["bundle"]
+        if not bundle.name.lower().endswith(".zip"):
+            raise forms.ValidationError(f"{bundle.name}: a study bundle is a .zip file")
+        if bundle.size > settings.MAX_BUNDLE_UPLOAD_BYTES:
+            raise forms.ValidationError(f"{bundle.name}: {bundle.size / 1e6:.1f} MB is over the "
+                                        f"{_megabytes(settings.MAX_BUNDLE_UPLOAD_BYTES)} limit")
+        return bundle

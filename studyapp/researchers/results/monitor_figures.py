@@ -22,7 +22,7 @@ from analysis.ratings import read_ratings
 from analysis.report import build_report, report_figures
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Study
-from studyapp.researchers.export import ratings_csv
+from studyapp.researchers.results.export import ratings_csv
 
 # What each of the report's figures is called on the monitor.
 TITLES = {"means_ci": "Mean rating per system (95 % CI)", "rating_distributions": "Ratings per system",

@@ -2,18 +2,26 @@
 
 The app runs exactly the ``analysis`` package's report (the same tables and figures as
 ``python -m analysis report``), with the exclusion rules it is given (a study's own, for
-the study's report), which the folder keeps as rules.json and the page states; the
+the study's report), which the folder keeps as rules.json and the page states. A
+study's report keeps its locked plan and deviations too (``studyapp.plan``): plan.json
+as data, plan.md in words, and the page states the plan's hash, time and deviations. The
 design of the table says which tables the page shows (``Design.report_tables``). A
 report lives in ``MEDIA_ROOT/reports/<digest>/``, named by the SHA-256 of the
 researcher, the ratings file and the rules, so the same upload twice is the same report. A report belongs to the researcher who made it (``owner.txt``): only they
 see its page and files, since it holds their participants' ratings. The folder is built
 under a temporary name and renamed into place, so a failed analysis leaves nothing
 behind and a half-written report is never served.
+
+A rerun's report (a study imported with ``import_study --rerun``) also keeps the previous
+run's ratings and rules (``previous-ratings.csv``, ``previous-rules.json``) and shows
+each run's kept ratings per system side by side (``analysis.previous_run``), as
+``python -m analysis report --previous`` writes them.
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,17 +34,24 @@ from analysis.design_report import DesignReport
 from analysis.designs import table_design
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import ExclusionRules
+from analysis.previous_run import previous_run_comparison
 from analysis.ratings import read_ratings
 from analysis.report import Report, build_report, summary_text, write_report
+from analysis.tables import write_table
 from generation.files import atomic_folder
-from studyapp.researchers.table_format import readable_table
+from studyapp.researchers.results.table_format import readable_table
 from studyapp.designs.registry import design_named
+from studyapp.plan.words import PlanInWords, in_words, plan_markdown
 
 REPORTS_FOLDER = "reports"
 RATINGS_NAME = "ratings.csv"
 REFERENCE_NAME = "reference.txt"
 RULES_NAME = "rules.json"
 OWNER_NAME = "owner.txt"
+PLAN_NAME = "plan.json"  # a study's report: its locked plan and deviations (``plan.lock.preregistration``)
+PLAN_WORDS_NAME = "plan.md"
+PREVIOUS_RATINGS_NAME, PREVIOUS_RULES_NAME = "previous-ratings.csv", "previous-rules.json"
+PREVIOUS_TITLE = "This run beside the previous run"
 
 
 @dataclass(frozen=True)
@@ -50,6 +65,7 @@ class ReportPage:
     figures: list[str]  # paths relative to MEDIA_ROOT
     files: list[str]  # every table file (CSV, Markdown, LaTeX, JSON), relative to MEDIA_ROOT
     notes: list[str]
+    plan: PlanInWords | None = None  # a study's report: its plan and deviations (None for an uploaded table)
 
 
 def report_folder(media_root: Path, digest: str) -> Path:
@@ -67,13 +83,18 @@ def report_owner(media_root: Path, digest: str) -> int | None:
 
 
 def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, owner_id: int,
-                  rules: ExclusionRules = ExclusionRules()) -> str:
+                  rules: ExclusionRules = ExclusionRules(), preregistration: dict | None = None,
+                  previous: tuple[str, str] | None = None) -> str:
     """Analyse a ratings CSV with ``rules`` into its report folder, owned by ``owner_id``; returns the digest.
+    A study's ``preregistration`` (its locked plan and deviations) is kept beside it.
+    ``previous``: a previous run's ratings table and rules, compared with these.
 
     Raises AnalysisInputError (naming what is wrong) for a table that cannot be analysed.
     """
+    plan = json.dumps(preregistration, indent=2, sort_keys=True, ensure_ascii=False) + "\n" if preregistration else ""
+    compared = "\0".join(previous).encode() if previous else b""
     digest = hashlib.sha256(f"{owner_id}\0".encode() + ratings_csv + f"\0{reference or ''}\0".encode()
-                            + rules.to_json().encode()).hexdigest()
+                            + rules.to_json().encode() + (f"\0{plan}".encode() if plan else b"") + compared).hexdigest()
     final = report_folder(media_root, digest)
     if final.is_dir():
         return digest
@@ -82,11 +103,20 @@ def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, o
         (work / REFERENCE_NAME).write_text(reference or "")
         (work / RULES_NAME).write_text(rules.to_json())
         (work / OWNER_NAME).write_text(str(owner_id))
+        if preregistration:
+            (work / PLAN_NAME).write_text(plan, encoding="utf-8")
+            (work / PLAN_WORDS_NAME).write_text(plan_markdown(preregistration), encoding="utf-8")
+        if previous:
+            (work / PREVIOUS_RATINGS_NAME).write_text(previous[0], encoding="utf-8")
+            (work / PREVIOUS_RULES_NAME).write_text(previous[1], encoding="utf-8")
         try:
             report = _analyse(work)
+            comparison = _previous_run(work, report)
         except AnalysisInputError as error:  # say "the upload", not where the server keeps it
             raise AnalysisInputError(str(error).replace(str(work / RATINGS_NAME), "the uploaded file")) from None
         write_report(report, work)
+        if comparison is not None:
+            write_table(comparison, work / "tables", "previous_run", caption=PREVIOUS_TITLE)
     return digest
 
 
@@ -99,6 +129,16 @@ def _rules(folder: Path) -> ExclusionRules:
 def _analyse(folder: Path) -> Report | DesignReport:
     reference = (folder / REFERENCE_NAME).read_text() or None
     return build_report(read_ratings(folder / RATINGS_NAME), reference=reference, rules=_rules(folder))
+
+
+def _previous_run(folder: Path, report: Report | DesignReport) -> pd.DataFrame | None:
+    """The previous run's kept ratings beside this report's (None for a report without one)."""
+    if not (folder / PREVIOUS_RATINGS_NAME).is_file():
+        return None
+    previous_rules = ExclusionRules.from_json((folder / PREVIOUS_RULES_NAME).read_text(encoding="utf-8"),
+                                              PREVIOUS_RULES_NAME)
+    previous = read_ratings(folder / PREVIOUS_RATINGS_NAME)
+    return previous_run_comparison(read_ratings(folder / RATINGS_NAME), report.rules, previous, previous_rules)
 
 
 def _paragraphs(markdown: str) -> list[SafeString]:
@@ -123,10 +163,14 @@ def report_page(media_root: Path, digest: str, owner_id: int) -> ReportPage:
     report = _analyse(folder)
     tables = [(title, html_table(table))
               for title, table in design_named(table_design(report.flagged)).report_tables(report)]
+    if (comparison := _previous_run(folder, report)) is not None:
+        tables.append((PREVIOUS_TITLE, html_table(comparison)))
     figures = sorted(str(p.relative_to(media_root)) for p in (folder / "figures").glob("*.svg"))
     files = sorted(str(p.relative_to(media_root)) for p in (folder / "tables").iterdir())
+    plan_file = folder / PLAN_NAME
+    plan = in_words(json.loads(plan_file.read_text(encoding="utf-8"))) if plan_file.is_file() else None
     return ReportPage(digest, _paragraphs(summary_text(report)), report.design.described(report.rules), tables,
-                      figures, files, report.notes)
+                      figures, files, report.notes, plan)
 
 
 __all__ = ["AnalysisInputError", "ReportPage", "create_report", "html_table", "report_folder", "report_owner",

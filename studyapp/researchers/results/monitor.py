@@ -25,8 +25,8 @@ from analysis.stats import system_means
 from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Stimulus, Study
-from studyapp.researchers.export import export_columns, ratings_csv
-from studyapp.researchers.reports import html_table
+from studyapp.researchers.results.export import export_columns, ratings_csv
+from studyapp.researchers.results.reports import html_table
 
 
 def flagged_ratings(study: Study) -> pd.DataFrame:

@@ -8,7 +8,7 @@ import io
 import zipfile
 from pathlib import Path
 
-from studyapp.researchers.reports import OWNER_NAME, report_folder, report_owner
+from studyapp.researchers.results.reports import OWNER_NAME, report_folder, report_owner
 
 
 def report_zip(media_root: Path, digest: str, owner_id: int) -> bytes:

@@ -16,8 +16,8 @@ from django.urls import reverse
 
 from studyapp.designs.registry import design_of
 from studyapp.models import Stimulus, Study, System
-from studyapp.researchers.duration import expected_duration
-from studyapp.researchers.readiness import open_problems, open_warnings
+from studyapp.researchers.setup.duration import expected_duration
+from studyapp.researchers.setup.readiness import open_problems, open_warnings
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ from django.db.models import Q
 
 from studyapp.bounds import check_field
 from studyapp.models import ControlSignal, Stimulus, System
-from studyapp.researchers.removal import delete_files, require_not_started
+from studyapp.researchers.setup.removal import delete_files, require_not_started
 from studyapp.stimuli.clips import content_key
 
 

@@ -1,0 +1,328 @@
+"""A read bundle re-created as a new study: all of it, or nothing.
+
+The study's settings, systems, controls and questions are made from the bundle's
+records, which hold every value exactly (the control arrays among them), and its
+definition (``study.yaml``) must be read as a definition and describe the study made:
+a bundle whose two descriptions disagree is refused at the first line that differs.
+
+Every row is made in one transaction, each checked as the pages check it
+(``full_clean``); every file (checkpoints, submitted motion, sampled motion, videos) is
+checked as an upload of its kind is, written under a temporary name beside its place
+and moved there only when every row is made, just before the transaction commits. Any
+problem refuses the bundle with ``BundleRefused`` naming the file and the record, and
+leaves no row and no file behind.
+
+The new study has a new key and is closed. Its stimuli keep their seeds, content keys
+and, where free in this database, their tokens, as its participants keep their codes:
+its ratings table is then the original's, and so is the report computed from it. A
+stimulus's content key is computed again here from the imported study, system and
+control, and must be the recorded one (the stimulus code being the same version): a
+bundle whose clips would not be the ones rated is refused. Clips whose video came in
+the bundle are finished; the others wait for ``generate_stimuli`` to render them again.
+
+As a rerun (``rerun``), the participants and ratings are not imported: the study is
+the same design, systems, controls and clips, for new participants, and the bundle's
+ratings table and rules are kept as its previous run (``PreviousRun``), which its
+report compares with the new ratings.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import tempfile
+from contextlib import ExitStack
+from pathlib import Path
+from typing import BinaryIO
+
+from django.conf import settings
+from django.core.exceptions import ValidationError
+from django.db import transaction
+
+from generation.files import atomic_folder, atomic_output
+from generation.motion.npz import MotionFileError, load_motion_npz
+from generation.store import CheckpointError, content_digest, read_header
+from studyapp.bundles import records
+from studyapp.bundles.manifest import BundleRefused
+from studyapp.bundles.reading import ReadBundle, read_bundle
+from studyapp.definitions import DefinitionError, definition_yaml
+from studyapp.definitions.reading import read_definition
+from studyapp.models import (Assignment, ControlSignal, Participant, PreviousRun, Question, Rating, Stimulus,
+                             StoredDataError, Study, System, new_token)
+from studyapp.stimuli.clips import CODE_VERSION, content_key
+from studyapp.stimuli.sources import sampled_folder
+from studyapp.stimuli.submissions import SUBMITTED_FOLDER, stored_motion_digest
+from studyapp.stimuli.systems import UploadRefused, checked_checkpoint, video_duration
+
+# What names a file (a digest, a stimulus's token) must look like before it becomes part of a path.
+DIGEST, TOKEN = re.compile(r"[0-9a-f]{64}"), re.compile(r"[0-9A-Za-z_-]{1,32}")
+
+
+def _file_name(value: object, pattern: re.Pattern, what: str, where: str) -> str:
+    if not isinstance(value, str) or not pattern.fullmatch(value):
+        raise records.RecordError(f"{where}: its {what} {str(value)[:80]!r} is no {what} (it names a file)")
+    return value
+
+
+def _json(bundle: ReadBundle, name: str) -> object:
+    path = bundle.path(name)
+    if not path.is_file():
+        raise BundleRefused(f"{name}: missing from the bundle")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise BundleRefused(f"{name}: not JSON ({error})") from None
+
+
+def _items(data: object, key: str, where: str) -> list:
+    value = data.get(key) if isinstance(data, dict) else None
+    if not isinstance(value, list):
+        raise records.RecordError(f"{where}: '{key}' must be a list")
+    return value
+
+
+def _pop(data: object, key: str, where: str) -> object:
+    if not isinstance(data, dict) or key not in data:
+        raise records.RecordError(f"{where}: lacks '{key}'")
+    return data.pop(key)
+
+
+def _saved(row, where: str, stamped: dict | None = None):
+    """``row`` checked as the pages check it, and saved; ``stamped`` sets afterwards the
+    times Django stamps on saving."""
+    try:
+        row.clean_fields()  # every field of its type before the model's own checks compare them
+        row.full_clean()
+    except ValidationError as error:
+        problems = "; ".join(f"{field}: {' '.join(messages)}" for field, messages in error.message_dict.items())
+        raise records.RecordError(f"{where}: {problems}") from None
+    row.save()
+    if stamped:
+        type(row).objects.filter(pk=row.pk).update(**stamped)
+    return row
+
+
+def _free(model, field: str, value: object) -> object:
+    """``value``, or a new token where a row of this database already has it."""
+    return new_token() if isinstance(value, str) and model.objects.filter(**{field: value}).exists() else value
+
+
+class _Import:
+    """One bundle's import: the rows made so far by name or token, and the files to place."""
+
+    def __init__(self, bundle: ReadBundle, placing: ExitStack) -> None:
+        self.bundle, self.placing = bundle, placing
+        self.systems: dict[str, System] = {}
+        self.controls: dict[str, ControlSignal] = {}
+        self.stimuli: dict[str, Stimulus] = {}
+        self.assignments: dict[str, Assignment] = {}
+
+    def place_file(self, source: Path, target: Path) -> None:
+        """Copy ``source`` to ``target`` under a temporary name, moved there when the import
+        succeeds (a file already there is the same content: checkpoints and motion are
+        named by their digest)."""
+        if target.exists():
+            return
+        shutil.copyfile(source, self.placing.enter_context(atomic_output(target)))
+
+    # --- the study and what it is made of ---------------------------------------
+
+    def make_study(self, owner) -> Study:
+        data = _json(self.bundle, records.STUDY_FILE)
+        where = records.STUDY_FILE
+        values = records.row_values(Study, _pop(data, "study", where), f"{where}: study")
+        study = _saved(Study(owner=owner, is_open=False, **values), f"{where}: study")
+        for index, item in enumerate(_items(data, "controls", where)):
+            control = ControlSignal(study=study, **records.row_values(ControlSignal, item, f"{where}: controls[{index}]"))
+            self.controls[control.name] = _saved(control, f"{where}: control {control.name!r}")
+        for index, item in enumerate(_items(data, "systems", where)):
+            system = System(study=study, **records.row_values(System, item, f"{where}: systems[{index}]"))
+            self.system_files(system)
+            self.systems[system.name] = _saved(system, f"{where}: system {system.name!r}")
+        for index, item in enumerate(_items(data, "questions", where)):
+            _saved(Question(study=study, **records.row_values(Question, item, f"{where}: questions[{index}]")),
+                   f"{where}: questions[{index}]")
+        return study
+
+    def system_files(self, system: System) -> None:
+        """Check and place the files a system's motion comes from."""
+        where = f"{records.STUDY_FILE}: system {system.name!r}"
+        if not (system.checkpoint or system.source_kind == System.SourceKind.SUBMITTED):
+            return
+        digest = _file_name(system.checkpoint_digest, DIGEST, "digest", where)
+        if system.checkpoint:
+            name = f"{digest}.safetensors"
+            if system.checkpoint != name:
+                raise records.RecordError(f"{where}: its checkpoint must be named by its digest ({name})")
+            path = self.bundle.path(f"{records.CHECKPOINTS}{name}")
+            if not path.is_file():
+                raise BundleRefused(f"{records.CHECKPOINTS}{name}: the checkpoint of {system.name} is missing")
+            checked_checkpoint(path, f"{records.CHECKPOINTS}{name}")
+            try:
+                if content_digest(read_header(path)) != digest:
+                    raise BundleRefused(f"{records.CHECKPOINTS}{name}: its content is not that of its digest")
+            except CheckpointError as error:
+                raise BundleRefused(str(error).replace(str(self.bundle.folder) + "/", "")) from None
+            self.place_file(path, Path(settings.CHECKPOINT_ROOT) / name)
+        elif system.source_kind == System.SourceKind.SUBMITTED:
+            folder = f"{SUBMITTED_FOLDER}/{digest}"
+            if not isinstance(system.metadata, dict) or system.metadata.get("folder") != folder:
+                raise records.RecordError(f"{where}: its motion must lie in the folder named by its digest ({folder})")
+            source = self.bundle.path(f"{records.MOTION}{digest}")
+            if not source.is_dir() or stored_motion_digest(source) != digest:
+                raise BundleRefused(f"{records.MOTION}{digest}/: the submitted motion of {system.name} is missing or "
+                                    "not the motion of its digest")
+            for path in sorted(source.iterdir()):
+                load_motion_npz(path, f"{records.MOTION}{digest}/{path.name}")
+            target = Path(settings.CHECKPOINT_ROOT) / folder
+            if not target.exists():
+                shutil.copytree(source, self.placing.enter_context(atomic_folder(target)), dirs_exist_ok=True)
+
+    # --- the clips -----------------------------------------------------------------
+
+    def make_stimuli(self, study: Study) -> None:
+        where = records.STIMULI_FILE
+        data = _json(self.bundle, where)
+        if not isinstance(data, list):
+            raise records.RecordError(f"{where}: must be a list of stimuli")
+        same_code = self.bundle.manifest.stimuli_code_version == CODE_VERSION
+        for index, item in enumerate(data):
+            here = f"{where}[{index}]"
+            system, control, shown, video = (_pop(item, key, here) for key in
+                                             ("system", "control", "shown_control", "video"))
+            values = records.row_values(Stimulus, item, here)
+            recorded_token = _file_name(values.get("token"), TOKEN, "token", here)
+            stimulus = Stimulus(study=study, system=self._named(self.systems, system, here),
+                                control=self._named(self.controls, control, here) if control is not None else None,
+                                shown_control=self._named(self.controls, shown, here) if shown is not None else None,
+                                **{**values, "token": _free(Stimulus, "token", recorded_token)})
+            if stimulus.control is not None and same_code:
+                try:
+                    key = content_key(study, stimulus.system, stimulus.control, stimulus.seed, stimulus.shown_control)
+                except StoredDataError as error:
+                    raise records.RecordError(f"{here}: {error}") from None
+                if key != stimulus.content_key:
+                    raise records.RecordError(f"{here}: its content key is not that of its system, control and seed "
+                                              "(the clip would not be the one rated)")
+            uploaded = stimulus.system.source_kind == System.SourceKind.VIDEO
+            if video is True or uploaded:
+                stimulus.status, stimulus.duration_s = Stimulus.Status.DONE, self.video(recorded_token, stimulus)
+            self.stimuli[recorded_token] = _saved(stimulus, here)
+        keys = {stimulus.content_key for stimulus in self.stimuli.values()}
+        for path in sorted(self.bundle.path(records.SAMPLED).glob("*")):
+            name = f"{records.SAMPLED}{path.name}"
+            if path.suffix != ".npz" or path.stem not in keys:
+                raise BundleRefused(f"{name}: sampled motion of no clip of the study")
+            load_motion_npz(path, name)
+            self.place_file(path, sampled_folder() / path.name)
+
+    def video(self, token: str, stimulus: Stimulus) -> float:
+        """Check and place a clip's video; its duration."""
+        name = f"{records.VIDEOS}{token}.mp4"
+        path = self.bundle.path(name)
+        if not path.is_file():
+            raise BundleRefused(f"{name}: the video of a finished clip of {stimulus.system.name} is missing")
+        try:
+            duration = video_duration(path)
+        except UploadRefused as error:
+            raise BundleRefused(f"{name}: {error}") from None
+        self.place_file(path, stimulus.video_path())
+        return duration
+
+    # --- who took part, and their answers ------------------------------------------------
+
+    def make_participants(self, study: Study) -> None:
+        where = records.PARTICIPANTS_FILE
+        data = _json(self.bundle, where)
+        for index, item in enumerate(_items(data, "participants", where)):
+            here = f"{where}: participants[{index}]"
+            training = _pop(item, "training", here)
+            pages = _pop(item, "assignments", here)
+            if not isinstance(training, list) or not isinstance(pages, list):
+                raise records.RecordError(f"{here}: 'training' and 'assignments' must be lists")
+            values = records.row_values(Participant, item, here)
+            values["code"] = _free(Participant, "code", values.get("code"))
+            practice = [self._named(self.stimuli, token, here).pk for token in training]
+            participant = _saved(Participant(study=study, training=practice, **values), here,
+                                 self._stamps(Participant, values))
+            for position, page in enumerate(pages):
+                there = f"{here}: assignments[{position}]"
+                stimulus = self._named(self.stimuli, _pop(page, "stimulus", there), there)
+                values = records.row_values(Assignment, page, there)
+                recorded = values.get("token")
+                assignment = Assignment(participant=participant, stimulus=stimulus,
+                                        **{**values, "token": _free(Assignment, "token", recorded)})
+                self.assignments[recorded] = _saved(assignment, there)
+        for index, item in enumerate(_items(data, "ratings", where)):
+            here = f"{where}: ratings[{index}]"
+            assignment = self._named(self.assignments, _pop(item, "assignment", here), here)
+            values = records.row_values(Rating, item, here)
+            _saved(Rating(assignment=assignment, **values), here, self._stamps(Rating, values))
+
+    @staticmethod
+    def _stamps(model, values: dict) -> dict:
+        return {name: values[name] for name in records.auto_stamped(model) if name in values}
+
+    @staticmethod
+    def _named(rows: dict, name: object, where: str):
+        if not isinstance(name, str) or name not in rows:
+            raise records.RecordError(f"{where}: refers to {name!r}, which the bundle does not hold")
+        return rows[name]
+
+
+def _previous_run(bundle: ReadBundle, study: Study) -> None:
+    """The bundle's ratings table and rules, kept as the rerun's previous run."""
+    texts = []
+    for name in (records.RATINGS_FILE, records.RULES_FILE):
+        path = bundle.path(name)
+        if not path.is_file():
+            raise BundleRefused(f"{name}: missing from the bundle")
+        try:
+            texts.append(path.read_text(encoding="utf-8"))
+        except UnicodeDecodeError as error:
+            raise BundleRefused(f"{name}: not UTF-8 text ({error})") from None
+    _saved(PreviousRun(study=study, ratings_csv=texts[0], rules_json=texts[1],
+                       code_version=bundle.manifest.code_version), "the previous run")
+
+
+def _check_definition(bundle: ReadBundle, study: Study) -> None:
+    """The bundle's definition must describe the study its records made (DefinitionError
+    with its line where it is no definition; BundleRefused where it describes another)."""
+    path = bundle.path(records.DEFINITION_FILE)
+    if not path.is_file():
+        raise BundleRefused(f"{records.DEFINITION_FILE}: missing from the bundle")
+    text = path.read_bytes()
+    read_definition(text, records.DEFINITION_FILE)
+    lines, made = text.decode(errors="replace").splitlines(), definition_yaml(study).splitlines()
+    for number, (given, expected) in enumerate(zip(lines, made), start=1):
+        if given != expected:
+            raise BundleRefused(f"{records.DEFINITION_FILE}:{number}: describes another study than the bundle's "
+                                f"records ({given.strip()[:80]!r} where they give {expected.strip()[:80]!r})")
+    if len(lines) != len(made):
+        raise BundleRefused(f"{records.DEFINITION_FILE}: describes another study than the bundle's records "
+                            "(its length differs)")
+
+
+def import_study(stream: BinaryIO | str, owner, rerun: bool = False) -> Study:
+    """The bundle in ``stream`` (a file object or a path) as a new, closed study of ``owner``;
+    BundleRefused naming what is wrong, with nothing left behind."""
+    with tempfile.TemporaryDirectory(prefix="study-bundle-") as folder:
+        scratch = Path(folder)
+        bundle = read_bundle(stream, scratch)
+        try:
+            with transaction.atomic(), ExitStack() as placing:  # files move into place just before the commit
+                run = _Import(bundle, placing)
+                study = run.make_study(owner)
+                _check_definition(bundle, study)
+                run.make_stimuli(study)
+                if rerun:
+                    _previous_run(bundle, study)
+                else:
+                    run.make_participants(study)
+        except (records.RecordError, DefinitionError, UploadRefused, MotionFileError) as error:
+            raise BundleRefused(str(error).replace(f"{scratch}/", "")) from None
+    return study
+
+
+__all__ = ["import_study"]

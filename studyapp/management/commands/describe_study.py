@@ -1,0 +1,43 @@
+"""``manage.py describe_study STUDY [--out FILE]``: the study's definition as YAML, which
+``create_study OWNER --from FILE`` makes into a study again."""
+
+from pathlib import Path
+
+from django.core.management.base import BaseCommand
+
+from generation.files import atomic_output
+from studyapp.definitions import definition_yaml
+from studyapp.models import Study, StoredDataError
+
+from ._study import InputError
+
+
+def study_by_id_or_key(given: str) -> Study:
+    """The study whose id or whose key (its entry link's) is ``given``."""
+    study = Study.objects.filter(pk=int(given)).first() if given.isdigit() and len(given) < 10 else None
+    study = study or Study.objects.filter(key=given).first()
+    if study is None:
+        raise InputError(f"no study with the id or key {given!r}")
+    return study
+
+
+class Command(BaseCommand):
+    help = ("Write a study's definition (its settings, questions, systems by checkpoint digest, controls) as YAML, "
+            "to standard output or --out FILE.")
+
+    def add_arguments(self, parser):
+        parser.add_argument("study", help="the study's id or key")
+        parser.add_argument("--out", type=Path, help="the file to write (default: standard output)")
+
+    def handle(self, *args, **options):
+        study = study_by_id_or_key(options["study"])
+        try:
+            text = definition_yaml(study)
+        except StoredDataError as error:
+            raise InputError(f"{error} (fix it in the admin: {error.admin_url})") from None
+        if options["out"] is None:
+            self.stdout.write(text, ending="")
+            return
+        with atomic_output(options["out"]) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+        self.stdout.write(f"{options['out']}: the definition of study {study.pk}")
