@@ -102,18 +102,20 @@ def appropriateness_scores(data: pd.DataFrame, groupby: Sequence[str] = CELL, co
                                        "ci_low", "ci_high"])
 
 
-def score_pairs(data: pd.DataFrame, groupby: Sequence[str] = CELL, alpha: float = 0.05) -> pd.DataFrame:
+def score_pairs(data: pd.DataFrame, groupby: Sequence[str] = CELL, alpha: float = 0.05,
+                continuity: bool = False) -> pd.DataFrame:
     """Per pair of systems (system_a < system_b): n_participants (who saw both),
     mean_diff (a - b, of their mean scores), statistic, method, p (two-sided Wilcoxon
-    signed-rank test, `analysis.signed_rank`), p_holm (over the pairs of the cell),
-    reject and higher (the system with the larger rank sum, empty when equal)."""
+    signed-rank test, `analysis.signed_rank`, its normal approximation with ``continuity``
+    correction or without), p_holm (over the pairs of the cell), reject and higher (the
+    system with the larger rank sum, empty when equal)."""
     rows = []
     for key, frame in iter_cells(appropriateness_pages(data, groupby), groupby):
         means = frame.pivot_table(index="participant", columns="system", values="score", aggfunc="mean")
         for a, b in combinations(sorted(means.columns), 2):
             both = means[[a, b]].dropna()
             d = (both[a] - both[b]).to_numpy()
-            test = signed_rank_test(d)
+            test = signed_rank_test(d, continuity)
             negative = test.n_nonzero * (test.n_nonzero + 1) / 2 - test.positive_rank_sum
             rows.append({**key, "system_a": a, "system_b": b, "n_participants": len(d),
                          "mean_diff": float(d.mean()) if len(d) else np.nan, "statistic": test.statistic,

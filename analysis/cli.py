@@ -68,7 +68,7 @@ def _parser() -> argparse.ArgumentParser:
                                           "system in the ratings is an error")
     add_exclusion_arguments(report)
     report.add_argument("--continuity-correction", action="store_true",
-                        help="correct the normal approximation of the side-by-side Wilcoxon tests by "
+                        help="correct the normal approximation of the side-by-side and appropriateness Wilcoxon tests by "
                              "half a unit, as R's wilcox.test does (default: no correction, as scipy)")
     report.add_argument("--foot-joints", help="comma-separated foot joint names (default: "
                                               "found by name)")

@@ -2,13 +2,19 @@
 bootstrap intervals, as the GENEA leaderboard (Nagy et al. 2024) and Chatbot Arena report.
 
 Votes. A pairwise page shows two systems' clips and is answered ``left``, ``right`` or
-``none`` (no preference), a stated preference optionally with a ``strength``: 1 = slightly
-better, 2 = clearly better (docs/ratings-schema.md). Each page becomes weighted wins:
+``none`` (no preference), a stated preference optionally with a ``strength``: a degree of
+preference from 1 (slightly better) up to as many degrees as the study asked; GENEA's five
+levels are two degrees, 1 = slightly, 2 = clearly (docs/ratings-schema.md). Each page
+becomes weighted wins:
 
-- a clear preference counts 4 wins of the preferred system, a slight one 2;
-- a preference without a strength (the plain left / right / none page) counts as a clear
-  one, 4 wins, so plain tables give the ordinary Bradley-Terry fit;
+- a preference of strength k counts 2k wins of the preferred system: GENEA's slight win 2
+  and clear win 4, and with more degrees each one 2 more (a three-degree study's 2, 4, 6);
+- a preference without a strength (the plain left / right / none page) counts as GENEA's
+  clear one, 4 wins, so plain tables give the ordinary Bradley-Terry fit;
 - "no preference" counts 1 win for each side (a tie is half of a slight preference each way).
+
+The rule needs no count of degrees: a table does not say how many the study offered, and
+a level means the same wins whichever of the study's degrees were used.
 
 Models (``model``):
 
@@ -18,7 +24,7 @@ Models (``model``):
   GLM with ``freq_weights``).
 - ``davidson`` (Davidson 1970): ties are an outcome of their own, ``P(i beats j) = pi_i /
   D``, ``P(tie) = nu sqrt(pi_i pi_j) / D``, ``D = pi_i + pi_j + nu sqrt(pi_i pi_j)``, with
-  ``pi = exp(b)``; a page keeps its weight (clear 4, slight 2, a tie 2 = 1 for each side),
+  ``pi = exp(b)``; a page keeps its weight (2 per degree of strength, a tie 2 = 1 for each side),
   and ``nu`` (reported as ``tie_parameter``) is fitted with the strengths.
 
 Both log-likelihoods are concave (a weighted sum of log-sum-exps of linear functions, negated),
@@ -56,9 +62,9 @@ from analysis.errors import AnalysisInputError
 from analysis.pairwise import preference_pages
 from analysis.stats import CELL, iter_cells
 
-CLEAR, SLIGHT = 2, 1
-WIN_WEIGHT = {CLEAR: 4.0, SLIGHT: 2.0}
-PLAIN_WIN_WEIGHT = WIN_WEIGHT[CLEAR]
+CLEAR, SLIGHT = 2, 1  # GENEA's degrees of preference
+WINS_PER_DEGREE = 2.0  # a preference of strength k counts 2k wins: slight 2, clear 4
+PLAIN_WIN_WEIGHT = WINS_PER_DEGREE * CLEAR  # a preference without a strength counts as clear
 TIE_WEIGHT = 1.0  # credited to each side of a page without preference
 BRADLEY_TERRY, DAVIDSON = "bradley-terry", "davidson"
 MODELS = (BRADLEY_TERRY, DAVIDSON)
@@ -74,20 +80,22 @@ _MAX_NEWTON_STEPS = 200
 def vote_pages(kept: pd.DataFrame, groupby: Sequence[str] = CELL) -> pd.DataFrame:
     """One row per page of a pairwise table (`analysis.pairwise.preference_pages`) with
     its ``strength`` (nullable) and ``weight``: the wins credited to the preferred system
-    (4 clear or plain, 2 slight), or to each side of a page without preference (1).
+    (2 per degree of strength, 4 for a plain preference), or to each side of a page without
+    preference (1).
 
-    Raises AnalysisInputError for a strength other than 1 (slightly) or 2 (clearly).
+    Raises AnalysisInputError for a strength that is not a whole number from 1.
     """
     pages = preference_pages(kept, groupby)
     keys = [*dict.fromkeys([*groupby, *PAGE])]
     if "strength" in kept.columns:
-        strength = pd.to_numeric(kept["strength"], errors="coerce").astype("Int64")
-        beyond = strength.notna() & ~strength.isin(WIN_WEIGHT.keys())
+        strength = pd.to_numeric(kept["strength"], errors="coerce")
+        beyond = kept["strength"].notna() & ~((strength >= 1) & (strength % 1 == 0))
         if beyond.any():
             row = int(kept.index[beyond.to_numpy()][0]) + 1
             raise AnalysisInputError(
-                f"column 'strength' must be 1 (slightly better) or 2 (clearly better) for the "
-                f"leaderboard; row {row} holds {strength[beyond].iloc[0]}")
+                f"column 'strength' must be a whole number from 1 (slightly better) for the "
+                f"leaderboard; row {row} holds {kept.loc[beyond, 'strength'].iloc[0]}")
+        strength = strength.astype("Int64")
         left = kept.loc[kept["side"] == "left", keys].assign(strength=strength)
         pages = pages.merge(left, on=keys, how="left")
     else:
@@ -97,10 +105,11 @@ def vote_pages(kept: pd.DataFrame, groupby: Sequence[str] = CELL) -> pd.DataFram
 
 
 def vote_weights(answer: pd.Series, strength: pd.Series) -> np.ndarray:
-    """The wins a page credits to its preferred system (4 clear or without a strength, 2
-    slight), or to each side when answered ``none`` (1)."""
-    weight = pd.Series(strength).map(WIN_WEIGHT, na_action="ignore").astype("float64").fillna(PLAIN_WIN_WEIGHT)
-    return np.where(pd.Series(answer).to_numpy() == NO_PREFERENCE, TIE_WEIGHT, weight.to_numpy())
+    """The wins a page credits to its preferred system (2 per degree of strength, 4 without
+    a strength), or to each side when answered ``none`` (1)."""
+    weight = (WINS_PER_DEGREE * pd.to_numeric(pd.Series(strength), errors="coerce")).astype("float64")
+    return np.where(pd.Series(answer).to_numpy() == NO_PREFERENCE, TIE_WEIGHT,
+                    weight.fillna(PLAIN_WIN_WEIGHT).to_numpy())
 
 
 @dataclass(frozen=True)

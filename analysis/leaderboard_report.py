@@ -16,8 +16,8 @@ from pathlib import Path
 import pandas as pd
 
 from analysis import plots
-from analysis.leaderboard import (BRADLEY_TERRY, DAVIDSON, PLAIN_WIN_WEIGHT, RESAMPLES,
-                                  TIE_WEIGHT, WIN_WEIGHT, CLEAR, SLIGHT, battles, leaderboard)
+from analysis.leaderboard import (BRADLEY_TERRY, CLEAR, DAVIDSON, PLAIN_WIN_WEIGHT, RESAMPLES,
+                                  SLIGHT, TIE_WEIGHT, WINS_PER_DEGREE, battles, leaderboard)
 from analysis.leaderboard_plots import heat_map_plot
 from analysis.pairwise import side_bias
 from analysis.stats import CELL
@@ -56,9 +56,11 @@ def _p_text(p: float) -> str:
 
 def method_text(report: LeaderboardReport) -> str:
     """How the votes were weighted and which model was fitted, in words."""
-    weights = (f"a clear preference counts {WIN_WEIGHT[CLEAR]:g} wins of the preferred system, a "
-               f"slight one {WIN_WEIGHT[SLIGHT]:g}, and a preference given without a strength (a "
-               f"plain left / right answer) counts as clear ({PLAIN_WIN_WEIGHT:g})")
+    weights = (f"a preference of strength k counts {WINS_PER_DEGREE:g}k wins of the preferred system "
+               f"(GENEA's slight preference, strength {SLIGHT}, {WINS_PER_DEGREE * SLIGHT:g} and clear one, "
+               f"strength {CLEAR}, {WINS_PER_DEGREE * CLEAR:g}; each further degree {WINS_PER_DEGREE:g} more), "
+               f"and a preference given without a strength (a plain left / right answer) counts as "
+               f"clear ({PLAIN_WIN_WEIGHT:g})")
     if report.model == DAVIDSON:
         return (f"Davidson's model, in which a tie is an outcome of its own (P(tie) = nu "
                 f"sqrt(pi_i pi_j) / (pi_i + pi_j + nu sqrt(pi_i pi_j))): {weights}; a page "

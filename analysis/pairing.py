@@ -4,7 +4,7 @@ The next pair is the one whose vote is expected to tell most about the ranking u
 the current fit, with a floor of uniform exploration and the sides balanced per pair.
 
 Current fit. The weighted Bradley-Terry model of `analysis.leaderboard` on the votes so
-far (a clear win 4, a slight one 2, no preference 1 for each side), plus a weak prior of
+far (2 wins per degree of preference, a plain one 4, no preference 1 for each side), plus a weak prior of
 ``PRIOR_TIES`` page without preference per pair, so that a fit exists from the first
 vote and a system that has not lost yet is not placed at infinity.
 
@@ -38,11 +38,17 @@ fit is corrected by data it did not ask for.
 Sides. Of the chosen pair, the system shown on the left less often against the other
 goes left; at equal counts a coin decides. Over a study every pair is balanced within
 one page.
+
+Several pages at once. A study app plans a participant's pages when they enrol, before
+any of them is answered: `plan_pairs` fits the votes once and chooses the pages one
+after another, each counting as shown for the next (its information about the ranking
+and its side, not a vote), as do the pages other participants hold unanswered; with
+``pages=1`` it is `next_pair`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -74,11 +80,15 @@ class PairingState:
         k = len(systems)
         return cls(list(systems), np.zeros((k, k)), np.zeros((k, k)), np.zeros((k, k)))
 
-    def add(self, left: int, right: int, answer: str, weight: float) -> None:
-        """Count one page: ``left`` and ``right`` index the systems."""
+    def hand_out(self, left: int, right: int) -> None:
+        """Count one page shown, answered or not: ``left`` and ``right`` index the systems."""
         self.shown[left, right] += 1
         self.shown[right, left] += 1
         self.left[left, right] += 1
+
+    def add(self, left: int, right: int, answer: str, weight: float) -> None:
+        """Count one answered page: ``left`` and ``right`` index the systems."""
+        self.hand_out(left, right)
         if answer == NO_PREFERENCE:
             self.wins[left, right] += weight
             self.wins[right, left] += weight
@@ -139,22 +149,27 @@ def expected_standard_errors(state: PairingState, log_strength: np.ndarray,
 
 
 def choose_pair(state: PairingState, rng: np.random.Generator, exploration: float = EXPLORATION,
-                anchor: int | None = None, log_strength: np.ndarray | None = None) -> tuple[int, int]:
+                anchor: int | None = None, log_strength: np.ndarray | None = None,
+                allowed: np.ndarray | None = None) -> tuple[int, int]:
     """(left, right) indices of the next page; ``anchor`` indexes the system the
-    leaderboard fixes (None: centred), ``log_strength`` the current fit (default: `current_fit`)."""
+    leaderboard fixes (None: centred), ``log_strength`` the current fit (default:
+    `current_fit`), ``allowed`` the pairs (``np.triu_indices`` order) that may be shown
+    (default: every pair; exploration draws among them too)."""
     if not 0.0 <= exploration <= 1.0:
         raise AnalysisInputError(f"exploration must lie in [0, 1]; got {exploration}")
     k = len(state.systems)
     if k < 2:
         raise AnalysisInputError("pairing needs at least two systems")
     first, second = np.triu_indices(k, 1)
+    candidates = np.arange(len(first)) if allowed is None else np.flatnonzero(allowed)
+    if not len(candidates):
+        raise AnalysisInputError("no pair of systems may be shown")
     if rng.random() < exploration:
-        chosen = rng.integers(len(first))
+        chosen = rng.choice(candidates)
     else:
         b = current_fit(state) if log_strength is None else log_strength
-        errors = expected_standard_errors(state, b, anchor)
-        best = np.flatnonzero(errors <= errors.min() * (1 + 1e-12))
-        chosen = rng.choice(best)
+        errors = expected_standard_errors(state, b, anchor)[candidates]
+        chosen = rng.choice(candidates[errors <= errors.min() * (1 + 1e-12)])
     i, j = int(first[chosen]), int(second[chosen])
     i_left, j_left = state.left[i, j], state.left[j, i]
     if i_left > j_left or (i_left == j_left and rng.random() < 0.5):
@@ -170,8 +185,37 @@ def next_pair(votes: pd.DataFrame, systems: Sequence[str], rng: np.random.Genera
     ``anchor`` is the system the leaderboard fixes at Elo 1000; when it is not among the
     ``systems`` (or None) the leaderboard's centred scale is what the pairing sharpens.
     """
+    return plan_pairs(votes, systems, 1, rng, exploration, anchor)[0]
+
+
+def plan_pairs(votes: pd.DataFrame, systems: Sequence[str], pages: int, rng: np.random.Generator,
+               exploration: float = EXPLORATION, anchor: str | None = "NAT",
+               held: pd.DataFrame | None = None,
+               capacity: Mapping[frozenset[str], int] | None = None) -> list[tuple[str, str]]:
+    """The (left, right) systems of the next ``pages`` pages, chosen one after another as
+    `next_pair` chooses one, from one fit of the ``votes`` so far: a page planned counts as
+    shown (its information and its side) for the pages after it, but adds no vote, since
+    its answer is not known yet. ``held`` are pages handed out and not answered yet (rows
+    of ``system_left``, ``system_right``), counted the same way. ``capacity`` says how many
+    more pages each pair of systems may take (a pair missing from it: none); the plan stops
+    early when no pair may take more.
+    """
     state = pairing_state(votes, systems)
+    where = {s: i for i, s in enumerate(state.systems)}
+    for left, right in ([] if held is None else zip(held["system_left"], held["system_right"])):
+        state.hand_out(where[left], where[right])
+    first, second = np.triu_indices(len(state.systems), 1)
+    room = (np.full(len(first), pages) if capacity is None else
+            np.array([capacity.get(frozenset((state.systems[i], state.systems[j])), 0)
+                      for i, j in zip(first, second)]))
+    pair_of = {(i, j): c for c, (i, j) in enumerate(zip(first, second))}
     fixed = state.systems.index(anchor) if anchor in state.systems else None
+    planned = []
     with one_blas_thread():
-        left, right = choose_pair(state, rng, exploration, fixed)
-    return state.systems[left], state.systems[right]
+        fit = current_fit(state)
+        while len(planned) < pages and room.any():
+            left, right = choose_pair(state, rng, exploration, fixed, fit, allowed=room > 0)
+            room[pair_of[min(left, right), max(left, right)]] -= 1
+            state.hand_out(left, right)
+            planned.append((state.systems[left], state.systems[right]))
+    return planned

@@ -41,7 +41,7 @@ from analysis import plots
 from analysis.blas import one_blas_thread
 from analysis.errors import AnalysisInputError
 from analysis.graded_votes import draw_levels, level_answers
-from analysis.leaderboard import (ELO_PER_LOG_ODDS, TIE_WEIGHT, WIN_WEIGHT, elo, fit_votes,
+from analysis.leaderboard import (ELO_PER_LOG_ODDS, TIE_WEIGHT, WINS_PER_DEGREE, elo, fit_votes,
                                   pair_votes, vote_weights)
 from analysis.leaderboard_plots import pairing_plot
 from analysis.pairing import EXPLORATION, PairingState, choose_pair, current_fit
@@ -54,7 +54,6 @@ DEFAULT_ELO = {"NAT": 1000.0, "S1": 940.0, "S2": 880.0, "S3": 860.0, "S4": 760.0
                "S5": 740.0, "S6": 720.0, "S7": 560.0, "S8": 480.0, "S9": 300.0}
 DEFAULT_VOTES = (500, 1000, 1500, 2000, 2500, 3000)
 _ANSWERS = {1: "left", -1: "right", 0: "none"}
-_LEVEL_WEIGHT = {0: TIE_WEIGHT, **WIN_WEIGHT}  # by the answer level's magnitude
 
 
 @dataclass(frozen=True)
@@ -100,7 +99,8 @@ def simulate_votes(scenario: Scenario, design: str, votes: int, seed: int) -> pd
             fit = current_fit(state, fit)
             left[vote], right[vote] = choose_pair(state, rng, scenario.exploration, anchor=0, log_strength=fit)
             levels[vote] = draw_levels(rng, truth[left[vote]] - truth[right[vote]], scenario.tie_peak)
-            state.add(left[vote], right[vote], _ANSWERS[np.sign(levels[vote])], _LEVEL_WEIGHT[abs(levels[vote])])
+            weight = TIE_WEIGHT if levels[vote] == 0 else WINS_PER_DEGREE * abs(levels[vote])
+            state.add(left[vote], right[vote], _ANSWERS[np.sign(levels[vote])], weight)
     answer, strength = level_answers(levels)
     system = np.array(scenario.systems)
     rows = {"participant": np.char.add("p", (np.arange(votes) // scenario.pages_per_participant).astype(str)),

@@ -115,7 +115,7 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
 
     ``reference`` marks significance in Table 2 (default NAT when rated). ``systems``,
     when given, lists the systems expected; any other system in the ratings is an error.
-    ``continuity_correction`` applies to the side-by-side Wilcoxon tests' normal
+    ``continuity_correction`` applies to the side-by-side and appropriateness Wilcoxon tests' normal
     approximation. BAD clips are attention checks, left out of the comparisons unless
     ``compare_attention_checks``, which compares BAD as a system and excludes nobody on it.
     """

@@ -161,8 +161,12 @@ class Study(models.Model):
         default=False, help_text="pairwise: show the control's natural clip as the reference X above A and B, and ask "
                                  "which of them is closer to it (held-out controls only; NAT is then not paired)")
     preference_strengths = models.PositiveSmallIntegerField(
-        default=0, help_text="pairwise: how many degrees of preference to ask (0: only which one)",
+        default=0, help_text="pairwise: how many degrees of preference to ask (0: only which one; 2: GENEA's five "
+                             "levels, slightly or clearly better either way, or none)",
         validators=[Within(0, 5, "a button each")])
+    adaptive_pairing = models.BooleanField(
+        default=False, help_text="pairwise: plan each new participant's pairs of systems where the votes so far leave "
+                                 "the ranking least certain (a tenth of them at random), instead of evenly")
     training_clips = models.PositiveSmallIntegerField(default=4, help_text="practice clips shown first and not recorded",
                                                       validators=[Within(0, 20)])
     bad_checks = models.PositiveSmallIntegerField(default=1, help_text="BAD clips per participant (attention checks)",

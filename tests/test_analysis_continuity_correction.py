@@ -1,6 +1,6 @@
 """The Wilcoxon signed-rank test's continuity correction (R's default, scipy's option):
-the same p-values as scipy with and without it, and every side-by-side report says
-which was used."""
+the same p-values as scipy with and without it, and every side-by-side and
+appropriateness report says which was used."""
 
 from __future__ import annotations
 
@@ -11,7 +11,8 @@ from scipy import stats
 from analysis import build_report, validate_ratings
 from analysis.cli import main
 from analysis.signed_rank import signed_rank_test
-from analysis.simulate import simulate_side_by_side
+from analysis.appropriateness import appropriateness_pages, score_pairs
+from analysis.simulate import simulate_appropriateness, simulate_side_by_side
 
 
 @pytest.mark.parametrize("correction", [False, True])
@@ -44,3 +45,23 @@ def test_every_side_by_side_report_states_whether_it_corrected(tmp_path):
     normal = corrected.table("wilcoxon_pairs")["method"] != "exact"
     assert normal.any() and (corrected.table("wilcoxon_pairs")["p"][normal]
                              > plain.table("wilcoxon_pairs")["p"][normal]).all()
+
+
+def test_the_appropriateness_score_tests_equal_scipy_with_and_without_the_correction_and_say_which(tmp_path):
+    table = validate_ratings(simulate_appropriateness({"NAT": 0.85, "A": 0.7, "B": 0.6}, n_participants=60,
+                                                      seed=4).astype(str))
+    path = tmp_path / "ratings.csv"
+    table.to_csv(path, index=False)
+    pages = appropriateness_pages(table)
+    for correction, words in ((False, "without continuity correction"), (True, "with continuity correction")):
+        pairs = score_pairs(table, continuity=correction)
+        for pair in pairs.itertuples(index=False):
+            means = pages[pages["task"] == pair.task].pivot_table(index="participant", columns="system",
+                                                                  values="score", aggfunc="mean")
+            d = (means[pair.system_a] - means[pair.system_b]).dropna().to_numpy()
+            reference = stats.wilcoxon(d, method="asymptotic", correction=correction, zero_method="wilcox")
+            assert pair.method == ("normal, continuity-corrected" if correction else "normal")
+            assert pair.p == pytest.approx(reference.pvalue, rel=1e-12)
+        out = tmp_path / f"out{int(correction)}"
+        assert main(["report", str(path), "--out", str(out), *(["--continuity-correction"] * correction)]) == 0
+        assert f"else the normal approximation {words})" in (out / "summary.md").read_text()

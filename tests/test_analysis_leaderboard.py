@@ -46,7 +46,8 @@ def graded() -> pd.DataFrame:
 def glm_elo(pages: pd.DataFrame, systems: list[str], anchor: str) -> pd.Series:
     """Weighted logistic regression of the votes: a row per vote, y = 1 when the left clip
     won, x = e_left - e_right without the anchor's column, frequency weight = the vote's
-    weight; a tie is two rows of weight 1, one won by each side."""
+    weight (2 per degree of strength, 4 without one); a tie is two rows of weight 1, one
+    won by each side."""
     rows, outcome, weight = [], [], []
     for page in pages.itertuples(index=False):
         x = np.zeros(len(systems))
@@ -56,10 +57,9 @@ def glm_elo(pages: pd.DataFrame, systems: list[str], anchor: str) -> pd.Series:
             outcome += [1.0, 0.0]
             weight += [1.0, 1.0]
         else:
-            clear = pd.isna(page.strength) or page.strength == 2
             rows.append(x)
             outcome.append(1.0 if page.answer == "left" else 0.0)
-            weight.append(4.0 if clear else 2.0)
+            weight.append(4.0 if pd.isna(page.strength) else 2.0 * page.strength)
     a = systems.index(anchor)
     fit = sm.GLM(np.array(outcome), np.delete(np.array(rows), a, axis=1),
                  family=sm.families.Binomial(), freq_weights=np.array(weight)).fit(tol=1e-13)
@@ -155,10 +155,41 @@ def test_the_intervals_cover_the_true_elo_at_their_nominal_rate():
     assert 0.90 <= np.mean(covered) <= 0.99
 
 
-def test_a_strength_beyond_clearly_is_refused_naming_its_row(graded):
+def with_three_degrees(graded: pd.DataFrame) -> pd.DataFrame:
+    """The graded table as a study asking three degrees of preference would store it: a
+    clear preference on every third page made the strongest degree, 3."""
+    table = graded.copy()
+    page_number = table["page"].str[1:].astype(int)
+    table.loc[(table["strength"] == 2) & (page_number % 3 == 0), "strength"] = 3
+    return as_read(table)
+
+
+def test_a_three_degree_study_counts_two_wins_per_degree_as_a_weighted_logistic_regression(graded):
+    three = with_three_degrees(graded)
+    assert set(three["strength"].dropna()) == {1, 2, 3}
+    board, notes = leaderboard(three, resamples=0)
+    assert notes == []
+    reference = glm_elo(preference_pages(three).merge(
+        three.loc[three["side"] == "left", ["participant", "page", "strength"]]), sorted(STRENGTHS), "NAT")
+    np.testing.assert_allclose(board.set_index("system")["elo"][reference.index], reference, atol=1e-6)
+    assert not np.allclose(board.set_index("system")["elo"][reference.index],
+                           leaderboard(graded, resamples=0)[0].set_index("system")["elo"][reference.index])
+
+
+def test_a_three_degree_study_s_report_states_the_weights(graded, tmp_path):
+    path = tmp_path / "ratings.csv"
+    with_three_degrees(graded).to_csv(path, index=False)
+    out = tmp_path / "report"
+    assert main(["report", str(path), "--out", str(out)]) == 0
+    assert (out / "tables" / "leaderboard.csv").is_file() and (out / "figures" / "win_fraction.svg").is_file()
+    assert "a preference of strength k counts 2k wins of the preferred system" in (out / "summary.md").read_text()
+
+
+def test_a_strength_that_is_not_a_whole_number_from_one_is_refused_naming_its_row(graded):
     broken = graded.copy()
-    broken.loc[7, "strength"] = 3
-    with pytest.raises(AnalysisInputError, match="must be 1 .slightly better. or 2 .clearly better.* row 8 holds 3"):
+    broken["strength"] = broken["strength"].astype("Float64")
+    broken.loc[7, "strength"] = 1.5
+    with pytest.raises(AnalysisInputError, match="must be a whole number from 1 .slightly better.* row 8 holds 1.5"):
         leaderboard(broken)
 
 

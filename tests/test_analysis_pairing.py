@@ -9,7 +9,7 @@ import pytest
 
 from analysis.errors import AnalysisInputError
 from analysis.pairing import (PRIOR_TIES, PairingState, choose_pair, current_fit,
-                              expected_standard_errors, next_pair, pairing_state)
+                              expected_standard_errors, next_pair, pairing_state, plan_pairs)
 from analysis.pairing_simulation import (Scenario, best_allocation_saving, compare_designs,
                                          pairing_summary, simulate_votes, votes_saved)
 
@@ -71,6 +71,29 @@ def test_every_pair_is_balanced_in_sides_within_one_page():
     counts = pd.crosstab(votes["system_left"], votes["system_right"]).reindex(
         index=SYSTEMS, columns=SYSTEMS, fill_value=0)
     assert np.abs(counts - counts.T).to_numpy().max() <= 1
+
+
+def test_pages_planned_together_are_each_the_criterion_s_choice_given_those_before_and_keep_to_capacity():
+    votes, held = some_votes(), pd.DataFrame({"system_left": ["C"], "system_right": ["NAT"]})
+    capacity = {frozenset(pair): 2 for pair in [("NAT", "A"), ("A", "B"), ("C", "D"), ("NAT", "C")]}
+    planned = plan_pairs(votes, SYSTEMS, 20, np.random.default_rng(4), exploration=0.0, held=held, capacity=capacity)
+    assert len(planned) == 8 and all(n == 2 for n in pd.Series(map(frozenset, planned)).value_counts())
+    state = pairing_state(votes, SYSTEMS)
+    i = {s: n for n, s in enumerate(SYSTEMS)}
+    state.hand_out(i["C"], i["NAT"])
+    b = current_fit(state)
+    first, second = np.triu_indices(len(SYSTEMS), 1)
+    room = {frozenset((SYSTEMS[a], SYSTEMS[c])): 2 for a, c in zip(first, second)
+            if frozenset((SYSTEMS[a], SYSTEMS[c])) in capacity}
+    for left, right in planned:  # the fit stays; each page planned adds its information for the next
+        open_pairs = [c for c, (a, d) in enumerate(zip(first, second)) if room.get(frozenset((SYSTEMS[a], SYSTEMS[d])))]
+        errors = expected_standard_errors(state, b, i["NAT"])
+        best = min(errors[c] for c in open_pairs)
+        assert errors[[c for c, (a, d) in enumerate(zip(first, second))
+                       if {a, d} == {i[left], i[right]}][0]] <= best * (1 + 1e-12)
+        room[frozenset((left, right))] -= 1
+        state.hand_out(i[left], i[right])
+    assert plan_pairs(votes, SYSTEMS, 1, np.random.default_rng(9)) == [next_pair(votes, SYSTEMS, np.random.default_rng(9))]
 
 
 def test_full_exploration_draws_every_pair_uniformly():

@@ -185,6 +185,15 @@ def test_a_member_that_inflates_past_its_kind_limit_or_its_declared_size_is_refu
     assert "participants.json: a damaged zip member (Bad CRC-32" in refused(lying, settings)  # read to 1000 bytes
 
 
+def test_a_plan_changed_after_it_was_locked_or_not_a_plan_is_refused(bundle, settings):
+    locked = {"locked": True, "plan": {"design": "single"}, "sha256": "0" * 64,
+              "locked_at": "2026-01-01T00:00:00+00:00", "deviations": []}
+    assert refused(rewritten(bundle, {"plan.json": json.dumps(locked).encode()}), settings).endswith(
+        "plan.json: the plan does not match its SHA-256: it was changed after it was locked")
+    for hostile in ([], {"locked": "yes"}, {**locked, "extra": 1}, {**locked, "deviations": [{"at": 1}]}):
+        assert "plan.json: " in refused(rewritten(bundle, {"plan.json": json.dumps(hostile).encode()}), settings)
+
+
 def test_an_unknown_format_version_is_refused(bundle, settings):
     manifest = json.loads(members(bundle)["manifest.json"])
     manifest["version"] = 99

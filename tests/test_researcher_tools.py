@@ -196,10 +196,10 @@ def test_every_finished_clip_downloads_as_mp4_in_one_zip_with_an_index(videos):
 
 @pytest.mark.parametrize(("design", "shown", "hidden"), [
     ("single", ["clips_per_participant", "natural_checks", "scale_min", "bad_threshold"],
-     ["pages_per_participant", "abx", "preference_strengths"]),
+     ["pages_per_participant", "abx", "preference_strengths", "adaptive_pairing"]),
     ("side-by-side", ["pages_per_participant", "scale_min", "bad_threshold"],
-     ["clips_per_participant", "natural_checks", "abx"]),
-    ("pairwise", ["pages_per_participant", "abx", "preference_strengths"],
+     ["clips_per_participant", "natural_checks", "abx", "adaptive_pairing"]),
+    ("pairwise", ["pages_per_participant", "abx", "preference_strengths", "adaptive_pairing"],
      ["clips_per_participant", "scale_min", "label_max", "bad_threshold", "natural_threshold"]),
 ])
 def test_the_settings_show_the_fields_the_chosen_design_reads(design, shown, hidden):

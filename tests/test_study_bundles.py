@@ -19,6 +19,7 @@ from django.core.management import call_command
 
 from analysis.cli import main as analysis_main
 from studyapp.models import Participant, Rating, Stimulus, Study
+from studyapp.plan.lock import preregistration
 from studyapp.researchers.results.export import ratings_csv, rules_json
 from studyapp.stimuli.clips import plan_stimuli
 from studyapp.tasks import sample_stimuli
@@ -53,9 +54,11 @@ def finished_study(client, researcher, files, tmp_path: Path, rules: dict) -> St
     client.post(f"/studies/{study.pk}/controls/", {"action": "held_out", "seconds": "1", "count": ""})
     assert upload_motion(client, study, zipped(other_labs_motion(study, files, tmp_path)), name="RNN").status_code == 302
     render_all(client, study)
-    Study.objects.filter(pk=study.pk).update(is_open=True)
-    study.refresh_from_db()
+    study.is_open = True  # opened as the pages open it: its plan is locked
+    study.save()
     populate(study)
+    study.ratings_per_stimulus += 1  # a target raised after opening: a deviation from the plan
+    study.save()
     return study
 
 
@@ -94,6 +97,8 @@ def test_an_exported_study_imported_elsewhere_renders_the_same_clips_and_gives_t
     original_videos = videos_by_content(study)
     platform_ids = set(study.participants.values_list("platform_id", flat=True))
     old_key = study.key
+    plan = preregistration(study)
+    assert plan["locked"] and [row["field"] for row in plan["deviations"]] == ["setting.ratings_per_stimulus"]
     bundle = tmp_path / "study.zip"
     call_command("export_study", str(study.pk), "--out", str(bundle), stdout=io.StringIO())
 
@@ -104,6 +109,7 @@ def test_an_exported_study_imported_elsewhere_renders_the_same_clips_and_gives_t
     assert str(imported.pk) == out.getvalue().split()[-1]
     assert imported.key != old_key and not imported.is_open and imported.design == design
     assert not set(Participant.objects.values_list("platform_id", flat=True)) & platform_ids  # pseudonymous
+    assert preregistration(imported) == plan  # the same plan, hash, lock time and deviations
 
     # Planning again finds every clip by its content key; rendered here, each is the same video.
     assert set(Stimulus.objects.values_list("status", flat=True)) == {"pending"}

@@ -191,6 +191,28 @@ def test_a_pairwise_page_shows_two_systems_of_one_control_and_stores_the_answer_
     assert table.groupby("page")["side"].apply(sorted).tolist() == [["left", "right"]] * study.pages_per_participant
 
 
+def test_a_study_asking_three_degrees_of_preference_reports_its_leaderboard_with_the_stated_weights(settings, tmp_path):
+    from tests.test_study_rules import in_app_report
+
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(**PAIRWISE, controls=3, bad_checks=0, training_clips=0, preference_strengths=3)
+    answers = [("left", 3), ("none", None), ("right", 1), ("left", 2)]  # every degree, and ties: a fit exists
+    for n in range(4):
+        client = Client()
+        participant = through_practice(client, study, f"pid-{n}")
+        for answer, strength in answers:
+            assert compare(client, study, participant, answer,
+                           **({"strength": strength} if strength else {})).status_code == 302
+    researcher = Client()
+    researcher.force_login(study.owner)
+    folder = in_app_report(researcher, study, settings)
+    board = read_ratings(io.StringIO(ratings_csv(study).decode()))
+    assert set(board["strength"].dropna()) == {1, 2, 3}
+    assert (folder / "tables" / "leaderboard.csv").is_file() and (folder / "figures" / "win_fraction.png").is_file()
+    page = researcher.get(f"/analysis/{folder.name}/").content.decode()
+    assert "a preference of strength k counts 2k wins of the preferred system" in page
+
+
 def test_the_design_is_fixed_once_participants_start_and_side_by_side_rates_on_0_to_100():
     study = make_study()
     shown = StudyForm(instance=study)
@@ -223,8 +245,10 @@ def test_the_monitor_summarises_each_design_with_the_analysis_functions():
     by_system = {"MoGlow": 60, "RNN": 40, "NAT": 90}
     answer_everything(sbs, ["a", "b", "c"], lambda a: by_system[a.stimulus.system.name])
     monitor = study_monitor(sbs)
-    assert [title for title, _ in monitor.tables] == [
-        "Median and mean per system (95 % CIs)", "How many more ratings give 80 % power per pair (at alpha 0.05)"]
+    titles = [title for title, _ in monitor.tables]
+    assert titles[0] == "Median and mean per system (95 % CIs)"
+    assert titles[-1] == "How many more ratings give 80 % power per pair (at alpha 0.05)"
+    assert titles[1].startswith("Crossed linear mixed model") and not any("Cumulative link" in t for t in titles)
     summary = monitor.tables[0][1]
     for system, value in by_system.items():  # n = 3 participants x 2 pages; median = mean = the value given
         assert re.search(rf"<td>{system}</td>\s*<td>6</td>\s*<td>{value}</td>(\s*<td>{value}</td>){{3}}", summary)

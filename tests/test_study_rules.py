@@ -173,3 +173,35 @@ def test_monitor_in_app_report_and_command_line_report_agree_under_the_studys_ru
         assert monitor.tables[0][1] == html_table(report.table(name))
     if study.design in ("pairwise", "appropriateness"):  # early answers kept under these rules: the hasty pages count
         assert report.flagged["discarded_early"].sum() == 0 and report.flagged["answered_before_end"].any()
+
+
+RATER_TABLES = ("crossed_mixed_estimates", "crossed_mixed_contrasts", "crossed_mixed_variance",
+                "ordinal_mixed_thresholds", "ordinal_mixed_effects", "ordinal_mixed_random", "rater_agreement")
+
+
+@pytest.mark.parametrize("fields", [SINGLE_RULES, SIDE_BY_SIDE_RULES], ids=["single", "side-by-side"])
+def test_the_monitor_and_the_in_app_report_show_the_rater_and_clip_aware_models(fields, settings, tmp_path):
+    import html
+
+    from analysis.ratings import read_ratings
+    from analysis.report import build_report
+
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(controls=3, clips_per_participant=7, ratings_per_stimulus=10, training_clips=0, **fields)
+    populate(study)
+    client = Client()
+    client.force_login(study.owner)
+    app = in_app_report(client, study, settings)
+    page = client.get(f"/analysis/{app.name}/").content.decode()
+    (tmp_path / "ratings.csv").write_bytes(client.get(reverse("study-export", args=[study.pk])).content)
+    rules = ExclusionRules.from_json(client.get(reverse("study-rules", args=[study.pk])).content.decode())
+    models = build_report(read_ratings(tmp_path / "ratings.csv"), rules=rules).rater_models.tables()
+    monitor = dict(study_monitor(study).tables)
+    # The side-by-side sliders (0-100) have too many points for the cumulative link model.
+    expected = RATER_TABLES if study.design == "single" else [n for n in RATER_TABLES if not n.startswith("ordinal")]
+    assert [name for name, (_, table) in models.items() if len(table)] == list(expected)
+    for name in expected:
+        title, table = models[name]
+        assert (app / "tables" / f"{name}.csv").is_file()
+        assert html.escape(title) in page and html_table(table) in page  # the report page
+        assert monitor[title] == html_table(table)  # the monitor: the same model of the same ratings

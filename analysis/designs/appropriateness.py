@@ -86,7 +86,7 @@ class Appropriateness(Pairwise):
 
     def analyse(self, report: DesignReport, kept: pd.DataFrame) -> None:
         shares = matched_preference(kept, alpha=report.alpha)
-        pairs = score_pairs(kept, alpha=report.alpha)
+        pairs = score_pairs(kept, alpha=report.alpha, continuity=report.continuity_correction)
         untested = pairs[pairs["method"] == "not computed"]
         report.notes += [f"No Wilcoxon test of {r.system_a} and {r.system_b} in {r.task} · {r.control_class}: no "
                          "participant who saw both scored them differently." for r in untested.itertuples(index=False)]
@@ -116,8 +116,11 @@ class Appropriateness(Pairwise):
         if len(pairs):
             found = [f"{r.higher} > {r.system_b if r.higher == r.system_a else r.system_a} ({p_text(r.p_holm)})"
                      for r in pairs[pairs["reject"]].itertuples(index=False)]
-            text += (f" Wilcoxon signed-rank tests of the participants' mean scores, Holm-Bonferroni corrected over "
-                     f"the {len(pairs)} pairs (family-wise α = {report.alpha:g}), found "
+            correction = "with" if report.continuity_correction else "without"
+            text += (f" Two-sided Wilcoxon signed-rank tests of the participants' mean scores (exact up to 50 "
+                     f"participants without tied differences, else the normal approximation {correction} continuity "
+                     f"correction), Holm-Bonferroni corrected over the {len(pairs)} pairs (family-wise "
+                     f"α = {report.alpha:g}), found "
                      + (f"{'; '.join(found)}." if found else "no significant difference."))
         return text
 

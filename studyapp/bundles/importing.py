@@ -24,6 +24,10 @@ As a rerun (``rerun``), the participants and ratings are not imported: the study
 the same design, systems, controls and clips, for new participants, and the bundle's
 ratings table and rules are kept as its previous run (``PreviousRun``), which its
 report compares with the new ratings.
+
+The plan locked when the original opened (``plan.json``) comes along with its recorded
+deviations, checked against its SHA-256, so the imported study's report states the same
+plan; a rerun locks a plan of its own when it opens.
 """
 
 from __future__ import annotations
@@ -50,6 +54,7 @@ from studyapp.definitions import DefinitionError, definition_yaml
 from studyapp.definitions.reading import read_definition
 from studyapp.models import (Assignment, ControlSignal, Participant, PreviousRun, Question, Rating, Stimulus,
                              StoredDataError, Study, System, new_token)
+from studyapp.plan.lock import restore_preregistration
 from studyapp.stimuli.clips import CODE_VERSION, content_key
 from studyapp.stimuli.sources import sampled_folder
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER, stored_motion_digest
@@ -286,6 +291,29 @@ def _previous_run(bundle: ReadBundle, study: Study) -> None:
                        code_version=bundle.manifest.code_version), "the previous run")
 
 
+# The keys of plan.json (``studyapp.plan.lock.preregistration``) and of each of its deviations.
+PLAN_KEYS, DEVIATION_KEYS = {"locked", "plan", "sha256", "locked_at", "deviations"}, {"at", "field", "old", "new",
+                                                                                     "recorded"}
+
+
+def _restore_plan(bundle: ReadBundle, study: Study) -> None:
+    """The original's locked plan and its recorded deviations, onto the imported study."""
+    data, name = _json(bundle, records.PLAN_FILE), records.PLAN_FILE
+    if not isinstance(data, dict) or not isinstance(data.get("locked"), bool):
+        raise BundleRefused(f"{name}: expected an object with 'locked' true or false")
+    if not data["locked"]:
+        return
+    if set(data) != PLAN_KEYS:
+        raise BundleRefused(f"{name}: a locked plan has exactly the keys {', '.join(sorted(PLAN_KEYS))}")
+    rows = data["deviations"]
+    if not isinstance(rows, list) or not all(isinstance(row, dict) and set(row) == DEVIATION_KEYS for row in rows):
+        raise BundleRefused(f"{name}: deviations must be objects of {', '.join(sorted(DEVIATION_KEYS))}")
+    try:
+        restore_preregistration(study, data)
+    except (ValueError, TypeError, ValidationError) as error:
+        raise BundleRefused(f"{name}: {error}") from None
+
+
 def _check_definition(bundle: ReadBundle, study: Study) -> None:
     """The bundle's definition must describe the study its records made (DefinitionError
     with its line where it is no definition; BundleRefused where it describes another)."""
@@ -320,6 +348,7 @@ def import_study(stream: BinaryIO | str, owner, rerun: bool = False) -> Study:
                     _previous_run(bundle, study)
                 else:
                     run.make_participants(study)
+                    _restore_plan(bundle, study)
         except (records.RecordError, DefinitionError, UploadRefused, MotionFileError) as error:
             raise BundleRefused(str(error).replace(f"{scratch}/", "")) from None
     return study

@@ -22,6 +22,7 @@ from studyapp.models import Assignment, ControlSignal, Participant, Question, Ra
 STUDY_FILE, STIMULI_FILE, PARTICIPANTS_FILE = "study.json", "stimuli.json", "participants.json"
 DEFINITION_FILE = "study.yaml"
 RATINGS_FILE, RULES_FILE = "ratings.csv", "rules.json"
+PLAN_FILE = "plan.json"  # the plan locked when the study opened, and its deviations (studyapp.plan)
 CHECKPOINTS, MOTION, SAMPLED, VIDEOS, CONTROLS = "checkpoints/", "motion/", "sampled/", "stimuli/", "controls/"
 
 # Fields a record never carries: ids and links (written as names or tokens), and what
@@ -81,6 +82,6 @@ def auto_stamped(model: type[models.Model]) -> list[str]:
             if getattr(field, "auto_now_add", False) or getattr(field, "auto_now", False)]
 
 
-__all__ = ["CHECKPOINTS", "CONTROLS", "DEFINITION_FILE", "MOTION", "PARTICIPANTS_FILE", "RATINGS_FILE", "RULES_FILE",
+__all__ = ["CHECKPOINTS", "CONTROLS", "DEFINITION_FILE", "MOTION", "PARTICIPANTS_FILE", "PLAN_FILE", "RATINGS_FILE", "RULES_FILE",
            "RecordError", "SAMPLED", "STIMULI_FILE", "STUDY_FILE", "VIDEOS", "auto_stamped", "record",
            "recorded_fields", "row_values"]

@@ -6,6 +6,7 @@
     stimuli.json            its stimuli: system, control, seed, content key, token, duration
     participants.json       its participants (platform ids pseudonymous), their pages and their answers
     ratings.csv, rules.json the ratings table and its rules, as the researcher's export writes them
+    plan.json               the plan locked when the study first opened (its SHA-256 and time) and its deviations
     controls/               the controls as export_controls writes them, for labs that submit motion
     checkpoints/DIGEST.safetensors   each checkpoint, named by its content digest as the store keeps it
     motion/DIGEST/ID.npz    each system of submitted motion, as it was stored
@@ -30,6 +31,7 @@ from studyapp.bundles.manifest import MANIFEST_NAME, VERSION, Entry, Manifest, e
 from studyapp.definitions import definition_yaml
 from studyapp.bundles.pseudonyms import pseudonym, pseudonymous_data
 from studyapp.models import Rating, Stimulus, Study, System, json_object
+from studyapp.plan.lock import preregistration
 from studyapp.researchers.results.export import ratings_csv, rules_json
 from studyapp.stimuli.clips import CODE_VERSION
 from studyapp.stimuli.control_export import bundle_files as control_files
@@ -118,7 +120,8 @@ def written_files(study: Study, key: bytes, with_videos: bool) -> tuple[dict[str
             records.STIMULI_FILE: _json(stimuli_record(study, videos)),
             records.PARTICIPANTS_FILE: _json(participants_record(study, key)),
             records.RATINGS_FILE: ratings_csv(study),
-            records.RULES_FILE: rules_json(study).encode()}
+            records.RULES_FILE: rules_json(study).encode(),
+            records.PLAN_FILE: _json(preregistration(study))}
     if study.controls.exists():
         made.update({f"{records.CONTROLS}{name}": data for name, data in control_files(study).items()})
     return made, stored

@@ -9,6 +9,17 @@ often. Preferring BAD on a page that shows it excludes the participant; "no pref
 there does not. An instructed check asks for clip A or B. Practice shows pairs too, about
 ``training_clips`` clips, a BAD-versus-NAT pair among them, none that the participant rates.
 
+Adaptive pairing (the study's ``adaptive_pairing``): the pairs of systems on a new
+participant's rated pages are planned at enrolment by `analysis.pairing.plan_pairs` from
+the fit of the study's votes stored so far (kept participants' answered pages, early
+answers left out where the study discards them), each page in turn where one more vote is
+expected to narrow the leaderboard's intervals most, a tenth of them uniformly at random,
+and the pages that participants who have not finished hold unanswered counted as shown;
+the sides balanced per pair of systems over the study. Each pair of systems is shown on
+its least loaded control, a control at most once per participant, never past
+``ratings_per_stimulus``. With fewer stored votes than pairs of systems the fit would be
+the prior's, so pages are planned evenly as without the setting.
+
 ABX, the variant: the control's natural clip is shown above A and B as a reference X, and
 the question is which of them is closer to it; pages pair the systems other than NAT, on
 controls with a natural clip (held-out controls), and X is not a row of the ratings table.
@@ -21,10 +32,12 @@ import math
 import random
 from collections import Counter
 
+import numpy as np
 import pandas as pd
 from django.http import QueryDict
 
 from analysis.exclusions import ExclusionRules
+from analysis.pairing import plan_pairs
 from analysis.pairwise import preference_pairs
 from studyapp.designs.answers import whole_number
 from studyapp.designs.base import Answer, OnPage, Page, PlannedPage, clip_label
@@ -45,9 +58,32 @@ def balanced_sides(pair: tuple[Stimulus, Stimulus], orders: Counter, rng: random
     return order
 
 
+def stored_pages(study: Study) -> pd.DataFrame:
+    """The study's rated (not check) pages so far, one row each: system_left, system_right,
+    answer and strength (empty until answered), ``vote`` (answered by a kept participant,
+    and not early where the study discards early answers) and ``held`` (unanswered, its
+    participant not finished)."""
+    rows = (Assignment.objects.filter(participant__study=study, is_check=False, expected="")
+            .values_list("participant_id", "page", "slot", "stimulus__system__name", "rating__answer",
+                         "rating__strength", "rating__answered_before_end", "participant__excluded",
+                         "participant__finished_at"))
+    pages: dict[tuple[int, int], dict] = {}
+    for participant, page, slot, system, answer, strength, early, excluded, finished in rows:
+        row = pages.setdefault((participant, page), {"answer": answer, "strength": strength, "early": False,
+                                                     "excluded": excluded, "finished": finished is not None})
+        row["system_left" if slot == Assignment.LEFT else "system_right"] = system
+        row["early"] |= bool(early)
+    table = pd.DataFrame(list(pages.values()), columns=["system_left", "system_right", "answer", "strength", "early",
+                                                        "excluded", "finished"])
+    answered = table["answer"].notna()
+    table["vote"] = answered & ~table["excluded"].astype(bool) & ~(study.discard_early & table["early"].astype(bool))
+    table["held"] = ~answered & ~table["finished"].astype(bool)
+    return table.drop(columns=["early", "excluded", "finished"])
+
+
 class Pairwise(MultiClip):
     template = "pairwise.html"
-    settings = ("pages_per_participant", "abx", "preference_strengths")
+    settings = ("pages_per_participant", "abx", "preference_strengths", "adaptive_pairing")
     export_columns = ("design", "page", "side", "answer", "strength")
     on_scale = False
 
@@ -90,17 +126,50 @@ class Pairwise(MultiClip):
         pairs = [pair for page in clips.values() for pair in itertools.combinations(page, 2)
                  if loads[key_of(list(pair))] < study.ratings_per_stimulus]
         rng.shuffle(pairs)  # ties at random: min() takes the first
-        seen: Counter = Counter()  # systems on this participant's rated pages (the checks are not analysed)
-        rated = []
-        while pairs and len(rated) + len(checks) < count:
-            pair = min(pairs, key=lambda p: (loads[key_of(list(p))], seen[p[0].system_id] + seen[p[1].system_id]))
-            pairs.remove(pair)
-            seen.update(s.system_id for s in pair)
-            rated.append(PlannedPage(balanced_sides(pair, orders, rng)))
+        wanted = count - len(checks)
+        adaptive = self._adaptive_pages(study, pairs, loads, wanted, rng) if study.adaptive_pairing else None
+        rated = adaptive if adaptive is not None else self._even_pages(pairs, loads, wanted, orders, rng)
         if not rated:
             return []
         for check in checks:
             rated.insert(rng.randint(0, len(rated)), check)
+        return rated
+
+    def _even_pages(self, pairs: list[tuple[Stimulus, Stimulus]], loads: Counter, wanted: int, orders: Counter,
+                    rng: random.Random) -> list[PlannedPage]:
+        """Up to ``wanted`` pages, the least loaded pair first and among those the pair whose
+        systems this participant has seen least; sides balanced per pair of clips."""
+        pairs = list(pairs)
+        seen: Counter = Counter()  # systems on this participant's rated pages (the checks are not analysed)
+        rated = []
+        while pairs and len(rated) < wanted:
+            pair = min(pairs, key=lambda p: (loads[key_of(list(p))], seen[p[0].system_id] + seen[p[1].system_id]))
+            pairs.remove(pair)
+            seen.update(s.system_id for s in pair)
+            rated.append(PlannedPage(balanced_sides(pair, orders, rng)))
+        return rated
+
+    def _adaptive_pages(self, study: Study, pairs: list[tuple[Stimulus, Stimulus]], loads: Counter, wanted: int,
+                        rng: random.Random) -> list[PlannedPage] | None:
+        """Up to ``wanted`` pages whose pairs of systems `analysis.pairing.plan_pairs` plans
+        from the votes so far (see the module's docstring); None with too few votes."""
+        by_systems: dict[frozenset[str], list[tuple[Stimulus, Stimulus]]] = {}
+        for pair in sorted(pairs, key=lambda p: loads[key_of(list(p))]):  # stable: random among equal loads
+            by_systems.setdefault(frozenset(s.system.name for s in pair), []).append(pair)
+        systems = sorted({s.system.name for pair in pairs for s in pair})
+        stored = stored_pages(study)
+        among = stored["system_left"].isin(systems) & stored["system_right"].isin(systems)
+        votes, held = stored[among & stored["vote"]], stored[among & stored["held"]]
+        if len(systems) < 2 or len(votes) < len(systems) * (len(systems) - 1) // 2:
+            return None
+        natural = {s.system.name for pair in pairs for s in pair if s.system.role == System.Role.NATURAL}
+        planned = plan_pairs(votes, systems, wanted, np.random.default_rng(rng.getrandbits(64)),
+                             anchor=next(iter(natural), None), held=held,
+                             capacity={key: len(clips) for key, clips in by_systems.items()})
+        rated = []
+        for left, right in planned:
+            pair = by_systems[frozenset((left, right))].pop(0)  # the least loaded control of the pair
+            rated.append(PlannedPage(sorted(pair, key=lambda s: s.system.name != left)))
         return rated
 
     def practice(self, study: Study, rendered: list[Stimulus], planned: list[PlannedPage],

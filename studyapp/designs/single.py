@@ -170,6 +170,8 @@ class SingleClip(Design):
                   ("Tukey HSD, all pairs", report.tukey),
                   ("Linear mixed model (participant random intercept)", report.mixed)]
         tables += [(f"Adjusted p-values, {task} · {cc}", m) for (task, cc), m in report.pvalues_display.items()]
+        if report.rater_models is not None:  # crossed LMM, cumulative link mixed model, Krippendorff's alpha
+            tables += [(title, table) for title, table in report.rater_models.tables().values() if len(table)]
         if report.power is not None and len(report.power):
             tables.append(("Ratings needed for 80 % power per pair", report.power))
         return tables

@@ -20,6 +20,7 @@ from django.utils.safestring import SafeString
 
 from analysis.exclusions import apply_exclusions, compared_ratings
 from analysis.power import more_ratings_for_power
+from analysis.rater_models import build_rater_models
 from analysis.ratings import read_ratings
 from analysis.stats import system_means
 from studyapp.designs.registry import design_of
@@ -98,8 +99,10 @@ def system_mean_rows(kept: pd.DataFrame, systems: list[str], scale: tuple[int, i
 
 
 def analysis_tables(study: Study, kept: pd.DataFrame) -> list[tuple[str, SafeString]]:
-    """What the analysis says so far: the design's summary and, for every design, the
-    ratings needed for 80 % power (once two systems have two compared ratings each)."""
+    """What the analysis says so far: the design's summary, for rated clips the crossed
+    linear mixed model, the cumulative link mixed model and Krippendorff's alpha, and, for
+    every design, the ratings needed for 80 % power (once two systems have two compared
+    ratings each)."""
     compared = compared_ratings(kept, StudyRules.of(study).exclusion) if len(kept) else kept
     counts = compared.groupby("system").size()
     compared = compared[compared["system"].isin(counts.index[counts >= 2])]
@@ -107,6 +110,10 @@ def analysis_tables(study: Study, kept: pd.DataFrame) -> list[tuple[str, SafeStr
         return []
     design = design_of(study)
     tables = list(design.monitor_tables(compared))
+    if design.on_scale:  # rated clips (single, side by side): the rater- and clip-aware models, as the report's
+        natural = StudyRules.of(study).exclusion.natural_system
+        models = build_rater_models(compared, natural if natural in set(compared["system"]) else None)
+        tables += [(title, table) for title, table in models.tables().values() if len(table)]
     if design.power_table:
         tables.append(("How many more ratings give 80 % power per pair (at alpha 0.05)",
                        more_ratings_for_power(compared)))

@@ -62,7 +62,7 @@ class StudyForm(forms.ModelForm):
                   "bad_threshold", "natural_threshold", "video_width", "video_height")
     SECTIONS = (
         ("The study", ("title", "instructions", "consent_text")),
-        ("Design", ("design", "pages_per_participant", "abx", "preference_strengths")),
+        ("Design", ("design", "pages_per_participant", "abx", "preference_strengths", "adaptive_pairing")),
         ("Question and scale", ("question", "scale_min", "scale_max", "label_min", "label_max")),
         ("Clips and targets", ("clips_per_participant", "ratings_per_stimulus", "training_clips",
                                "reservation_minutes")),
@@ -161,6 +161,7 @@ class StudyForm(forms.ModelForm):
             "pages_per_participant": "Pages per participant",
             "abx": "Natural clip shown as a reference (ABX)",
             "preference_strengths": "Degrees of preference",
+            "adaptive_pairing": "Adaptive pairing (pairs chosen from the votes so far)",
             "scale_min": "Lowest rating",
             "scale_max": "Highest rating",
             "label_min": "Lowest rating's label",
