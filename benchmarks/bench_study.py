@@ -1,10 +1,14 @@
-"""Benchmark: one rating step's server time, and crowds of simultaneous participants.
+"""Benchmark: one rating step's server time, crowds of simultaneous participants, and the
+wait between an answer and the next clip in a real browser.
+
+A rating step is the answer as the clip page's script sends it (``path.NEXT_PAGE_HEADER``)
+until the next page is in hand: one request whose response is the next page; for a
+reference code from before the one-request step, the POST and the page it redirects to.
 
 *Server time*: one participant at a time goes through a 20-clip study inside the
 server's own process (Django's test client: the whole middleware stack, CSRF checked,
-no network), and each rating step (the POST and the next clip's page, as a participant
-waits for it) is timed, with its queries counted; on the embedded default (SQLite) and
-on PostgreSQL. With ``--reference-code DIR`` (another checkout of the project, such as
+no network), and each rating step is timed, with its queries counted; on the embedded
+default (SQLite) and on PostgreSQL. With ``--reference-code DIR`` (another checkout of the project, such as
 the code before a change: ``git archive REV | tar -x -C DIR``) that code's rating step is
 timed in the same run, round by round alternating with this one's, so that a shared
 machine's load reaches both. Forms are posted urlencoded, as browsers send them.
@@ -25,10 +29,21 @@ database holds exactly the ratings the server accepted (answered with its redire
 rating whose next page then fails is still counted). Latency targets apply to the
 watching load: at saturation latency is queueing by construction.
 
+*Targets* (``--only targets``): the crowds that the targets are set for, each measured
+with this code and, with ``--reference-code``, the reference code in the same run, one
+after the other: gunicorn + PostgreSQL at saturation (ratings/s, target >= 200) and with
+1,000 watching (p95 < 500 ms), ``manage.py serve`` + SQLite with 200 watching (p95 <
+250 ms), and *answer to play*: a participant in headless Chromium (Debian's chromium,
+driven by Playwright) rates 4-s clips of real motion on ``manage.py serve`` + SQLite, and
+the time from each answer (the form's submit event) to the next clip's "playing" event is
+taken from the page's own clock (median target < 300 ms). The clip is rendered from the
+first BVH file under ``$MOTION_DATA`` (default ../shared/data/bandai-namco-1).
+
     python benchmarks/bench_study.py [--participants 100] [--crowds 500,1000] [--json]   # everything
     python benchmarks/bench_study.py --only server-time --reference-code /tmp/before     # the rating step
     python benchmarks/bench_study.py --only crowd            # 100 at saturation and watching, both setups
     python benchmarks/bench_study.py --only large --crowds 500   # one large crowd at a time
+    python benchmarks/bench_study.py --only targets --reference-code /tmp/before   # the four targets, both codes
 
 Needs PostgreSQL's server programs (Debian: postgresql); a throwaway cluster is
 created in a temporary folder and removed afterwards.
@@ -43,6 +58,7 @@ import math
 import os
 import re
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
@@ -66,13 +82,21 @@ except ImportError:  # a reference checkout from before the study app was split 
     from studyapp.simulated_participants import Outcome, longest_clip_s, percentile, run_participants  # noqa: E402
 from tests.throwaway_postgres import free_port, throwaway_postgres  # noqa: E402
 
-TARGET_STEP_MS = 10.0  # server time of one rating step (POST and next page), median
+TARGET_STEP_MS = 10.0  # server time of one rating step (the answer until the next page is in hand), median
 TARGET_P95_S = 0.1  # a watching participant should not notice the wait for the next clip
+# The targets' crowds (``--only targets``): their sizes and what each must meet.
+LARGE_WATCHING, EMBEDDED_WATCHING = 1000, 200
+TARGET_SATURATION_PER_S = 200.0  # gunicorn + PostgreSQL, every participant answering at once
+TARGET_LARGE_P95_S = 0.5  # gunicorn + PostgreSQL, 1,000 watching
+TARGET_EMBEDDED_P95_S = 0.25  # manage.py serve + SQLite, 200 watching
+TARGET_ANSWER_TO_PLAY_MS = 300.0  # a browser's answer until the next clip plays, median
+BROWSER_CLIP_S, BROWSER_ANSWERS = 4.0, 12  # the browser participant's clips, and how many it rates
+IN_PLACE = {"HTTP_STUDYAPP_NEXT_PAGE": "in-place"}  # path.NEXT_PAGE_HEADER, as the clip pages' script sends it
 WATCH_S = 4.0  # a short stimulus clip
 CLIPS = 20  # rated clips per participant
 URLENCODED = "application/x-www-form-urlencoded"
 PARTICIPANTS_PER_PROCESS = 125  # simulated participants (threads) per client process
-PARTS = ("server-time", "crowd", "large")
+PARTS = ("server-time", "crowd", "large", "targets")
 # compose.yaml's web service, the configuration the README recommends.
 GUNICORN = ["--workers", "3", "--worker-class", "gthread", "--threads", "8"]
 
@@ -98,6 +122,24 @@ def setup_study(participants: int) -> str:
     study = make_study(owner_name="bench", controls=30, clips_per_participant=CLIPS,
                        ratings_per_stimulus=max(40, math.ceil(participants * (CLIPS - 1) / 90) + 2),
                        training_clips=2, clip_seconds=0.01)
+    return study.key
+
+
+def setup_browser_study(video: str) -> str:
+    """Migrate, collect the static files (the pages' scripts, which the server serves from
+    STATIC_ROOT as in production), and create an open study whose every clip is ``video``
+    (``BROWSER_CLIP_S`` long), with ``BROWSER_ANSWERS`` clips per participant and no practice."""
+    import django
+
+    django.setup()
+    from django.core.management import call_command
+
+    from tests.study_fixtures import make_study
+
+    call_command("migrate", verbosity=0)
+    call_command("collectstatic", interactive=False, verbosity=0)
+    study = make_study(owner_name="bench", controls=2 * BROWSER_ANSWERS, clips_per_participant=BROWSER_ANSWERS,
+                       ratings_per_stimulus=40, training_clips=0, clip_seconds=BROWSER_CLIP_S, video=Path(video))
     return study.key
 
 
@@ -137,9 +179,10 @@ def server_time(participants: int = 10) -> str:
             capture = CaptureQueriesContext(connection) if steps == 0 else contextlib.nullcontext()
             with capture as captured:
                 start_wall, start_cpu = time.perf_counter(), time.process_time()
-                response = client.post(action, urlencode(data), content_type=URLENCODED)
-                assert response.status_code == 302, response.content.decode()[:500]
-                page = client.get(response["Location"]).content.decode()
+                response = client.post(action, urlencode(data), content_type=URLENCODED, **IN_PLACE)
+                assert response.status_code in (200, 302), response.content.decode()[:500]
+                page = (response.content if response.status_code == 200
+                        else client.get(response["Location"]).content).decode()
                 if steps:
                     wall.append(time.perf_counter() - start_wall)
                     cpu.append(time.process_time() - start_cpu)
@@ -180,12 +223,12 @@ def _form(page: str) -> tuple[str, dict] | None:
 
 
 @contextlib.contextmanager
-def serving(command: list[str], env: dict, port: int, log: Path) -> Iterator[tuple[str, int]]:
-    """The server running for the length of the block, its output in ``log`` (a file: a
-    pipe nobody reads would fill and stall the server's request threads); yields its URL
-    and process id."""
+def serving(command: list[str], env: dict, port: int, log: Path, code: Path = REPO) -> Iterator[tuple[str, int]]:
+    """The server of ``code`` running for the length of the block, its output in ``log``
+    (a file: a pipe nobody reads would fill and stall the server's request threads);
+    yields its URL and process id."""
     with log.open("wb") as output:
-        process = subprocess.Popen(command, env=env, cwd=REPO, stdout=output, stderr=subprocess.STDOUT,
+        process = subprocess.Popen(command, env=env, cwd=code, stdout=output, stderr=subprocess.STDOUT,
                                    start_new_session=True)
         url = f"http://127.0.0.1:{port}"
         try:
@@ -244,20 +287,31 @@ def crowd(entry_url: str, participants: int, watch_s: float) -> tuple[list[Outco
     return [outcome for batch in batches for outcome in batch], cpu_s
 
 
-def measure(name: str, database_url: str, server: str, participants: int, watch_s: float,
-            postmaster_pid: Path | None = None) -> dict:
-    env = {**os.environ, "DATABASE_URL": database_url, "DJANGO_SETTINGS_MODULE": "studyapp.server.settings",
-           "DEBUG": "false", "SECRET_KEY": "benchmark-only-secret-key-" + "x" * 40, "ALLOWED_HOSTS": "127.0.0.1"}
-    key = django_step(env, "--setup", str(participants))
-    port = free_port()
+def server_env(database_url: str, code: Path = REPO, **extra: str) -> dict:
+    """The environment of ``code``'s server and of this script's steps run with it."""
+    return {**os.environ, "DATABASE_URL": database_url, "DJANGO_SETTINGS_MODULE": settings_module(code),
+            "DEBUG": "false", "SECRET_KEY": "benchmark-only-secret-key-" + "x" * 40, "ALLOWED_HOSTS": "127.0.0.1",
+            **extra}
+
+
+def server_command(server: str, port: int, code: Path = REPO) -> list[str]:
+    """gunicorn as compose.yaml runs it, or ``manage.py serve`` as ``make demo`` does."""
     if server == "gunicorn":
-        command = [sys.executable, "-m", "gunicorn", "studyapp.server.wsgi", "--bind", f"127.0.0.1:{port}", *GUNICORN]
-    else:
-        command = [sys.executable, "manage.py", "serve", "--noreload", f"127.0.0.1:{port}"]  # make demo's runserver
+        wsgi = settings_module(code).rsplit(".", 1)[0] + ".wsgi"
+        return [sys.executable, "-m", "gunicorn", wsgi, "--bind", f"127.0.0.1:{port}", *GUNICORN]
+    return [sys.executable, "manage.py", "serve", "--noreload", f"127.0.0.1:{port}"]
+
+
+def measure(name: str, database_url: str, server: str, participants: int, watch_s: float,
+            postmaster_pid: Path | None = None, code: Path = REPO) -> dict:
+    env = server_env(database_url, code)
+    key = django_step(env, "--setup", str(participants), code=code)
+    port = free_port()
+    command = server_command(server, port, code)
     database_pid = int(postmaster_pid.read_text().split()[0]) if postmaster_pid else None
     with tempfile.TemporaryDirectory(prefix="bench-server-") as folder:
         log = Path(folder) / "server.log"
-        with serving(command, env, port, log) as (url, server_pid):
+        with serving(command, env, port, log, code) as (url, server_pid):
             server_before = tree_cpu_s(server_pid)
             database_before = tree_cpu_s(database_pid) if database_pid else 0.0
             start = time.perf_counter()
@@ -267,11 +321,12 @@ def measure(name: str, database_url: str, server: str, participants: int, watch_
             database_cpu_s = tree_cpu_s(database_pid) - database_before if database_pid else 0.0
         errors_logged = server_errors(log)
     latencies = [s for o in outcomes for s in o.rating_latencies_s]
-    stored = json.loads(django_step(env, "--count"))
+    stored = json.loads(django_step(env, "--count", code=code))
     submitted = sum(o.ratings for o in outcomes)
     machine_s = seconds * len(os.sched_getaffinity(0))
     return {
-        "setup": name, "load": f"watching {watch_s:g} s" if watch_s else "saturation",
+        "setup": name, "code": "reference" if code != REPO else "this",
+        "load": f"watching {watch_s:g} s" if watch_s else "saturation",
         "participants": participants, "finished": sum(o.finished for o in outcomes),
         "errors": [o.error for o in outcomes if o.error][:3], "error_count": sum(bool(o.error) for o in outcomes),
         "server_errors": errors_logged, "ratings_submitted": submitted,
@@ -280,7 +335,94 @@ def measure(name: str, database_url: str, server: str, participants: int, watch_
         "median_ms": 1000 * percentile(latencies, 0.5), "p95_ms": 1000 * percentile(latencies, 0.95),
         "cpu_share": {"participants": participants_cpu_s / machine_s, "server": server_cpu_s / machine_s,
                       "database": database_cpu_s / machine_s},
+        # What a rating costs the server and the database, which a loaded machine's
+        # other work stretches less than the latencies (every page of the run counted in).
+        "server_cpu_ms_per_rating": 1000 * (server_cpu_s + database_cpu_s) / max(submitted, 1),
     }
+
+
+# Installed in every document the browser opens: each answer's moment (the submit event)
+# and the next clip's first "playing" event, on the clock shared by the tab's documents
+# (timeOrigin + now), so that a page swapped in and a page loaded anew are timed alike.
+ANSWER_TO_PLAY = """
+addEventListener("submit", (event) => {
+  if (event.target.action.endsWith("/rate/")) sessionStorage.setItem("answered", performance.timeOrigin + performance.now());
+}, true);
+addEventListener("playing", (event) => {
+  const answered = sessionStorage.getItem("answered");
+  if (event.target.id !== "clip" || answered === null) return;
+  sessionStorage.removeItem("answered");
+  const gaps = JSON.parse(sessionStorage.getItem("gaps") || "[]");
+  gaps.push(performance.timeOrigin + performance.now() - Number(answered));
+  sessionStorage.setItem("gaps", JSON.stringify(gaps));
+}, true);
+"""
+
+
+def render_browser_clip(folder: Path) -> Path:
+    """A ``BROWSER_CLIP_S`` clip of real motion at the study's size (the first BVH file under $MOTION_DATA)."""
+    from generation.motion.dataset import load_body_motion
+    from generation.render import render_video
+
+    data = Path(os.environ.get("MOTION_DATA", str(REPO.parent / "shared" / "data" / "bandai-namco-1")).split(":")[0])
+    bvh = next(iter(sorted(data.rglob("*.bvh"))), None)
+    if bvh is None:
+        raise SystemExit(f"answer to play: no BVH file under {data} (set MOTION_DATA)")
+    return render_video(load_body_motion(bvh, fps=20.0, seconds=BROWSER_CLIP_S), folder / "clip.mp4", size=(640, 480))
+
+
+def answer_to_play(video: Path, code: Path = REPO) -> dict:
+    """A participant in headless Chromium rating ``BROWSER_ANSWERS`` clips on ``manage.py
+    serve`` + SQLite running ``code``: the time from each answer to the next clip playing."""
+    from playwright.sync_api import sync_playwright
+
+    chromium = os.environ.get("CHROMIUM") or shutil.which("chromium")
+    if not chromium:
+        raise SystemExit("answer to play: Debian's chromium is not installed (scripts/ensure-chromium.sh)")
+    with tempfile.TemporaryDirectory(prefix="bench-browser-") as folder:
+        env = server_env(f"sqlite:///{folder}/db.sqlite3", code, MEDIA_ROOT=f"{folder}/media",
+                         STATIC_ROOT=f"{folder}/static")
+        key = django_step(env, "--setup-browser", str(video), code=code)
+        port = free_port()
+        with serving(server_command("serve", port, code), env, port, Path(folder) / "server.log", code) as (url, _), \
+                sync_playwright() as playwright:
+            browser = playwright.chromium.launch(executable_path=chromium, args=["--no-sandbox"])
+            page = browser.new_context(viewport={"width": 1366, "height": 768}).new_page()
+            page.add_init_script(ANSWER_TO_PLAY)
+            page.goto(f"{url}/p/{key}/?PROLIFIC_PID=browser&STUDY_ID=S&SESSION_ID=X")
+            page.get_by_role("button", name="I agree to take part").click()
+            page.get_by_role("button", name="Start").click()
+            for _ in range(BROWSER_ANSWERS):
+                token = page.get_attribute("#rating-form input[name=assignment]", "value")
+                page.wait_for_function("() => document.getElementById('clip')?.ended", timeout=60_000)
+                page.locator("#rating-form button[name=value]").first.click()
+                page.wait_for_function(f"() => !document.querySelector(\"#rating-form input[value='{token}']\")",
+                                       timeout=60_000)
+            page.wait_for_selector("text=You have finished the study")
+            gaps = page.evaluate("JSON.parse(sessionStorage.getItem('gaps') || '[]')")
+            browser.close()
+    return {"code": "reference" if code != REPO else "this", "answers": len(gaps),
+            "median_ms": statistics.median(gaps), "p95_ms": percentile(gaps, 0.95), "max_ms": max(gaps)}
+
+
+def target_rows(participants: int, watch_s: float, reference: Path | None) -> tuple[list[dict], list[dict]]:
+    """The targets' crowds and the browser's answer-to-play times, each measured with this
+    code and then the reference's (if any)."""
+    codes = [REPO, reference] if reference else [REPO]
+    rows = []
+    for load, crowd_size in ((0.0, participants), (watch_s, LARGE_WATCHING)):
+        for code in codes:
+            with throwaway_postgres() as (url, pid_file):
+                rows.append({**measure("gunicorn + PostgreSQL", url, "gunicorn", crowd_size, load, pid_file, code),
+                             "part": "targets"})
+    for code in codes:
+        with tempfile.TemporaryDirectory(prefix="bench-sqlite-") as folder:
+            rows.append({**measure("serve + SQLite", f"sqlite:///{folder}/db.sqlite3", "serve", EMBEDDED_WATCHING,
+                                   watch_s, code=code), "part": "targets"})
+    with tempfile.TemporaryDirectory(prefix="bench-clip-") as folder:
+        video = render_browser_clip(Path(folder))
+        plays = [answer_to_play(video, code) for code in codes]
+    return rows, plays
 
 
 def settings_module(code: Path) -> str | None:
@@ -293,8 +435,7 @@ def settings_module(code: Path) -> str | None:
 
 
 def measure_server_time(name: str, database_url: str, code: Path = REPO) -> dict:
-    env = {**os.environ, "DATABASE_URL": database_url, "DJANGO_SETTINGS_MODULE": settings_module(code),
-           "DEBUG": "false", "SECRET_KEY": "benchmark-only-secret-key-" + "x" * 40, "ALLOWED_HOSTS": "127.0.0.1"}
+    env = server_env(database_url, code)
     return {"setup": name, "code": "reference" if code != REPO else "this", **json.loads(django_step(env, "--server-time",
                                                                                                     code=code))}
 
@@ -324,16 +465,22 @@ def print_rows(result: dict) -> None:
               f"{row['queries']:.0f} queries{commits}")
     for row in result["rows"]:
         share = row["cpu_share"]
-        print(f"{row['setup']:<24} {row['participants']:>5} {row['load']:<12} {row['finished']}/{row['participants']} "
+        print(f"{row['setup']:<24} {row.get('code', 'this'):<9} {row['participants']:>5} {row['load']:<12} "
+              f"{row['finished']}/{row['participants']} "
               f"finished, {row['ratings_submitted']} ratings in {row['seconds']:.0f} s = {row['ratings_per_s']:.0f}/s, "
               f"median {row['median_ms']:.0f} ms, p95 {row['p95_ms']:.0f} ms; CPU: participants "
-              f"{share['participants']:.0%}, server {share['server']:.0%}, database {share['database']:.0%}; "
+              f"{share['participants']:.0%}, server {share['server']:.0%}, database {share['database']:.0%} "
+              f"({row['server_cpu_ms_per_rating']:.0f} ms of server and database CPU a rating); "
               f"database holds exactly the accepted ratings: {row['exactly_stored']}")
         for error in row["errors"]:
             print(f"   error ({row['error_count']} participants): {error}")
         for error in row["server_errors"]:
             print(f"   server: {error}")
-    saturated = {row["setup"]: row["ratings_per_s"] for row in result["rows"] if row["load"] == "saturation"}
+    for row in result.get("answer_to_play", []):
+        print(f"answer to next clip playing, headless Chromium, serve + SQLite, {row['code']:<9} median "
+              f"{row['median_ms']:.0f} ms, p95 {row['p95_ms']:.0f} ms, max {row['max_ms']:.0f} ms over {row['answers']} answers")
+    saturated = {row["setup"]: row["ratings_per_s"] for row in result["rows"]
+                 if row["load"] == "saturation" and row["part"] == "crowd"}
     if len(saturated) == 2:
         print(f"gunicorn + PostgreSQL: {saturated['gunicorn + PostgreSQL'] / saturated['runserver + SQLite']:.2f}x "
               f"the rating throughput of runserver + SQLite at saturation")
@@ -344,7 +491,8 @@ def main() -> int:
     parser.add_argument("--only", choices=PARTS, action="append",
                         help="run only these parts (repeatable): server-time (the in-process rating step), crowd "
                              "(--participants at saturation and watching, on both setups), large (the --crowds on "
-                             "the production shape); default: all")
+                             "the production shape), targets (the targets' crowds and the browser's answer to play, "
+                             "with the --reference-code too); default: all")
     parser.add_argument("--participants", type=int, default=100)
     parser.add_argument("--crowds", default="500,1000",
                         help="larger watching crowds on the production shape, comma-separated ('' for none)")
@@ -353,14 +501,17 @@ def main() -> int:
     parser.add_argument("--rounds", type=int, default=3,
                         help="server time on SQLite: measurements of each code, alternating (default %(default)s)")
     parser.add_argument("--reference-code", type=Path, metavar="DIR",
-                        help="another checkout of the project whose rating step is timed alongside this one's")
+                        help="another checkout of the project whose rating step (server-time) and targets' "
+                             "crowds and browser (targets) are measured alongside this one's")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     parser.add_argument("--setup", type=int, metavar="PARTICIPANTS", help=argparse.SUPPRESS)
     parser.add_argument("--count", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--server-time", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--setup-browser", metavar="VIDEO", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.setup is not None or args.count or args.server_time:
-        print(setup_study(args.setup) if args.setup is not None else count_ratings() if args.count else server_time())
+    if args.setup is not None or args.count or args.server_time or args.setup_browser:
+        print(setup_study(args.setup) if args.setup is not None else count_ratings() if args.count
+              else setup_browser_study(args.setup_browser) if args.setup_browser else server_time())
         return 0
     if args.reference_code and settings_module(args.reference_code) is None:
         parser.error(f"--reference-code {args.reference_code}: no study app settings there (a checkout of the project?)")
@@ -378,13 +529,19 @@ def main() -> int:
             with throwaway_postgres() as (url, pid_file):
                 rows.append({**measure("gunicorn + PostgreSQL", url, "gunicorn", args.participants, watch_s, pid_file),
                              "part": "crowd"})
+    plays = []
+    if "targets" in parts:
+        targets, plays = target_rows(args.participants, args.watch,
+                                     args.reference_code.resolve() if args.reference_code else None)
+        rows += targets
     if "large" in parts:
         for participants in [int(n) for n in args.crowds.split(",") if n.strip()]:  # the big loads last, once
             with throwaway_postgres() as (url, pid_file):
                 rows.append({**measure("gunicorn + PostgreSQL", url, "gunicorn", participants, args.watch, pid_file),
                              "part": "large"})
     load = " → ".join(", ".join(f"{x:.1f}" for x in averages) for averages in (load_before, os.getloadavg()))
-    result = {"machine": describe_machine(), "load_average": load, "server_time": steps, "rows": rows}
+    result = {"machine": describe_machine(), "load_average": load, "server_time": steps, "rows": rows,
+              "answer_to_play": plays}
     if args.json:
         print(json.dumps(result, indent=2))
     else:
@@ -395,9 +552,10 @@ def main() -> int:
 def targets_met(result: dict) -> bool:
     """Print each target of the parts that ran, met or missed; whether all were met.
 
-    Every crowd must store exactly what was accepted and serve every participant (the
-    embedded default too: it holds a crowd); the time targets: the median rating step
-    on SQLite (this code), and the p95 of the watching --participants on the production shape.
+    Every crowd of this code must store exactly what was accepted and serve every
+    participant (the embedded default too: it holds a crowd); the time targets: the
+    median rating step on SQLite, the p95 of the watching --participants on the
+    production shape, and the targets' (``TARGET_*``).
     """
     checks = []
     ours = [row for row in result["server_time"] if row["setup"] == "SQLite" and row["code"] == "this"]
@@ -406,11 +564,27 @@ def targets_met(result: dict) -> bool:
         checks.append((f"rating step on SQLite, median {'–'.join(f'{m:.1f}' for m in (medians[0], medians[-1]))} ms "
                        f"(target ≤ {TARGET_STEP_MS:.0f} ms)", statistics.median(medians) <= TARGET_STEP_MS))
     for row in result["rows"]:
+        if row.get("code") == "reference":  # measured beside ours, not held to the targets
+            continue
         checks.append((f"{row['setup']}, {row['participants']} {row['load']}: no error, every rating stored once",
                        row["exactly_stored"] and not row["error_count"] and row["finished"] == row["participants"]))
-        if row["part"] == "crowd" and row["setup"].startswith("gunicorn") and row["load"] != "saturation":
+        watching = row["load"] != "saturation"
+        if row["part"] == "crowd" and row["setup"].startswith("gunicorn") and watching:
             checks.append((f"{row['setup']}, {row['participants']} watching: p95 {row['p95_ms']:.0f} ms "
                            f"(target < {TARGET_P95_S * 1000:.0f} ms)", row["p95_ms"] / 1000 < TARGET_P95_S))
+        if row["part"] != "targets":
+            continue
+        if not watching:
+            checks.append((f"{row['setup']} at saturation: {row['ratings_per_s']:.0f} ratings/s "
+                           f"(target >= {TARGET_SATURATION_PER_S:.0f})", row["ratings_per_s"] >= TARGET_SATURATION_PER_S))
+        else:
+            target = TARGET_LARGE_P95_S if row["setup"].startswith("gunicorn") else TARGET_EMBEDDED_P95_S
+            checks.append((f"{row['setup']}, {row['participants']} watching: p95 {row['p95_ms']:.0f} ms "
+                           f"(target < {target * 1000:.0f} ms)", row["p95_ms"] / 1000 < target))
+    for row in result.get("answer_to_play", []):
+        if row["code"] == "this":
+            checks.append((f"answer to next clip playing in a browser: median {row['median_ms']:.0f} ms (target < "
+                           f"{TARGET_ANSWER_TO_PLAY_MS:.0f} ms)", row["median_ms"] < TARGET_ANSWER_TO_PLAY_MS))
     for text, met in checks:
         print(f"{'met' if met else 'MISSED'}: {text}")
     return all(met for _, met in checks)

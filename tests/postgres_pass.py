@@ -36,6 +36,7 @@ DATABASE_TESTS = (
     "tests/test_study_design_checks.py",
     "tests/test_study_designs.py",
     "tests/test_study_participant.py",
+    "tests/test_study_next_page.py",
     "tests/test_study_monitor.py",
     "tests/test_study_researcher.py",
     "tests/test_study_editing.py",

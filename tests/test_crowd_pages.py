@@ -12,7 +12,7 @@ from django.urls import reverse
 
 from tests.study_fixtures import current_clip
 from studyapp.models import Participant, Stimulus
-from studyapp.participants import views as participant_views
+from studyapp.participants import path as participant_path
 from tests.study_fixtures import make_study
 from tests.test_study_participant import enter, make_shown_long_ago, post, rate_current, through_practice
 
@@ -43,7 +43,7 @@ def test_unknown_links_closed_studies_and_server_errors_get_plain_pages_even_und
     def broken(participant):
         raise RuntimeError("the database went away")
 
-    monkeypatch.setattr(participant_views, "renew_reservations", broken)
+    monkeypatch.setattr(participant_path, "renew_reservations", broken)
     with caplog.at_level(logging.ERROR, logger="studyapp.participants.views"):
         plain(client.get(reverse("participant-page", args=[study.key])), 500, "Something went wrong")
     assert "the database went away" in caplog.text  # the traceback goes to the log, not to the participant
@@ -51,7 +51,7 @@ def test_unknown_links_closed_studies_and_server_errors_get_plain_pages_even_und
 
 def prefetched(client: Client, study) -> str | None:
     page = client.get(reverse("participant-page", args=[study.key])).content.decode()
-    match = re.search(r'<link rel="prefetch" href="([^"]+)" as="video"', page)
+    match = re.search(r'<video data-upcoming src="([^"]+)"', page)
     return match.group(1) if match else None
 
 

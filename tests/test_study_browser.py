@@ -71,14 +71,16 @@ def take_part(browser, live_server, study, pid: str, value_for, early_at: int | 
     page.get_by_role("button", name="I agree to take part").click()
     page.get_by_role("button", name="Start").click()
     participant = Participant.objects.get(study=study, platform_id=pid)
-    for _ in participant.training:
+    for number, _ in enumerate(participant.training, start=1):
+        # Pages of clips follow each other without a reload: wait for the page, not for a load.
+        page.wait_for_selector(f"text=/Practice \\w+ {number} of/")
         assert "not recorded" in page.content()
         wait_for_clip_end(page)
         page.get_by_role("button", name="3", exact=True).click()
     if phone:  # everything fits the width of a phone: no sideways scrolling
         assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth")
     while (assignment := current_clip(participant)) is not None:
-        page.wait_for_selector("#clip")
+        page.wait_for_selector(f"input[name=assignment][value='{assignment.token}']", state="attached")
         if assignment.position != early_at:
             wait_for_clip_end(page)
         value = str(value_for(assignment.stimulus.system.role))

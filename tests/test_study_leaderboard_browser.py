@@ -11,7 +11,7 @@ from django.test import Client
 from django.urls import reverse
 
 from studyapp.models import Participant, Rating
-from studyapp.researchers.reports import report_folder
+from studyapp.researchers.results.reports import report_folder
 from tests.study_fixtures import current_page, make_study
 from tests.test_study_browser import browser, clip_video  # noqa: F401 (fixtures)
 from tests.test_study_design_browser import CLIP_SECONDS, DESKTOP, play_every_clip

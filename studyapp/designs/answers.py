@@ -109,7 +109,8 @@ def failure_changes(study: Study, participant: Participant, now: datetime) -> di
 
 
 def record_answer(participant: Participant, answer: Answer) -> list[Rating]:
-    """Store the answer to the participant's current page, or raise AnswerRefused (nothing stored)."""
+    """Store the answer to the participant's current page, or raise AnswerRefused (nothing
+    stored); ``participant`` is updated in memory as the answer changed it."""
     if participant.finished_at is not None:  # the last page answered, or stopped with pages left
         raise AnswerRefused("this participant has already finished the study", status=409)
     try:
@@ -163,11 +164,17 @@ def _store(study: Study, participant: Participant, answer: Answer) -> list[Ratin
         # transaction spares that page a write of its own (a second commit per answer).
         Assignment.objects.filter(pk__in=following).update(shown_at=now)
     if changes or last_seen_is_stale(participant, now):
-        Participant.objects.filter(pk=participant.pk).update(last_seen=now, **changes)
+        changes["last_seen"] = now
+        Participant.objects.filter(pk=participant.pk).update(**changes)
     on_page = [OnPage(a, export_name(a.system_role, a.system_name), a.clip_seconds or 0.0) for a in page]
     reason = "" if any(expected) else design.exclusion_reason(rules.exclusion, study, on_page, answer)
     if reason and not participant.excluded:  # the first reason stays
-        Participant.objects.filter(pk=participant.pk, excluded=False).update(excluded=True, exclusion_reason=reason)
+        if Participant.objects.filter(pk=participant.pk, excluded=False).update(excluded=True,
+                                                                                 exclusion_reason=reason):
+            changes.update(excluded=True, exclusion_reason=reason)
+    # The participant as stored now, so that the next page is read from it without a query.
+    for name, value in changes.items():
+        setattr(participant, name, value)
     return ratings
 
 

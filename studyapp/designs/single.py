@@ -145,7 +145,6 @@ class SingleClip(Design):
     def page_context(self, study: Study, page: Page) -> dict:
         clip = page.clips[0]
         return {**super().page_context(study, page), "video_url": clip.video_url, "seconds": clip.seconds,
-                "next_video_url": page.upcoming[0] if page.upcoming else "",
                 "scale": list(study.scale), "keys": len(study.scale) <= 10}
 
     def read_answer(self, study: Study, form: QueryDict) -> Answer:

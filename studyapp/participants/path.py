@@ -11,12 +11,20 @@ path with a polite ending.
 Each ``Step`` says when the participant is on it (``pending``: the first pending
 step is theirs, so a reload or a return on another day shows the page they left), what
 its page shows (a template and its context), what its form does (``submit``, which
-redirects to the one page URL; the last step has no form) and what the researcher's
+redirects to the one page URL, or answers with the next page itself, see ``next_page``;
+the last step has no form) and what the researcher's
 preview shows of it (``preview``; by default its page, where a new participant meets
 it). ``stage()`` reads the table, ``participants.views`` renders and guards the steps
 through it, ``urls`` gives each form its URL, /p/KEY/<step name>/, and
 ``researchers.setup.preview`` walks it. A new page type (a questionnaire) is one entry here
 and one template.
+
+The design's pages of clips (practice and rating) are answered with one request: their
+script sends the form with ``NEXT_PAGE_HEADER``, and where the next page is another page
+of clips the answer's response is that page, rendered as the one page URL renders it
+(``current_page``), which the script swaps in; any other next page (the questions, the
+end, a session stopped by failed checks) is the redirect, which the script follows. The
+form without the script posts and is redirected as any other.
 
 Nothing on these pages names a system: clips are served by random tokens and the rating
 form names its page by another.
@@ -44,6 +52,10 @@ from studyapp.participants.refusal import AnswerRefused
 PROLIFIC_COMPLETION_URL = "https://app.prolific.com/submissions/complete"
 MTURK_SUBMIT_HOSTS = {"www.mturk.com", "workersandbox.mturk.com"}
 
+# Sent by the clip pages' script (static/studyapp/next-page.js) with an answer: "in-place"
+# asks for the next page in the response where it is another page of clips.
+NEXT_PAGE_HEADER = "Studyapp-Next-Page"
+
 PageContext = Callable[[Study, Participant], dict]
 Submit = Callable[[HttpRequest, Study, Participant], HttpResponse]
 
@@ -61,6 +73,9 @@ class Step:
     # Its form is still passed to ``submit`` once the participant has gone past the step,
     # so that submit can say why it refuses (a rating sent again after the last clip).
     takes_late_posts: bool = False
+    # Its page is the design's page of clips, which may come in place of the page before
+    # it without a reload (``next_page``).
+    in_place: bool = False
     title: str = ""  # what the preview calls it (default: its name)
     # The pages the researcher's preview shows of it (contexts, none where a new
     # participant would not meet it); None: its page, where a new participant is on it.
@@ -82,7 +97,23 @@ def message(request: HttpRequest, title: str, text: str, status: int = 200, back
                   status=status)
 
 
-def _next_page(study: Study) -> HttpResponse:
+def current_page(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
+    """The page the participant is on: its step's template and context (a rating page is
+    marked shown as it is rendered, ``designs.pages``)."""
+    participant = renew_reservations(participant)
+    step = current_step(participant)
+    context = {"study": study, **step.page(study, participant)}
+    # Names this page among the participant's, so that another tab still on an earlier one moves on.
+    context["page_id"] = "-".join([step.name, *map(str, context.get("form", {}).values())])
+    return render(request, f"studyapp/participant/{step.template_for(study)}", context)
+
+
+def next_page(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
+    """Where a form leads once it is taken: the redirect to the one page URL; or, asked by
+    the clip pages' script, the participant's next page itself where it is a page of clips
+    (``participant``: as the form left it, in memory)."""
+    if request.headers.get(NEXT_PAGE_HEADER) == "in-place" and current_step(participant).in_place:
+        return current_page(request, study, participant)
     return redirect("participant-page", key=study.key)
 
 
@@ -91,7 +122,7 @@ def _passing(moment: str) -> Submit:
     def submit(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
         setattr(participant, moment, timezone.now())
         participant.save(update_fields=[moment])
-        return _next_page(study)
+        return next_page(request, study, participant)
     return submit
 
 
@@ -103,7 +134,7 @@ def _consent(request: HttpRequest, study: Study, participant: Participant) -> Ht
     if not study.questions.filter(part=Question.Part.BEFORE).exists():
         participant.screened_at = participant.consented_at
     participant.save(update_fields=["consented_at", "screened_at"])
-    return _next_page(study)
+    return next_page(request, study, participant)
 
 
 def screen_need(study: Study) -> str:
@@ -182,7 +213,7 @@ def _screening(request: HttpRequest, study: Study, participant: Participant) -> 
         fields.append("screened_out_at")
         participant.assignments.filter(rating__isnull=True).delete()  # reservations, not data
     participant.save(update_fields=fields)
-    return _next_page(study)
+    return next_page(request, study, participant)
 
 
 def _survey(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
@@ -191,7 +222,7 @@ def _survey(request: HttpRequest, study: Study, participant: Participant) -> Htt
                            **read_answers(questions(study, Question.Part.AFTER), request.POST)}
     participant.surveyed_at = timezone.now()
     participant.save(update_fields=["answers", "surveyed_at"])
-    return _next_page(study)
+    return next_page(request, study, participant)
 
 
 def _screened_out_page(study: Study, participant: Participant) -> dict:
@@ -211,9 +242,12 @@ def _practice(request: HttpRequest, study: Study, participant: Participant) -> H
     """Move past a practice page; its answer is not recorded."""
     if request.POST.get("index") == str(participant.training_done):  # a resubmitted form moves nothing
         passed = participant.training_done + len(remaining_practice(study, participant)[0])
-        Participant.objects.filter(pk=participant.pk, training_done=participant.training_done).update(
-            training_done=passed)
-    return _next_page(study)
+        if Participant.objects.filter(pk=participant.pk, training_done=participant.training_done).update(
+                training_done=passed):
+            participant.training_done = passed
+        else:  # moved on by a request racing this one
+            participant.refresh_from_db(fields=["training_done"])
+    return next_page(request, study, participant)
 
 
 def _rate(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
@@ -225,8 +259,8 @@ def _rate(request: HttpRequest, study: Study, participant: Participant) -> HttpR
         if was_reserved and not participant.assignments.filter(token=answer.page).exists():
             raise AnswerRefused("that page was given to another participant while it was idle; "
                                 "please reload the page to go on with the next one", status=409)
-    record_answer(participant, answer)  # after the last page, it says why not
-    return _next_page(study)
+    record_answer(participant, answer)  # after the last page, it says why not; updates ``participant``
+    return next_page(request, study, participant)
 
 
 def mturk_submit_url(platform_data: dict) -> str | None:
@@ -281,9 +315,9 @@ PATH: tuple[Step, ...] = (
     Step("instructions", "instructions.html", pending=lambda p: p.instructed_at is None,
          page=_instructions_page, submit=_passing("instructed_at")),
     Step("practice", _design_template, pending=lambda p: p.training_done < len(p.training), page=practice_page,
-         submit=_practice, preview=preview_practice_pages),
+         submit=_practice, in_place=True, preview=preview_practice_pages),
     Step("rate", _design_template, pending=lambda p: p.finished_at is None, page=rating_page, submit=_rate,
-         takes_late_posts=True, title="a page to rate", preview=preview_rating_pages),
+         takes_late_posts=True, in_place=True, title="a page to rate", preview=preview_rating_pages),
     Step("stopped", "done.html", pending=lambda p: p.stopped_at is not None, page=_stopped_page),
     # Asked only once the ratings are done, so the query costs the rating pages nothing.
     Step("survey", "questions.html",
@@ -310,5 +344,5 @@ def may_post(step: Step, participant: Participant) -> bool:
     return current == here or (step.takes_late_posts and current > here)
 
 
-__all__ = ["PATH", "Step", "completion_page", "current_step", "may_post", "message", "mturk_submit_url",
-           "questions_page", "stage"]
+__all__ = ["NEXT_PAGE_HEADER", "PATH", "Step", "completion_page", "current_page", "current_step", "may_post",
+           "message", "mturk_submit_url", "next_page", "questions_page", "stage"]

@@ -5,7 +5,10 @@ benchmark all use it. Each participant is an independent cookie-carrying client 
 reads the page it is on, as a browser would, and answers it: consent, instructions,
 practice clips, then a rating per clip, or an answer per side-by-side or pairwise page
 (claiming to have watched every clip to its end, and so answering no sooner than the
-longest clip on the page lasts).
+longest clip on the page lasts). Pages of clips are answered as their script answers
+them, asking for the next page in the answer's response (``path.NEXT_PAGE_HEADER``); a
+server that answers with a redirect instead (the form without the script, or an older
+version of the app) has its redirect followed.
 
     python -m studyapp.participants.simulated http://127.0.0.1:8000/p/KEY/ -n 20
 
@@ -37,6 +40,9 @@ _ANSWER = re.compile(r'<button type="submit" name="answer" value="(\w+)"')
 _STRENGTH = re.compile(r'<input type="radio" name="strength" value="(\d+)"')
 _PLAY = re.compile(r'data-play="(\d+)"')
 _RATING_STEP = "/rate/"
+_CLIP_STEPS = ("/practice/", _RATING_STEP)  # the forms that the clip pages' script sends
+# path.NEXT_PAGE_HEADER (not imported: this module runs with the standard library alone).
+_IN_PLACE = {"Studyapp-Next-Page": "in-place"}
 _CLIP_SECONDS = re.compile(r'<video [^>]*data-seconds="([0-9.]+)"')
 
 
@@ -52,7 +58,7 @@ class Outcome:
 
     platform_id: str
     finished: bool = False
-    ratings: int = 0  # accepted by the server (answered with the redirect to the next page)
+    ratings: int = 0  # accepted by the server (answered with the next page, or the redirect to it)
     rating_latencies_s: list[float] = field(default_factory=list)
     final_page: str = ""
     error: str = ""
@@ -81,9 +87,10 @@ class SimulatedParticipant:
         self.opener = urllib.request.build_opener(cookies)
         self.rating_opener = urllib.request.build_opener(cookies, _KeepRedirects)
 
-    def _open(self, url: str, data: dict | None = None) -> tuple[str, str]:
+    def _open(self, url: str, data: dict | None = None, headers: dict | None = None) -> tuple[str, str]:
         """(final URL, body) after redirects; a 4xx/5xx raises urllib.error.HTTPError."""
-        request = urllib.request.Request(url, urllib.parse.urlencode(data).encode() if data is not None else None)
+        request = urllib.request.Request(url, urllib.parse.urlencode(data).encode() if data is not None else None,
+                                         headers=headers or {})
         with self.opener.open(request, timeout=self.timeout_s) as response:
             return response.geturl(), response.read().decode()
 
@@ -108,12 +115,12 @@ class SimulatedParticipant:
                 data.update(self._page_answer(body, sliders, answers, _STRENGTH.findall(form)))
         if action.endswith(_RATING_STEP):
             start = time.perf_counter()
-            next_page = self._rate(url, data)
+            next_url, next_body = self._rate(url, data)
             self.outcome.ratings += 1
-            result = self._open(next_page)
+            result = (next_url, next_body) if next_body is not None else self._open(next_url)
             self.outcome.rating_latencies_s.append(time.perf_counter() - start)
             return result
-        return self._open(url, data)
+        return self._open(url, data, _IN_PLACE if action.endswith(_CLIP_STEPS) else None)
 
     def _page_answer(self, body: str, sliders: list[tuple[str, str, str]], answers: list[str],
                      strengths: list[str]) -> dict:
@@ -128,17 +135,18 @@ class SimulatedParticipant:
                          f"played_until_s-{slot}": "0.45"})
         return data
 
-    def _rate(self, url: str, data: dict) -> str:
-        """POST a rating; the URL of the page the server redirects to once it has stored it."""
-        request = urllib.request.Request(url, urllib.parse.urlencode(data).encode())
+    def _rate(self, url: str, data: dict) -> tuple[str, str | None]:
+        """POST a rating as the page's script does, once the server has stored it: (URL,
+        body) of the next page where the response is that page, else (the URL the server
+        redirects to, None)."""
+        request = urllib.request.Request(url, urllib.parse.urlencode(data).encode(), headers=_IN_PLACE)
         try:
             with self.rating_opener.open(request, timeout=self.timeout_s) as response:
-                status, headers = response.status, response.headers
+                return url, response.read().decode()
         except urllib.error.HTTPError as answer:
             if answer.code in (302, 303):
-                return urllib.parse.urljoin(url, answer.headers["Location"])
+                return urllib.parse.urljoin(url, answer.headers["Location"]), None
             raise
-        raise urllib.error.HTTPError(url, status, "a rating was answered without a redirect", headers, None)
 
     def run(self, max_pages: int = 500) -> Outcome:
         try:

@@ -3,7 +3,8 @@
 The steps themselves (what each page shows, what its form does, in which order) are
 declared in ``participants.path.PATH``; this module finds the participant of the browser's
 cookie and guards each step with ``participant_access``. Each form posts to its step's
-URL and redirects back to the one page URL.
+URL and redirects back to the one page URL (or, from the clip pages' script, answers
+with the next page of clips itself: ``path.next_page``).
 """
 
 from __future__ import annotations
@@ -16,14 +17,14 @@ from django.conf import settings
 from django.db import IntegrityError
 from django.db.models import F
 from django.http import Http404, HttpRequest, HttpResponse
-from django.shortcuts import redirect, render
+from django.shortcuts import redirect
 from django.urls import reverse
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
 from studyapp.models import Participant, StoredDataError, Study, json_object, new_token
-from studyapp.participants.assignment import StudyFull, StudyNotReady, enrol, renew_reservations
-from studyapp.participants.path import Step, current_step, may_post, message, mturk_submit_url, stage
+from studyapp.participants.assignment import StudyFull, StudyNotReady, enrol
+from studyapp.participants.path import Step, current_page, may_post, message, mturk_submit_url, stage
 from studyapp.participants.refusal import AnswerRefused
 from studyapp.participants.study_cache import current_study
 
@@ -218,8 +219,8 @@ def _same_session(study: Study, participant: Participant, data: dict) -> bool:
 
 
 def step_form(step: Step) -> Callable[..., HttpResponse]:
-    """The view that takes ``step``'s form (POST only)."""
-    return plain_pages(require_POST(participant_access(step)(step.submit)))
+    """The view that takes ``step``'s form (POST only); its response may be a page (``path.next_page``)."""
+    return never_cache(plain_pages(require_POST(participant_access(step)(step.submit))))
 
 
 @never_cache
@@ -228,12 +229,7 @@ def step_form(step: Step) -> Callable[..., HttpResponse]:
 @participant_access()
 def page(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
     """Whatever page the participant is on."""
-    participant = renew_reservations(participant)
-    step = current_step(participant)
-    context = {"study": study, **step.page(study, participant)}
-    # Names this page among the participant's, so that another tab still on an earlier one moves on.
-    context["page_id"] = "-".join([step.name, *map(str, context.get("form", {}).values())])
-    return render(request, f"studyapp/participant/{step.template_for(study)}", context)
+    return current_page(request, study, participant)
 
 
 @never_cache

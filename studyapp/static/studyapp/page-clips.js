@@ -1,11 +1,14 @@
 // The clips of a side-by-side or pairwise page: one plays at a time, each clip's times
 // are recorded (seconds after the page was shown; the server judges early answers with
 // them), and the answer can be sent only once every clip has been played to its end.
-(function () {
+// next-page.js sets the page up, on load and again for each page it swaps in: ``shownAt``
+// is the moment (performance.now()) the page was shown, ``signal`` ends its listeners.
+window.studyappSetUpPage = (shownAt, signal) => {
   const form = document.getElementById("page-form");
   const videos = [...document.querySelectorAll("video[data-slot]")];
+  const on = (target, type, listener) => target.addEventListener(type, listener, { signal });
   const field = (name) => form.elements.namedItem(name);
-  const now = () => (performance.now() / 1000).toFixed(3);
+  const now = () => ((performance.now() - shownAt) / 1000).toFixed(3);
   const submits = [...form.querySelectorAll("button[type=submit]")];
   const note = document.getElementById("play-note");
   const ended = new Set();
@@ -29,15 +32,15 @@
   const pauseOthers = (video) => videos.forEach((other) => { if (other !== video) other.pause(); });
   videos.forEach((video) => {
     const slot = video.dataset.slot;
-    video.addEventListener("play", () => pauseOthers(video));  // started some other way (native controls)
-    video.addEventListener("playing", () => { if (!field(`started_s-${slot}`).value) field(`started_s-${slot}`).value = now(); });
-    video.addEventListener("ended", () => {
+    on(video, "play", () => pauseOthers(video));  // started some other way (native controls)
+    on(video, "playing", () => { if (!field(`started_s-${slot}`).value) field(`started_s-${slot}`).value = now(); });
+    on(video, "ended", () => {
       if (!field(`ended_s-${slot}`).value) field(`ended_s-${slot}`).value = now();
       ended.add(slot);
       document.querySelectorAll(`[data-played="${slot}"]`).forEach((mark) => { mark.hidden = false; });
       update();
     });
-    document.querySelector(`button[data-play="${slot}"]`).addEventListener("click", () => {
+    on(document.querySelector(`button[data-play="${slot}"]`), "click", () => {
       pauseOthers(video);
       video.currentTime = 0;
       video.play();
@@ -45,7 +48,7 @@
   });
   sliders.forEach((slider) => {
     const output = document.querySelector(`output[for="${slider.id}"]`);
-    slider.addEventListener("input", () => {
+    on(slider, "input", () => {
       output.value = slider.value;
       field(`moved-${slider.dataset.slot}`).value = "1";  // even a move back to the start counts
       update();
@@ -62,13 +65,12 @@
       sections.forEach((section) => section.classList.toggle("current", section.id === `clip-${slot}`));
       buttons.forEach((button) => button.setAttribute("aria-selected", String(button.dataset.tab === slot)));
     };
-    buttons.forEach((button) => button.addEventListener("click", () => show(button.dataset.tab)));
+    buttons.forEach((button) => on(button, "click", () => show(button.dataset.tab)));
     document.querySelector(".clips").classList.add("tabbed");
     tabs.hidden = false;
     show(buttons[0].dataset.tab);
   }
-  let sent = false;
-  form.addEventListener("submit", (event) => {
+  on(form, "submit", (event) => {
     const strengths = [...form.querySelectorAll("input[name=strength]")];
     const choice = event.submitter ? event.submitter.value : "";
     if (choice === "none") strengths.forEach((radio) => { radio.checked = false; });
@@ -77,8 +79,8 @@
       document.getElementById("strength-note").hidden = false;
       return;
     }
-    if (sent) { event.preventDefault(); return; }
-    sent = true;
+    if (form.dataset.sent) { event.preventDefault(); return; }  // once (next-page.js clears it on a refusal)
+    form.dataset.sent = "yes";
     videos.forEach((video) => {
       const slot = video.dataset.slot;
       field(`answered_s-${slot}`).value = now();
@@ -86,4 +88,4 @@
     });
   });
   update();
-})();
+};
