@@ -48,6 +48,7 @@ def answer(study: Study, participant: Participant) -> dict:
         f"{name}-{clip.slot}": value for clip in clips for name, value in WATCHED.items()}
     if study.design == "side-by-side":
         form.update({f"value-{clip.slot}": 100 if clip.expected == "max" else 50 for clip in clips})
+        form.update({f"moved-{clip.slot}": "1" for clip in clips})  # each slider moved, as the study asks
     elif study.design != "single":
         form["answer"] = clips[0].expected or "left"
         if study.design == "appropriateness" or study.preference_strengths:

@@ -51,6 +51,7 @@ def play_and_answer(page, study: Study) -> None:
         return
     play_every_clip(page)
     if study.design == "side-by-side":
+        move_every_slider(page)
         page.locator("#page-form button[type=submit]").click()
         return
     strengths = page.locator("input[name=strength]")
@@ -59,8 +60,15 @@ def play_and_answer(page, study: Study) -> None:
     page.locator("#page-form button[name=answer][value=left]").click()
 
 
+def move_every_slider(page) -> None:
+    """Move each clip's slider as a participant does (on a phone most sit in hidden tabs)."""
+    page.evaluate("document.querySelectorAll('input[type=range]').forEach((slider) => {"
+                  " slider.value = 70; slider.dispatchEvent(new Event('input', {bubbles: true})); })")
+
+
 def answer_too_soon(page) -> None:
     """Unlock the answer buttons and answer at once, as a participant forcing the page would."""
+    move_every_slider(page)
     page.evaluate("document.querySelectorAll('form[data-next-page] button').forEach((b) => { b.disabled = false; })")
     page.evaluate("document.querySelectorAll('input[name=strength]').forEach((r, i) => { r.checked = i === 0; })")
     page.locator("form[data-next-page] button[type=submit]").first.click()
