@@ -126,6 +126,7 @@ class SimulatedParticipant:
                      strengths: list[str]) -> dict:
         """A random answer to a side-by-side or pairwise page, every clip claimed watched to its end."""
         data = {name: str(self.rng.randint(int(low), int(high))) for name, low, high in sliders}
+        data.update({name.replace("value-", "moved-"): "1" for name, _, _ in sliders})  # each slider moved
         if answers:
             data["answer"] = self.rng.choice(answers)
             if strengths and data["answer"] != "none":
