@@ -71,7 +71,8 @@ def test_a_side_by_side_field_whose_slot_is_no_ascii_number_is_ignored_as_any_un
     make_shown_long_ago(participant)
     slots = sorted(participant.assignments.filter(page=0).values_list("slot", flat=True))
 
-    form = {"page": token, **{f"value-{s}": 50 for s in slots}, f"value-{slot}": 70, **watched(slots)}
+    form = {"page": token, **{f"value-{s}": 50 for s in slots}, f"value-{slot}": 70, **watched(slots),
+            **{f"moved-{s}": "1" for s in slots}}
     response = client.post(reverse("participant-rate", args=[study.key]), urlencode(form),
                            content_type="application/x-www-form-urlencoded")
 
