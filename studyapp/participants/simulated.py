@@ -35,7 +35,7 @@ _FORM = re.compile(r'<form method="post" action="([^"]+)"[^>]*>(.*?)</form>', re
 _HIDDEN = re.compile(r'<input type="hidden" name="([^"]+)"(?: value="([^"]*)")?>')
 _POINT = re.compile(r'<button type="submit" name="value" value="(-?\d+)"(?: disabled)?>')
 # Side-by-side and pairwise pages: a slider per clip, or the answer buttons and strengths.
-_SLIDER = re.compile(r'<input type="range" form="page-form" id="[^"]+" name="(value-\d+)" min="(-?\d+)" max="(-?\d+)"')
+_SLIDER = re.compile(r'<input type="range" form="page-form" id="[^"]+" name="(value-\d+)"[^>]*? min="(-?\d+)" max="(-?\d+)"')
 _ANSWER = re.compile(r'<button type="submit" name="answer" value="(\w+)"')
 _STRENGTH = re.compile(r'<input type="radio" name="strength" value="(\d+)"')
 _PLAY = re.compile(r'data-play="(\d+)"')
