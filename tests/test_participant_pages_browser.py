@@ -49,7 +49,7 @@ def skip_to_ratings(page, study: Study, pid: str = "p1") -> Participant:
     Participant.objects.filter(pk=participant.pk).update(device_checked_at=now, consented_at=now, screened_at=now,
                                                          instructed_at=now, training_done=len(participant.training))
     page.reload()
-    page.wait_for_selector("video")
+    page.wait_for_selector("video:not([data-upcoming])")  # not the next page's, loading hidden
     return participant
 
 
