@@ -119,10 +119,12 @@ def test_another_session_of_the_same_prolific_id_cannot_continue_and_the_researc
     study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, clips_per_participant=2, training_clips=0,
                        bad_checks=0, natural_checks=0)
     context, page = first_clip(browser, live_server, study, "P1")
-    for _ in range(2):
+    for _ in range(2):  # the second page comes in place of the first; the end by navigation
         wait_for_clip_end(page)
-        with page.expect_navigation():
-            page.keyboard.press("4")
+        token = page.input_value("input[name=assignment]")
+        page.keyboard.press("4")
+        page.wait_for_load_state()
+        page.wait_for_function(f"() => !document.body.innerHTML.includes('{token}')")
     assert study.completion_code in page.inner_text("body")
     context.close()
 
