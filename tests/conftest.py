@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from generation.motion.dataset import motion_folders
+from tests.lab_rigs import LAB_RIGS, write_lab_folder
 
 REPO = Path(__file__).resolve().parents[1]
 # MOTION_DATA may name several folders joined with ":" (as the demo reads it); the tests
@@ -42,6 +43,13 @@ def motion_data_2() -> Path:
 def clip_path(motion_data):
     """Path of a named clip, e.g. clip_path('walk-left_normal_001')."""
     return lambda name: motion_data / "data" / f"dataset-1_{name}.bvh"
+
+
+@pytest.fixture(scope="session")
+def lab_rigs(motion_data_2, tmp_path_factory) -> dict[str, Path]:
+    """Other labs' rigs and files (``tests/lab_rigs.py``: CMU's in CMU units and in metres,
+    ACCAD's), each a folder of three real walks, by the rig's name."""
+    return {name: write_lab_folder(motion_data_2, rig, tmp_path_factory.mktemp(name)) for name, rig in LAB_RIGS.items()}
 
 
 @pytest.fixture(autouse=True)

@@ -21,7 +21,7 @@ from generation.motion.types import Motion, Skeleton
 from generation.motion.unit_detection import choose_units
 from generation.motion.units import detect_up
 from measures.units import HUMAN_HEIGHT_CM, UNITS, Z_UP_TO_Y_UP, parse_scale, unit_for_height, up_axis
-from tests.test_real_rigs import RIG_FILES
+from tests.lab_rigs import LAB_RIGS
 
 
 def test_the_human_window_is_narrower_than_any_two_units_so_at_most_one_fits():
@@ -56,20 +56,19 @@ def test_generation_and_analysis_read_a_real_figure_in_the_same_unit(factor, uni
     np.testing.assert_allclose(converted["NAT"].clips[0], walk.positions * UNITS[unit])
 
 
-def rig_motion(rig: str, clip_path) -> Motion:
+def rig_motion(rig: str, clip_path, lab_rigs) -> Motion:
     if rig == "shared data":
         return load_motion(clip_path("walk_normal_001"))
-    path, _, unit, _, _ = RIG_FILES[rig]
-    return load_motion(path, UNITS[unit])
+    return load_motion(lab_rigs[rig] / "take_01.bvh", UNITS[LAB_RIGS[rig].unit])
 
 
-@pytest.mark.parametrize("rig", ["shared data", *sorted(RIG_FILES)])
+@pytest.mark.parametrize("rig", ["shared data", *sorted(LAB_RIGS)])
 @pytest.mark.parametrize("up", ["y", "z"])
-def test_generation_and_analysis_find_the_same_up_axis_on_real_rigs(rig, up, clip_path):
+def test_generation_and_analysis_find_the_same_up_axis_on_real_rigs(rig, up, clip_path, lab_rigs):
     """The real takes as they are (y up) and turned z up: the BVH reader's rule (on the
     body below the hips) and the analysis' (on every joint but a reference on the floor)
     are one rule, and both find the axis the take stands along."""
-    motion = rig_motion(rig, clip_path)
+    motion = rig_motion(rig, clip_path, lab_rigs)
     # Z_UP_TO_Y_UP maps z-up points to y-up ones (p -> R p); its transpose turns them back.
     positions = motion.positions @ Z_UP_TO_Y_UP if up == "z" else motion.positions
     turned = Motion(positions, motion.fps, motion.skeleton)

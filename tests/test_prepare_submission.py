@@ -29,7 +29,6 @@ from studyapp.stimuli.clips import plan_stimuli
 from studyapp.stimuli.dispatch import queue_stimuli
 from studyapp.stimuli.submissions import check_submission, read_zip
 from tests.rig_variants import in_unit, z_up
-from tests.test_real_rigs import CMU, CMU_METRES
 from tests.test_render import decode
 from tests.test_study_researcher import (files, new_study, queue, researcher, run_task, site,  # noqa: F401 (fixtures)
                                          upload_checkpoint)
@@ -59,41 +58,48 @@ def test_files_are_matched_by_control_id_or_as_sample_numbers_its_clips(tmp_path
 
 
 @pytest.fixture(scope="module")
-def cmu_control():
+def cmu(lab_rigs) -> Path:
+    """A real walk on CMU's rig, in CMU units (``tests/lab_rigs.py``)."""
+    return lab_rigs["cmu"] / "take_01.bvh"
+
+
+@pytest.fixture(scope="module")
+def cmu_control(cmu):
     """A path the CMU take itself follows for 3 s, as a study's held-out control would be."""
-    (take,), _ = natural_takes(CMU.parent, names=[CMU.stem])
+    (take,), _ = natural_takes(cmu.parent, names=[cmu.stem])
     return take_paths([("walk", take.control)], 20.0, 3.0)[0]
 
 
-def test_a_take_in_cmu_units_and_in_metres_is_submitted_as_the_same_clip_at_the_controls_start(cmu_control, tmp_path):
+def test_a_take_in_cmu_units_and_in_metres_is_submitted_as_the_same_clip_at_the_controls_start(
+        cmu, cmu_control, lab_rigs, tmp_path):
     clips = {}
-    for source in (CMU, CMU_METRES):
-        folder = tmp_path / source.parent.name
+    for unit, source in (("cmu", cmu), ("metres", lab_rigs["cmu-metres"] / cmu.name)):
+        folder = tmp_path / unit
         folder.mkdir()
         shutil.copy(source, folder / "walk_00.bvh")
         report = prepare_submission([folder / "walk_00.bvh"], {"walk": cmu_control})
         assert report.accepted, report.lines()
-        clips[source] = report.results[0].motion
-    # The two files differ by their rounding only: 0.002 cm (tests/fixtures/rigs/cmu-3dsmax-metres/SOURCE.md).
-    np.testing.assert_allclose(clips[CMU].positions, clips[CMU_METRES].positions, atol=0.005)
-    moved = clips[CMU]
-    original = load_motion(CMU, 2.54 / 0.45).positions[::6][:60]  # 120 fps to 20: every sixth frame
+        clips[unit] = report.results[0].motion
+    # The two files differ by their rounding only: 0.0001 cm (tests/lab_rigs.py).
+    np.testing.assert_allclose(clips["cmu"].positions, clips["metres"].positions, atol=0.005)
+    moved = clips["cmu"]
+    original = load_motion(cmu, 2.54 / 0.45).positions[::6][:60]  # 120 fps to 20: every sixth frame
     for t in (0, 30, 59):  # a rigid motion on the floor: the same body, the same heights
         np.testing.assert_allclose(np.linalg.norm(moved.positions[t] - moved.positions[t, 0], axis=-1),
                                    np.linalg.norm(original[t] - original[t, 0], axis=-1), atol=1e-6)
         np.testing.assert_allclose(moved.positions[t, :, 1], original[t, :, 1], atol=1e-6)
 
 
-def test_every_refusal_is_listed_per_control_and_nothing_is_written(cmu_control, tmp_path, capsys):
+def test_every_refusal_is_listed_per_control_and_nothing_is_written(cmu, cmu_control, tmp_path, capsys):
     folder = tmp_path / "lab"
     folder.mkdir()
-    shutil.copy(CMU, folder / "walk.bvh")
-    text = CMU.read_bytes()
+    shutil.copy(cmu, folder / "walk.bvh")
+    text = cmu.read_bytes()
     head, rows = text.split(b"Frame Time: .0083333\n")
     (folder / "short.bvh").write_bytes(head.replace(b"Frames: 510", b"Frames: 200") + b"Frame Time: .0083333\n"
                                        + b"".join(rows.splitlines(keepends=True)[:200]))
     (folder / "broken.bvh").write_bytes(text[: len(text) // 2])
-    shutil.copy(CMU, folder / "astray.bvh")
+    shutil.copy(cmu, folder / "astray.bvh")
     (folder / "extra.bvh").write_bytes(text)
     controls = {name: cmu_control for name in ("walk", "short", "broken", "missing")}
     controls["astray"] = preset_path("walk-backward")  # the take walks forwards
@@ -104,18 +110,18 @@ def test_every_refusal_is_listed_per_control_and_nothing_is_written(cmu_control,
     said = capsys.readouterr().out.splitlines()
     assert said[0].startswith("motion units: CMU units (x5.64444 to cm), y up (unit detected")
     assert said[1].startswith("walk: walk.bvh: read as CMU units (x5.64444 to cm), y up; resampled from 120 to 20 "
-                              "fps; its first 60 of 85 frames (3 s); moved 1.93 m and turned -9 degrees to start at "
-                              "the origin facing +z; its root at most 3 cm from the path")
+                              "fps; its first 60 of 85 frames (3 s); moved 4.68 m and turned +2 degrees to start at "
+                              "the origin facing +z; its root at most 5 cm from the path")
     assert said[2] == ("short: short.bvh: refused: 34 frames (1.70 s) at 20 fps, shorter than its control's 60 "
                        "frames (3.00 s)")
     assert said[3].startswith(f"broken: broken.bvh: refused: unreadable ({folder / 'broken.bvh'}:")
     assert said[4] == "missing: no file: refused: no file named missing.bvh or missing_NN.bvh"
-    assert said[5].startswith("astray: astray.bvh: refused: the root strays 389 cm") and "tolerance is 100 cm" in said[5]
+    assert said[5].startswith("astray: astray.bvh: refused: the root strays 907 cm") and "tolerance is 100 cm" in said[5]
     assert said[6:] == ["named after no control, left out: extra.bvh", "1 of 5 controls ready, 4 refused: nothing written"]
     assert not out.exists()
     # Left where it was captured, the walk does not start where its control does.
     assert main(["prepare-submission", str(folder), "--controls", str(bundle), "-o", str(out), "--keep-root"]) == 2
-    assert "walk: walk.bvh: refused: the root strays 2" in capsys.readouterr().out and not out.exists()
+    assert "walk: walk.bvh: refused: the root strays 4" in capsys.readouterr().out and not out.exists()  # 4.68 m away
 
 
 def bundle_of(controls, folder):

@@ -1,13 +1,11 @@
-"""Real motion capture of other rigs (``tests/fixtures/rigs``, each with its SOURCE.md):
-a CMU take as the 3ds Max-friendly conversion writes it, in CMU units and in metres, and
-an ACCAD walk on CMU's ASF names. Every command runs on them as a lab would run it, and
-the two unit systems give the same motion."""
+"""Other labs' rigs and files (``tests/lab_rigs.py``): real walks on the rig of CMU's
+3ds Max-friendly conversion, in CMU units and in metres, and on ACCAD's rig with CMU's
+ASF names. Every command runs on them as a lab would run it, and the two unit systems
+give the same motion."""
 
 from __future__ import annotations
 
-import shutil
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,30 +16,55 @@ from generation.motion.bvh import load_motion, read_bvh, write_bvh
 from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
 from generation.motion.features import angle_feature_spec, encode_angles
 from generation.motion.npz import load_motion_npz
+from generation.motion.resample import resample
 from generation.motion.takes import natural_takes
 from generation.motion.units import skeleton_size
 from measures.units import UNITS
+from tests.lab_rigs import LAB_FPS, LAB_RIGS
 from tests.test_any_rig import figure_box
 
-RIGS = Path(__file__).parent / "fixtures" / "rigs"
-CMU = RIGS / "cmu-3dsmax" / "131_01.bvh"
-CMU_METRES = RIGS / "cmu-3dsmax-metres" / "scaled_131_01.bvh"
-ACCAD = RIGS / "accad" / "Swagger.bvh"
+TAKE = "take_01.bvh"  # each rig's first take, as the commands that read one file are given it
 
 
-def test_the_hips_look_up_the_spine_past_cmus_zero_offset_lowerback():
-    """CMU's spine starts at ``lowerback`` with OFFSET 0 0 0: "up" is the first spine
-    joint that stands apart, so an upright walker's hips neither pitch nor roll much."""
-    for path, scale in ((CMU, UNITS["cmu"]), (ACCAD, UNITS["cm"])):
-        motion = load_body_motion(path, 20.0, scale=scale)
+def test_the_lab_files_hold_the_real_walks_on_their_rigs_as_their_labs_write_them(lab_rigs, motion_data_2):
+    """What ``tests/lab_rigs.py`` promises of each file: the walk's own positions (to the
+    file's rounding), the rig's zero offsets where its lab has them, its line ends."""
+    for name, rig in LAB_RIGS.items():
+        path = lab_rigs[name] / TAKE
+        source = motion_data_2 / "data" / f"dataset-2_walk_{rig.sources[0]}.bvh"
+        walk = resample(read_bvh(source).to_motion(), LAB_FPS)
+        motion = load_motion(path, UNITS[rig.unit])
+        taken = [(j, walk.skeleton.index(s)) for j, (_, _, s) in enumerate(rig.joints) if isinstance(s, str)]
+        new, old = map(list, zip(*taken))
+        assert motion.n_frames == rig.frames and motion.fps == LAB_FPS
+        # Angles written to 2 decimals of a degree (ACCAD) move a hand by up to 0.02 cm.
+        np.testing.assert_allclose(motion.positions[:, new], walk.positions[:rig.frames, old], atol=0.03, err_msg=name)
+        zero = {n for n, o in zip(motion.skeleton.names[1:], motion.skeleton.offsets[1:]) if not o.any()}
+        children = [motion.skeleton.names[j] for j in np.nonzero(motion.skeleton.parents == 0)[0]]
+        text = path.read_bytes()
+        head, frames = text.split(b"MOTION")
+        if name == "accad":
+            assert zero == {"lowerback"} and motion.skeleton.names[0] == "root" and b"\r\n" in frames
+            assert b"Frames:\t581" in frames and children[0] == "lowerback" and children[1:3] == ["rfemur", "lfemur"]
+        else:
+            assert zero == {"LHipJoint", "RHipJoint", "lowerback", "lowerneck", "lhand", "rhand", "LThumb", "RThumb"}
+            assert motion.skeleton.n_joints == 31 and children == ["LHipJoint", "RHipJoint", "lowerback"]
+            assert (b"\r\n" in head) == (name == "cmu") and b"\r\n" not in frames.split(b"\n", 1)[1]
+
+
+def test_the_hips_look_up_the_spine_past_a_zero_offset_lowerback(lab_rigs):
+    """CMU's and ACCAD's spines start at ``lowerback`` with OFFSET 0 0 0: "up" is the first
+    spine joint that stands apart, so an upright walker's hips neither pitch nor roll much."""
+    for rig, scale in (("cmu", UNITS["cmu"]), ("accad", UNITS["cm"])):
+        motion = load_body_motion(lab_rigs[rig] / TAKE, 20.0, scale=scale)
         spec = angle_feature_spec(motion.skeleton)
         np.testing.assert_allclose(spec.alignment.T @ spec.alignment, np.eye(3), atol=1e-9)
         pitch_roll = np.degrees(np.abs(encode_angles(motion, spec).values[:, 4:6]))
-        assert np.isfinite(pitch_roll).all() and (np.median(pitch_roll, axis=0) < 10).all(), path.name
+        assert np.isfinite(pitch_roll).all() and (np.median(pitch_roll, axis=0) < 10).all(), rig
 
 
-def test_a_spine_that_never_stands_apart_from_the_hips_is_refused_naming_the_file(tmp_path):
-    bvh = read_bvh(CMU)
+def test_a_spine_that_never_stands_apart_from_the_hips_is_refused_naming_the_file(lab_rigs, tmp_path):
+    bvh = read_bvh(lab_rigs["cmu"] / TAKE)
     names = bvh.skeleton.names
     spine = [names.index(n) for n in ("lowerback", "Chest", "Chest2", "lowerneck", "Neck", "Head")]
     offsets = bvh.skeleton.offsets.copy()
@@ -55,31 +78,20 @@ def test_a_spine_that_never_stands_apart_from_the_hips_is_refused_naming_the_fil
                       progress=False)
 
 
-# Each rig's file, its unit (as the command line names it and as --scale does), what info says of its
+# Each rig's unit (as the command line names it and as --scale does), what info says of its
 # frames, and the body's foot-to-head length (``units.skeleton_size``) in cm.
-RIG_FILES = {"cmu": (CMU, "CMU units (x5.64444 to cm)", "cmu", "510 frames at 120 fps (4.25 s), 31 joints", 161.5),
-             "cmu-metres": (CMU_METRES, "metres (x100 to cm)", "m", "510 frames at 120 fps (4.25 s), 31 joints", 161.5),
-             "accad": (ACCAD, "centimetres", "cm", "581 frames at 120 fps (4.84 s), 22 joints", 155.2)}
+RIG_FILES = {"cmu": ("CMU units (x5.64444 to cm)", "cmu", "510 frames at 120 fps (4.25 s), 31 joints", 156.2),
+             "cmu-metres": ("metres (x100 to cm)", "m", "510 frames at 120 fps (4.25 s), 31 joints", 156.2),
+             "accad": ("centimetres", "cm", "581 frames at 120 fps (4.84 s), 22 joints", 156.2)}
 # The smallest MoGlow the cpu preset shrinks to: a few steps of training take seconds.
 TINY = ["--preset", "cpu", "--set", "steps=2", "--set", "tau=3", "--set", "lstm_hidden=16", "--set", "batch_size=4"]
 
 
-@pytest.fixture(scope="module")
-def rig_folders(tmp_path_factory) -> dict[str, Path]:
-    """Each rig's take three times over (a, b, c): three takes, so the seeded split has one
-    to hold out, one for validation and one to train on, as a lab's folder would."""
-    folders = {}
-    for name, (source, *_) in RIG_FILES.items():
-        folder = folders[name] = tmp_path_factory.mktemp(name)
-        for take in "abc":
-            shutil.copy(source, folder / f"{take}.bvh")
-    return folders
-
-
 @pytest.mark.parametrize("rig", sorted(RIG_FILES))
-def test_every_command_runs_on_a_real_rig_read_in_its_own_unit(rig, rig_folders, tmp_path, capsys):
-    source, unit, scale, frames, size = RIG_FILES[rig]
-    folder, cache = rig_folders[rig], str(tmp_path / "cache")
+def test_every_command_runs_on_a_real_rig_read_in_its_own_unit(rig, lab_rigs, tmp_path, capsys):
+    unit, scale, frames, size = RIG_FILES[rig]
+    folder, cache = lab_rigs[rig], str(tmp_path / "cache")
+    source = folder / TAKE
     said = f"motion units: {unit}, y up (unit detected from the skeleton's size"
 
     assert main(["info", str(source)]) == 0
@@ -102,8 +114,8 @@ def test_every_command_runs_on_a_real_rig_read_in_its_own_unit(rig, rig_folders,
     assert main(["natural", str(folder), "--out", str(natural), "--seconds", "3"]) == 0
     (clip,) = natural.glob("*.npz")
     assert load_motion_npz(clip).positions.shape == (60, body.skeleton.n_joints, 3)
-    assert main(["natural", str(folder), "--takes", "c", "--out", str(tmp_path / "named")]) == 0
-    assert load_motion_npz(tmp_path / "named" / "c.npz").n_frames == 80
+    assert main(["natural", str(folder), "--takes", "take_03", "--out", str(tmp_path / "named")]) == 0
+    assert load_motion_npz(tmp_path / "named" / "take_03.npz").n_frames == 80
 
     checkpoint = tmp_path / "tiny.safetensors"
     assert main(["train", str(folder), "--out", str(checkpoint), "--steps", "2", "--eval-every", "2", "--threads", "1",
@@ -125,12 +137,13 @@ def test_every_command_runs_on_a_real_rig_read_in_its_own_unit(rig, rig_folders,
     assert walk.skeleton.names == body.skeleton.names
 
 
-def test_the_cmu_take_in_cmu_units_and_in_metres_gives_the_same_datasets_and_natural_clips(rig_folders, tmp_path):
-    """The metres file is the CMU-unit file rounded to six decimals of a metre: 0.002 cm."""
-    datasets = [build_dataset(rig_folders[rig], DatasetOptions(), cache_dir=tmp_path, progress=False)
+def test_the_cmu_take_in_cmu_units_and_in_metres_gives_the_same_datasets_and_natural_clips(lab_rigs, tmp_path):
+    """The metres file rescales the CMU-unit file's numbers, rounded to a millionth of a
+    metre: they differ by 0.0001 cm."""
+    datasets = [build_dataset(lab_rigs[rig], DatasetOptions(), cache_dir=tmp_path, progress=False)
                 for rig in ("cmu", "cmu-metres")]
     assert [d.options.scale for d in datasets] == [UNITS["cmu"], UNITS["m"]]
     for key in ("pose", "control", "angles"):
         np.testing.assert_allclose(datasets[0].arrays[key], datasets[1].arrays[key], atol=0.005, err_msg=key)
-    takes = [natural_takes(rig_folders[rig], names=["a"])[0][0] for rig in ("cmu", "cmu-metres")]
+    takes = [natural_takes(lab_rigs[rig], names=["take_01"])[0][0] for rig in ("cmu", "cmu-metres")]
     np.testing.assert_allclose(takes[0].motion.positions, takes[1].motion.positions, atol=0.005)
