@@ -26,7 +26,7 @@ from django.utils import timezone
 from studyapp.models import Stimulus, System
 from studyapp.server.celery import app as celery_app
 from studyapp.stimuli.dispatch import queue_stimuli
-from studyapp.stimuli.lost_tasks import (LOST_AFTER_S, SAMPLING_TASK, beat, held_task_ids, lost_stimuli, resend_lost,
+from studyapp.stimuli.lost_tasks import (SAMPLING_TASK, beat, held_task_ids, lost_stimuli, resend_lost,
                                  waiting_task_ids)
 from tests.study_fixtures import make_study
 from tests.study_setup import study_files
@@ -81,13 +81,13 @@ def test_a_sampling_task_stands_for_the_rows_it_carries_waiting_and_held(queue):
 
 
 @pytest.mark.django_db
-def test_a_row_whose_message_is_gone_and_that_no_worker_touches_is_sent_again(queue):
+def test_a_row_whose_message_is_gone_and_that_no_worker_touches_is_sent_again(queue, settings):
     waiting, taken, held = sent(stimuli_of(System.Role.NATURAL))
     # A dead worker had taken `taken` from the queue (and its file with it); a live worker holds `held`.
     for message in queue.iterdir():
         if taken.task_id in message.read_text() or held.task_id in message.read_text():
             message.unlink()
-    age([waiting, taken, held], LOST_AFTER_S + 5)
+    age([waiting, taken, held], settings.STUDY_LOST_AFTER_S + 5)
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr("studyapp.stimuli.lost_tasks.worker_state.requests", {held.task_id: object()})
         beat(celery_app)  # this worker's beat: touches `held`, then sends what was lost
@@ -101,15 +101,20 @@ def test_a_row_whose_message_is_gone_and_that_no_worker_touches_is_sent_again(qu
 
 
 @pytest.mark.django_db
-def test_a_row_touched_within_the_minute_is_not_judged_lost(queue):
+def test_a_row_touched_within_the_minute_is_not_judged_lost(queue, settings):
     [row] = sent(stimuli_of(System.Role.NATURAL, controls=1))
     for message in queue.iterdir():
         message.unlink()
-    age([row], LOST_AFTER_S - 10)
+    age([row], settings.STUDY_LOST_AFTER_S - 10)
     assert lost_stimuli(set()) == []
     assert resend_lost(celery_app) == 0
-    age([row], LOST_AFTER_S + 1)
+    age([row], settings.STUDY_LOST_AFTER_S + 1)
     assert [s.pk for s in lost_stimuli(set())] == [row.pk]
+
+
+# The workers' re-send time shortened, as a deployment may (the default is 45 s): the
+# tests wait for it, and each rule holds at any time (three beats fit in it).
+QUICK_RESEND = {"STUDY_HEARTBEAT_S": "2", "STUDY_LOST_AFTER_S": "9"}
 
 
 @pytest.mark.slow
@@ -117,7 +122,7 @@ def test_a_whole_worker_killed_loses_no_stimulus(motion_data, tmp_path, tmp_path
     var = tmp_path / "var"
     files = study_files(motion_data, tmp_path_factory.getbasetemp())
     env = clean_env(STUDYAPP_VAR_DIR=str(var), MOTION_DATA=str(files.clips), DJANGO_SUPERUSER_PASSWORD="pw-for-tests",
-                    OMP_NUM_THREADS="1")
+                    OMP_NUM_THREADS="1", **QUICK_RESEND)
     controls = tmp_path / "three.json"
     controls.write_text(json.dumps([{"segments": [{"type": "straight", "speed": 100 + 10 * i, "seconds": 6}]}
                                     for i in range(3)]))
@@ -163,4 +168,4 @@ def test_a_whole_worker_killed_loses_no_stimulus(motion_data, tmp_path, tmp_path
     assert [status for _, status in rows] == ["done"] * 3
     assert sorted(p.name for p in stimuli_folder.iterdir()) == sorted(f"{token}.mp4" for token, _ in rows)  # no .part
     # Sent again within a minute of being judged lost, and three clips rendered besides.
-    assert recovered_in < LOST_AFTER_S + 60 + 90, recovered_in
+    assert recovered_in < float(QUICK_RESEND["STUDY_LOST_AFTER_S"]) + 60 + 90, recovered_in

@@ -166,6 +166,14 @@ _sample_batch = env_float("STUDY_SAMPLE_BATCH", 64)
 if _sample_batch < 1 or _sample_batch != int(_sample_batch):
     raise ImproperlyConfigured(f"STUDY_SAMPLE_BATCH={_sample_batch:g} is not a whole number of at least 1")
 STUDY_SAMPLE_BATCH = int(_sample_batch)
+# Every worker touches the rows of the tasks it holds each STUDY_HEARTBEAT_S; a row untouched
+# for STUDY_LOST_AFTER_S whose message is not waiting in the broker lost its task with its
+# worker and is sent again (studyapp.stimuli.lost_tasks). Three missed beats and some.
+STUDY_HEARTBEAT_S = env_float("STUDY_HEARTBEAT_S", 10.0)
+STUDY_LOST_AFTER_S = env_float("STUDY_LOST_AFTER_S", 45.0)
+if not 0 < 3 * STUDY_HEARTBEAT_S < STUDY_LOST_AFTER_S:
+    raise ImproperlyConfigured(f"STUDY_LOST_AFTER_S={STUDY_LOST_AFTER_S:g} must exceed three heartbeats "
+                               f"(STUDY_HEARTBEAT_S={STUDY_HEARTBEAT_S:g}, which must be positive)")
 
 # Uploaded checkpoints live here, named by content digest; never under MEDIA_ROOT,
 # which is served to the public.

@@ -6,9 +6,9 @@ A worker *process* killed mid-render is covered by ``acks_late`` with
 with it: kombu's filesystem broker has no redelivery at all, and Redis returns them only
 after its visibility timeout (an hour). Their rows would sit queued or running.
 
-So every worker beats a heart: each ``HEARTBEAT_S`` it touches (``updated``) the rows of
+So every worker beats a heart: each ``STUDY_HEARTBEAT_S`` (a setting, 10 s) it touches (``updated``) the rows of
 the tasks it holds, prefetched or running. A queued or running row untouched for
-``LOST_AFTER_S`` whose message is not waiting in the broker's queue has lost its task;
+``STUDY_LOST_AFTER_S`` (45 s) whose message is not waiting in the broker's queue has lost its task;
 the same beat finds such rows and sends them again. Sending gives a row a new task id,
 so the old message, should it ever come back, is ignored (``clips.claim``). Where the
 broker's queue cannot be listed, nothing is judged lost and the half-hour rule of
@@ -35,9 +35,6 @@ from studyapp.models import Stimulus
 from studyapp.stimuli.dispatch import queue_stimuli
 from studyapp.tasks import sample_stimuli
 
-HEARTBEAT_S = 10.0
-# Three missed beats and some: a worker that holds a task has touched its row by then.
-LOST_AFTER_S = 45.0
 IN_FLIGHT = (Stimulus.Status.QUEUED, Stimulus.Status.RUNNING)
 
 log = logging.getLogger(__name__)
@@ -99,8 +96,8 @@ def waiting_task_ids(connection: Connection, queue: str) -> set[str] | None:
 
 
 def lost_stimuli(waiting: set[str]) -> list[Stimulus]:
-    """Queued or running rows untouched for LOST_AFTER_S whose message is not in ``waiting``."""
-    cutoff = timezone.now() - timedelta(seconds=LOST_AFTER_S)
+    """Queued or running rows untouched for STUDY_LOST_AFTER_S whose message is not in ``waiting``."""
+    cutoff = timezone.now() - timedelta(seconds=settings.STUDY_LOST_AFTER_S)
     stale = Stimulus.objects.filter(status__in=IN_FLIGHT, updated__lt=cutoff)
     return [stimulus for stimulus in stale if stimulus.task_id not in waiting]
 
@@ -147,7 +144,7 @@ class Heartbeat(threading.Thread):
         self.app, self.stopped = app, threading.Event()
 
     def run(self) -> None:
-        while not self.stopped.wait(HEARTBEAT_S):
+        while not self.stopped.wait(settings.STUDY_HEARTBEAT_S):
             close_old_connections()  # this thread's own database connection, as a request's
             try:
                 beat(self.app)
