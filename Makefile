@@ -24,11 +24,15 @@ $(INSTALLED): pyproject.toml
 # The whole suite on SQLite (the embedded default, whatever DATABASE_URL says), then the
 # database tests again on PostgreSQL: the server DATABASE_URL names, or a throwaway
 # cluster (tests/postgres_pass.py; PostgreSQL is installed when missing).
+# Both passes run the test modules on TEST_WORKERS processes (pytest-xdist; a module stays
+# in one process, with its fixtures): most tests wait on a browser, a server or a worker as
+# much as they compute, so two processes on two cores take about half the time.
+TEST_WORKERS ?= 2
 test: $(INSTALLED)
 	scripts/ensure-redis.sh
 	scripts/ensure-chromium.sh
-	DATABASE_URL= $(BIN)/python -m pytest
-	$(BIN)/python -m tests.postgres_pass
+	DATABASE_URL= $(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile
+	$(BIN)/python -m tests.postgres_pass -n $(TEST_WORKERS) --dist loadfile
 
 demo: $(INSTALLED)
 	$(BIN)/python -m studyapp.server.demo

@@ -68,7 +68,9 @@ def test_a_graded_pairwise_study_answered_in_a_browser_reports_its_leaderboard_a
         assert (folder / "figures" / f"{name}.svg").stat().st_size > 0
     board = pd.read_csv(folder / "tables" / "leaderboard.csv")
     assert sorted(board["system"]) == ["MoGlow", "NAT", "RNN"] and board["resamples_used"].gt(0).all()
-    assert ((board["ci_low"] <= board["elo"]) & (board["elo"] <= board["ci_high"])).all()
+    # A percentile interval may end at the estimate itself (every resample reproduced it),
+    # to the last bits of rounding.
+    assert ((board["ci_low"] <= board["elo"] + 1e-6) & (board["elo"] <= board["ci_high"] + 1e-6)).all()
 
     # The report page in the browser: the leaderboard's table with its intervals, the heat maps drawn.
     context = browser.new_context(**DESKTOP)
