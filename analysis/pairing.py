@@ -200,6 +200,10 @@ def plan_pairs(votes: pd.DataFrame, systems: Sequence[str], pages: int, rng: np.
     more pages each pair of systems may take (a pair missing from it: none); the plan stops
     early when no pair may take more.
     """
+    if len(systems) < 2:
+        raise AnalysisInputError("pairing needs at least two systems")
+    if not 0.0 <= exploration <= 1.0:
+        raise AnalysisInputError(f"exploration must lie in [0, 1]; got {exploration}")
     state = pairing_state(votes, systems)
     where = {s: i for i, s in enumerate(state.systems)}
     for left, right in ([] if held is None else zip(held["system_left"], held["system_right"])):

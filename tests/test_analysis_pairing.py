@@ -118,6 +118,10 @@ def test_votes_of_unknown_systems_or_without_columns_are_refused():
         next_pair(some_votes().drop(columns="answer"), SYSTEMS, np.random.default_rng(0))
     with pytest.raises(AnalysisInputError, match="exploration must lie in"):
         choose_pair(PairingState.empty(SYSTEMS), np.random.default_rng(0), exploration=1.5)
+    with pytest.raises(AnalysisInputError, match="exploration must lie in"):  # even when no page is asked for
+        plan_pairs(some_votes(), SYSTEMS, 0, np.random.default_rng(0), exploration=5)
+    with pytest.raises(AnalysisInputError, match="pairing needs at least two systems"):
+        next_pair(some_votes().iloc[:0], ["A"], np.random.default_rng(0))
 
 
 def test_the_best_allocation_for_three_equal_systems_saves_two_minus_root_three_quarters():

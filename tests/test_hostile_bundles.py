@@ -9,6 +9,7 @@ writing a manifest that lists the change where the change is not the manifest's 
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import struct
@@ -24,6 +25,7 @@ from studyapp.bundles.manifest import entry_of
 from studyapp.bundles.pseudonyms import export_key
 from studyapp.bundles.writing import write_study_bundle
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
+from studyapp.plan.contents import canonical_json
 from studyapp.stimuli.clips import plan_stimuli, render_stimulus
 from studyapp.stimuli.controls import add_preset_controls
 from studyapp.stimuli.systems import add_checkpoint_system, add_natural_system, add_video_system
@@ -192,6 +194,27 @@ def test_a_plan_changed_after_it_was_locked_or_not_a_plan_is_refused(bundle, set
         "plan.json: the plan does not match its SHA-256: it was changed after it was locked")
     for hostile in ([], {"locked": "yes"}, {**locked, "extra": 1}, {**locked, "deviations": [{"at": 1}]}):
         assert "plan.json: " in refused(rewritten(bundle, {"plan.json": json.dumps(hostile).encode()}), settings)
+
+
+def test_a_plan_rehashed_without_what_a_plan_holds_is_refused(bundle, settings):
+    """The SHA-256 proves nothing against someone who recomputes it: the plan must also read as a plan."""
+    def locked(plan: dict, deviations: list) -> bytes:
+        sha256 = hashlib.sha256(canonical_json(plan).encode()).hexdigest()
+        return json.dumps({"locked": True, "plan": plan, "sha256": sha256, "locked_at": "2026-01-01T00:00:00+00:00",
+                           "deviations": deviations}).encode()
+
+    plan = {"design": {"name": "single", "settings": {}}}  # no rules, systems, analysis, participants
+    assert "plan.json: the plan lacks or garbles what a plan holds" in refused(
+        rewritten(bundle, {"plan.json": locked(plan, [])}), settings)
+    too_long = {"at": "2026-01-02T00:00:00+00:00", "field": "x" * 300, "old": 1, "new": 2, "recorded": True}
+    assert "plan.json: " in refused(rewritten(bundle, {"plan.json": locked(plan, [too_long])}), settings)
+
+
+def test_a_control_whose_natural_record_is_no_object_is_refused_naming_it(bundle, settings):
+    record = json.loads(members(bundle)["study.json"])
+    record["controls"][0] |= {"origin": "held-out", "natural": ["not", "an", "object"]}
+    message = refused(rewritten(bundle, {"study.json": json.dumps(record).encode()}), settings)
+    assert f"control signal {record['controls'][0]['name']!r}" in message and "natural" in message
 
 
 def test_an_unknown_format_version_is_refused(bundle, settings):

@@ -211,6 +211,18 @@ def test_create_study_from_a_mistaken_file_exits_with_status_2_and_one_line(owne
 
 
 @pytest.mark.django_db
+def test_describe_study_to_a_folder_or_into_a_missing_one_exits_with_status_2_and_writes_nothing(owner, tmp_path):
+    out = io.StringIO()
+    call_command("create_study", "researcher", "A title", stdout=out)
+    study = out.getvalue().strip()
+    for target in (tmp_path, tmp_path / "missing" / "study.yaml"):
+        with pytest.raises(CommandError) as error:
+            call_command("describe_study", study, "--out", str(target))
+        assert error.value.returncode == 2 and str(error.value) == f"{target}: give a file in an existing folder"
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.django_db
 def test_create_study_keeps_its_options(owner):
     out = io.StringIO()
     call_command("create_study", "researcher", "Sliders", "--design", "side-by-side", "--pages", "5", stdout=out)

@@ -54,7 +54,8 @@ from studyapp.definitions import DefinitionError, definition_yaml
 from studyapp.definitions.reading import read_definition
 from studyapp.models import (Assignment, ControlSignal, Participant, PreviousRun, Question, Rating, Stimulus,
                              StoredDataError, Study, System, new_token)
-from studyapp.plan.lock import restore_preregistration
+from studyapp.plan.lock import preregistration, restore_preregistration
+from studyapp.plan.words import plan_markdown
 from studyapp.stimuli.clips import CODE_VERSION, content_key
 from studyapp.stimuli.sources import sampled_folder
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER, stored_motion_digest
@@ -312,6 +313,10 @@ def _restore_plan(bundle: ReadBundle, study: Study) -> None:
         restore_preregistration(study, data)
     except (ValueError, TypeError, ValidationError) as error:
         raise BundleRefused(f"{name}: {error}") from None
+    try:  # as the plan page, the monitor and the report will read it
+        plan_markdown(preregistration(study))
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as error:
+        raise BundleRefused(f"{name}: the plan lacks or garbles what a plan holds ({error!r})") from None
 
 
 def _check_definition(bundle: ReadBundle, study: Study) -> None:
@@ -349,7 +354,7 @@ def import_study(stream: BinaryIO | str, owner, rerun: bool = False) -> Study:
                 else:
                     run.make_participants(study)
                     _restore_plan(bundle, study)
-        except (records.RecordError, DefinitionError, UploadRefused, MotionFileError) as error:
+        except (records.RecordError, DefinitionError, UploadRefused, MotionFileError, StoredDataError) as error:
             raise BundleRefused(str(error).replace(f"{scratch}/", "")) from None
     return study
 

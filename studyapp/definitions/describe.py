@@ -3,7 +3,9 @@
 
 A system is written by where its motion comes from: a checkpoint by its digest in the
 checkpoint store and the file name it was uploaded as, submitted motion by the digest of
-its stored clips, NAT by its role alone. A control is written by how it is made again:
+its stored clips, NAT by its role alone; a system of uploaded videos by their names, for
+the record only (a definition holds no videos, so ``create_study --from`` refuses it and
+says to add it on the systems page; a study bundle carries them). A control is written by how it is made again:
 a preset by name, a held-out control by its take, length and lead-in, a label control by
 its action, style and length, any other path by its velocities frame by frame. Its
 export id (the name other labs' files carry) is kept. A held-out take found in the
@@ -21,7 +23,7 @@ import yaml
 from generation.control import PRESETS, AttributeControl, PathControl, preset_path
 from generation.render.camera import Camera
 from studyapp.definitions import layout
-from studyapp.models import ControlSignal, Question, Study, System
+from studyapp.models import ControlSignal, Question, StoredDataError, Study, System, json_object
 from studyapp.stimuli.natural import data_folders
 
 
@@ -72,7 +74,9 @@ def _control(control: ControlSignal, trained: bool) -> dict:
     if control.origin == ControlSignal.Origin.HELD_OUT:
         held_out = {"take": control.source_clip, "seconds": control.seconds, "lead_in": control.lead_in_seconds}
         if control.natural:
-            folders = list(control.natural.get("folders", []))
+            folders = json_object(control, "natural").get("folders", [])
+            if not isinstance(folders, list) or not all(isinstance(folder, str) for folder in folders):
+                raise StoredDataError(control, "natural", "holds folders that are no list of paths")
             if folders != [str(folder.absolute()) for folder in data_folders()]:  # else MOTION_DATA's, wherever it is
                 held_out["folders"] = folders
             if not trained:  # checkpoints fix how their data is read; other takes were read in this unit and axis

@@ -130,9 +130,11 @@ def restore_preregistration(study: Study, data: dict) -> StudyPlan:
     with transaction.atomic():
         plan = StudyPlan.objects.create(study=study, canonical=canonical, sha256=data["sha256"],
                                         locked_at=data["locked_at"])
-        PlanDeviation.objects.bulk_create([
-            PlanDeviation(study=study, at=row["at"], field=row["field"], old=row["old"], new=row["new"])
-            for row in data["deviations"] if row["recorded"]])
+        rows = [PlanDeviation(study=study, at=row["at"], field=row["field"], old=row["old"], new=row["new"])
+                for row in data["deviations"] if row["recorded"]]
+        for row in rows:
+            row.full_clean(exclude=["study"])  # a field name too long for its column, a time that is none
+        PlanDeviation.objects.bulk_create(rows)
     return plan
 
 

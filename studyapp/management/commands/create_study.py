@@ -40,7 +40,10 @@ def read_definition_file(path: Path) -> bytes:
     if path.stat().st_size > MAX_DEFINITION_BYTES:
         raise InputError(f"{path}: {path.stat().st_size / 1e6:.1f} MB is over the {MAX_DEFINITION_BYTES / 1e6:g} MB "
                          "a study definition may be")
-    return path.read_bytes()
+    try:
+        return path.read_bytes()
+    except OSError as error:
+        raise InputError(f"{path}: cannot read it ({error.strerror or error})") from None
 
 
 class Command(BaseCommand):

@@ -38,6 +38,12 @@ class Command(BaseCommand):
         if options["out"] is None:
             self.stdout.write(text, ending="")
             return
-        with atomic_output(options["out"]) as tmp:
-            tmp.write_text(text, encoding="utf-8")
+        out: Path = options["out"]
+        if out.is_dir() or not out.parent.is_dir():
+            raise InputError(f"{out}: give a file in an existing folder")
+        try:
+            with atomic_output(out) as tmp:
+                tmp.write_text(text, encoding="utf-8")
+        except OSError as error:
+            raise InputError(f"{out}: cannot write it ({error.strerror or error})") from None
         self.stdout.write(f"{options['out']}: the definition of study {study.pk}")
