@@ -31,7 +31,8 @@ from analysis.tables import write_table
 if TYPE_CHECKING:
     from analysis.designs.base import RatingDesign
 
-POWER = 0.8
+ALPHA = 0.05  # the tests' significance level unless a report is asked for another
+POWER = 0.8  # the power the tables of ratings and participants needed plan for
 
 
 @dataclass
@@ -60,7 +61,7 @@ class DesignReport:
 
 
 def build_design_report(ratings: pd.DataFrame, design: RatingDesign, reference: str | None = None,
-                        rules: ExclusionRules = ExclusionRules(), alpha: float = 0.05,
+                        rules: ExclusionRules = ExclusionRules(), alpha: float = ALPHA,
                         continuity_correction: bool = False) -> DesignReport:
     """Run the analysis of a validated ratings table of ``design``; ``continuity_correction``
     applies to the Wilcoxon tests' normal approximation."""

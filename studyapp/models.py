@@ -17,6 +17,7 @@ from django.conf import settings
 from django.core.exceptions import ValidationError
 from django.db import models
 
+from analysis.design_report import ALPHA, POWER
 from analysis.designs import design_named as analysed_design
 from generation.control import Control, control_from_dict
 from generation.motion.dataset import DatasetOptions
@@ -266,7 +267,7 @@ class Study(models.Model):
                                                                f"{self.stop_after_failed_checks} failed never happens"})
         if self.expected_effect is not None:  # in the terms of the design's test, which checks its range
             try:
-                analysed_design(self.design).planned_units(self.expected_effect, 2, 0.05, 0.8)
+                analysed_design(self.design).planned_units(self.expected_effect, 2, ALPHA, POWER)
             except ValueError as error:
                 raise ValidationError({"expected_effect": str(error)}) from None
         problem = camera_problem(self.camera)

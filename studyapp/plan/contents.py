@@ -14,13 +14,12 @@ import hashlib
 import json
 from dataclasses import asdict
 
-from analysis.design_report import POWER
+from analysis.design_report import ALPHA, POWER
 from analysis.designs import design_named as analysed_design
 from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Study
 
-ALPHA = 0.05  # the report's (``analysis.report.build_report``'s default); its power is ``POWER``
 # The settings that shape what participants see and answer, and how many answers are
 # sought, besides the design's own (``Design.settings``, its count field); the rules'
 # settings (thresholds, early answers, full play) are planned as rules instead.

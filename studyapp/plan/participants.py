@@ -21,12 +21,11 @@ import random
 from collections import Counter
 from itertools import combinations
 
-from analysis.design_report import POWER
+from analysis.design_report import ALPHA, POWER
 from analysis.designs import design_named as analysed_design
 from studyapp.designs.base import PlannedPage
 from studyapp.designs.registry import design_of
 from studyapp.models import Stimulus, Study, System
-from studyapp.plan.contents import ALPHA
 
 # Past this many simulated participants the targets' number is not worth the time it takes.
 MOST_SIMULATED = 20_000
