@@ -17,6 +17,7 @@ described otherwise are another file.
 from __future__ import annotations
 
 import hashlib
+import re
 import json
 import os
 import shutil
@@ -33,6 +34,9 @@ if TYPE_CHECKING:
 
 DIGEST_KEY = "digest"
 SUFFIX = ".safetensors"
+# A SHA-256 as the store writes it (file names, digests): what a name must look like before
+# it becomes part of a path.
+SHA256_HEX = re.compile(r"[0-9a-f]{64}")
 
 
 class CheckpointError(ValueError):

@@ -46,7 +46,7 @@ from django.db import transaction
 
 from generation.files import atomic_folder, atomic_output
 from generation.motion.npz import MotionFileError, load_motion_npz
-from generation.store import CheckpointError, content_digest, read_header
+from generation.store import SHA256_HEX, SUFFIX, CheckpointError, content_digest, read_header
 from studyapp.bundles import records
 from studyapp.bundles.manifest import BundleRefused
 from studyapp.bundles.reading import ReadBundle, read_bundle
@@ -62,7 +62,7 @@ from studyapp.stimuli.submissions import SUBMITTED_FOLDER, stored_motion_digest
 from studyapp.stimuli.systems import UploadRefused, checked_checkpoint, video_duration
 
 # What names a file (a digest, a stimulus's token) must look like before it becomes part of a path.
-DIGEST, TOKEN = re.compile(r"[0-9a-f]{64}"), re.compile(r"[0-9A-Za-z_-]{1,32}")
+TOKEN = re.compile(r"[0-9A-Za-z_-]{1,32}")
 
 
 def _file_name(value: object, pattern: re.Pattern, what: str, where: str) -> str:
@@ -156,9 +156,9 @@ class _Import:
         where = f"{records.STUDY_FILE}: system {system.name!r}"
         if not (system.checkpoint or system.source_kind == System.SourceKind.SUBMITTED):
             return
-        digest = _file_name(system.checkpoint_digest, DIGEST, "digest", where)
+        digest = _file_name(system.checkpoint_digest, SHA256_HEX, "digest", where)
         if system.checkpoint:
-            name = f"{digest}.safetensors"
+            name = f"{digest}{SUFFIX}"
             if system.checkpoint != name:
                 raise records.RecordError(f"{where}: its checkpoint must be named by its digest ({name})")
             path = self.bundle.path(f"{records.CHECKPOINTS}{name}")

@@ -11,17 +11,17 @@ from __future__ import annotations
 
 import hashlib
 import json
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
+
+from generation.store import SHA256_HEX
 
 FORMAT = "motion-study bundle"
 VERSION = 1
 SUPPORTED_VERSIONS = (1,)
 MANIFEST_NAME = "manifest.json"
 MAX_MANIFEST_BYTES = 10_000_000  # 10,000 entries of a few hundred bytes each, many times over
-_SHA256 = re.compile(r"[0-9a-f]{64}")
 
 
 class BundleRefused(ValueError):
@@ -97,7 +97,7 @@ def parse_manifest(text: bytes) -> Manifest:
         raise refuse("'files' must be an object of file names")
     entries = {}
     for name, entry in files.items():
-        if not (isinstance(entry, dict) and isinstance(entry.get("sha256"), str) and _SHA256.fullmatch(entry["sha256"])
+        if not (isinstance(entry, dict) and isinstance(entry.get("sha256"), str) and SHA256_HEX.fullmatch(entry["sha256"])
                 and type(entry.get("bytes")) is int and entry["bytes"] >= 0):
             raise refuse(f"the entry of {name!r} must be {{\"sha256\": 64 hex digits, \"bytes\": a size}}")
         entries[name] = Entry(entry["sha256"], entry["bytes"])

@@ -26,6 +26,7 @@ from django.conf import settings
 
 from generation.checkpoint import code_version
 from generation.files import atomic_output
+from generation.store import SUFFIX
 from studyapp.bundles import records
 from studyapp.bundles.manifest import MANIFEST_NAME, VERSION, Entry, Manifest, entry_of, file_entry
 from studyapp.definitions import definition_yaml
@@ -92,7 +93,7 @@ def stored_files(study: Study, with_videos: bool) -> tuple[dict[str, Path], set[
     files: dict[str, Path] = {}
     for system in study.systems.order_by("pk"):
         if system.checkpoint:
-            files[f"{records.CHECKPOINTS}{system.checkpoint_digest}.safetensors"] = _file(
+            files[f"{records.CHECKPOINTS}{system.checkpoint_digest}{SUFFIX}"] = _file(
                 system.checkpoint_path(), f"the checkpoint of {system.name}")
         elif system.source_kind == System.SourceKind.SUBMITTED:
             folder = Path(settings.CHECKPOINT_ROOT) / json_object(system, "metadata").get("folder", "")

@@ -14,7 +14,6 @@ Everything is made in one transaction: a definition refused anywhere leaves no r
 
 from __future__ import annotations
 
-import re
 import secrets
 from pathlib import Path as FilePath
 
@@ -29,6 +28,7 @@ from django.db import transaction
 from generation import registry
 from generation.control import PathControl
 from generation.render.camera import Camera
+from generation.store import SHA256_HEX
 from generation.store import SUFFIX as CHECKPOINT_SUFFIX
 from studyapp.bounds import check_field
 from studyapp.definitions import layout
@@ -44,7 +44,6 @@ from studyapp.stimuli.controls import (ControlError, add_held_out_controls, add_
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER, Reading, add_submitted_system, read_folder
 from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system, add_natural_system
 
-DIGEST = re.compile(r"[0-9a-f]{64}")
 
 
 def _where(path: Path) -> str:
@@ -130,7 +129,7 @@ class _Builder:
             self.stop()
 
     def digest(self, path: Path, value: str) -> str:
-        if not DIGEST.fullmatch(value):
+        if not SHA256_HEX.fullmatch(value):
             raise self.fail(path, f"{_where(path)} must be a SHA-256 digest (64 hexadecimal digits), not {value[:80]!r}")
         return value
 
