@@ -246,7 +246,10 @@ def _split(text: str | None) -> list[str] | None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if getattr(args, "previous_rules", None) and not args.previous:
+        parser.error("--previous-rules needs --previous (the previous run's ratings)")
     try:
         return _run(args)
     except AnalysisInputError as exc:

@@ -80,6 +80,13 @@ def test_help_describes_the_report_command(capsys):
     assert "--reference" in capsys.readouterr().out
 
 
+def test_previous_rules_without_the_previous_ratings_is_refused_not_ignored(capsys, tmp_path):
+    with pytest.raises(SystemExit) as stop:
+        main(["report", "ratings.csv", "--previous-rules", "rules.json", "--out", str(tmp_path / "out")])
+    assert stop.value.code == 2 and "--previous-rules needs --previous" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
 def test_missing_reference_system_is_a_clear_error(ratings):
     with pytest.raises(AnalysisInputError, match="reference system 'GAN' does not exist"):
         build_report(validate_ratings(ratings), reference="GAN")
