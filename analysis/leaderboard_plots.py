@@ -57,12 +57,12 @@ def heat_map_plot(pairs: pd.DataFrame, board: pd.DataFrame, value: str) -> Figur
 
 def pairing_plot(summary: pd.DataFrame) -> Figure:
     """`analysis.pairing_simulation.pairing_summary`: Kendall's tau and the mean interval
-    width against the votes, one line per design, error bars of one standard error."""
+    width against the votes, one line per pairing, error bars of one standard error."""
     fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.4))
-    for design, frame in summary.groupby("design", sort=True):
+    for pairing, frame in summary.groupby("pairing", sort=True):
         for ax, (value, error) in zip(axes, (("kendall_tau", "tau_se"), ("mean_width", "width_se"))):
             ax.errorbar(frame["votes"], frame[value], yerr=frame[error], marker="o", capsize=3,
-                        label=plain_text(design))
+                        label=plain_text(pairing))
     axes[0].set_ylabel("Kendall's tau with the true order")
     axes[1].set_ylabel("mean 95 % interval width (Elo)")
     for ax in axes:

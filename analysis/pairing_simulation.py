@@ -10,19 +10,19 @@ per participant, participant after participant, the pair of each page chosen
 
 and answered on five levels by `analysis.graded_votes` (drawn so that the weighted
 Bradley-Terry model holds in expectation whatever the pairs shown, so the true Elo is
-what the leaderboard estimates under either design).
+what the leaderboard estimates under either pairing).
 
 At each checkpoint (a number of votes) the study's leaderboard (`analysis.leaderboard`:
 weighted Bradley-Terry, bootstrap over participants) gives Kendall's tau between the
 estimated and the true order, the mean width of the 95 % intervals of the systems other
 than the anchor, and whether each of those intervals covers the true Elo.
 
-`votes_saved` reads the summary per design and checkpoint: for each uniform checkpoint,
-the votes at which the adaptive design reaches the same mean tau and the same mean
+`votes_saved` reads the summary per pairing and checkpoint: for each uniform checkpoint,
+the votes at which the adaptive pairing reaches the same mean tau and the same mean
 width (interpolated linearly between its checkpoints; the larger of the two), and the
 share of votes saved. `best_allocation_saving` is the ceiling: the saving of the best
 fixed allocation of pages over pairs for the true strengths (minimising the sum of
-standard errors, the adaptive criterion), which no design can beat asymptotically.
+standard errors, the adaptive criterion), which no pairing can beat asymptotically.
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ from analysis.pairing import EXPLORATION, PairingState, choose_pair, current_fit
 from analysis.tables import write_table
 
 UNIFORM, ADAPTIVE = "uniform", "adaptive"
-DESIGNS = (UNIFORM, ADAPTIVE)
+PAIRINGS = (UNIFORM, ADAPTIVE)
 # NAT on top, one system close to it, a cluster of similar ones, weaker baselines far below
 DEFAULT_ELO = {"NAT": 1000.0, "S1": 940.0, "S2": 880.0, "S3": 860.0, "S4": 760.0,
                "S5": 740.0, "S6": 720.0, "S7": 560.0, "S8": 480.0, "S9": 300.0}
@@ -77,15 +77,15 @@ class Scenario:
         return (values - values[0]) / ELO_PER_LOG_ODDS
 
 
-def simulate_votes(scenario: Scenario, design: str, votes: int, seed: int) -> pd.DataFrame:
+def simulate_votes(scenario: Scenario, pairing: str, votes: int, seed: int) -> pd.DataFrame:
     """One study's pages in order: participant, system_left, system_right, answer,
     strength, weight."""
-    if design not in DESIGNS:
-        raise AnalysisInputError(f"design must be one of {', '.join(DESIGNS)}; got {design!r}")
+    if pairing not in PAIRINGS:
+        raise AnalysisInputError(f"pairing must be one of {', '.join(PAIRINGS)}; got {pairing!r}")
     rng = np.random.default_rng(seed)
     truth = scenario.log_strength
     k = len(truth)
-    if design == UNIFORM:
+    if pairing == UNIFORM:
         first, second = np.triu_indices(k, 1)
         pair = rng.integers(len(first), size=votes)
         swap = rng.random(votes) < 0.5
@@ -133,20 +133,20 @@ def score_study(pages: pd.DataFrame, scenario: Scenario, checkpoints: Sequence[i
 
 
 def _one_study(job: tuple[Scenario, str, int, Sequence[int], int]) -> list[dict]:
-    scenario, design, study, checkpoints, seed = job
-    study_seed = int(np.random.SeedSequence([seed, study, DESIGNS.index(design)]).generate_state(1)[0])
+    scenario, pairing, study, checkpoints, seed = job
+    study_seed = int(np.random.SeedSequence([seed, study, PAIRINGS.index(pairing)]).generate_state(1)[0])
     with one_blas_thread():
-        pages = simulate_votes(scenario, design, max(checkpoints), study_seed)
+        pages = simulate_votes(scenario, pairing, max(checkpoints), study_seed)
         rows = score_study(pages, scenario, checkpoints, study_seed)
-    return [{"design": design, "study": study, **row} for row in rows]
+    return [{"pairing": pairing, "study": study, **row} for row in rows]
 
 
-def compare_designs(scenario: Scenario, studies: int, checkpoints: Sequence[int] = DEFAULT_VOTES,
-                    seed: int = 0, workers: int = 1) -> pd.DataFrame:
-    """Per design, study and checkpoint: votes, kendall_tau, mean_width, covered.
-    Study s of a design is seeded by (seed, s, design), whatever ``workers`` is."""
-    jobs = [(scenario, design, study, sorted(checkpoints), seed)
-            for design in DESIGNS for study in range(studies)]
+def compare_pairings(scenario: Scenario, studies: int, checkpoints: Sequence[int] = DEFAULT_VOTES,
+                     seed: int = 0, workers: int = 1) -> pd.DataFrame:
+    """Per pairing, study and checkpoint: votes, kendall_tau, mean_width, covered.
+    Study s of a pairing is seeded by (seed, s, pairing), whatever ``workers`` is."""
+    jobs = [(scenario, pairing, study, sorted(checkpoints), seed)
+            for pairing in PAIRINGS for study in range(studies)]
     if workers > 1:
         with ProcessPoolExecutor(workers) as pool:
             results = list(pool.map(_one_study, jobs, chunksize=1))
@@ -156,11 +156,11 @@ def compare_designs(scenario: Scenario, studies: int, checkpoints: Sequence[int]
 
 
 def pairing_summary(results: pd.DataFrame) -> pd.DataFrame:
-    """Per design and votes: studies (with a fit), and the mean over studies with its
+    """Per pairing and votes: studies (with a fit), and the mean over studies with its
     standard error of kendall_tau, mean_width and coverage (each study's share of
     intervals covering the truth: the intervals of one study are not independent, so the
     error is taken over studies)."""
-    grouped = results.groupby(["design", "votes"], sort=True)
+    grouped = results.groupby(["pairing", "votes"], sort=True)
     return grouped.agg(studies=("kendall_tau", "count"),
                        kendall_tau=("kendall_tau", "mean"), tau_se=("kendall_tau", "sem"),
                        mean_width=("mean_width", "mean"), width_se=("mean_width", "sem"),
@@ -183,10 +183,10 @@ def _votes_to_reach(votes: np.ndarray, values: np.ndarray, target: float, higher
 def votes_saved(summary: pd.DataFrame) -> pd.DataFrame:
     """Per uniform checkpoint: its mean tau and width, the adaptive votes that reach each
     (NaN beyond the adaptive checkpoints), the votes that reach both, and the saving;
-    ``at_least`` where both were reached at the first checkpoint, so the adaptive design
+    ``at_least`` where both were reached at the first checkpoint, so the adaptive pairing
     may need fewer votes still."""
-    uniform = summary[summary["design"] == UNIFORM].sort_values("votes")
-    adaptive = summary[summary["design"] == ADAPTIVE].sort_values("votes")
+    uniform = summary[summary["pairing"] == UNIFORM].sort_values("votes")
+    adaptive = summary[summary["pairing"] == ADAPTIVE].sort_values("votes")
     votes = adaptive["votes"].to_numpy(np.float64)
     rows = []
     for row in uniform.itertuples(index=False):
@@ -226,7 +226,7 @@ def pairing_text(scenario: Scenario, summary: pd.DataFrame, saved: pd.DataFrame,
                  studies: int, seed: int) -> str:
     """The simulation's setting and findings in words."""
     truth = ", ".join(f"{s} {v:g}" for s, v in scenario.elo.items())
-    text = (f"{studies} simulated studies per design of a {len(scenario.elo)}-system pairwise "
+    text = (f"{studies} simulated studies per pairing of a {len(scenario.elo)}-system pairwise "
             f"study (true Elo: {truth}; the first is the anchor), {scenario.pages_per_participant} "
             f"pages per participant, five-level answers, adaptive exploration epsilon = "
             f"{scenario.exploration:g}, seed {seed}; each scored with the leaderboard (weighted "
@@ -240,7 +240,7 @@ def pairing_text(scenario: Scenario, summary: pd.DataFrame, saved: pd.DataFrame,
                  f"{_votes_phrase(row.adaptive_votes_for_width, row.uniform_votes, first)}.")
     text += (f" The best fixed allocation for the true strengths would save {ceiling * 100:.0f} % "
              "of the votes at equal standard errors.")
-    coverage = ", ".join(f"{r.design} at {r.votes:,} votes {r.coverage * 100:.1f} % "
+    coverage = ", ".join(f"{r.pairing} at {r.votes:,} votes {r.coverage * 100:.1f} % "
                          f"(± {r.coverage_se * 100:.1f})" for r in summary.itertuples(index=False)
                          if r.votes == summary["votes"].max())
     return text + f" Coverage of the true Elo by the intervals: {coverage}."
@@ -265,7 +265,7 @@ def write_pairing_simulation(scenario: Scenario, results: pd.DataFrame, folder: 
     text = pairing_text(scenario, summary, saved, best_allocation_saving(scenario), studies, seed)
     written = write_table(results, folder / "tables", "pairing_studies", formats=("csv",))
     written += write_table(summary, folder / "tables", "pairing_summary",
-                           caption="Kendall's tau, mean interval width and coverage per design and votes.")
+                           caption="Kendall's tau, mean interval width and coverage per pairing and votes.")
     written += write_table(saved, folder / "tables", "votes_saved",
                            caption="Votes adaptive pairing needs to match uniform pairing.")
     written += plots.save_figure(pairing_plot(summary), folder / "figures", "pairing")

@@ -25,7 +25,7 @@ from analysis.exclusions import apply_exclusions, compared_ratings, exclusion_no
 from analysis.leaderboard import MODELS, RESAMPLES
 from analysis.leaderboard_report import build_leaderboard, leaderboard_text, write_leaderboard
 from analysis.pairing import EXPLORATION
-from analysis.pairing_simulation import (DEFAULT_ELO, DEFAULT_VOTES, Scenario, compare_designs,
+from analysis.pairing_simulation import (DEFAULT_ELO, DEFAULT_VOTES, Scenario, compare_pairings,
                                          write_pairing_simulation)
 from analysis.rater_models import build_rater_models, rater_models_text, write_rater_models
 from analysis.ratings import read_ratings
@@ -84,7 +84,7 @@ def add_commands(commands) -> None:
                           help="true Elo per system as NAME=ELO,... (the first is the anchor; "
                                "default: " + ",".join(f"{s}={v:g}" for s, v in DEFAULT_ELO.items()) + ")")
     simulate.add_argument("--studies", type=_count(1), default=200,
-                          help="simulated studies per design (default %(default)s)")
+                          help="simulated studies per pairing (default %(default)s)")
     simulate.add_argument("--votes", type=_votes, default=DEFAULT_VOTES,
                           help="checkpoints, comma-separated numbers of votes (default "
                                + ",".join(map(str, DEFAULT_VOTES)) + ")")
@@ -185,7 +185,7 @@ def leaderboard_command(args: argparse.Namespace, out: Path) -> list[str]:
 
 def simulate_pairing_command(args: argparse.Namespace, out: Path) -> list[str]:
     scenario = Scenario(args.elo, args.pages_per_participant, args.exploration, resamples=args.resamples)
-    results = compare_designs(scenario, args.studies, args.votes, args.seed, args.workers)
+    results = compare_pairings(scenario, args.studies, args.votes, args.seed, args.workers)
     written, text = write_pairing_simulation(scenario, results, out, args.studies, args.seed)
     return [text, f"wrote {len(written)} files"]
 

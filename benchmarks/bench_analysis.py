@@ -108,18 +108,16 @@ def main(argv=None) -> int:
     parser.add_argument("--repeat", type=int, default=3, help="runs per benchmark (best is kept)")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
-        report_s = min(bench_report(Path(tmp)) for _ in range(args.repeat))
-        design_s = {design: min(bench_report(Path(tmp), design) for _ in range(args.repeat))
-                    for design in ("side-by-side", "pairwise")}
+        design_s = {kind: min(bench_report(Path(tmp), kind) for _ in range(args.repeat)) for kind in SIMULATED}
     objective_s = min(bench_objective() for _ in range(args.repeat))
     results = {
         "machine": machine(), "import_s": round(IMPORT_S, 3),
-        "full_report_100k_ratings_s": round(report_s, 3), "full_report_target_s": REPORT_TARGET_S,
+        "full_report_100k_ratings_s": round(design_s["single"], 3), "full_report_target_s": REPORT_TARGET_S,
         "side_by_side_report_100k_ratings_s": round(design_s["side-by-side"], 3),
         "pairwise_report_50k_pages_s": round(design_s["pairwise"], 3),
         "objective_1000_clips_s": round(objective_s, 3), "objective_target_s": OBJECTIVE_TARGET_S,
     }
-    passed = (max(report_s, *design_s.values()) < REPORT_TARGET_S
+    passed = (max(design_s.values()) < REPORT_TARGET_S
               and objective_s < OBJECTIVE_TARGET_S)
     results["passed"] = passed
     if args.json:
@@ -130,8 +128,8 @@ def main(argv=None) -> int:
               f"numpy {m['numpy']}, scipy {m['scipy']}, pandas {m['pandas']}, "
               f"matplotlib {m['matplotlib']}")
         print(f"imports (once per process): {IMPORT_S:.2f} s")
-        print(f"full report, 100,000 ratings x 10 systems x 2 tasks: {report_s:.2f} s "
-              f"(target {REPORT_TARGET_S:g} s) {'ok' if report_s < REPORT_TARGET_S else 'MISSED'}")
+        print(f"full report, 100,000 ratings x 10 systems x 2 tasks: {design_s['single']:.2f} s "
+              f"(target {REPORT_TARGET_S:g} s) {'ok' if design_s['single'] < REPORT_TARGET_S else 'MISSED'}")
         for design, seconds in design_s.items():
             print(f"full report, {design} pages: {seconds:.2f} s (target {REPORT_TARGET_S:g} s) "
                   f"{'ok' if seconds < REPORT_TARGET_S else 'MISSED'}")

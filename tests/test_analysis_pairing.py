@@ -10,7 +10,7 @@ import pytest
 from analysis.errors import AnalysisInputError
 from analysis.pairing import (PRIOR_TIES, PairingState, choose_pair, current_fit,
                               expected_standard_errors, next_pair, pairing_state, plan_pairs)
-from analysis.pairing_simulation import (Scenario, best_allocation_saving, compare_designs,
+from analysis.pairing_simulation import (Scenario, best_allocation_saving, compare_pairings,
                                          pairing_summary, simulate_votes, votes_saved)
 
 SYSTEMS = ["NAT", "A", "B", "C", "D"]
@@ -132,7 +132,7 @@ def test_the_best_allocation_for_three_equal_systems_saves_two_minus_root_three_
 
 def test_votes_saved_interpolates_between_checkpoints():
     summary = pd.DataFrame({
-        "design": ["uniform"] * 2 + ["adaptive"] * 2, "votes": [100, 200] * 2,
+        "pairing": ["uniform"] * 2 + ["adaptive"] * 2, "votes": [100, 200] * 2,
         "kendall_tau": [0.8, 0.9, 0.85, 0.95], "mean_width": [200.0, 150.0, 180.0, 120.0]})
     saved = votes_saved(summary).set_index("uniform_votes")
     assert saved.loc[100, "at_least"] and saved.loc[100, "saving"] == 0.0
@@ -143,9 +143,9 @@ def test_votes_saved_interpolates_between_checkpoints():
 
 def test_a_small_seeded_simulation_is_reproducible_and_adaptive_pairing_narrows_the_intervals():
     scenario = Scenario({"NAT": 1000.0, "A": 800.0, "B": 600.0, "C": 400.0, "D": 200.0}, resamples=200)
-    results = compare_designs(scenario, studies=8, checkpoints=(600,), seed=4)
-    pd.testing.assert_frame_equal(results.iloc[:1], compare_designs(scenario, 1, (600,), seed=4).iloc[:1])
-    summary = pairing_summary(results).set_index(["design", "votes"])
+    results = compare_pairings(scenario, studies=8, checkpoints=(600,), seed=4)
+    pd.testing.assert_frame_equal(results.iloc[:1], compare_pairings(scenario, 1, (600,), seed=4).iloc[:1])
+    summary = pairing_summary(results).set_index(["pairing", "votes"])
     assert summary.loc[("adaptive", 600), "mean_width"] < summary.loc[("uniform", 600), "mean_width"]
     pages = simulate_votes(scenario, "adaptive", 600, seed=1)
     shown = pd.crosstab(pages["system_left"], pages["system_right"])
