@@ -17,9 +17,9 @@ described otherwise are another file.
 from __future__ import annotations
 
 import hashlib
-import re
 import json
 import os
+import re
 import shutil
 from collections.abc import Mapping
 from pathlib import Path

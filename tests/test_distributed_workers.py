@@ -37,7 +37,7 @@ import pytest
 from tests.postgres_pass import is_postgres
 from tests.study_setup import study_files
 from tests.test_celery_roundtrip import clean_env, require_redis
-from tests.test_lost_tasks import QUICK_RESEND
+from tests.test_lost_tasks import QUICK_HEARTBEAT_S, QUICK_LOST_AFTER_S, QUICK_RESEND
 from tests.throwaway_postgres import free_port, throwaway_postgres
 
 REPO = Path(__file__).resolve().parents[1]
@@ -187,7 +187,6 @@ def test_a_rendering_worker_killed_mid_batch_leaves_every_stimulus_rendered_once
     # machine, so the worker is caught holding a batch while it renders.
     controls.write_text(json.dumps([{"segments": [{"type": "straight", "speed": 90 + 15 * i, "seconds": 8}]}
                                     for i in range(4)]))
-    lost_after_s, heartbeat_s = float(QUICK_RESEND["STUDY_LOST_AFTER_S"]), float(QUICK_RESEND["STUDY_HEARTBEAT_S"])
     run = uuid.uuid4().hex[:8]
     sample_queue, render_queue = f"sample-{run}", f"render-{run}"
     var = tmp_path / "var"  # shared by every process: uploaded checkpoints, sampled motion, media
@@ -246,7 +245,7 @@ def test_a_rendering_worker_killed_mid_batch_leaves_every_stimulus_rendered_once
             def progress() -> dict:
                 return json.loads(researcher.get(f"/studies/{study}/stimuli/progress.json"))
 
-            state = wait_for(lambda: (s := progress())["counts"]["done"] == s["total"] and s, lost_after_s + 180,
+            state = wait_for(lambda: (s := progress())["counts"]["done"] == s["total"] and s, QUICK_LOST_AFTER_S + 180,
                              "every stimulus to be done", processes)
             recovered_in = time.monotonic() - killed_at
             with psycopg.connect(database_url) as db:
@@ -267,7 +266,7 @@ def test_a_rendering_worker_killed_mid_batch_leaves_every_stimulus_rendered_once
     assert video[4:8] == b"ftyp"  # the web process serves what the workers rendered on the shared folder
     # The lost clips were found and sent again by a heartbeat, within the re-send time.
     assert "lost with their worker" in processes.log("render-again") + processes.log("gpu")
-    assert recovered_in < lost_after_s + 2 * heartbeat_s + 60, recovered_in
+    assert recovered_in < QUICK_LOST_AFTER_S + 2 * QUICK_HEARTBEAT_S + 60, recovered_in
     # Sampling on the sampling worker alone, rendering on the rendering workers alone.
     sampler = processes.log("gpu")
     assert "Task studyapp.tasks.sample_stimuli[" in sampler and "generate_stimulus[" not in sampler

@@ -114,7 +114,8 @@ def test_a_row_touched_within_the_minute_is_not_judged_lost(queue, settings):
 
 # The workers' re-send time shortened, as a deployment may (the default is 45 s): the
 # tests wait for it, and each rule holds at any time (three beats fit in it).
-QUICK_RESEND = {"STUDY_HEARTBEAT_S": "2", "STUDY_LOST_AFTER_S": "9"}
+QUICK_HEARTBEAT_S, QUICK_LOST_AFTER_S = 2.0, 9.0
+QUICK_RESEND = {"STUDY_HEARTBEAT_S": str(QUICK_HEARTBEAT_S), "STUDY_LOST_AFTER_S": str(QUICK_LOST_AFTER_S)}
 
 
 @pytest.mark.slow
@@ -168,4 +169,4 @@ def test_a_whole_worker_killed_loses_no_stimulus(motion_data, tmp_path, tmp_path
     assert [status for _, status in rows] == ["done"] * 3
     assert sorted(p.name for p in stimuli_folder.iterdir()) == sorted(f"{token}.mp4" for token, _ in rows)  # no .part
     # Sent again within a minute of being judged lost, and three clips rendered besides.
-    assert recovered_in < float(QUICK_RESEND["STUDY_LOST_AFTER_S"]) + 60 + 90, recovered_in
+    assert recovered_in < QUICK_LOST_AFTER_S + 60 + 90, recovered_in

@@ -28,8 +28,7 @@ from django.db import transaction
 from generation import registry
 from generation.control import PathControl
 from generation.render.camera import Camera
-from generation.store import SHA256_HEX
-from generation.store import SUFFIX as CHECKPOINT_SUFFIX
+from generation.store import SHA256_HEX, SUFFIX as CHECKPOINT_SUFFIX
 from studyapp.bounds import check_field
 from studyapp.definitions import layout
 from studyapp.definitions.errors import DefinitionError
@@ -43,7 +42,6 @@ from studyapp.stimuli.controls import (ControlError, add_held_out_controls, add_
                                        add_preset_controls, control_kind, study_labels)
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER, Reading, add_submitted_system, read_folder
 from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system, add_natural_system
-
 
 
 def _where(path: Path) -> str:

@@ -5,10 +5,10 @@ A system is written by where its motion comes from: a checkpoint by its digest i
 checkpoint store and the file name it was uploaded as, submitted motion by the digest of
 its stored clips, NAT by its role alone; a system of uploaded videos by their names, for
 the record only (a definition holds no videos, so ``create_study --from`` refuses it and
-says to add it on the systems page; a study bundle carries them). A control is written by how it is made again:
-a preset by name, a held-out control by its take, length and lead-in, a label control by
-its action, style and length, any other path by its velocities frame by frame. Its
-export id (the name other labs' files carry) is kept. A held-out take found in the
+says to add it on the systems page; a study bundle carries them). A control is written
+by how it is made again: a preset by name, a held-out control by its take, length and
+lead-in, a label control by its action, style and length, any other path by its
+velocities frame by frame. Its export id (the name other labs' files carry) is kept. A held-out take found in the
 folders of ``MOTION_DATA`` is named without them: created on another server, the
 definition reads the take from that server's ``MOTION_DATA``.
 """

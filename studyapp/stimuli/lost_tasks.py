@@ -6,10 +6,10 @@ A worker *process* killed mid-render is covered by ``acks_late`` with
 with it: kombu's filesystem broker has no redelivery at all, and Redis returns them only
 after its visibility timeout (an hour). Their rows would sit queued or running.
 
-So every worker beats a heart: each ``STUDY_HEARTBEAT_S`` (a setting, 10 s) it touches (``updated``) the rows of
-the tasks it holds, prefetched or running. A queued or running row untouched for
-``STUDY_LOST_AFTER_S`` (45 s) whose message is not waiting in the broker's queue has lost its task;
-the same beat finds such rows and sends them again. Sending gives a row a new task id,
+So every worker beats a heart: each ``STUDY_HEARTBEAT_S`` (a setting, 10 s) it touches
+(``updated``) the rows of the tasks it holds, prefetched or running. A queued or running
+row untouched for ``STUDY_LOST_AFTER_S`` (45 s) whose message is not waiting in the
+broker's queue has lost its task; the same beat finds such rows and sends them again. Sending gives a row a new task id,
 so the old message, should it ever come back, is ignored (``clips.claim``). Where the
 broker's queue cannot be listed, nothing is judged lost and the half-hour rule of
 ``dispatch.queue_stimuli`` remains.

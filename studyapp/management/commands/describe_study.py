@@ -46,4 +46,4 @@ class Command(BaseCommand):
                 tmp.write_text(text, encoding="utf-8")
         except OSError as error:
             raise InputError(f"{out}: cannot write it ({error.strerror or error})") from None
-        self.stdout.write(f"{options['out']}: the definition of study {study.pk}")
+        self.stdout.write(f"{out}: the definition of study {study.pk}")
