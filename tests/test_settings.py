@@ -88,6 +88,18 @@ def test_an_unreadable_debug_value_is_an_error_not_a_guess(tmp_path: Path) -> No
     assert "DEBUG='maybe' is not a boolean" in completed.stderr
 
 
+def test_a_setting_that_cannot_be_used_stops_manage_py_with_one_line_and_status_2(tmp_path: Path) -> None:
+    environment = {k: v for k, v in os.environ.items() if k not in DEPLOYMENT_VARIABLES}
+    for variable, value, said in (("STUDY_LOST_AFTER_S", "5", "STUDY_LOST_AFTER_S=5 must exceed three heartbeats"),
+                                  ("STUDY_HEARTBEAT_S", "0", "STUDY_HEARTBEAT_S=0, which must be positive"),
+                                  ("STUDY_SAMPLE_BATCH", "0", "STUDY_SAMPLE_BATCH=0 is not a whole number")):
+        completed = subprocess.run([sys.executable, "manage.py", "check"], cwd=REPO_ROOT, capture_output=True,
+                                   text=True, timeout=60, env={**environment, "STUDYAPP_VAR_DIR": str(tmp_path),
+                                                               variable: value})
+        assert completed.returncode == 2 and completed.stderr.startswith("manage.py: error: ") and said in completed.stderr
+        assert "Traceback" not in completed.stderr and completed.stderr.count("\n") == 1
+
+
 # A view that fails, requested once with DEBUG off, as in production.
 FAILING_REQUEST = """
 import django
