@@ -20,14 +20,17 @@ than the anchor, and whether each of those intervals covers the true Elo.
 `votes_saved` reads the summary per pairing and checkpoint: for each uniform checkpoint,
 the votes at which the adaptive pairing reaches the same mean tau and the same mean
 width (interpolated linearly between its checkpoints; the larger of the two), and the
-share of votes saved. `best_allocation_saving` is the ceiling: the saving of the best
-fixed allocation of pages over pairs for the true strengths (minimising the sum of
-standard errors, the adaptive criterion), which no pairing can beat asymptotically.
+share of votes saved. `best_allocation_saving` is the ceiling for the widths: the saving
+of the best fixed allocation of pages over pairs for the true strengths (minimising the
+sum of standard errors, the adaptive criterion), which no pairing can beat
+asymptotically. `best_joint_allocation_saving` is the ceiling for both at once: the best
+fixed allocation that matches uniform pairing's summed standard errors and its expected
+number of misordered pairs (the normal approximation of Kendall's tau) with fewest votes.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -200,9 +203,12 @@ def votes_saved(summary: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def best_allocation_saving(scenario: Scenario) -> float:
-    """The share of votes that the best fixed allocation of pages over pairs, for the true
-    strengths, saves against uniform pairing at equal sums of standard errors."""
+def _allocation_measures(scenario: Scenario) -> tuple[Callable, Callable]:
+    """For the true strengths, two functions of an allocation (page shares over the pairs,
+    ``np.triu_indices`` order) and a number of votes: the summed standard errors of the
+    systems against the anchor, and the expected number of misordered pairs of systems,
+    ``sum over i < j of Phi(-|b_i - b_j| / sd(b_i - b_j))``; a page counts as one plain
+    comparison (Fisher information ``p (1 - p)``)."""
     b = scenario.log_strength
     k = len(b)
     first, second = np.triu_indices(k, 1)
@@ -210,16 +216,66 @@ def best_allocation_saving(scenario: Scenario) -> float:
     incidence[np.arange(len(first)), first], incidence[np.arange(len(first)), second] = 1.0, -1.0
     p = 0.5 * (1 + np.tanh((b[first] - b[second]) / 2))
     w = p * (1 - p)
+    gap = np.abs(b[first] - b[second])
 
-    def standard_errors(logits: np.ndarray) -> float:
-        share = np.exp(logits - logits.max())
-        share /= share.sum()
-        information = incidence.T @ ((share * w)[:, None] * incidence)
-        return float(np.sqrt(np.diag(np.linalg.inv(information[1:, 1:]))).sum())
+    def covariance(share: np.ndarray, votes: float) -> np.ndarray:
+        information = incidence.T @ ((votes * share * w)[:, None] * incidence)
+        return np.linalg.inv(information[1:, 1:])
 
-    best = optimize.minimize(standard_errors, np.zeros(len(first)), method="L-BFGS-B")
+    def summed_errors(share: np.ndarray, votes: float) -> float:
+        return float(np.sqrt(np.diag(covariance(share, votes))).sum())
+
+    def misorders(share: np.ndarray, votes: float) -> float:
+        rows = incidence[:, 1:]
+        variance = np.einsum("dk,kl,dl->d", rows, covariance(share, votes), rows)
+        return float(sps.norm.sf(gap / np.sqrt(variance)).sum())
+
+    return summed_errors, misorders
+
+
+def _shares(logits: np.ndarray) -> np.ndarray:
+    share = np.exp(logits - logits.max())
+    return share / share.sum()
+
+
+def best_allocation_saving(scenario: Scenario) -> float:
+    """The share of votes that the best fixed allocation of pages over pairs, for the true
+    strengths, saves against uniform pairing at equal sums of standard errors."""
+    summed_errors, _ = _allocation_measures(scenario)
+    pairs = len(scenario.elo) * (len(scenario.elo) - 1) // 2
+    best = optimize.minimize(lambda logits: summed_errors(_shares(logits), 1.0), np.zeros(pairs),
+                             method="L-BFGS-B")
     # standard errors fall as 1 / sqrt(votes): equal sums need (best / uniform)^2 the votes
-    return 1.0 - (best.fun / standard_errors(np.zeros(len(first)))) ** 2
+    return 1.0 - (best.fun / summed_errors(np.full(pairs, 1 / pairs), 1.0)) ** 2
+
+
+def best_joint_allocation_saving(scenario: Scenario, votes: int) -> float:
+    """The share of votes that the best fixed allocation, for the true strengths, saves
+    against ``votes`` uniformly paired pages while matching both their summed standard
+    errors and their expected misordered pairs (`_allocation_measures`): the ceiling of a
+    saving in interval width and in Kendall's tau at once. Found by minimising a smooth
+    maximum of the two vote ratios over the allocation's logits."""
+    summed_errors, misorders = _allocation_measures(scenario)
+    pairs = len(scenario.elo) * (len(scenario.elo) - 1) // 2
+    uniform = np.full(pairs, 1 / pairs)
+    targets = summed_errors(uniform, votes), misorders(uniform, votes)
+
+    if not np.ptp(scenario.log_strength):  # every system level: no order to get wrong
+        return best_allocation_saving(scenario)
+
+    def ratios(share: np.ndarray) -> tuple[float, float]:
+        """Votes the allocation needs for each uniform measure, over ``votes`` (at most 1,000:
+        an allocation that starves a system needs more than any study has)."""
+        def ratio(measure: Callable, target: float) -> float:
+            if measure(share, votes * 1e3) > target:
+                return 1e3
+            return optimize.brentq(lambda n: measure(share, n) - target, votes * 1e-3, votes * 1e3) / votes
+        return ratio(summed_errors, targets[0]), ratio(misorders, targets[1])
+
+    sharpness = 60.0  # log-sum-exp: within log(2) / 60, about 1 % of the votes, of the maximum
+    best = optimize.minimize(lambda logits: np.logaddexp(*(sharpness * np.array(ratios(_shares(logits)))))
+                             / sharpness, np.zeros(pairs), method="L-BFGS-B")
+    return 1.0 - max(ratios(_shares(best.x)))
 
 
 def pairing_text(scenario: Scenario, summary: pd.DataFrame, saved: pd.DataFrame, ceiling: float,
@@ -237,9 +293,10 @@ def pairing_text(scenario: Scenario, summary: pd.DataFrame, saved: pd.DataFrame,
         text += (f" Uniform pairing at {row.uniform_votes:,} votes: mean tau {row.uniform_tau:.3f}, mean "
                  f"interval width {row.uniform_width:.0f} Elo; adaptive pairing reaches the tau "
                  f"{_votes_phrase(row.adaptive_votes_for_tau, row.uniform_votes, first)}, the width "
-                 f"{_votes_phrase(row.adaptive_votes_for_width, row.uniform_votes, first)}.")
+                 f"{_votes_phrase(row.adaptive_votes_for_width, row.uniform_votes, first)}; the best "
+                 f"fixed allocation matching both would save {row.joint_ceiling * 100:.0f} %.")
     text += (f" The best fixed allocation for the true strengths would save {ceiling * 100:.0f} % "
-             "of the votes at equal standard errors.")
+             "of the votes at equal standard errors alone.")
     coverage = ", ".join(f"{r.pairing} at {r.votes:,} votes {r.coverage * 100:.1f} % "
                          f"(± {r.coverage_se * 100:.1f})" for r in summary.itertuples(index=False)
                          if r.votes == summary["votes"].max())
@@ -262,12 +319,14 @@ def write_pairing_simulation(scenario: Scenario, results: pd.DataFrame, folder: 
     folder = Path(folder)
     summary = pairing_summary(results)
     saved = votes_saved(summary)
+    saved["joint_ceiling"] = [best_joint_allocation_saving(scenario, votes) for votes in saved["uniform_votes"]]
     text = pairing_text(scenario, summary, saved, best_allocation_saving(scenario), studies, seed)
     written = write_table(results, folder / "tables", "pairing_studies", formats=("csv",))
     written += write_table(summary, folder / "tables", "pairing_summary",
                            caption="Kendall's tau, mean interval width and coverage per pairing and votes.")
     written += write_table(saved, folder / "tables", "votes_saved",
-                           caption="Votes adaptive pairing needs to match uniform pairing.")
+                           caption="Votes adaptive pairing needs to match uniform pairing, and the best "
+                                   "fixed allocation's saving for both measures at once.")
     written += plots.save_figure(pairing_plot(summary), folder / "figures", "pairing")
     path = folder / "summary.md"
     path.write_text(f"# Adaptive against uniform pairing\n\n{text}\n", encoding="utf-8")

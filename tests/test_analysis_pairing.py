@@ -6,12 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from scipy.optimize import brentq
+from scipy.stats import norm
 
 from analysis.errors import AnalysisInputError
 from analysis.pairing import (PRIOR_TIES, PairingState, choose_pair, current_fit,
                               expected_standard_errors, next_pair, pairing_state, plan_pairs)
-from analysis.pairing_simulation import (Scenario, best_allocation_saving, compare_pairings,
-                                         pairing_summary, simulate_votes, votes_saved)
+from analysis.pairing_simulation import (Scenario, best_allocation_saving, best_joint_allocation_saving,
+                                         compare_pairings, pairing_summary, simulate_votes, votes_saved)
 
 SYSTEMS = ["NAT", "A", "B", "C", "D"]
 
@@ -128,6 +130,7 @@ def test_the_best_allocation_for_three_equal_systems_saves_two_minus_root_three_
     # anchored at the first: pages a, a, 1 - 2a on 0-1, 0-2, 1-2; the best a = 1 - 1/sqrt(3)
     equal = Scenario({"A": 1000.0, "B": 1000.0, "C": 1000.0})
     assert best_allocation_saving(equal) == pytest.approx((2 - np.sqrt(3)) / 4, abs=1e-5)
+    assert best_joint_allocation_saving(equal, 300) == best_allocation_saving(equal)  # no order to get wrong
 
 
 def test_votes_saved_interpolates_between_checkpoints():
@@ -151,3 +154,36 @@ def test_a_small_seeded_simulation_is_reproducible_and_adaptive_pairing_narrows_
     shown = pd.crosstab(pages["system_left"], pages["system_right"])
     shown = (shown + shown.T).stack()
     assert shown[("NAT", "D")] < 600 / 10  # a foregone pair gets fewer pages than uniform's share
+
+
+def test_the_joint_ceiling_is_the_best_allocation_of_a_grid_and_below_the_width_ceiling():
+    # three systems: every allocation is (a, c, 1 - a - c) on pairs 0-1, 0-2, 1-2
+    scenario = Scenario({"A": 1000.0, "B": 960.0, "C": 800.0})
+    votes = 300
+    ceiling = best_joint_allocation_saving(scenario, votes)
+    first, second = np.triu_indices(3, 1)
+    b = scenario.log_strength
+    p = 1 / (1 + np.exp(b[second] - b[first]))
+    gap = np.abs(b[first] - b[second])
+
+    def measures(share: np.ndarray, n: float) -> tuple[float, float]:
+        information = np.zeros((3, 3))
+        for i, j, s, w in zip(first, second, share, p * (1 - p)):
+            a = np.zeros(3)
+            a[i], a[j] = 1, -1
+            information += n * s * w * np.outer(a, a)
+        covariance = np.zeros((3, 3))
+        covariance[1:, 1:] = np.linalg.inv(information[1:, 1:])
+        sd = np.sqrt([covariance[i, i] + covariance[j, j] - 2 * covariance[i, j] for i, j in zip(first, second)])
+        return float(np.sqrt(np.diag(covariance)).sum()), float(norm.sf(gap / sd).sum())
+
+    target = measures(np.full(3, 1 / 3), votes)
+    grid = np.linspace(0.02, 0.96, 32)
+    best_ratio = np.inf
+    for a in grid:
+        for c in grid[grid < 1 - a - 0.01]:
+            share = np.array([a, c, 1 - a - c])
+            ratio = max(brentq(lambda n, m=m: measures(share, n)[m] - target[m], 1, 1e6) for m in (0, 1)) / votes
+            best_ratio = min(best_ratio, ratio)
+    assert 1 - ceiling == pytest.approx(best_ratio, abs=0.01)
+    assert ceiling <= best_allocation_saving(scenario) + 1e-6
