@@ -71,13 +71,25 @@ def _file_name(value: object, pattern: re.Pattern, what: str, where: str) -> str
     return value
 
 
-def _json(bundle: ReadBundle, name: str) -> object:
+def _member(bundle: ReadBundle, name: str) -> Path:
+    """The bundle's file ``name``, refused when it is missing."""
     path = bundle.path(name)
     if not path.is_file():
         raise BundleRefused(f"{name}: missing from the bundle")
+    return path
+
+
+def _text(bundle: ReadBundle, name: str) -> str:
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        return _member(bundle, name).read_text(encoding="utf-8")
+    except UnicodeDecodeError as error:
+        raise BundleRefused(f"{name}: not UTF-8 text ({error})") from None
+
+
+def _json(bundle: ReadBundle, name: str) -> object:
+    try:
+        return json.loads(_text(bundle, name))
+    except json.JSONDecodeError as error:
         raise BundleRefused(f"{name}: not JSON ({error})") from None
 
 
@@ -279,16 +291,8 @@ class _Import:
 
 def _previous_run(bundle: ReadBundle, study: Study) -> None:
     """The bundle's ratings table and rules, kept as the rerun's previous run."""
-    texts = []
-    for name in (records.RATINGS_FILE, records.RULES_FILE):
-        path = bundle.path(name)
-        if not path.is_file():
-            raise BundleRefused(f"{name}: missing from the bundle")
-        try:
-            texts.append(path.read_text(encoding="utf-8"))
-        except UnicodeDecodeError as error:
-            raise BundleRefused(f"{name}: not UTF-8 text ({error})") from None
-    _saved(PreviousRun(study=study, ratings_csv=texts[0], rules_json=texts[1],
+    ratings, rules = _text(bundle, records.RATINGS_FILE), _text(bundle, records.RULES_FILE)
+    _saved(PreviousRun(study=study, ratings_csv=ratings, rules_json=rules,
                        code_version=bundle.manifest.code_version), "the previous run")
 
 
@@ -322,10 +326,7 @@ def _restore_plan(bundle: ReadBundle, study: Study) -> None:
 def _check_definition(bundle: ReadBundle, study: Study) -> None:
     """The bundle's definition must describe the study its records made (DefinitionError
     with its line where it is no definition; BundleRefused where it describes another)."""
-    path = bundle.path(records.DEFINITION_FILE)
-    if not path.is_file():
-        raise BundleRefused(f"{records.DEFINITION_FILE}: missing from the bundle")
-    text = path.read_bytes()
+    text = _member(bundle, records.DEFINITION_FILE).read_bytes()
     read_definition(text, records.DEFINITION_FILE)
     lines, made = text.decode(errors="replace").splitlines(), definition_yaml(study).splitlines()
     for number, (given, expected) in enumerate(zip(lines, made), start=1):
