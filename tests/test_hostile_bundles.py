@@ -196,6 +196,13 @@ def test_a_plan_changed_after_it_was_locked_or_not_a_plan_is_refused(bundle, set
         assert "plan.json: " in refused(rewritten(bundle, {"plan.json": json.dumps(hostile).encode()}), settings)
 
 
+def test_a_record_that_is_not_utf8_text_or_not_json_is_refused_naming_it(bundle, settings):
+    assert refused(rewritten(bundle, {"plan.json": b'{"locked": "\xe9"}'}), settings).endswith(
+        "plan.json: not UTF-8 text ('utf-8' codec can't decode byte 0xe9 in position 12: invalid "
+        "continuation byte)")
+    assert "plan.json: not JSON (Expecting value" in refused(rewritten(bundle, {"plan.json": b"locked"}), settings)
+
+
 def test_a_plan_rehashed_without_what_a_plan_holds_is_refused(bundle, settings):
     """The SHA-256 proves nothing against someone who recomputes it: the plan must also read as a plan."""
     def locked(plan: dict, deviations: list) -> bytes:
