@@ -18,3 +18,12 @@ def study_by_id(study_id: int) -> Study:
     if study is None:
         raise InputError(f"no study with id {study_id}")
     return study
+
+
+def study_by_id_or_key(given: str) -> Study:
+    """The study whose id or whose key (its entry link's) is ``given``."""
+    study = Study.objects.filter(pk=int(given)).first() if given.isdigit() and len(given) < 10 else None
+    study = study or Study.objects.filter(key=given).first()
+    if study is None:
+        raise InputError(f"no study with the id or key {given!r}")
+    return study

@@ -7,18 +7,9 @@ from django.core.management.base import BaseCommand
 
 from generation.files import atomic_output
 from studyapp.definitions import definition_yaml
-from studyapp.models import Study, StoredDataError
+from studyapp.models import StoredDataError
 
-from ._study import InputError
-
-
-def study_by_id_or_key(given: str) -> Study:
-    """The study whose id or whose key (its entry link's) is ``given``."""
-    study = Study.objects.filter(pk=int(given)).first() if given.isdigit() and len(given) < 10 else None
-    study = study or Study.objects.filter(key=given).first()
-    if study is None:
-        raise InputError(f"no study with the id or key {given!r}")
-    return study
+from ._study import InputError, study_by_id_or_key
 
 
 class Command(BaseCommand):
