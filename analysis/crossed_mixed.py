@@ -137,7 +137,12 @@ def fit_crossed(y: np.ndarray, layout: CrossedLayout) -> CrossedFit:
     if len(y) <= len(layout.systems):
         raise AnalysisInputError(f"{len(y)} ratings of {len(layout.systems)} systems leave no "
                                  "residual degrees of freedom")
-    s = _sums(np.asarray(y, dtype=np.float64), layout)
+    y = np.asarray(y, dtype=np.float64)
+    means = np.bincount(layout.system, y) / np.bincount(layout.system)
+    if np.allclose(y, means[layout.system], rtol=0.0, atol=1e-12 * max(1.0, np.abs(y).max())):
+        raise AnalysisInputError("every rating equals its system's mean, which leaves no variance for "
+                                 "participants, clips or the residual to explain")
+    s = _sums(y, layout)
     objective = lambda t: _solve(t, s).deviance  # noqa: E731
     # from t = 1, as lme4 starts; an optimum on a bound is checked for below
     best = optimize.minimize(objective, (1.0, 1.0), method="L-BFGS-B", bounds=[(0.0, _MAX_RELATIVE_SD)] * 2,

@@ -142,3 +142,12 @@ def test_clips_rated_once_fit_without_failing_and_share_the_residual_variance():
     ours = tables.estimates.set_index("system")
     np.testing.assert_allclose(ours["estimate"], participant_only.loc[ours.index, "estimate"], atol=1e-6)
     np.testing.assert_allclose(ours["se"], participant_only.loc[ours.index, "se"], rtol=1e-5)
+
+
+def test_ratings_that_each_equal_their_system_s_mean_are_not_fitted_and_the_notes_say_why():
+    exact = ratings().assign(value=lambda t: t["system"].map(MEANS))
+    with np.errstate(all="raise"):  # no 0/0 or log(0) on the way
+        tables = crossed_mixed_model(exact, reference="NAT")
+    assert tables.estimates.empty and tables.variance_components.empty
+    assert tables.notes == ["No crossed mixed model for t · c: every rating equals its system's mean, which "
+                            "leaves no variance for participants, clips or the residual to explain."]

@@ -77,6 +77,7 @@ class StudyMonitor:
     means: list[SystemMean]
     failed_instructed_checks: int  # participants who failed at least one
     tables: list[tuple[str, SafeString]]  # the design's own summary and the power table, by the analysis
+    analysis_notes: list[str]  # what the models of the tables say of their fits
     means_by_class: dict[str, list[SystemMean]]  # control class (held-out, synthetic, ...) -> the same per system
 
 
@@ -98,26 +99,27 @@ def system_mean_rows(kept: pd.DataFrame, systems: list[str], scale: tuple[int, i
     return rows
 
 
-def analysis_tables(study: Study, kept: pd.DataFrame) -> list[tuple[str, SafeString]]:
+def analysis_tables(study: Study, kept: pd.DataFrame) -> tuple[list[tuple[str, SafeString]], list[str]]:
     """What the analysis says so far: the design's summary, for rated clips the crossed
     linear mixed model, the cumulative link mixed model and Krippendorff's alpha, and, for
     every design, the ratings needed for 80 % power (once two systems have two compared
-    ratings each)."""
+    ratings each); and the models' notes (a boundary fit, a model that could not be fitted)."""
     compared = compared_ratings(kept, StudyRules.of(study).exclusion) if len(kept) else kept
     counts = compared.groupby("system").size()
     compared = compared[compared["system"].isin(counts.index[counts >= 2])]
     if compared["system"].nunique() < 2:
-        return []
+        return [], []
     design = design_of(study)
-    tables = list(design.monitor_tables(compared))
+    tables, notes = list(design.monitor_tables(compared)), []
     if design.on_scale:  # rated clips (single, side by side): the rater- and clip-aware models, as the report's
         natural = StudyRules.of(study).exclusion.natural_system
         models = build_rater_models(compared, natural if natural in set(compared["system"]) else None)
         tables += [(title, table) for title, table in models.tables().values() if len(table)]
+        notes = models.notes
     if design.power_table:
         tables.append(("How many more ratings give 80 % power per pair (at alpha 0.05)",
                        more_ratings_for_power(compared)))
-    return [(title, html_table(table)) for title, table in tables]
+    return [(title, html_table(table)) for title, table in tables], notes
 
 
 def study_monitor(study: Study) -> StudyMonitor:
@@ -127,6 +129,7 @@ def study_monitor(study: Study) -> StudyMonitor:
     done = list(study.stimuli.filter(status=Stimulus.Status.DONE).values_list("token", flat=True))
     collected = flagged.groupby("stimulus").size().reindex(done, fill_value=0)
     kept_counts = kept.groupby("stimulus").size().reindex(done, fill_value=0)
+    tables, notes = analysis_tables(study, kept)
     systems = sorted({s.export_name for s in study.systems.all()})
     scale = (study.scale_min, study.scale_max)
     on_scale = design_of(study).on_scale
@@ -148,7 +151,8 @@ def study_monitor(study: Study) -> StudyMonitor:
         means_by_class={name: system_mean_rows(group, systems, scale)
                         for name, group in kept.groupby("control_class", sort=True)} if on_scale else {},
         failed_instructed_checks=participants.filter(failed_checks__gt=0).count(),
-        tables=analysis_tables(study, kept),
+        tables=tables,
+        analysis_notes=notes,
     )
 
 
