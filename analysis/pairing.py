@@ -125,16 +125,27 @@ def current_fit(state: PairingState, start: np.ndarray | None = None) -> np.ndar
     return bradley_terry_log_strengths(state.wins + prior, start)
 
 
+def pair_incidence(k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs i < j of ``k`` systems (``np.triu_indices`` order) and their rows
+    ``a = e_i - e_j``, one per pair."""
+    first, second = np.triu_indices(k, 1)
+    incidence = np.zeros((len(first), k))
+    incidence[np.arange(len(first)), first], incidence[np.arange(len(first)), second] = 1.0, -1.0
+    return first, second, incidence
+
+
+def comparison_information(log_strength: np.ndarray, first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """Per pair: the Fisher information ``p (1 - p)`` of one comparison, ``p = sigmoid(b_i - b_j)``."""
+    p = 0.5 * (1.0 + np.tanh((log_strength[first] - log_strength[second]) / 2))
+    return p * (1 - p)
+
+
 def expected_standard_errors(state: PairingState, log_strength: np.ndarray,
                              anchor: int | None) -> np.ndarray:
     """Per candidate pair (i < j, in ``np.triu_indices`` order): the sum of the systems'
     standard errors (log-odds, relative to ``anchor`` or centred) after one more page of it."""
-    k = len(state.systems)
-    first, second = np.triu_indices(k, 1)
-    incidence = np.zeros((len(first), k))
-    incidence[np.arange(len(first)), first], incidence[np.arange(len(first)), second] = 1.0, -1.0
-    p = 0.5 * (1.0 + np.tanh((log_strength[first] - log_strength[second]) / 2))
-    w = p * (1 - p)
+    first, second, incidence = pair_incidence(len(state.systems))
+    w = comparison_information(log_strength, first, second)
     pages = state.shown[first, second] + PRIOR_TIES
     information = incidence.T @ ((pages * w)[:, None] * incidence)
     if anchor is None:

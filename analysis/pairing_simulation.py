@@ -47,7 +47,8 @@ from analysis.graded_votes import draw_levels, level_answers
 from analysis.leaderboard import (ELO_PER_LOG_ODDS, TIE_WEIGHT, WINS_PER_DEGREE, elo, fit_votes,
                                   pair_votes, vote_weights)
 from analysis.leaderboard_plots import pairing_plot
-from analysis.pairing import EXPLORATION, PairingState, choose_pair, current_fit
+from analysis.pairing import (EXPLORATION, PairingState, choose_pair, comparison_information, current_fit,
+                              pair_incidence)
 from analysis.tables import write_table
 
 UNIFORM, ADAPTIVE = "uniform", "adaptive"
@@ -210,12 +211,8 @@ def _allocation_measures(scenario: Scenario) -> tuple[Callable, Callable]:
     ``sum over i < j of Phi(-|b_i - b_j| / sd(b_i - b_j))``; a page counts as one plain
     comparison (Fisher information ``p (1 - p)``)."""
     b = scenario.log_strength
-    k = len(b)
-    first, second = np.triu_indices(k, 1)
-    incidence = np.zeros((len(first), k))
-    incidence[np.arange(len(first)), first], incidence[np.arange(len(first)), second] = 1.0, -1.0
-    p = 0.5 * (1 + np.tanh((b[first] - b[second]) / 2))
-    w = p * (1 - p)
+    first, second, incidence = pair_incidence(len(b))
+    w = comparison_information(b, first, second)
     gap = np.abs(b[first] - b[second])
 
     def covariance(share: np.ndarray, votes: float) -> np.ndarray:
@@ -255,13 +252,12 @@ def best_joint_allocation_saving(scenario: Scenario, votes: int) -> float:
     errors and their expected misordered pairs (`_allocation_measures`): the ceiling of a
     saving in interval width and in Kendall's tau at once. Found by minimising a smooth
     maximum of the two vote ratios over the allocation's logits."""
+    if not np.ptp(scenario.log_strength):  # every system level: no order to get wrong
+        return best_allocation_saving(scenario)
     summed_errors, misorders = _allocation_measures(scenario)
     pairs = len(scenario.elo) * (len(scenario.elo) - 1) // 2
     uniform = np.full(pairs, 1 / pairs)
     targets = summed_errors(uniform, votes), misorders(uniform, votes)
-
-    if not np.ptp(scenario.log_strength):  # every system level: no order to get wrong
-        return best_allocation_saving(scenario)
 
     def ratios(share: np.ndarray) -> tuple[float, float]:
         """Votes the allocation needs for each uniform measure, over ``votes`` (at most 1,000:
