@@ -46,6 +46,13 @@ class CrossedLayout:
     pair_participant: np.ndarray
     pair_stimulus: np.ndarray
 
+    def constant_within_systems(self, y: np.ndarray) -> bool:
+        """Whether every rating in ``y`` equals its system's mean (nothing varies within a
+        system: a mixed model has nothing left to fit)."""
+        y = np.asarray(y, dtype=np.float64)
+        means = np.bincount(self.system, y) / np.bincount(self.system)
+        return bool(np.allclose(y, means[self.system], rtol=0.0, atol=1e-12 * max(1.0, np.abs(y).max())))
+
     @property
     def q(self) -> tuple[int, int]:
         return len(self.participants), len(self.stimuli)

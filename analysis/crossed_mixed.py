@@ -138,8 +138,7 @@ def fit_crossed(y: np.ndarray, layout: CrossedLayout) -> CrossedFit:
         raise AnalysisInputError(f"{len(y)} ratings of {len(layout.systems)} systems leave no "
                                  "residual degrees of freedom")
     y = np.asarray(y, dtype=np.float64)
-    means = np.bincount(layout.system, y) / np.bincount(layout.system)
-    if np.allclose(y, means[layout.system], rtol=0.0, atol=1e-12 * max(1.0, np.abs(y).max())):
+    if layout.constant_within_systems(y):
         raise AnalysisInputError("every rating equals its system's mean, which leaves no variance for "
                                  "participants, clips or the residual to explain")
     s = _sums(y, layout)

@@ -272,6 +272,9 @@ def fit_ordinal(y: np.ndarray, layout: CrossedLayout,
     categories, category = np.unique(y, return_inverse=True)
     if len(categories) < 2:
         raise AnalysisInputError("every rating has the same value; a cumulative link model needs two or more")
+    if layout.constant_within_systems(y):
+        raise AnalysisInputError("every rating equals its system's mean, so each system's ratings are one "
+                                 "value and the log-odds between systems are not finite")
     data = _Data(layout, category.astype(np.int64), len(categories),
                  tuple(name in random for name in RANDOM_FACTORS))
     memo = {}

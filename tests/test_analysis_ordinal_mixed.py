@@ -148,3 +148,12 @@ def test_a_zero_clip_spread_fits_without_failing():
     spreads = tables.random_effects.set_index("component")
     assert spreads.loc["stimulus", "sd"] < 0.2 and tables.random_effects["converged"].all()
     assert np.isfinite(tables.effects["se"]).all() and tables.notes == []
+
+
+def test_ratings_that_each_equal_their_system_s_mean_are_not_fitted_and_the_notes_say_why():
+    levels = {system: 1 + n for n, system in enumerate(EFFECTS)}
+    exact = likert().assign(value=lambda t: t["system"].map(levels))
+    tables = ordinal_mixed_model(exact)
+    assert tables.effects.empty
+    assert any(note.endswith("every rating equals its system's mean, so each system's ratings are one value and "
+                             "the log-odds between systems are not finite.") for note in tables.notes)
