@@ -155,3 +155,13 @@ def test_the_embedded_defaults_answer_errors_with_the_studys_plain_pages(tmp_pat
     for page in (server_error, missing, missing_clip):  # no debug page: no settings, paths or traceback
         assert "Traceback" not in page and "settings" not in page.lower() and str(tmp_path) not in page
         assert "DEBUG" not in page and "urlpatterns" not in page.lower()
+
+
+def test_a_database_never_set_up_stops_manage_py_with_one_line_and_status_2(tmp_path: Path) -> None:
+    environment = {k: v for k, v in os.environ.items() if k not in DEPLOYMENT_VARIABLES}
+    completed = subprocess.run([sys.executable, "manage.py", "describe_study", "1"], cwd=REPO_ROOT,
+                               capture_output=True, text=True, timeout=60,
+                               env={**environment, "STUDYAPP_VAR_DIR": str(tmp_path)})
+    assert completed.returncode == 2 and completed.stderr == (
+        "manage.py: error: the database cannot answer (no such table: studyapp_study); if it was never set up, "
+        "run: python manage.py migrate\n")
