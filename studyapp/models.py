@@ -59,7 +59,11 @@ def new_token() -> str:
 
 
 def new_study_key() -> str:
-    return secrets.token_urlsafe(9)
+    """A random key for the study's URLs and commands; never one that begins with "-",
+    which a command line would read as an option (one key in 64 would)."""
+    while (key := secrets.token_urlsafe(9)).startswith("-"):
+        pass
+    return key
 
 
 def default_camera() -> dict:

@@ -15,7 +15,7 @@ from django.core.management.base import CommandError
 
 from studyapp.definitions import DefinitionError, create_study_from_definition, definition_yaml
 from studyapp.definitions.reading import MAX_DEFINITION_BYTES, MAX_NODES
-from studyapp.models import ControlSignal, Question, Study, System
+from studyapp.models import ControlSignal, Question, Study, System, new_study_key
 from tests.study_fixtures import make_study
 
 # A study with a question, NAT and two presets: nothing it needs is outside the file.
@@ -238,6 +238,21 @@ def test_describe_study_names_a_study_that_is_not_there(owner):
     with pytest.raises(CommandError) as error:
         call_command("describe_study", "no-such-key")
     assert error.value.returncode == 2 and "no study with the id or key 'no-such-key'" in str(error.value)
+
+
+def test_new_study_keys_never_begin_with_a_dash_which_a_command_line_reads_as_an_option(monkeypatch):
+    drawn = iter(["-Zk3vQ0aLmNo", "Zk3vQ0aLmNo-"])
+    monkeypatch.setattr("studyapp.models.secrets.token_urlsafe", lambda nbytes: next(drawn))
+    assert new_study_key() == "Zk3vQ0aLmNo-"
+
+
+@pytest.mark.django_db
+def test_describe_study_takes_an_older_key_that_begins_with_a_dash_after_two_dashes(owner):
+    study = create_study_from_definition(VALID, owner, source="study.yaml")
+    Study.objects.filter(pk=study.pk).update(key="-older-key1")
+    printed = io.StringIO()
+    call_command("describe_study", "--", "-older-key1", stdout=printed)
+    assert printed.getvalue() == definition_yaml(study)
 
 
 # --- the pages --------------------------------------------------------------------

@@ -17,7 +17,8 @@ class Command(BaseCommand):
             "to standard output or --out FILE.")
 
     def add_arguments(self, parser):
-        parser.add_argument("study", help="the study's id or key")
+        parser.add_argument("study", help="the study's id or key (a key that begins with '-' after '--': "
+                                                     "describe_study -- -KEY)")
         parser.add_argument("--out", type=Path, help="the file to write (default: standard output)")
 
     def handle(self, *args, **options):
