@@ -15,7 +15,7 @@ machine's load reaches both. Forms are posted urlencoded, as browsers send them.
 
 *Crowds*: simulated participants (studyapp.participants.simulated: real HTTP, cookies,
 CSRF) take the study at once, in processes of their own (threads within them), against
-the embedded default of ``make demo`` (Django's runserver as ``manage.py serve``, SQLite) and the
+the embedded default of ``make demo`` (``manage.py serve``, SQLite) and the
 production shape (gunicorn with the threaded workers of compose.yaml, PostgreSQL on
 127.0.0.1), under two loads: *saturation* (every participant answers the moment a page
 arrives: the most ratings per second the setup takes) and *watching* (each spends
@@ -482,8 +482,8 @@ def print_rows(result: dict) -> None:
     saturated = {row["setup"]: row["ratings_per_s"] for row in result["rows"]
                  if row["load"] == "saturation" and row["part"] == "crowd"}
     if len(saturated) == 2:
-        print(f"gunicorn + PostgreSQL: {saturated['gunicorn + PostgreSQL'] / saturated['runserver + SQLite']:.2f}x "
-              f"the rating throughput of runserver + SQLite at saturation")
+        print(f"gunicorn + PostgreSQL: {saturated['gunicorn + PostgreSQL'] / saturated['serve + SQLite']:.2f}x "
+              f"the rating throughput of manage.py serve + SQLite at saturation")
 
 
 def main() -> int:
@@ -524,7 +524,7 @@ def main() -> int:
     if "crowd" in parts:
         for watch_s in (0.0, args.watch):
             with tempfile.TemporaryDirectory(prefix="bench-sqlite-") as folder:
-                rows.append({**measure("runserver + SQLite", f"sqlite:///{folder}/db.sqlite3", "runserver",
+                rows.append({**measure("serve + SQLite", f"sqlite:///{folder}/db.sqlite3", "serve",
                                        args.participants, watch_s), "part": "crowd"})
             with throwaway_postgres() as (url, pid_file):
                 rows.append({**measure("gunicorn + PostgreSQL", url, "gunicorn", args.participants, watch_s, pid_file),

@@ -17,8 +17,8 @@
 8. sets up an appropriateness study (MoGlow, RNN, VAE and NAT; the same controls and
    four more held-out takes, so that takes find partners), reusing the motion already
    sampled, and queues its clips, which the worker renders while the demo serves;
-9. opens the studies and serves them with Django's runserver (``manage.py serve``, whose
-   listen queue holds a crowd) on DEMO_HOST:DEMO_PORT (all interfaces, port 8000) until
+9. opens the studies and serves them with ``manage.py serve`` (gunicorn, one process per
+   core, a listen queue that holds a crowd) on DEMO_HOST:DEMO_PORT (all interfaces, port 8000) until
    Ctrl-C, printing the participant links (each with an id of its own, at this machine's
    network address, so they open on a phone of the same network) and the researcher's
    login.
@@ -401,7 +401,7 @@ def main() -> int:
 
     say(f"database: {settings.DATABASES['default']['NAME']}")
     call_command("migrate", verbosity=0)
-    # The app serves the collected files itself: runserver does not, with DEBUG off.
+    # The app serves the collected files itself: the server does not, with DEBUG off.
     call_command("collectstatic", interactive=False, verbosity=0)
     researcher, password = ensure_researcher(Path(settings.VAR_DIR))
     try:

@@ -1,20 +1,87 @@
-"""``manage.py serve [addrport]``: Django's runserver (static files included, as
-``runserver`` serves them) that keeps a crowd's connections waiting instead of resetting them.
+"""``manage.py serve [addrport] [--workers N] [--threads N] [--noreload]``: the study app
+served by gunicorn, one process per core, as ``make demo`` serves it.
 
-Django's development server listens with a queue of 10 connections. When a crowd's
-browsers connect at once while the server's threads keep its accepting thread waiting
-(a loaded machine), connections beyond the queue fail: 67 of 100 simultaneous simulated
-participants saw "connection reset by peer". ``make demo`` serves with this command.
+Django's runserver answers every request in one process, so one core's worth of Python
+(its interpreter lock) was the embedded default's limit: 200 participants watching 4-s
+clips ask about 48 ratings a second, runserver answered 33 and their answers queued (p95
+1.4 s; benchmarks/bench_study.py). gunicorn's threaded workers, one process per core,
+answer them within 100 ms on the same machine (README, the benchmark table).
+
+The command keeps what runserver did for the demo: its address argument (``8000``,
+``0.0.0.0:8000``, ``[::1]:8000``), its checks (the system checks, unapplied migrations),
+the apps' static files served with DEBUG on (or ``--insecure``), reloading on a change of
+the code (gunicorn's reloader; ``--noreload`` turns it off) and a listen queue long enough
+for a crowd's connections opened at once. SQLite's writers of one process take turns
+(``studyapp.server.sqlite_backend``); SQLite's busy timeout arbitrates between the processes.
 """
 
+from __future__ import annotations
+
+import argparse
+import os
+
 from django.contrib.staticfiles.management.commands.runserver import Command as RunserverCommand
-from django.core.servers.basehttp import WSGIServer
+from django.db import connections
+from gunicorn.app.base import BaseApplication
+
+THREADS = 16  # per process: a thread waits while a participant's phone downloads a clip
 
 
-class CrowdWSGIServer(WSGIServer):
-    request_queue_size = 1024  # the kernel caps it at net.core.somaxconn (4096 on current Linux)
+def _at_least_one(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number of at least 1")
+    return value
+
+
+class _Gunicorn(BaseApplication):
+    """gunicorn serving one WSGI handler with the settings given (no command line or file read)."""
+
+    def __init__(self, handler, settings: dict) -> None:
+        self.handler, self.settings = handler, settings
+        super().__init__()
+
+    def load_config(self) -> None:
+        for name, value in self.settings.items():
+            self.cfg.set(name, value)
+
+    def load(self):
+        return self.handler
 
 
 class Command(RunserverCommand):
-    help = "Django's development server with a listen queue long enough for a crowd's simultaneous connections."
-    server_cls = CrowdWSGIServer
+    help = ("Serve the study app with gunicorn: one process per core (--workers), each with --threads threads; "
+            "the apps' static files with DEBUG on, as runserver serves them.")
+
+    def add_arguments(self, parser) -> None:
+        super().add_arguments(parser)
+        parser.add_argument("--workers", type=_at_least_one, default=len(os.sched_getaffinity(0)),
+                            help="server processes (default: one per core of this machine, %(default)s)")
+        parser.add_argument("--threads", type=_at_least_one, default=THREADS,
+                            help="threads per process (default %(default)s; --nothreading: 1)")
+
+    def run(self, **options) -> None:
+        # gunicorn's arbiter must own the main thread (its signals), where Django's
+        # reloader would run the server in another; gunicorn reloads on its own.
+        self.inner_run(None, **options)
+
+    def inner_run(self, *args, **options) -> None:
+        if not options["skip_checks"]:
+            self.check(display_num_errors=True)
+        self.check_migrations()
+        connections.close_all()  # the workers are forked: none may inherit the checks' connections
+        address = f"[{self.addr}]" if self._raw_ipv6 else "0.0.0.0" if self.addr == "0" else self.addr
+        threads = options["threads"] if options["use_threading"] else 1
+        self.stdout.write(f"Serving the study app at {self.protocol}://{address}:{self.port}/ with gunicorn, "
+                          f"{options['workers']} processes of {threads} threads; quit with CONTROL-C.")
+        _Gunicorn(self.get_handler(*args, **options), {
+            "bind": f"{address}:{self.port}",
+            "workers": options["workers"], "worker_class": "gthread", "threads": threads,
+            "backlog": 1024,  # the kernel caps it at net.core.somaxconn (4096 on current Linux)
+            "reload": options["use_reloader"],
+            "graceful_timeout": 5,  # a stopped demo does not wait half a minute for open connections
+            "control_socket_disable": True,  # one path per user: two servers side by side would share it
+        }).run()
