@@ -8,6 +8,8 @@ runs), gunicorn as ``compose.yaml``'s web service runs it, and gunicorn as the i
 own command (``Dockerfile``). The commands are read from those files, so a change there
 is what is tested. Each server runs on the embedded SQLite database in a fresh folder;
 every connection asks for a participant page (an unknown study's, one database query).
+``manage.py serve`` also answers from as many processes as it is asked for, and serves
+the apps' static files with DEBUG on, as Django's runserver did before it.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import subprocess
 import sys
 import threading
 import time
+import urllib.request
 from pathlib import Path
 
 import pytest
@@ -164,3 +167,42 @@ def test_the_tested_commands_are_the_documented_ones():
                                             "127.0.0.1:8000"]
     assert "manage.py serve" in (REPO / "README.md").read_text()
     assert '"manage.py", "serve"' in Path(REPO / "studyapp" / "server" / "demo.py").read_text()
+
+
+def _children(pid: int) -> list[int]:
+    """The processes whose parent is ``pid``."""
+    children = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            if int(stat.read_text().rsplit(")", 1)[1].split()[1]) == pid:
+                children.append(int(stat.parent.name))
+        except (OSError, IndexError, ValueError):
+            continue
+    return children
+
+
+@pytest.mark.slow
+def test_manage_py_serve_answers_from_the_processes_asked_for_and_serves_static_files_with_debug_on(environment):
+    port = _free_port()
+    server = subprocess.Popen([*manage_serve_command(port), "--workers", "3"], cwd=REPO,
+                              env={**environment, "DEBUG": "1"}, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        _wait_until_listening(port, server)
+        deadline = time.monotonic() + 30
+        while len(_children(server.pid)) < 3 and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert len(_children(server.pid)) == 3
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/static/studyapp/site.css", timeout=30) as response:
+            assert response.read() == (REPO / "studyapp" / "static" / "studyapp" / "site.css").read_bytes()
+    finally:
+        os.killpg(server.pid, signal.SIGTERM)
+        server.wait(timeout=20)
+
+
+@pytest.mark.parametrize("option", ["--workers", "--threads"])
+def test_manage_py_serve_refuses_fewer_than_one_process_or_thread_with_status_2(option, environment):
+    completed = subprocess.run([*manage_serve_command(_free_port()), option, "0"], cwd=REPO, env=environment,
+                               capture_output=True, text=True, timeout=60)
+    assert completed.returncode == 2
+    assert completed.stderr.strip().splitlines()[-1].endswith(f"argument {option}: '0': give a whole number of at least 1")
