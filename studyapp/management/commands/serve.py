@@ -17,24 +17,14 @@ for a crowd's connections opened at once. SQLite's writers of one process take t
 
 from __future__ import annotations
 
-import argparse
 import os
 
 from django.contrib.staticfiles.management.commands.runserver import Command as RunserverCommand
+from django.core.management.base import CommandError
 from django.db import connections
 from gunicorn.app.base import BaseApplication
 
 THREADS = 16  # per process: a thread waits while a participant's phone downloads a clip
-
-
-def _at_least_one(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{text!r}: give a whole number of at least 1")
-    return value
 
 
 class _Gunicorn(BaseApplication):
@@ -58,10 +48,16 @@ class Command(RunserverCommand):
 
     def add_arguments(self, parser) -> None:
         super().add_arguments(parser)
-        parser.add_argument("--workers", type=_at_least_one, default=len(os.sched_getaffinity(0)),
+        parser.add_argument("--workers", type=int, default=len(os.sched_getaffinity(0)),
                             help="server processes (default: one per core of this machine, %(default)s)")
-        parser.add_argument("--threads", type=_at_least_one, default=THREADS,
+        parser.add_argument("--threads", type=int, default=THREADS,
                             help="threads per process (default %(default)s; --nothreading: 1)")
+
+    def handle(self, *args, **options) -> None:
+        for option in ("workers", "threads"):
+            if options[option] < 1:
+                raise CommandError(f"--{option} {options[option]}: give a whole number of at least 1", returncode=2)
+        super().handle(*args, **options)
 
     def run(self, **options) -> None:
         # gunicorn's arbiter must own the main thread (its signals), where Django's
