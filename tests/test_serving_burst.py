@@ -205,4 +205,4 @@ def test_manage_py_serve_refuses_fewer_than_one_process_or_thread_with_status_2(
     completed = subprocess.run([*manage_serve_command(_free_port()), option, "0"], cwd=REPO, env=environment,
                                capture_output=True, text=True, timeout=60)
     assert completed.returncode == 2
-    assert completed.stderr.strip().splitlines()[-1].== f"CommandError: {option} 0: give a whole number of at least 1"
+    assert completed.stderr.strip().splitlines()[-1] == f"CommandError: {option} 0: give a whole number of at least 1"
