@@ -206,3 +206,18 @@ def test_manage_py_serve_refuses_fewer_than_one_process_or_thread_with_status_2(
                                capture_output=True, text=True, timeout=60)
     assert completed.returncode == 2
     assert completed.stderr.strip().splitlines()[-1] == f"CommandError: {option} 0: give a whole number of at least 1"
+
+
+def test_manage_py_serve_refuses_an_address_it_cannot_listen_on_with_status_2_and_one_line(environment):
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        refusals = {address: subprocess.run([sys.executable, "manage.py", "serve", "--noreload", address], cwd=REPO,
+                                            env=environment, capture_output=True, text=True, timeout=60)
+                    for address in (f"127.0.0.1:{port}", "no-such-host.invalid:8000", "abc")}
+    said = {address: (done.returncode, done.stderr.strip()) for address, done in refusals.items()}
+    unknown = said.pop("no-such-host.invalid:8000")  # the resolver's own words follow
+    assert unknown[0] == 2 and re.fullmatch(r"CommandError: cannot serve at no-such-host\.invalid:8000: [^\n]+", unknown[1])
+    assert said == {f"127.0.0.1:{port}": (2, f"CommandError: cannot serve at 127.0.0.1:{port}: Address already in use"),
+                    "abc": (2, 'CommandError: "abc" is not a valid port number or address:port pair.')}

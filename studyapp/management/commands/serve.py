@@ -18,6 +18,7 @@ for a crowd's connections opened at once. SQLite's writers of one process take t
 from __future__ import annotations
 
 import os
+import socket
 
 from django.contrib.staticfiles.management.commands.runserver import Command as RunserverCommand
 from django.core.management.base import CommandError
@@ -25,6 +26,19 @@ from django.db import connections
 from gunicorn.app.base import BaseApplication
 
 THREADS = 16  # per process: a thread waits while a participant's phone downloads a clip
+
+
+def _check_listening(host: str, port: str) -> None:
+    """Refuse, on one line, an address this machine cannot listen on (gunicorn would retry
+    it for five seconds and end with a log line)."""
+    try:
+        family = socket.getaddrinfo(host, int(port), type=socket.SOCK_STREAM)[0][0]
+        with socket.socket(family, socket.SOCK_STREAM) as probe:
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as gunicorn binds
+            probe.bind((host, int(port)))
+    except (OSError, OverflowError) as error:
+        reason = error.strerror if isinstance(error, OSError) and error.strerror else str(error)
+        raise CommandError(f"cannot serve at {host}:{port}: {reason}", returncode=2) from None
 
 
 class _Gunicorn(BaseApplication):
@@ -57,7 +71,10 @@ class Command(RunserverCommand):
         for option in ("workers", "threads"):
             if options[option] < 1:
                 raise CommandError(f"--{option} {options[option]}: give a whole number of at least 1", returncode=2)
-        super().handle(*args, **options)
+        try:
+            super().handle(*args, **options)
+        except CommandError as error:  # runserver's refusal of the address, status 2 as every refusal here
+            raise CommandError(str(error), returncode=2) from None
 
     def run(self, **options) -> None:
         # gunicorn's arbiter must own the main thread (its signals), where Django's
@@ -70,6 +87,7 @@ class Command(RunserverCommand):
         self.check_migrations()
         connections.close_all()  # the workers are forked: none may inherit the checks' connections
         address = f"[{self.addr}]" if self._raw_ipv6 else "0.0.0.0" if self.addr == "0" else self.addr
+        _check_listening(self.addr if self._raw_ipv6 else address, self.port)
         threads = options["threads"] if options["use_threading"] else 1
         self.stdout.write(f"Serving the study app at {self.protocol}://{address}:{self.port}/ with gunicorn, "
                           f"{options['workers']} processes of {threads} threads; quit with CONTROL-C.")
