@@ -1,11 +1,11 @@
 """``manage.py serve [addrport] [--workers N] [--threads N] [--noreload]``: the study app
-served by gunicorn, one process per core, as ``make demo`` serves it.
+served by gunicorn, one process per core (up to four), as ``make demo`` serves it.
 
 Django's runserver answers every request in one process, so one core's worth of Python
 (its interpreter lock) was the embedded default's limit: 200 participants watching 4-s
-clips ask about 48 ratings a second, runserver answered 33 and their answers queued (p95
-1.4 s; benchmarks/bench_study.py). gunicorn's threaded workers, one process per core,
-answer them within 100 ms on the same machine (README, the benchmark table).
+clips ask about 48 ratings a second, runserver answered 32 and their answers queued (p95
+1.95 s; benchmarks/bench_study.py). gunicorn's threaded workers, one process per core,
+answer them at p95 100 ms on the same machine (README, the benchmark table).
 
 The command keeps what runserver did for the demo: its address argument (``8000``,
 ``0.0.0.0:8000``, ``[::1]:8000``), its checks (the system checks, unapplied migrations),
@@ -26,6 +26,9 @@ from django.db import connections
 from gunicorn.app.base import BaseApplication
 
 THREADS = 16  # per process: a thread waits while a participant's phone downloads a clip
+# One process per core, up to four: each holds about 170 MB, and on SQLite one of them
+# writes at a time, so a workstation's many cores would add memory more than answers.
+WORKERS = min(len(os.sched_getaffinity(0)), 4)
 
 
 def _check_listening(host: str, port: str) -> None:
@@ -62,8 +65,8 @@ class Command(RunserverCommand):
 
     def add_arguments(self, parser) -> None:
         super().add_arguments(parser)
-        parser.add_argument("--workers", type=int, default=len(os.sched_getaffinity(0)),
-                            help="server processes (default: one per core of this machine, %(default)s)")
+        parser.add_argument("--workers", type=int, default=WORKERS,
+                            help="server processes (default: one per core of this machine, at most 4: %(default)s)")
         parser.add_argument("--threads", type=int, default=THREADS,
                             help="threads per process (default %(default)s; --nothreading: 1)")
 
