@@ -30,6 +30,7 @@ import pytest
 import yaml
 
 from tests.conftest import REPO
+from tests.test_study_worker import children
 
 CONNECTIONS = 100
 CONNECT_TIMEOUT_S = 3.0  # past the kernel's first SYN retry (1 s): a dropped connection stays dropped
@@ -169,18 +170,6 @@ def test_the_tested_commands_are_the_documented_ones():
     assert '"manage.py", "serve"' in Path(REPO / "studyapp" / "server" / "demo.py").read_text()
 
 
-def _children(pid: int) -> list[int]:
-    """The processes whose parent is ``pid``."""
-    children = []
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            if int(stat.read_text().rsplit(")", 1)[1].split()[1]) == pid:
-                children.append(int(stat.parent.name))
-        except (OSError, IndexError, ValueError):
-            continue
-    return children
-
-
 @pytest.mark.slow
 def test_manage_py_serve_answers_from_the_processes_asked_for_and_serves_static_files_with_debug_on(environment):
     port = _free_port()
@@ -190,9 +179,9 @@ def test_manage_py_serve_answers_from_the_processes_asked_for_and_serves_static_
     try:
         _wait_until_listening(port, server)
         deadline = time.monotonic() + 30
-        while len(_children(server.pid)) < 3 and time.monotonic() < deadline:
+        while len(children(server.pid)) < 3 and time.monotonic() < deadline:
             time.sleep(0.1)
-        assert len(_children(server.pid)) == 3
+        assert len(children(server.pid)) == 3
         with urllib.request.urlopen(f"http://127.0.0.1:{port}/static/studyapp/site.css", timeout=30) as response:
             assert response.read() == (REPO / "studyapp" / "static" / "studyapp" / "site.css").read_bytes()
     finally:

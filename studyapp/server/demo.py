@@ -17,8 +17,8 @@
 8. sets up an appropriateness study (MoGlow, RNN, VAE and NAT; the same controls and
    four more held-out takes, so that takes find partners), reusing the motion already
    sampled, and queues its clips, which the worker renders while the demo serves;
-9. opens the studies and serves them with ``manage.py serve`` (gunicorn, one process per
-   core, a listen queue that holds a crowd) on DEMO_HOST:DEMO_PORT (all interfaces, port 8000) until
+9. opens the studies and serves them with ``manage.py serve`` (gunicorn, a process per core
+   up to four, a listen queue that holds a crowd) on DEMO_HOST:DEMO_PORT (all interfaces, port 8000) until
    Ctrl-C, printing the participant links (each with an id of its own, at this machine's
    network address, so they open on a phone of the same network) and the researcher's
    login.

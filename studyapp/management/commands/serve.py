@@ -38,7 +38,7 @@ def _check_listening(host: str, port: str) -> None:
         family = socket.getaddrinfo(host, int(port), type=socket.SOCK_STREAM)[0][0]
         with socket.socket(family, socket.SOCK_STREAM) as probe:
             probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as gunicorn binds
-            probe.bind((host, int(port)))
+            probe.bind((host, int(port)))  # not getaddrinfo's address, whose port wraps at 65536
     except (OSError, OverflowError) as error:
         reason = error.strerror if isinstance(error, OSError) and error.strerror else str(error)
         raise CommandError(f"cannot serve at {host}:{port}: {reason}", returncode=2) from None
@@ -89,8 +89,9 @@ class Command(RunserverCommand):
             self.check(display_num_errors=True)
         self.check_migrations()
         connections.close_all()  # the workers are forked: none may inherit the checks' connections
-        address = f"[{self.addr}]" if self._raw_ipv6 else "0.0.0.0" if self.addr == "0" else self.addr
-        _check_listening(self.addr if self._raw_ipv6 else address, self.port)
+        host = "0.0.0.0" if self.addr == "0" else self.addr
+        _check_listening(host, self.port)
+        address = f"[{host}]" if self._raw_ipv6 else host
         threads = options["threads"] if options["use_threading"] else 1
         self.stdout.write(f"Serving the study app at {self.protocol}://{address}:{self.port}/ with gunicorn, "
                           f"{options['workers']} processes of {threads} threads; quit with CONTROL-C.")
