@@ -204,9 +204,10 @@ def test_manage_py_serve_refuses_an_address_it_cannot_listen_on_with_status_2_an
         port = taken.getsockname()[1]
         refusals = {address: subprocess.run([sys.executable, "manage.py", "serve", "--noreload", address], cwd=REPO,
                                             env=environment, capture_output=True, text=True, timeout=60)
-                    for address in (f"127.0.0.1:{port}", "no-such-host.invalid:8000", "abc")}
+                    for address in (f"127.0.0.1:{port}", "no-such-host.invalid:8000", "abc", "99999")}
     said = {address: (done.returncode, done.stderr.strip()) for address, done in refusals.items()}
     unknown = said.pop("no-such-host.invalid:8000")  # the resolver's own words follow
     assert unknown[0] == 2 and re.fullmatch(r"CommandError: cannot serve at no-such-host\.invalid:8000: [^\n]+", unknown[1])
     assert said == {f"127.0.0.1:{port}": (2, f"CommandError: cannot serve at 127.0.0.1:{port}: Address already in use"),
-                    "abc": (2, 'CommandError: "abc" is not a valid port number or address:port pair.')}
+                    "abc": (2, 'CommandError: "abc" is not a valid port number or address:port pair.'),
+                    "99999": (2, "CommandError: cannot serve at 127.0.0.1:99999: bind(): port must be 0-65535.")}
