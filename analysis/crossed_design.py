@@ -10,9 +10,11 @@ its diagonal blocks diagonal (the sums of w per participant and per stimulus) an
 q_p x q_s sums of w per participant and stimulus, sparse: nonzero only where the
 participant rated the stimulus. `CrossedBlocks` factorises such a matrix (plus the
 identity, scaled by the relative standard deviations) through the Schur complement on
-its smaller block: a dense Cholesky of min(q_p, q_s) rows and sparse products with C,
-whatever the number of ratings. `analysis.crossed_mixed` (linear) and `analysis.ordinal_mixed`
-(cumulative link) build on it.
+its smaller block: a dense Cholesky of min(q_p, q_s) rows, and products with C as sums
+over the pairs that occur, whatever the number of ratings. The pattern of those sums
+(`CrossedLayout.pattern`) is worked out once per layout, since a fit factorises such a
+matrix hundreds of times with new values on the same pairs.
+`analysis.crossed_mixed` (linear) and `analysis.ordinal_mixed` (cumulative link) build on it.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from functools import cached_property
 
 import numpy as np
 import pandas as pd
-from scipy import linalg, sparse
+from scipy import linalg
 from scipy import stats as sps
 
 from analysis.errors import AnalysisInputError
@@ -63,17 +65,10 @@ class CrossedLayout:
         return (np.bincount(self.participant, weight, q_p), np.bincount(self.stimulus, weight, q_s),
                 np.bincount(self.pair, weight, len(self.pair_participant)))
 
-    def cross(self, per_pair: np.ndarray) -> sparse.csr_matrix:
-        """The q_p x q_s sparse matrix holding ``per_pair`` at the occurring pairs."""
-        return sparse.csr_matrix((per_pair, (self.pair_participant, self.pair_stimulus)), shape=self.q)
-
     @cached_property
-    def indicators(self) -> tuple[sparse.csr_matrix, sparse.csr_matrix]:
-        """Z_p' and Z_s' (levels x ratings), to sum the columns of a matrix per level."""
-        rows = np.arange(len(self.participant))
-        ones = np.ones(len(rows))
-        return (sparse.csr_matrix((ones, (self.participant, rows)), shape=(self.q[0], len(rows))),
-                sparse.csr_matrix((ones, (self.stimulus, rows)), shape=(self.q[1], len(rows))))
+    def pattern(self) -> "PairPattern":
+        """Where C's entries sit, seen from its smaller block (see `PairPattern`)."""
+        return PairPattern.of(self)
 
     def by_system(self, factor: np.ndarray, levels: int, weight: np.ndarray | None = None) -> np.ndarray:
         """(levels, systems) sums of ``weight`` (default 1) per level of ``factor`` and system."""
@@ -103,41 +98,122 @@ def crossed_layout(frame: pd.DataFrame, reference: str | None, between: str = "s
                          pair.astype(np.int64), occurring // len(stimuli), occurring % len(stimuli))
 
 
-class CrossedBlocks:
-    """``M = [[diag(a), B], [B', diag(d)]]``, positive definite with B sparse, factorised
-    through the Schur complement of its larger diagonal block: ``S = diag(a) - B diag(1/d)
-    B'`` when a is the smaller block (the blocks swap otherwise)."""
+# C is held dense when its dense products cost at most this many times the multiply-adds
+# of a sparse product (BLAS does a dense one many times faster per operation than numpy
+# gathers and sums); sparse designs (many participants, few clips each) keep the sums.
+_DENSE_ADVANTAGE = 16
 
-    def __init__(self, a: np.ndarray, b: sparse.csr_matrix, d: np.ndarray):
-        self.swapped = len(d) < len(a)
-        if self.swapped:
-            a, b, d = d, b.T.tocsr(), a
-        self.a, self.b, self.d = a, b, d
-        self.b_over_d = b @ sparse.diags(1.0 / d)
-        schur = np.diag(a) - (self.b_over_d @ b.T).toarray()
-        self.factor = linalg.cho_factor(schur, lower=True, check_finite=False)
+
+@dataclass(frozen=True)
+class PairPattern:
+    """The occurring (participant, stimulus) pairs as seen from C's smaller block: each
+    pair's ``small`` and ``large`` level; C is held dense (``couples`` None) or as sums
+    over ``couples``: every ordered couple (first, second) of pairs that share their large
+    level, each pair with itself included, whose products make up ``C diag(1/d) C'`` as a
+    sparse matrix product visits them (``at`` the couple's entry of the small block)."""
+
+    swapped: bool  # the stimuli are the smaller block
+    q_small: int
+    q_large: int
+    small: np.ndarray
+    large: np.ndarray
+    couples: tuple[np.ndarray, np.ndarray, np.ndarray] | None  # first, second, at
+
+    @classmethod
+    def of(cls, layout: "CrossedLayout") -> "PairPattern":
+        q_p, q_s = layout.q
+        swapped = q_s < q_p
+        q_small, q_large = min(q_p, q_s), max(q_p, q_s)
+        small, large = ((layout.pair_stimulus, layout.pair_participant) if swapped
+                        else (layout.pair_participant, layout.pair_stimulus))
+        counts = np.bincount(large, minlength=q_large)
+        if q_small * q_small * q_large <= _DENSE_ADVANTAGE * int(counts @ counts):
+            return cls(swapped, q_small, q_large, small, large, None)
+        # for each pair, in order of its large level, every pair of that large level
+        by_large = np.argsort(large, kind="stable")
+        repeat = counts[large[by_large]]
+        first = np.repeat(by_large, repeat)
+        starts = np.cumsum(counts) - counts
+        offset = np.arange(len(first)) - np.repeat(np.cumsum(repeat) - repeat, repeat)
+        second = by_large[np.repeat(starts[large[by_large]], repeat) + offset]
+        return cls(swapped, q_small, q_large, small, large, (first, second, small[first] * q_small + small[second]))
+
+
+def _sum_by(index: np.ndarray, values: np.ndarray, levels: int) -> np.ndarray:
+    """Sums of ``values`` (a vector, or a matrix of rows) per ``index``."""
+    if values.ndim == 1:
+        return np.bincount(index, values, levels)
+    columns = values.shape[1]
+    flat = (index[:, None] * columns + np.arange(columns)).ravel()
+    return np.bincount(flat, values.ravel(), levels * columns).reshape(levels, columns)
+
+
+class CrossedBlocks:
+    """``M = [[diag(a), C], [C', diag(d)]]``, positive definite, a participant block ``a``,
+    a stimulus block ``d`` and C holding ``per_pair`` at the layout's occurring pairs,
+    factorised through the Schur complement of its larger diagonal block: ``S = diag(a) -
+    C diag(1/d) C'`` when a is the smaller block (the blocks swap otherwise)."""
+
+    def __init__(self, layout: CrossedLayout, a: np.ndarray, per_pair: np.ndarray, d: np.ndarray):
+        pattern = self.pattern = layout.pattern
+        if pattern.swapped:
+            a, d = d, a
+        self.a, self.d, self.c = a, d, per_pair
+        self.c_over_d = per_pair / d[pattern.large]
+        if pattern.couples is None:
+            self.dense_c_over_d = np.zeros((pattern.q_small, pattern.q_large))
+            self.dense_c_over_d[pattern.small, pattern.large] = self.c_over_d
+            product = (self.dense_c_over_d * d) @ self.dense_c_over_d.T
+        else:
+            first, second, at = pattern.couples
+            product = np.bincount(at, self.c_over_d[first] * per_pair[second],
+                                  pattern.q_small**2).reshape(pattern.q_small, pattern.q_small)
+        self.factor = linalg.cho_factor(np.diag(a) - product, lower=True, check_finite=False)
 
     def logdet(self) -> float:
         return float(np.log(self.d).sum() + 2.0 * np.log(np.diag(self.factor[0])).sum())
 
+    def _c_over_d_times(self, large: np.ndarray) -> np.ndarray:
+        """C diag(1/d) times a vector or matrix over the large block's levels."""
+        pattern = self.pattern
+        if pattern.couples is None:
+            return self.dense_c_over_d @ large
+        weights = self.c_over_d if large.ndim == 1 else self.c_over_d[:, None]
+        return _sum_by(pattern.small, weights * large[pattern.large], pattern.q_small)
+
     def solve(self, first: np.ndarray, second: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """M^{-1} [first; second] as (first block, second block), for vectors or matrices."""
-        small, large = (second, first) if self.swapped else (first, second)
-        d = self.d if large.ndim == 1 else self.d[:, None]
-        x_small = linalg.cho_solve(self.factor, small - self.b_over_d @ large, check_finite=False)
-        x_large = (large - self.b.T @ x_small) / d
-        return (x_large, x_small) if self.swapped else (x_small, x_large)
+        pattern = self.pattern
+        small, large = (second, first) if pattern.swapped else (first, second)
+        x_small = linalg.cho_solve(self.factor, small - self._c_over_d_times(large), check_finite=False)
+        # (large - C' x_small) / d = large / d - (C diag(1/d))' x_small
+        if pattern.couples is None:
+            correction = self.dense_c_over_d.T @ x_small
+        else:
+            weights = self.c_over_d if large.ndim == 1 else self.c_over_d[:, None]
+            correction = _sum_by(pattern.large, weights * x_small[pattern.small], pattern.q_large)
+        x_large = (large / (self.d if large.ndim == 1 else self.d[:, None])) - correction
+        return (x_large, x_small) if pattern.swapped else (x_small, x_large)
 
-    def inverse_blocks(self, rows: np.ndarray, columns: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The diagonals of M^{-1}'s two blocks, and its off-diagonal (q_p x q_s) block's
-        entries at (``rows``, ``columns``)."""
-        s_inverse = linalg.cho_solve(self.factor, np.eye(len(self.a)), check_finite=False)
-        cross = -(self.b_over_d.T @ s_inverse).T  # -S^-1 B D^-1, dense small x large
-        large_diagonal = 1.0 / self.d - np.asarray(self.b_over_d.multiply(cross).sum(axis=0)).ravel()
+    def inverse_blocks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The diagonals of M^{-1}'s participant and stimulus blocks, and its off-diagonal
+        block's entry at each occurring pair (the layout's ``pair_participant``,
+        ``pair_stimulus``)."""
+        pattern = self.pattern
+        s_inverse = linalg.cho_solve(self.factor, np.eye(pattern.q_small), check_finite=False)
+        # the off-diagonal block is -S^-1 C diag(1/d); wanted at the occurring pairs only
+        if pattern.couples is None:
+            cross = -(s_inverse @ self.dense_c_over_d)[pattern.small, pattern.large]
+        else:
+            first, second, _ = pattern.couples
+            cross = -np.bincount(first, s_inverse[pattern.small[first], pattern.small[second]]
+                                 * self.c_over_d[second], len(self.c))
+        # the large block is diag(1/d) + (C diag(1/d))' S^-1 C diag(1/d)
+        large_diagonal = 1.0 / self.d - np.bincount(pattern.large, self.c_over_d * cross, pattern.q_large)
         small_diagonal = np.diag(s_inverse).copy()
-        if self.swapped:
-            return large_diagonal, small_diagonal, cross[columns, rows]
-        return small_diagonal, large_diagonal, cross[rows, columns]
+        if pattern.swapped:
+            return large_diagonal, small_diagonal, cross
+        return small_diagonal, large_diagonal, cross
 
 
 def contrasts_against_reference(estimate: np.ndarray, covariance: np.ndarray, systems: Sequence[str],

@@ -97,7 +97,7 @@ def _solve(t: np.ndarray, s: _Sums) -> _Solution:
     """The penalised least-squares solution and REML deviance at relative sds ``t``."""
     t_p, t_s = t
     n_p, n_s, n_ps = s.zz
-    blocks = CrossedBlocks(t_p**2 * n_p + 1.0, s.layout.cross(t_p * t_s * n_ps), t_s**2 * n_s + 1.0)
+    blocks = CrossedBlocks(s.layout, t_p**2 * n_p + 1.0, t_p * t_s * n_ps, t_s**2 * n_s + 1.0)
     lzy = (t_p * s.zy[0], t_s * s.zy[1])
     lzx = (t_p * s.zx[0], t_s * s.zx[1])
     wy = blocks.solve(*lzy)

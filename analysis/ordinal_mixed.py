@@ -151,7 +151,7 @@ def _laplace(theta: np.ndarray, data: _Data, start: tuple[np.ndarray, np.ndarray
     eta, link, g = at(u, v)
     for _ in range(_MAX_MODE_STEPS):
         d_p, d_s, d_ps = lay.sums(link.d)
-        blocks = CrossedBlocks(1 + s_p**2 * d_p, lay.cross(s_p * s_s * d_ps), 1 + s_s**2 * d_s)
+        blocks = CrossedBlocks(lay, 1 + s_p**2 * d_p, s_p * s_s * d_ps, 1 + s_s**2 * d_s)
         psi_p, psi_s, _ = lay.sums(link.psi)
         step_u, step_v = blocks.solve(s_p * psi_p - u, s_s * psi_s - v)
         scale = 1.0
@@ -165,7 +165,7 @@ def _laplace(theta: np.ndarray, data: _Data, start: tuple[np.ndarray, np.ndarray
         if max(np.abs(step_u).max(initial=0), np.abs(step_v).max(initial=0)) * scale < _MODE_TOLERANCE:
             break
     d_p, d_s, d_ps = lay.sums(link.d)
-    blocks = CrossedBlocks(1 + s_p**2 * d_p, lay.cross(s_p * s_s * d_ps), 1 + s_s**2 * d_s)
+    blocks = CrossedBlocks(lay, 1 + s_p**2 * d_p, s_p * s_s * d_ps, 1 + s_s**2 * d_s)
     return _Laplace(g - 0.5 * blocks.logdet(), (u, v), _link(eta, upper, lower, full=True), eta, blocks)
 
 
@@ -209,7 +209,7 @@ def _gradient(theta: np.ndarray, data: _Data, fit: _Laplace) -> np.ndarray:
     du, dv = fit.blocks.solve(*changes)
     # tr(H^-1 dH/dtheta) = sum_i leverage_i dD_i/dtheta (+ Lambda's own change for the sds),
     # dD_i = dD_i/dalpha + D'_i (deta_i/dtheta + w_i' dw/dtheta)
-    h_p, h_s, h_ps = fit.blocks.inverse_blocks(lay.pair_participant, lay.pair_stimulus)
+    h_p, h_s, h_ps = fit.blocks.inverse_blocks()
     cross = h_ps[lay.pair]
     leverage = s_p**2 * h_p[p_idx] + s_s**2 * h_s[s_idx] + 2 * s_p * s_s * cross
     w = leverage * link.d_eta
