@@ -29,9 +29,10 @@ def test_every_committed_model_is_the_file_its_digest_records():
 
 
 def test_the_committed_models_learnt_from_the_demos_default_data_prepared_the_demos_way(motion_data, motion_data_2,
-                                                                                       settings, tmp_path):
+                                                                                       settings, demo_dataset_cache):
     assert {folder.resolve() for folder in motion_folders(settings.MOTION_DATA)} == {motion_data, motion_data_2}
-    dataset = build_dataset(settings.MOTION_DATA, DatasetOptions(**demo.DATASET), cache_dir=tmp_path, progress=False)
+    dataset = build_dataset(settings.MOTION_DATA, DatasetOptions(**demo.DATASET), cache_dir=demo_dataset_cache,
+                            progress=False)
     for _, kind, _, file, _ in demo.DEMO_MODELS:
         meta = read_meta(demo.COMMITTED_MODELS / file)
         assert (meta.kind, meta.step, meta.data_fingerprint) == (kind, TRAINED_STEPS[file], dataset.fingerprint), file

@@ -240,7 +240,8 @@ def test_takes_outside_motion_data_are_named_with_their_folder_and_unit(site):
 
 
 @pytest.mark.django_db
-def test_the_documented_definition_is_the_demos_study_and_makes_it_again(settings, tmp_path, motion_data, motion_data_2):
+def test_the_documented_definition_is_the_demos_study_and_makes_it_again(settings, tmp_path, motion_data, motion_data_2,
+                                                                        demo_dataset_cache):
     """docs/running-a-study.md's example, made on the demo's data with its committed models."""
     from generation.store import keep
     from studyapp.server import demo
@@ -249,6 +250,8 @@ def test_the_documented_definition_is_the_demos_study_and_makes_it_again(setting
     text = guide.split("as `describe_study` writes it:\n\n```yaml\n", 1)[1].split("```\n", 1)[0]
     settings.CHECKPOINT_ROOT, settings.VAR_DIR = tmp_path / "checkpoints", tmp_path / "var"
     settings.MOTION_DATA = os.pathsep.join(map(str, (motion_data, motion_data_2)))  # the demo's data
+    (tmp_path / "var").mkdir()
+    (tmp_path / "var" / "cache").symlink_to(demo_dataset_cache)  # the demo's dataset, prepared once per run
     for _, _, _, file, _ in demo.DEMO_MODELS:
         keep(demo.COMMITTED_MODELS / file, settings.CHECKPOINT_ROOT)
     owner = User.objects.create_user("researcher")
