@@ -82,3 +82,13 @@ def fast_password_hashing():
     hashers = ["django.contrib.auth.hashers.MD5PasswordHasher", *(h for h in settings.PASSWORD_HASHERS if "MD5" not in h)]
     with override_settings(PASSWORD_HASHERS=hashers):
         yield
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The modules holding a slow test first, the others after them, each in file order.
+    make test's processes take whole modules in this order (pytest-xdist's ``--dist
+    loadfile --no-loadscope-reorder``), so the long modules start while short ones can
+    still run beside them, and the run does not end on one long module alone. Most of
+    the long ones wait on a browser playing clips in real time more than they compute."""
+    slow = {item.path for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: item.path not in slow)

@@ -19,6 +19,8 @@ from analysis.power import (SEQUENTIAL_LOOKS_NOTE, more_ratings_for_power, pages
 from analysis.ratings import validate_ratings
 from analysis.simulate import simulate_pairwise, simulate_ratings, simulate_side_by_side
 
+pytestmark = pytest.mark.slow
+
 ALPHA_PAIR = 0.05 / 3  # three systems: three pairs, Bonferroni
 
 

@@ -14,6 +14,8 @@ from analysis.motion_io import load_motion_sets, save_clips
 from analysis.simulate import simulate_ratings
 from analysis.tables import to_latex
 
+pytestmark = pytest.mark.slow
+
 SYSTEMS = {"NAT": 4.2, "MoGlow": 3.9, "LSTM": 2.9, "VAE": 3.3}
 
 

@@ -17,6 +17,8 @@ from generation.generator import Generator
 from generation.motion.dataset import DatasetOptions, build_dataset
 from generation.train import TrainOptions, train
 
+pytestmark = pytest.mark.slow
+
 CLIPS = ["walk_normal_001", "walk_happy_001", "walk-back_normal_001", "run_normal_001", "walk-left_old_001", "walk_old_002"]
 
 

@@ -18,6 +18,8 @@ from studyapp.models import Participant, Question, Rating, Stimulus
 from tests.study_fixtures import make_study
 from tests.test_study_browser import CLIP_SECONDS, PASSWORD, browser, clip_video, wait_for_clip_end  # noqa: F401 (fixtures)
 
+pytestmark = pytest.mark.slow
+
 PHONE = {"viewport": {"width": 390, "height": 844}, "is_mobile": True, "has_touch": True}
 
 

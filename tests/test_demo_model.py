@@ -16,6 +16,8 @@ from studyapp.server import demo
 from tests.study_fixtures import make_study
 from tests.test_checkpoint import clips_folder, dataset  # noqa: F401
 
+pytestmark = pytest.mark.slow
+
 # The state each committed model is (scripts/train-demo-models.sh).
 TRAINED_STEPS = {"moglow-cpu.safetensors": 26_500, "rnn-cpu.safetensors": 400, "vae-cpu.safetensors": 1000,
                  "moglow-bad.safetensors": 15}

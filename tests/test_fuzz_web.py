@@ -42,7 +42,7 @@ from tests.platform_standins import ProlificStandIn
 from tests.study_fixtures import make_study
 from tests.test_hostile_numbers import study_fields
 
-pytestmark = pytest.mark.django_db
+pytestmark = [pytest.mark.django_db, pytest.mark.slow]
 
 EXAMPLES = 40
 FUZZ = fuzz_settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,

@@ -31,7 +31,7 @@ from studyapp.stimuli.controls import add_preset_controls
 from studyapp.stimuli.systems import add_checkpoint_system, add_natural_system, add_video_system
 from tests.test_study_researcher import files, new_study, researcher, site  # noqa: F401 (fixtures)
 
-pytestmark = pytest.mark.django_db
+pytestmark = [pytest.mark.django_db, pytest.mark.slow]
 
 
 def small_study(researcher, files) -> Study:

@@ -17,6 +17,8 @@ from generation.models.moglow import MoGlow, MoGlowConfig
 from generation.registry import preset
 from generation.motion.dataset import DatasetOptions, build_dataset
 
+pytestmark = pytest.mark.slow
+
 LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right")
 DIM, CONTEXT_DIM = 5, 3
 

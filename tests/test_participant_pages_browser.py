@@ -21,6 +21,8 @@ from tests.appropriateness_fixtures import make_appropriateness_study
 from tests.study_fixtures import make_study
 from tests.test_study_browser import browser, clip_video  # noqa: F401 (fixtures)
 
+pytestmark = pytest.mark.slow
+
 CLIP_SECONDS = 1.0
 DESKTOP = {"viewport": {"width": 1366, "height": 768}}
 PHONE = {"viewport": {"width": 390, "height": 844}, "is_mobile": True, "has_touch": True}

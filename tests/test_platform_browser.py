@@ -18,6 +18,8 @@ from tests.study_fixtures import make_study
 from tests.test_crowd_browser import log_in
 from tests.test_study_browser import browser  # noqa: F401 (fixture)
 
+pytestmark = pytest.mark.slow
+
 DESKTOP = {"viewport": {"width": 1366, "height": 768}}
 PHONE = {"viewport": {"width": 390, "height": 844}, "is_mobile": True, "has_touch": True}
 SIZES = pytest.mark.parametrize("size", [DESKTOP, PHONE], ids=["desktop", "phone"])

@@ -19,6 +19,8 @@ from studyapp.models import Assignment, Participant, Question, Rating
 from tests.study_fixtures import make_study
 from tests.test_study_browser import PASSWORD, browser  # noqa: F401 (fixture)
 
+pytestmark = pytest.mark.slow
+
 DESKTOP = {"viewport": {"width": 1366, "height": 768}}
 PHONE = {"viewport": {"width": 390, "height": 844}, "is_mobile": True, "has_touch": True}
 SHOTS = os.environ.get("SHOTS_DIR")

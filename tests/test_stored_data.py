@@ -20,7 +20,7 @@ from generation.control import preset_path
 from generation.motion.dataset import DatasetOptions
 from studyapp.models import Assignment, ControlSignal, Participant, Question, Rating, Stimulus, Study, System
 
-pytestmark = pytest.mark.django_db
+pytestmark = [pytest.mark.django_db, pytest.mark.slow]
 
 GOOD_CONTROL = preset_path("walk-straight", 20.0).to_dict()
 

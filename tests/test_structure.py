@@ -14,6 +14,8 @@ import pytest
 
 from generation import registry
 
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("measures", "generation", "analysis", "studyapp", "benchmarks")
 # docs/architecture.md's table: the project packages each package may import (besides

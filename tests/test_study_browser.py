@@ -22,6 +22,8 @@ from tests.study_fixtures import current_clip
 from studyapp.models import Participant, Rating, System
 from tests.study_fixtures import make_study, render_clip_video
 
+pytestmark = pytest.mark.slow
+
 CLIP_SECONDS = 1.0
 PASSWORD = "a-long-test-password"
 
@@ -34,20 +36,22 @@ def chromium_path() -> str:
     return path
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def clip_video(motion_data, tmp_path_factory) -> Path:
     bvh = motion_data / "data" / "dataset-1_walk_normal_001.bvh"
     return render_clip_video(bvh, tmp_path_factory.mktemp("video") / "clip.mp4", CLIP_SECONDS)
 
 
-@pytest.fixture()
-def browser(monkeypatch):
-    # Playwright's sync API runs an event loop in this thread; the ORM calls the test
-    # makes between browser steps are still synchronous and safe.
-    monkeypatch.setenv("DJANGO_ALLOW_ASYNC_UNSAFE", "true")
+@pytest.fixture(scope="module")
+def browser():
+    """One headless Chromium for a module's tests (starting one costs about a second of
+    CPU); each test opens a context of its own, with its own cookies, and closes it."""
+    # Playwright's sync API runs an event loop in this thread; the ORM calls the tests
+    # make between browser steps are still synchronous and safe.
     from playwright.sync_api import sync_playwright
 
-    with sync_playwright() as playwright:
+    with pytest.MonkeyPatch.context() as patch, sync_playwright() as playwright:
+        patch.setenv("DJANGO_ALLOW_ASYNC_UNSAFE", "true")
         browser = playwright.chromium.launch(executable_path=chromium_path(), args=["--no-sandbox"])
         yield browser
         browser.close()

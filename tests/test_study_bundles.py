@@ -28,7 +28,7 @@ from tests.test_study_researcher import (files, new_study, queue, researcher, ru
 from tests.test_study_rules import PAIRWISE_RULES, SIDE_BY_SIDE_RULES, SINGLE_RULES, populate
 from tests.test_study_submissions import other_labs_motion, upload_motion, zipped
 
-pytestmark = pytest.mark.django_db
+pytestmark = [pytest.mark.django_db, pytest.mark.slow]
 
 DESIGNS = {"single": SINGLE_RULES, "side-by-side": SIDE_BY_SIDE_RULES, "pairwise": PAIRWISE_RULES}
 

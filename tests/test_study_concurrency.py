@@ -14,6 +14,8 @@ from studyapp.participants.simulated import run_participants
 from studyapp.server.sqlite_backend.base import DatabaseWrapper
 from tests.study_fixtures import make_study
 
+pytestmark = pytest.mark.slow
+
 
 @pytest.mark.django_db(transaction=True)
 def test_simultaneous_participants_never_pass_a_target_and_lose_no_rating(live_server):

@@ -32,6 +32,8 @@ from studyapp.stimuli.submissions import add_submitted_system, read_folder
 from studyapp.stimuli.systems import add_checkpoint_system, add_natural_system
 from tests.study_setup import study_files
 
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def files(motion_data, tmp_path_factory) -> SimpleNamespace:

@@ -22,7 +22,7 @@ from tests.test_study_designs import PAIRWISE, SIDE_BY_SIDE, compare, page_html,
 from tests.test_study_designs import through_practice as through_page_practice
 from tests.test_study_participant import make_shown_long_ago, post, rate_current, through_practice
 
-pytestmark = pytest.mark.django_db
+pytestmark = [pytest.mark.django_db, pytest.mark.slow]
 
 # Each design with rules of its own: who passes them, who fails them, and who the defaults would judge otherwise.
 SINGLE_RULES = {"natural_threshold": 4.5, "bad_threshold": 3.0}  # NAT below 4.5 or BAD at 3 or above excludes
