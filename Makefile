@@ -25,14 +25,16 @@ $(INSTALLED): pyproject.toml
 # database tests again on PostgreSQL: the server DATABASE_URL names, or a throwaway
 # cluster (tests/postgres_pass.py; PostgreSQL is installed when missing).
 # Both passes run the test modules on TEST_WORKERS processes (pytest-xdist; a module stays
-# in one process, with its fixtures): most tests wait on a browser, a server or a worker as
-# much as they compute, so two processes on two cores take about half the time.
-TEST_WORKERS ?= 2
+# in one process, with its fixtures), one more than the cores (at most 8): the browser
+# tests wait on clips playing in real time more than they compute, and the modules with
+# a slow test are started first (tests/conftest.py), so the others fill those waits.
+TEST_WORKERS ?= $(shell n=$$(nproc); echo $$(( n < 8 ? n + 1 : 8 )))
+PYTEST_PARALLEL = -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 test: $(INSTALLED)
 	scripts/ensure-redis.sh
 	scripts/ensure-chromium.sh
-	DATABASE_URL= $(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile
-	$(BIN)/python -m tests.postgres_pass -n $(TEST_WORKERS) --dist loadfile
+	DATABASE_URL= $(BIN)/python -m pytest $(PYTEST_PARALLEL)
+	$(BIN)/python -m tests.postgres_pass $(PYTEST_PARALLEL)
 
 demo: $(INSTALLED)
 	$(BIN)/python -m studyapp.server.demo
