@@ -10,10 +10,11 @@ its diagonal blocks diagonal (the sums of w per participant and per stimulus) an
 q_p x q_s sums of w per participant and stimulus, sparse: nonzero only where the
 participant rated the stimulus. `CrossedBlocks` factorises such a matrix (plus the
 identity, scaled by the relative standard deviations) through the Schur complement on
-its smaller block: a dense Cholesky of min(q_p, q_s) rows, and products with C as sums
-over the pairs that occur, whatever the number of ratings. The pattern of those sums
-(`CrossedLayout.pattern`) is worked out once per layout, since a fit factorises such a
-matrix hundreds of times with new values on the same pairs.
+its smaller block: a dense Cholesky of min(q_p, q_s) rows, and products with C, held
+dense when it is compact or as sums over the pairs that occur, whatever the number of
+ratings. Which, and the pattern of those sums (`CrossedLayout.pattern`), is worked out
+once per layout, since a fit factorises such a matrix hundreds of times with new values
+on the same pairs.
 `analysis.crossed_mixed` (linear) and `analysis.ordinal_mixed` (cumulative link) build on it.
 """
 
