@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 
 import imageio_ffmpeg
 import pytest
@@ -38,6 +39,16 @@ from tests.test_study_browser import browser, wait_for_clip_end  # noqa: F401 (f
 SYSTEMS = {"MoGlow", "OtherLab", "Toy", "NAT", "BAD"}
 # What would tell a participant where a clip came from ("natural" is in the study's question).
 GIVEAWAYS = [*SYSTEMS, "moglow", "toy", "submitted", "checkpoint", "safetensors", ".bvh", "video-upload"]
+
+
+def giveaways(html: str) -> list[str]:
+    """The GIVEAWAYS a page shows, not counting a word's letters inside a longer run of
+    letters and digits: a random token (a CSRF token holds "toy" about once in 60 runs)
+    gives nothing away."""
+    def apart(word: str) -> str:
+        return ((r"(?<![A-Za-z0-9])" if word[0].isalnum() else "") + re.escape(word)
+                + (r"(?![A-Za-z0-9])" if word[-1].isalnum() else ""))
+    return [word for word in GIVEAWAYS if re.search(apart(word), html)]
 
 
 def build_study(files, tmp_path, owner) -> Study:
@@ -121,7 +132,7 @@ def test_a_study_of_every_kind_of_system_is_completed_and_every_system_is_export
     seen = take_part(browser, live_server, study, "p-1") + take_part(browser, live_server, study, "p-2")
     assert "ALL-D0NE" in seen[-1]
     for html in seen:
-        assert [word for word in GIVEAWAYS if word in html] == []
+        assert giveaways(html) == []
 
     client = Client()
     client.force_login(owner)
