@@ -159,7 +159,7 @@ class CrossedBlocks:
         pattern = self.pattern = layout.pattern
         if pattern.swapped:
             a, d = d, a
-        self.a, self.d, self.c = a, d, per_pair
+        self.d = d
         self.c_over_d = per_pair / d[pattern.large]
         if pattern.couples is None:
             self.dense_c_over_d = np.zeros((pattern.q_small, pattern.q_large))
@@ -208,7 +208,7 @@ class CrossedBlocks:
         else:
             first, second, _ = pattern.couples
             cross = -np.bincount(first, s_inverse[pattern.small[first], pattern.small[second]]
-                                 * self.c_over_d[second], len(self.c))
+                                 * self.c_over_d[second], len(self.c_over_d))
         # the large block is diag(1/d) + (C diag(1/d))' S^-1 C diag(1/d)
         large_diagonal = 1.0 / self.d - np.bincount(pattern.large, self.c_over_d * cross, pattern.q_large)
         small_diagonal = np.diag(s_inverse).copy()
