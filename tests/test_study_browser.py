@@ -58,7 +58,12 @@ def browser():
 
 
 def wait_for_clip_end(page) -> None:
-    page.wait_for_function("() => document.getElementById('clip').ended", timeout=20_000)
+    """Wait until the clip has ended and, on a page that records it, its end is in the form
+    (the "ended" event runs a moment after ``ended`` turns true)."""
+    page.wait_for_function("""() => {
+        const ended = document.querySelector("input[name=ended_s]");
+        return document.getElementById("clip").ended && (!ended || ended.value !== "");
+    }""", timeout=20_000)
 
 
 def take_part(browser, live_server, study, pid: str, value_for, early_at: int | None = None,
@@ -121,8 +126,10 @@ def test_three_participants_and_the_researchers_export(browser, live_server, cli
     assert [p.finished_at is not None for p in (good, careless, hasty)] == [True, True, True]
     assert (good.excluded, careless.excluded, hasty.excluded) == (False, True, False)
     assert careless.exclusion_reason == "rated a BAD clip high"
-    early = Rating.objects.filter(answered_before_end=True)
-    assert [(r.assignment.participant_id, r.assignment.position) for r in early] == [(hasty.pk, 1)]
+    early = Rating.objects.filter(answered_before_end=True).select_related("assignment")
+    assert [(r.assignment.participant_id, r.assignment.position) for r in early] == [(hasty.pk, 1)], [
+        (r.assignment.position, r.answered_at - r.assignment.shown_at, r.client_started_s, r.client_ended_s,
+         r.client_answered_s) for r in early]  # which clock flagged it
 
     # The researcher logs in through the login page and downloads the table.
     context = browser.new_context(accept_downloads=True)
