@@ -34,6 +34,12 @@ dw*/dtheta = H^-1 d(dg/dw)/dtheta) and, for s, Lambda's. With per-rating derivat
 log pi up to the third order, every term is a sum over ratings or a solve with H; the
 tests compare it with finite differences.
 
+Separation. Where the ratings separate the systems (each system's ratings keeping to
+values of their own), the likelihood grows as log-odds run off to infinity and no
+estimate is finite. The thresholds and effects are bounded at +/- ``_MAX_LOGIT``, far
+beyond anything ratings can estimate, so the fit stops there; an estimate on that bound
+is reported as no fit, with the reason, instead of as a number.
+
 Standard errors: from the inverse of the numerical Hessian (forward differences of the
 exact gradient, accurate to about 1e-5 relative) of -L in (alpha, beta) and the standard
 deviations that are not on their bound, as ordinal does for clmm's fixed effects.
@@ -64,6 +70,10 @@ RANDOM_FACTORS = ("participant", "stimulus")
 _MODE_TOLERANCE = 1e-10
 _MAX_MODE_STEPS = 100
 _MAX_SD = 20.0
+# No rating data estimate a log-odds this large (a probability of e^-30 needs some 10^13
+# ratings to show): an estimate reaching it is one that grows without bound, because
+# the ratings separate the systems, and the fit stops there instead of following it.
+_MAX_LOGIT = 30.0
 _OUTER_END = 1e4
 
 
@@ -286,7 +296,8 @@ def fit_ordinal(y: np.ndarray, layout: CrossedLayout,
         return -fit.value, -_natural_gradient_to_phi(_gradient(theta, data, fit), phi, data)
 
     j = data.levels - 1
-    fixed = [(None, None)] * (j + data.k - 1)
+    fixed = ([(-_MAX_LOGIT, _MAX_LOGIT)] + [(None, np.log(2 * _MAX_LOGIT))] * (j - 1)
+             + [(-_MAX_LOGIT, _MAX_LOGIT)] * (data.k - 1))
     # the thresholds and effects without random effects first (no modes to find), then all
     start = _start(data)
     plain = optimize.minimize(evaluate, start, jac=True, method="L-BFGS-B",
@@ -297,6 +308,12 @@ def fit_ordinal(y: np.ndarray, layout: CrossedLayout,
                               bounds=fixed + [(0.0, _MAX_SD) if free else (0.0, 0.0) for free in data.free],
                               options={"ftol": 1e-15, "gtol": 1e-7, "maxiter": 2000})
     theta = _to_natural(found.x, data)
+    if np.abs(theta[: j + data.k - 1]).max() >= _MAX_LOGIT * (1 - 1e-6):
+        raise AnalysisInputError(
+            "the ratings separate the systems (a fit matches them only with some values' probabilities at 0 "
+            "for some systems, as when each system's ratings keep to values of their own), so log-odds "
+            "grow without bound and have no finite estimate; the linear mixed model and the rank-based "
+            "tests still apply")
     theta[-2:] = np.where(theta[-2:] < 1e-6, 0.0, theta[-2:])  # a hair above the bound is the bound
     covariance = _covariance(theta, data, _laplace(theta, data, memo.get("mode")).mode)
     alpha, beta, (s_p, s_s) = _split(theta, data)

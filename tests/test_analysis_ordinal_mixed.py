@@ -157,3 +157,15 @@ def test_ratings_that_each_equal_their_system_s_mean_are_not_fitted_and_the_note
     assert tables.effects.empty
     assert any(note.endswith("every rating equals its system's mean, so each system's ratings are one value and "
                              "the log-odds between systems are not finite.") for note in tables.notes)
+
+
+def test_ratings_that_separate_the_systems_are_not_fitted_and_the_notes_say_why():
+    # Each system's ratings keep to two values of their own (NAT 4-5, A 3-4, B 2-3): the
+    # likelihood grows without bound as the log-odds do, so no estimate is finite.
+    values = {"NAT": [4, 5, 5, 4, 4, 5], "A": [3, 4, 4, 3, 3, 4], "B": [2, 3, 3, 2, 2, 3]}
+    table = pd.DataFrame([(f"p{p}", system, f"{system}_{c}", values[system][(c + p) % 6])
+                          for p in range(4) for system in values for c in range(2)],
+                         columns=["participant", "system", "stimulus", "value"]).assign(task="t", control_class="c")
+    tables = ordinal_mixed_model(table, reference="NAT")
+    assert tables.effects.empty
+    assert any("the ratings separate the systems" in note and "no finite estimate" in note for note in tables.notes)

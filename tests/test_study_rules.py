@@ -195,11 +195,18 @@ def test_the_monitor_and_the_in_app_report_show_the_rater_and_clip_aware_models(
     page = client.get(f"/analysis/{app.name}/").content.decode()
     (tmp_path / "ratings.csv").write_bytes(client.get(reverse("study-export", args=[study.pk])).content)
     rules = ExclusionRules.from_json(client.get(reverse("study-rules", args=[study.pk])).content.decode())
-    models = build_report(read_ratings(tmp_path / "ratings.csv"), rules=rules).rater_models.tables()
-    monitor = dict(study_monitor(study).tables)
-    # The side-by-side sliders (0-100) have too many points for the cumulative link model.
-    expected = RATER_TABLES if study.design == "single" else [n for n in RATER_TABLES if not n.startswith("ordinal")]
+    rater_models = build_report(read_ratings(tmp_path / "ratings.csv"), rules=rules).rater_models
+    models = rater_models.tables()
+    shown = study_monitor(study)
+    monitor = dict(shown.tables)
+    # No cumulative link model on either design: the side-by-side sliders (0-100) have too
+    # many points, and the single clips' kept raters gave NAT 5 and no other system 5, which
+    # separates the systems (the log-odds have no finite estimate). Both places say why.
+    expected = [n for n in RATER_TABLES if not n.startswith("ordinal")]
     assert [name for name, (_, table) in models.items() if len(table)] == list(expected)
+    why = next(note for note in rater_models.notes if note.startswith("No cumulative link mixed model"))
+    assert ("separate the systems" in why) == (study.design == "single")
+    assert why in shown.analysis_notes and html.escape(why) in page
     for name in expected:
         title, table = models[name]
         assert (app / "tables" / f"{name}.csv").is_file()
