@@ -20,13 +20,21 @@ y up; fps; joint names and parents), and writes the tables and figures of MoGlow
 - `analysis.footsteps`, `analysis.bones`, `analysis.scores`: objective metrics.
 """
 
-from analysis.errors import AnalysisInputError
-from analysis.design_report import DesignReport
-from analysis.exclusions import ExclusionRules, apply_exclusions, exclusion_summary
-from analysis.power import more_ratings_for_power
-from analysis.ratings import read_ratings, validate_ratings
-from analysis.report import Report, build_report, write_report
+from importlib import import_module
 
-__all__ = ["AnalysisInputError", "DesignReport", "ExclusionRules", "Report", "apply_exclusions",
-           "build_report", "exclusion_summary", "more_ratings_for_power", "read_ratings",
-           "validate_ratings", "write_report"]
+# The entry points by the module that defines them, imported when first asked for: the
+# web app and the command lines import single modules (analysis.exclusions, say), and
+# importing the package first should not cost them scipy.stats and matplotlib.
+_HOME = {"AnalysisInputError": "analysis.errors", "DesignReport": "analysis.design_report",
+         "ExclusionRules": "analysis.exclusions", "apply_exclusions": "analysis.exclusions",
+         "exclusion_summary": "analysis.exclusions", "more_ratings_for_power": "analysis.power",
+         "read_ratings": "analysis.ratings", "validate_ratings": "analysis.ratings",
+         "Report": "analysis.report", "build_report": "analysis.report", "write_report": "analysis.report"}
+
+__all__ = sorted(_HOME)
+
+
+def __getattr__(name: str):
+    if name not in _HOME:
+        raise AttributeError(f"module 'analysis' has no attribute {name!r}")
+    return getattr(import_module(_HOME[name]), name)

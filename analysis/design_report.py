@@ -23,6 +23,7 @@ from analysis.errors import AnalysisInputError
 from analysis.exclusions import (ExclusionRules, apply_exclusions, compared_ratings, exclusion_notes,
                                  exclusion_summary, removed_by_reason)
 from analysis.leaderboard_report import LeaderboardReport, leaderboard_text
+from analysis.levels import ALPHA, POWER
 from analysis.power import more_ratings_for_power, power_summary
 from analysis.rater_models import RaterModels, rater_models_text
 from analysis.stats import CELL
@@ -31,8 +32,6 @@ from analysis.tables import write_table
 if TYPE_CHECKING:
     from analysis.designs.base import RatingDesign
 
-ALPHA = 0.05  # the tests' significance level unless a report is asked for another
-POWER = 0.8  # the power the tables of ratings and participants needed plan for
 
 
 @dataclass

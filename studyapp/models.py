@@ -17,7 +17,7 @@ from django.conf import settings
 from django.core.exceptions import ValidationError
 from django.db import models
 
-from analysis.design_report import ALPHA, POWER
+from analysis.levels import ALPHA, POWER
 from analysis.designs import design_named as analysed_design
 from generation.control import Control, control_from_dict
 from generation.motion.dataset import DatasetOptions

@@ -14,7 +14,7 @@ import hashlib
 import json
 from dataclasses import asdict
 
-from analysis.design_report import ALPHA, POWER
+from analysis.levels import ALPHA, POWER
 from analysis.designs import design_named as analysed_design
 from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules

@@ -21,7 +21,7 @@ import random
 from collections import Counter
 from itertools import combinations
 
-from analysis.design_report import ALPHA, POWER
+from analysis.levels import ALPHA, POWER
 from analysis.designs import design_named as analysed_design
 from studyapp.designs.base import PlannedPage
 from studyapp.designs.registry import design_of
