@@ -4,6 +4,7 @@ other than the defaults."""
 
 from __future__ import annotations
 
+import html
 import json
 from pathlib import Path
 
@@ -13,6 +14,8 @@ from django.urls import reverse
 
 from analysis.cli import main as analysis_main
 from analysis.exclusions import ExclusionRules
+from analysis.ratings import read_ratings
+from analysis.report import build_report
 from studyapp.models import Participant, System
 from studyapp.researchers.results.monitor import study_monitor
 from studyapp.researchers.results.reports import html_table, report_folder
@@ -158,8 +161,6 @@ def test_monitor_in_app_report_and_command_line_report_agree_under_the_studys_ru
     assert f"below {study.natural_threshold:g}" in page and 'id="rules"' in page  # the report states its rules
 
     # The monitor's summary is the report's own table, on the same kept ratings.
-    from analysis.ratings import read_ratings
-    from analysis.report import build_report
     report = build_report(read_ratings(tmp_path / "ratings.csv"), rules=rules)
     if study.design == "single":
         means = report.means.set_index("system")
@@ -181,10 +182,6 @@ RATER_TABLES = ("crossed_mixed_estimates", "crossed_mixed_contrasts", "crossed_m
 
 @pytest.mark.parametrize("fields", [SINGLE_RULES, SIDE_BY_SIDE_RULES], ids=["single", "side-by-side"])
 def test_the_monitor_and_the_in_app_report_show_the_rater_and_clip_aware_models(fields, settings, tmp_path):
-    import html
-
-    from analysis.ratings import read_ratings
-    from analysis.report import build_report
 
     settings.MEDIA_ROOT = tmp_path / "media"
     study = make_study(controls=3, clips_per_participant=7, ratings_per_stimulus=10, training_clips=0, **fields)
@@ -212,3 +209,31 @@ def test_the_monitor_and_the_in_app_report_show_the_rater_and_clip_aware_models(
         assert (app / "tables" / f"{name}.csv").is_file()
         assert html.escape(title) in page and html_table(table) in page  # the report page
         assert monitor[title] == html_table(table)  # the monitor: the same model of the same ratings
+
+
+
+def test_ratings_that_overlap_get_the_cumulative_link_model_in_the_monitor_and_the_report(settings, tmp_path):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(controls=3, clips_per_participant=7, ratings_per_stimulus=10, training_clips=0,
+                       natural_threshold=1.0)  # nobody excluded: every system's ratings spread over 2-5
+    for n in range(4):
+        client = Client()
+        participant = through_practice(client, study, f"varied-{n}")
+        rated = 0
+        while (clip := current_clip(participant)) is not None:
+            bad = clip.stimulus.system.role == System.Role.BAD
+            rate_current(client, study, participant, 1 if bad else 2 + (rated + n) % 4)
+            rated += 1
+    client = Client()
+    client.force_login(study.owner)
+    app = in_app_report(client, study, settings)
+    page = client.get(f"/analysis/{app.name}/").content.decode()
+    (tmp_path / "ratings.csv").write_bytes(client.get(reverse("study-export", args=[study.pk])).content)
+    rules = ExclusionRules.from_json(client.get(reverse("study-rules", args=[study.pk])).content.decode())
+    models = build_report(read_ratings(tmp_path / "ratings.csv"), rules=rules).rater_models.tables()
+    monitor = dict(study_monitor(study).tables)
+    for name in ("ordinal_mixed_thresholds", "ordinal_mixed_effects", "ordinal_mixed_random"):
+        title, table = models[name]
+        assert len(table) and (app / "tables" / f"{name}.csv").is_file()
+        assert html.escape(title) in page and html_table(table) in page
+        assert monitor[title] == html_table(table)
