@@ -27,11 +27,12 @@ from matplotlib.figure import Figure
 
 from analysis import plots
 from analysis.correlation import subjective_objective_correlation
-from analysis.design_report import POWER, DesignReport, design_summary_text, p_text, write_design_report
+from analysis.design_report import DesignReport, design_summary_text, p_text, write_design_report
 from analysis.designs import design_of
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import (ExclusionRules, apply_exclusions, compared_ratings, exclusion_notes,
                                  exclusion_summary, removed_by_reason)
+from analysis.levels import POWER
 from analysis.mixed import mixed_model_means
 from analysis.motion_io import SystemClips
 from analysis.objective import METRIC_COLUMNS, objective_metrics

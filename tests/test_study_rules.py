@@ -180,22 +180,27 @@ RATER_TABLES = ("crossed_mixed_estimates", "crossed_mixed_contrasts", "crossed_m
                 "ordinal_mixed_thresholds", "ordinal_mixed_effects", "ordinal_mixed_random", "rater_agreement")
 
 
-@pytest.mark.parametrize("fields", [SINGLE_RULES, SIDE_BY_SIDE_RULES], ids=["single", "side-by-side"])
-def test_the_monitor_and_the_in_app_report_show_the_rater_and_clip_aware_models(fields, settings, tmp_path):
-
-    settings.MEDIA_ROOT = tmp_path / "media"
-    study = make_study(controls=3, clips_per_participant=7, ratings_per_stimulus=10, training_clips=0, **fields)
-    populate(study)
+def rater_models_three_ways(study, settings, tmp_path: Path):
+    """The study's rater- and clip-aware models as the researcher meets them: the in-app
+    report's folder and page, the command line's models of the downloaded ratings and
+    rules, and the monitor."""
     client = Client()
     client.force_login(study.owner)
     app = in_app_report(client, study, settings)
     page = client.get(f"/analysis/{app.name}/").content.decode()
     (tmp_path / "ratings.csv").write_bytes(client.get(reverse("study-export", args=[study.pk])).content)
     rules = ExclusionRules.from_json(client.get(reverse("study-rules", args=[study.pk])).content.decode())
-    rater_models = build_report(read_ratings(tmp_path / "ratings.csv"), rules=rules).rater_models
-    models = rater_models.tables()
-    shown = study_monitor(study)
-    monitor = dict(shown.tables)
+    models = build_report(read_ratings(tmp_path / "ratings.csv"), rules=rules).rater_models
+    return app, page, models, study_monitor(study)
+
+
+@pytest.mark.parametrize("fields", [SINGLE_RULES, SIDE_BY_SIDE_RULES], ids=["single", "side-by-side"])
+def test_the_monitor_and_the_in_app_report_show_the_rater_and_clip_aware_models(fields, settings, tmp_path):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(controls=3, clips_per_participant=7, ratings_per_stimulus=10, training_clips=0, **fields)
+    populate(study)
+    app, page, rater_models, shown = rater_models_three_ways(study, settings, tmp_path)
+    models, monitor = rater_models.tables(), dict(shown.tables)
     # No cumulative link model on either design: the side-by-side sliders (0-100) have too
     # many points, and the single clips' kept raters gave NAT 5 and no other system 5, which
     # separates the systems (the log-odds have no finite estimate). Both places say why.
@@ -211,7 +216,6 @@ def test_the_monitor_and_the_in_app_report_show_the_rater_and_clip_aware_models(
         assert monitor[title] == html_table(table)  # the monitor: the same model of the same ratings
 
 
-
 def test_ratings_that_overlap_get_the_cumulative_link_model_in_the_monitor_and_the_report(settings, tmp_path):
     settings.MEDIA_ROOT = tmp_path / "media"
     study = make_study(controls=3, clips_per_participant=7, ratings_per_stimulus=10, training_clips=0,
@@ -224,14 +228,8 @@ def test_ratings_that_overlap_get_the_cumulative_link_model_in_the_monitor_and_t
             bad = clip.stimulus.system.role == System.Role.BAD
             rate_current(client, study, participant, 1 if bad else 2 + (rated + n) % 4)
             rated += 1
-    client = Client()
-    client.force_login(study.owner)
-    app = in_app_report(client, study, settings)
-    page = client.get(f"/analysis/{app.name}/").content.decode()
-    (tmp_path / "ratings.csv").write_bytes(client.get(reverse("study-export", args=[study.pk])).content)
-    rules = ExclusionRules.from_json(client.get(reverse("study-rules", args=[study.pk])).content.decode())
-    models = build_report(read_ratings(tmp_path / "ratings.csv"), rules=rules).rater_models.tables()
-    monitor = dict(study_monitor(study).tables)
+    app, page, rater_models, shown = rater_models_three_ways(study, settings, tmp_path)
+    models, monitor = rater_models.tables(), dict(shown.tables)
     for name in ("ordinal_mixed_thresholds", "ordinal_mixed_effects", "ordinal_mixed_random"):
         title, table = models[name]
         assert len(table) and (app / "tables" / f"{name}.csv").is_file()
