@@ -6,6 +6,9 @@ import sys
 
 
 def main() -> None:
+    from studyapp.server.gc_tuning import collect_less_often
+
+    collect_less_often()
     os.environ.setdefault("DJANGO_SETTINGS_MODULE", "studyapp.server.settings")
     from django.core.exceptions import ImproperlyConfigured
     from django.core.management import execute_from_command_line

@@ -2,8 +2,13 @@
 
 import os
 
-from django.core.wsgi import get_wsgi_application
+from studyapp.server.gc_tuning import collect_less_often, freeze_start_up
+
+collect_less_often()
+
+from django.core.wsgi import get_wsgi_application  # noqa: E402 (after the collector's tuning, which spares its imports)
 
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "studyapp.server.settings")
 
 application = get_wsgi_application()
+freeze_start_up()

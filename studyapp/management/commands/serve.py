@@ -25,6 +25,8 @@ from django.core.management.base import CommandError
 from django.db import connections
 from gunicorn.app.base import BaseApplication
 
+from studyapp.server.gc_tuning import freeze_start_up
+
 THREADS = 16  # per process: a thread waits while a participant's phone downloads a clip
 # One process per core, up to four: each holds about 170 MB, and on SQLite one of them
 # writes at a time, so a workstation's many cores would add memory more than answers.
@@ -89,6 +91,7 @@ class Command(RunserverCommand):
             self.check(display_num_errors=True)
         self.check_migrations()
         connections.close_all()  # the workers are forked: none may inherit the checks' connections
+        freeze_start_up()
         host = "0.0.0.0" if self.addr == "0" else self.addr
         _check_listening(host, self.port)
         address = f"[{host}]" if self._raw_ipv6 else host
