@@ -6,9 +6,8 @@ import sys
 
 
 def main() -> None:
-    from studyapp.server.gc_tuning import collect_less_often
+    import studyapp  # noqa: F401 (first: it tunes the garbage collector before Django's imports)
 
-    collect_less_often()
     os.environ.setdefault("DJANGO_SETTINGS_MODULE", "studyapp.server.settings")
     from django.core.exceptions import ImproperlyConfigured
     from django.core.management import execute_from_command_line

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from generation.motion.dataset import motion_folders
-from studyapp.server.gc_tuning import collect_less_often, freeze_start_up
+from studyapp.server.gc_tuning import freeze_start_up
 from tests.lab_rigs import LAB_RIGS, write_lab_folder
 
 REPO = Path(__file__).resolve().parents[1]
@@ -85,14 +85,11 @@ def fast_password_hashing():
         yield
 
 
-# The garbage collector tuned as in the project's processes (studyapp.server.gc_tuning):
-# collecting the suite takes 15 s of CPU a process instead of 27, the web fuzzing about
-# 70 s instead of 80.
-collect_less_often()
-
-
 def pytest_collection_finish(session: pytest.Session) -> None:
-    """What collecting the tests made lives to the end: out of the collector's sight."""
+    """What collecting the tests made lives to the end: out of the collector's sight. (The
+    collector collects less often once studyapp is imported: studyapp.server.gc_tuning.
+    Collecting the suite takes 15 s of CPU a process instead of 27, the web fuzzing about
+    70 s instead of 80.)"""
     freeze_start_up()
 
 

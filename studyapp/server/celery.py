@@ -8,10 +8,6 @@ import os
 
 from celery import Celery
 
-from studyapp.server.gc_tuning import collect_less_often
-
-collect_less_often()  # a worker imports torch and Django after this (studyapp.server.gc_tuning)
-
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "studyapp.server.settings")
 
 app = Celery("studyapp")

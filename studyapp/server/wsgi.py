@@ -2,11 +2,9 @@
 
 import os
 
-from studyapp.server.gc_tuning import collect_less_often, freeze_start_up
+from django.core.wsgi import get_wsgi_application
 
-collect_less_often()
-
-from django.core.wsgi import get_wsgi_application  # noqa: E402 (after the collector's tuning, which spares its imports)
+from studyapp.server.gc_tuning import freeze_start_up  # importing studyapp tuned the collector
 
 os.environ.setdefault("DJANGO_SETTINGS_MODULE", "studyapp.server.settings")
 
