@@ -83,6 +83,27 @@ def test_a_page_pairs_one_systems_matched_and_mismatched_clips_with_sides_balanc
         assert abs(sides[matched, mismatched, 1] - sides[matched, mismatched, 2]) <= 1
 
 
+def test_an_attention_check_never_repeats_a_rated_page():
+    """Left and right are each other's partner and attention partner: NAT's check of either
+    would be its rated page again, answered as a check and counted toward that page's
+    ratings, so their checks come from the controls with an attention partner of their own."""
+    study = make_appropriateness_study(pages_per_participant=8, ratings_per_stimulus=50)
+    rated, checks = set(), set()
+    for n in range(20):
+        participant = enrol(study, f"p{n}", {}, rng=random.Random(n))
+        pages: dict[int, list] = {}
+        for a in participant.assignments.select_related("stimulus__control", "stimulus__shown_control"):
+            pages.setdefault(a.page, []).append(a)
+        contents = [frozenset(a.stimulus_id for a in page) for page in pages.values()]
+        assert len(set(contents)) == len(contents)  # no page twice for one participant
+        for content, page in zip(contents, pages.values()):
+            (checks if page[0].is_check else rated).add(content)
+            if page[0].is_check:
+                shown = next(a.stimulus.control.name for a in page if a.stimulus.shown_control is None)
+                assert ATTENTION[shown] != PARTNERS[shown]
+    assert checks and not checks & rated
+
+
 def answer_page(client, study, participant, choice_of) -> str:
     """Answer the page on screen with ``choice_of(page)`` -> (answer, strength)."""
     html = page_html(client, study)

@@ -11,7 +11,8 @@ each pair is shown in the order it has been shown less often.
 
 A participant answers ``pages_per_participant`` pages: ``bad_checks`` attention checks,
 NAT's clip of a held-out control beside another take that obviously does not follow it
-(the rule's attention partner; preferring that one excludes the participant), and the
+(the rule's attention partner, where that is not the control's partner already: a check
+never repeats a rated page; preferring that take excludes the participant), and the
 rest from every system's pairs, least loaded first, among them the systems and controls
 this participant has seen least. In the ratings table a check page's rows name their
 system BAD, as the analysis expects (``analysis.appropriateness``). Practice shows pairs
@@ -66,7 +67,9 @@ class Appropriateness(Pairwise):
                 continue
             if pairing.partner and (mismatched := clips.get((system, pairing.partner.pk, control))):
                 rated.append((matched, mismatched))
-            if matched.system.role == System.Role.NATURAL and pairing.attention and (
+            # A check of the control's own partner would be NAT's rated page of it again,
+            # answered as a check: only an attention partner of its own makes a check.
+            if matched.system.role == System.Role.NATURAL and pairing.attention not in (None, pairing.partner) and (
                     wrong := clips.get((system, pairing.attention.pk, control))):
                 checks.append((matched, wrong))
         return rated, checks
