@@ -39,11 +39,19 @@ the time from each answer (the form's submit event) to the next clip's "playing"
 taken from the page's own clock (median target < 300 ms). The clip is rendered from the
 first BVH file under ``$MOTION_DATA`` (default ../shared/data/bandai-namco-1).
 
+*Floor* (``--only floor``, and with the targets): the production shape serving the least
+a rating request must do (``benchmarks.stack_floor``: a CSRF-checked form, a signed
+cookie, one transaction of a read and two writes, a 1 kB page) to as many clients as
+the crowds, as fast as they can ask for ``FLOOR_S``: the requests per second and CPU per
+request that no rating step of this stack can beat on the machine, against which the
+saturation's ratings per second and CPU per rating are read.
+
     python benchmarks/bench_study.py [--participants 100] [--crowds 500,1000] [--json]   # everything
     python benchmarks/bench_study.py --only server-time --reference-code /tmp/before     # the rating step
     python benchmarks/bench_study.py --only crowd            # 100 at saturation and watching, both setups
     python benchmarks/bench_study.py --only large --crowds 500   # one large crowd at a time
     python benchmarks/bench_study.py --only targets --reference-code /tmp/before   # the four targets, both codes
+    python benchmarks/bench_study.py --only floor            # the least a rating request costs here
 
 Needs PostgreSQL's server programs (Debian: postgresql); a throwaway cluster is
 created in a temporary folder and removed afterwards.
@@ -96,7 +104,8 @@ WATCH_S = 4.0  # a short stimulus clip
 CLIPS = 20  # rated clips per participant
 URLENCODED = "application/x-www-form-urlencoded"
 PARTICIPANTS_PER_PROCESS = 125  # simulated participants (threads) per client process
-PARTS = ("server-time", "crowd", "large", "targets")
+PARTS = ("server-time", "crowd", "large", "targets", "floor")
+FLOOR_S, FLOOR_CLIENTS = 20.0, 32  # the floor's length and its simultaneous clients (threads over two processes)
 # compose.yaml's web service, the configuration the README recommends.
 GUNICORN = ["--workers", "3", "--worker-class", "gthread", "--threads", "8"]
 
@@ -341,6 +350,66 @@ def measure(name: str, database_url: str, server: str, participants: int, watch_
     }
 
 
+def floor_client(base_url: str, first: int, threads: int, seconds: float) -> int:
+    """``threads`` clients posting answers to /floor/ for ``seconds``, each a new
+    connection as the simulated participants' are; how many were answered."""
+    import http.cookiejar
+    import threading
+
+    answered = [0] * threads
+
+    def client(n: int) -> None:
+        opener = urllib.request.build_opener(urllib.request.HTTPCookieProcessor(http.cookiejar.CookieJar()))
+        token = opener.open(f"{base_url}/floor/?n={first + n}", timeout=30).read().decode()
+        body = urlencode({"csrfmiddlewaretoken": token, "value": 3}).encode()
+        stop = time.perf_counter() + seconds
+        while time.perf_counter() < stop:
+            opener.open(f"{base_url}/floor/", data=body, timeout=30).read()
+            answered[n] += 1
+
+    workers = [threading.Thread(target=client, args=(n,)) for n in range(threads)]
+    for worker in workers:
+        worker.start()
+    for worker in workers:
+        worker.join()
+    return sum(answered)
+
+
+def measure_floor() -> dict:
+    """The production shape's requests per second and CPU per request on the floor's page."""
+    with throwaway_postgres() as (database_url, pid_file), tempfile.TemporaryDirectory(prefix="bench-floor-") as folder:
+        env = server_env(database_url, DJANGO_SETTINGS_MODULE="benchmarks.stack_floor_settings")
+        django_step(env, "--setup-floor")
+        port = free_port()
+        database_pid = int(pid_file.read_text().split()[0])
+        with serving(server_command("gunicorn", port), env, port, Path(folder) / "server.log") as (url, server_pid):
+            server_before, database_before = tree_cpu_s(server_pid), tree_cpu_s(database_pid)
+            processes = 2
+            start = time.perf_counter()
+            with ProcessPoolExecutor(max_workers=processes) as pool:
+                answered = sum(pool.map(floor_client, [url] * processes, range(0, FLOOR_CLIENTS, FLOOR_CLIENTS // processes),
+                                        [FLOOR_CLIENTS // processes] * processes, [FLOOR_S] * processes))
+            seconds = time.perf_counter() - start
+            server_cpu_s = tree_cpu_s(server_pid) - server_before
+            database_cpu_s = tree_cpu_s(database_pid) - database_before
+    return {"requests": answered, "seconds": seconds, "requests_per_s": answered / seconds,
+            "server_cpu_ms": 1000 * server_cpu_s / answered, "database_cpu_ms": 1000 * database_cpu_s / answered}
+
+
+def setup_floor() -> str:
+    """Migrate (the study app's pages are served beside the floor's) and create the floor's tables."""
+    import django
+
+    django.setup()
+    from django.core.management import call_command
+
+    from benchmarks.stack_floor import create_tables
+
+    call_command("migrate", verbosity=0)
+    create_tables()
+    return "ready"
+
+
 # Installed in every document the browser opens: each answer's moment (the submit event)
 # and the next clip's first "playing" event, on the clock shared by the tab's documents
 # (timeOrigin + now), so that a page swapped in and a page loaded anew are timed alike.
@@ -479,6 +548,17 @@ def print_rows(result: dict) -> None:
     for row in result.get("answer_to_play", []):
         print(f"answer to next clip playing, headless Chromium, serve + SQLite, {row['code']:<9} median "
               f"{row['median_ms']:.0f} ms, p95 {row['p95_ms']:.0f} ms, max {row['max_ms']:.0f} ms over {row['answers']} answers")
+    if floor := result.get("floor"):
+        print(f"floor, gunicorn + PostgreSQL: {floor['requests_per_s']:.0f} requests/s, "
+              f"{floor['server_cpu_ms'] + floor['database_cpu_ms']:.2f} ms of server and database CPU a request "
+              f"(server {floor['server_cpu_ms']:.2f}, database {floor['database_cpu_ms']:.2f}), "
+              f"{floor['requests']} requests in {floor['seconds']:.0f} s")
+        for row in result["rows"]:
+            if row["load"] == "saturation" and row["setup"].startswith("gunicorn"):
+                print(f"   {row['code']} code at saturation: {row['ratings_per_s'] / floor['requests_per_s']:.0%} of the "
+                      f"floor's rate; a rating (every page counted in) costs "
+                      f"{row['server_cpu_ms_per_rating'] / (floor['server_cpu_ms'] + floor['database_cpu_ms']):.1f} "
+                      f"floor requests of CPU")
     saturated = {row["setup"]: row["ratings_per_s"] for row in result["rows"]
                  if row["load"] == "saturation" and row["part"] == "crowd"}
     if len(saturated) == 2:
@@ -492,7 +572,8 @@ def main() -> int:
                         help="run only these parts (repeatable): server-time (the in-process rating step), crowd "
                              "(--participants at saturation and watching, on both setups), large (the --crowds on "
                              "the production shape), targets (the targets' crowds and the browser's answer to play, "
-                             "with the --reference-code too); default: all")
+                             "with the --reference-code too, and the floor), floor (the least a rating request "
+                             "costs on the production shape); default: all")
     parser.add_argument("--participants", type=int, default=100)
     parser.add_argument("--crowds", default="500,1000",
                         help="larger watching crowds on the production shape, comma-separated ('' for none)")
@@ -508,10 +589,12 @@ def main() -> int:
     parser.add_argument("--count", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--server-time", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--setup-browser", metavar="VIDEO", help=argparse.SUPPRESS)
+    parser.add_argument("--setup-floor", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.setup is not None or args.count or args.server_time or args.setup_browser:
+    if args.setup is not None or args.count or args.server_time or args.setup_browser or args.setup_floor:
         print(setup_study(args.setup) if args.setup is not None else count_ratings() if args.count
-              else setup_browser_study(args.setup_browser) if args.setup_browser else server_time())
+              else setup_browser_study(args.setup_browser) if args.setup_browser
+              else setup_floor() if args.setup_floor else server_time())
         return 0
     if args.reference_code and settings_module(args.reference_code) is None:
         parser.error(f"--reference-code {args.reference_code}: no study app settings there (a checkout of the project?)")
@@ -539,9 +622,10 @@ def main() -> int:
             with throwaway_postgres() as (url, pid_file):
                 rows.append({**measure("gunicorn + PostgreSQL", url, "gunicorn", participants, args.watch, pid_file),
                              "part": "large"})
+    floor = measure_floor() if parts & {"floor", "targets"} else None
     load = " → ".join(", ".join(f"{x:.1f}" for x in averages) for averages in (load_before, os.getloadavg()))
     result = {"machine": describe_machine(), "load_average": load, "server_time": steps, "rows": rows,
-              "answer_to_play": plays}
+              "answer_to_play": plays, "floor": floor}
     if args.json:
         print(json.dumps(result, indent=2))
     else:
