@@ -186,7 +186,8 @@ def _votes_to_reach(votes: np.ndarray, values: np.ndarray, target: float, higher
 
 def votes_saved(summary: pd.DataFrame) -> pd.DataFrame:
     """Per uniform checkpoint: its mean tau and width, the adaptive votes that reach each
-    (NaN beyond the adaptive checkpoints), the votes that reach both, and the saving;
+    (NaN beyond the adaptive checkpoints), the votes that reach both (NaN where either is
+    not reached), and the saving;
     ``at_least`` where both were reached at the first checkpoint, so the adaptive pairing
     may need fewer votes still."""
     uniform = summary[summary["pairing"] == UNIFORM].sort_values("votes")
@@ -196,7 +197,7 @@ def votes_saved(summary: pd.DataFrame) -> pd.DataFrame:
     for row in uniform.itertuples(index=False):
         for_tau = _votes_to_reach(votes, adaptive["kendall_tau"].to_numpy(), row.kendall_tau, True)
         for_width = _votes_to_reach(votes, adaptive["mean_width"].to_numpy(), row.mean_width, False)
-        both = max(for_tau, for_width)
+        both = np.nan if np.isnan(for_tau) or np.isnan(for_width) else max(for_tau, for_width)
         rows.append({"uniform_votes": row.votes, "uniform_tau": row.kendall_tau,
                      "uniform_width": row.mean_width, "adaptive_votes_for_tau": for_tau,
                      "adaptive_votes_for_width": for_width, "adaptive_votes": both,

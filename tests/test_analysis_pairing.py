@@ -144,6 +144,21 @@ def test_votes_saved_interpolates_between_checkpoints():
     assert saved.loc[200, "saving"] == pytest.approx(0.25) and not saved.loc[200, "at_least"]
 
 
+def test_no_saving_is_claimed_where_either_measure_is_not_reached():
+    def saved_at_200(adaptive_tau: list[float], adaptive_width: list[float]) -> pd.Series:
+        summary = pd.DataFrame({"pairing": ["uniform"] * 2 + ["adaptive"] * 2, "votes": [100, 200] * 2,
+                                "kendall_tau": [0.8, 0.9, *adaptive_tau],
+                                "mean_width": [200.0, 150.0, *adaptive_width]})
+        return votes_saved(summary).set_index("uniform_votes").loc[200]
+
+    width_missed = saved_at_200([0.95, 0.97], [210.0, 160.0])  # tau 0.9 reached at 100 votes, width 150 never
+    assert width_missed["adaptive_votes_for_tau"] == 100 and np.isnan(width_missed["adaptive_votes_for_width"])
+    assert np.isnan(width_missed["adaptive_votes"]) and np.isnan(width_missed["saving"])
+    tau_missed = saved_at_200([0.7, 0.85], [100.0, 90.0])
+    assert np.isnan(tau_missed["adaptive_votes_for_tau"]) and tau_missed["adaptive_votes_for_width"] == 100
+    assert np.isnan(tau_missed["adaptive_votes"]) and np.isnan(tau_missed["saving"])
+
+
 def test_a_small_seeded_simulation_is_reproducible_and_adaptive_pairing_narrows_the_intervals():
     scenario = Scenario({"NAT": 1000.0, "A": 800.0, "B": 600.0, "C": 400.0, "D": 200.0}, resamples=200)
     results = compare_pairings(scenario, studies=8, checkpoints=(600,), seed=4)
