@@ -41,8 +41,8 @@ first BVH file under ``$MOTION_DATA`` (default ../shared/data/bandai-namco-1).
 
 *Floor* (``--only floor``, and with the targets): the production shape serving the least
 a rating request must do (``benchmarks.stack_floor``: a CSRF-checked form, a signed
-cookie, one transaction of a read and two writes, a 1 kB page) to as many clients as
-the crowds, as fast as they can ask for ``FLOOR_S``: the requests per second and CPU per
+cookie, one transaction of a read and two writes, a 1 kB page) to ``FLOOR_CLIENTS``
+clients asking as fast as they can for ``FLOOR_S``: the requests per second and CPU per
 request that no rating step of this stack can beat on the machine, against which the
 saturation's ratings per second and CPU per rating are read.
 
