@@ -67,10 +67,8 @@ class Appropriateness(Pairwise):
                 continue
             if pairing.partner and (mismatched := clips.get((system, pairing.partner.pk, control))):
                 rated.append((matched, mismatched))
-            # A check of the control's own partner would be NAT's rated page of it again,
-            # answered as a check: only an attention partner of its own makes a check.
-            if matched.system.role == System.Role.NATURAL and pairing.attention not in (None, pairing.partner) and (
-                    wrong := clips.get((system, pairing.attention.pk, control))):
+            if matched.system.role == System.Role.NATURAL and pairing.checked_with and (
+                    wrong := clips.get((system, pairing.checked_with.pk, control))):
                 checks.append((matched, wrong))
         return rated, checks
 

@@ -39,6 +39,13 @@ class ControlPairing:
     attention: ControlSignal | None = None
     attention_check: Mismatch | None = None  # None where NAT cannot show the control
 
+    @property
+    def checked_with(self) -> ControlSignal | None:
+        """The take NAT's attention check of this control shows beside it: the attention
+        partner, unless that is the partner already (the check would be NAT's rated page
+        of the control again, so the control makes no check)."""
+        return self.attention if self.attention != self.partner else None
+
 
 def study_pairings(study: Study) -> list[ControlPairing]:
     """Every control of the study with its partners, in the controls' order."""
@@ -68,7 +75,7 @@ def _chosen(seed: int, described: str, with_nat: bool) -> tuple[list[Mismatch], 
 def mismatched_clips(study: Study) -> list[tuple[System, ControlSignal, ControlSignal]]:
     """(system, the control the clip is made for, the control shown) of every mismatched
     clip the study's pages need: each compared system's clip of each shown control's
-    partner, where its source has motion for both, and NAT's clip of each attention partner."""
+    partner, where its source has motion for both, and NAT's clip of each take its checks show."""
     pairings = study_pairings(study)
     controls = [pairing.shown for pairing in pairings]
     wanted = []
@@ -76,7 +83,7 @@ def mismatched_clips(study: Study) -> list[tuple[System, ControlSignal, ControlS
         has = {c.pk for c in source_of(system).controls(system, controls)}
         pairs = [(p.partner, p.shown) for p in pairings if p.partner]
         if system.role == System.Role.NATURAL:
-            pairs += [(p.attention, p.shown) for p in pairings if p.attention and p.attention != p.partner]
+            pairs += [(p.checked_with, p.shown) for p in pairings if p.checked_with]
         wanted += [(system, partner, shown) for partner, shown in pairs if partner.pk in has and shown.pk in has]
     return wanted
 
