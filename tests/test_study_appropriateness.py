@@ -183,11 +183,10 @@ def test_the_stimuli_page_lists_the_pairs_and_the_controls_left_without_a_partne
     still = next(row for row in rows if "<td>stand-still</td>" in row)
     assert "<td>none</td>" in still and "no other control" in still
     assert "sharp-left, shown against straight" in html  # NAT's attention clip among the stimuli
+    shown_in = {row.split("</td>")[0].rsplit(">", 1)[1]: row for row in rows}  # by the control shown
     for shown in ("left", "right"):  # each the other's partner and attention partner: no check
-        row = next(row for row in rows if f"<td>{shown}</td>" in row)
-        assert "is its partner too, so a check would repeat a rated page" in row
-    straight = next(row for row in rows if "<td>straight</td>" in row)
-    assert straight.rstrip().endswith(">sharp-left</td></tr>")
+        assert "is its partner too, so a check would repeat a rated page" in shown_in[shown]
+    assert shown_in["straight"].rstrip().endswith(">sharp-left</td></tr>")
 
 
 def test_the_monitor_and_the_report_show_each_systems_scores(client, settings, tmp_path):
