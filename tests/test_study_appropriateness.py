@@ -17,6 +17,7 @@ from studyapp.designs.rules import StudyRules
 from studyapp.models import Participant, Stimulus, System
 from studyapp.participants.assignment import enrol
 from studyapp.researchers.results.export import ratings_csv
+from studyapp.researchers.setup.readiness import open_warnings
 from studyapp.stimuli.clips import plan_stimuli
 from studyapp.stimuli.mismatched import study_pairings
 from tests.appropriateness_fixtures import MODELS, make_appropriateness_study
@@ -102,6 +103,18 @@ def test_an_attention_check_never_repeats_a_rated_page():
                 shown = next(a.stimulus.control.name for a in page if a.stimulus.shown_control is None)
                 assert ATTENTION[shown] != PARTNERS[shown]
     assert checks and not checks & rated
+
+
+def test_a_study_whose_controls_make_no_attention_check_warns_before_it_opens():
+    study = make_appropriateness_study(is_open=False)
+    assert open_warnings(study) == []
+    study.controls.filter(name__in=["straight", "zigzag", "sharp-left"]).delete()  # left and right are left
+    pairings = {p.shown.name: p for p in study_pairings(study)}
+    assert pairings["left"].attention == pairings["left"].partner and pairings["left"].checked_with is None
+    [warning] = open_warnings(study)
+    assert warning.startswith("the settings ask for 1 BAD check(s) per participant, but no finished NAT clip makes one")
+    participant = enrol(study, "p0", {}, rng=random.Random(0))
+    assert not participant.assignments.filter(is_check=True).exists()  # as warned
 
 
 def answer_page(client, study, participant, choice_of) -> str:

@@ -96,6 +96,9 @@ class Appropriateness(Pairwise):
             pages.insert(rng.randint(0, len(pages)), check)
         return pages
 
+    def makes_attention_checks(self, study: Study, rendered: list[Stimulus]) -> bool:
+        return bool(self._pairs(study, rendered)[1])
+
     def practice(self, study: Study, rendered: list[Stimulus], planned: list[PlannedPage],
                  rng: random.Random) -> list[int]:
         wanted = self.practice_page_count(study)

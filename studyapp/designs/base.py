@@ -202,6 +202,10 @@ class Design:
         clips, each with its system."""
         raise NotImplementedError
 
+    def makes_attention_checks(self, study: Study, rendered: list[Stimulus]) -> bool:
+        """Whether the finished clips ``rendered`` give ``plan`` any attention-check page."""
+        return any(s.system.role == self.attention_check_role for s in rendered)
+
     def practice(self, study: Study, rendered: list[Stimulus], planned: list[PlannedPage],
                  rng: random.Random) -> list[int]:
         """The practice clips (``training_clips`` of them, in whole pages of this design),

@@ -40,16 +40,22 @@ def open_problems(study: Study) -> list[str]:
 
 def open_warnings(study: Study) -> list[str]:
     """What the study may open with but is probably a mistake, in words for the researcher:
-    attention checks asked for without the system that makes them."""
+    attention checks asked for without the system that makes them, or without clips of it
+    that make one."""
     warnings = []
     finished = study.stimuli.filter(status=Stimulus.Status.DONE)
-    made_of = design_of(study).attention_check_role
+    design = design_of(study)
+    made_of = design.attention_check_role
+    system = "BAD" if made_of == System.Role.BAD else "NAT"
     if study.bad_checks and not finished.filter(system__role=made_of).exists():
-        system = "BAD" if made_of == System.Role.BAD else "NAT"
         warnings.append(f"the settings ask for {study.bad_checks} BAD check(s) per participant, but the study has no "
                         f"{system} system with a finished clip, so no participant gets one and none can be excluded "
                         f"for it: add a {system} system on the systems page and generate its clips, or set BAD checks "
                         "to 0")
+    elif study.bad_checks and not design.makes_attention_checks(study, list(finished.select_related("system"))):
+        warnings.append(f"the settings ask for {study.bad_checks} BAD check(s) per participant, but no finished "
+                        f"{system} clip makes one (the stimuli page says why for each control), so no participant "
+                        "gets one and none can be excluded for it: add held-out controls, or set BAD checks to 0")
     if "natural_checks" in design_of(study).settings and study.natural_checks \
             and not finished.filter(system__role=System.Role.NATURAL).exists():
         warnings.append(f"the settings ask for {study.natural_checks} NAT check(s) per participant, but the study "
