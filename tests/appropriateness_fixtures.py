@@ -2,9 +2,9 @@
 knows, model systems, NAT and BAD, and every planned clip marked finished.
 
 The controls stand for held-out takes (each names a source clip, so NAT has a clip of
-it): a left and a right curve (each the other's partner, and its attention partner), a
-straight walk and a zig-zag (each the other's partner; a sharp left turn their attention
-partner) and the sharp left turn itself. Two synthetic paths join them, which NAT has
+it): a left and a right curve (each the other's partner, and its attention partner, so
+neither makes a NAT check), a straight walk and a zig-zag (each the other's partner; a
+sharp left turn their attention partner) and the sharp left turn itself. Two synthetic paths join them, which NAT has
 no clip of: a circle (its partner a take) and a stand-still (no partner: nothing else
 stands).
 """
