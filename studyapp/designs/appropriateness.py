@@ -25,6 +25,7 @@ import random
 from collections import Counter
 
 import pandas as pd
+from django.db.models import QuerySet
 
 from analysis.appropriateness import appropriateness_scores, matched_preference
 from analysis.exclusions import ExclusionRules
@@ -96,8 +97,8 @@ class Appropriateness(Pairwise):
             pages.insert(rng.randint(0, len(pages)), check)
         return pages
 
-    def makes_attention_checks(self, study: Study, rendered: list[Stimulus]) -> bool:
-        return bool(self._pairs(study, rendered)[1])
+    def makes_attention_checks(self, study: Study, finished: QuerySet[Stimulus]) -> bool:
+        return bool(self._pairs(study, list(finished.select_related("system")))[1])
 
     def practice(self, study: Study, rendered: list[Stimulus], planned: list[PlannedPage],
                  rng: random.Random) -> list[int]:

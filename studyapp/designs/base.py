@@ -24,6 +24,7 @@ from datetime import datetime
 from typing import TYPE_CHECKING
 
 import pandas as pd
+from django.db.models import QuerySet
 from django.http import QueryDict
 
 from analysis.exclusions import ExclusionRules
@@ -202,9 +203,9 @@ class Design:
         clips, each with its system."""
         raise NotImplementedError
 
-    def makes_attention_checks(self, study: Study, rendered: list[Stimulus]) -> bool:
-        """Whether the finished clips ``rendered`` give ``plan`` any attention-check page."""
-        return any(s.system.role == self.attention_check_role for s in rendered)
+    def makes_attention_checks(self, study: Study, finished: QuerySet[Stimulus]) -> bool:
+        """Whether the study's ``finished`` clips give ``plan`` any attention-check page."""
+        return finished.filter(system__role=self.attention_check_role).exists()
 
     def practice(self, study: Study, rendered: list[Stimulus], planned: list[PlannedPage],
                  rng: random.Random) -> list[int]:

@@ -52,7 +52,7 @@ def open_warnings(study: Study) -> list[str]:
                         f"{system} system with a finished clip, so no participant gets one and none can be excluded "
                         f"for it: add a {system} system on the systems page and generate its clips, or set BAD checks "
                         "to 0")
-    elif study.bad_checks and not design.makes_attention_checks(study, list(finished.select_related("system"))):
+    elif study.bad_checks and not design.makes_attention_checks(study, finished):
         warnings.append(f"the settings ask for {study.bad_checks} BAD check(s) per participant, but no finished "
                         f"{system} clip makes one (the stimuli page says why for each control), so no participant "
                         "gets one and none can be excluded for it: add held-out controls, or set BAD checks to 0")
