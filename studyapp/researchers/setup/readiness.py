@@ -47,16 +47,17 @@ def open_warnings(study: Study) -> list[str]:
     design = design_of(study)
     made_of = design.attention_check_role
     system = "BAD" if made_of == System.Role.BAD else "NAT"
-    if study.bad_checks and not finished.filter(system__role=made_of).exists():
-        warnings.append(f"the settings ask for {study.bad_checks} BAD check(s) per participant, but the study has no "
-                        f"{system} system with a finished clip, so no participant gets one and none can be excluded "
-                        f"for it: add a {system} system on the systems page and generate its clips, or set BAD checks "
-                        "to 0")
-    elif study.bad_checks and not design.makes_attention_checks(study, finished):
-        warnings.append(f"the settings ask for {study.bad_checks} BAD check(s) per participant, but no finished "
-                        f"{system} clip makes one (the stimuli page says why for each control), so no participant "
-                        "gets one and none can be excluded for it: add held-out controls, or set BAD checks to 0")
-    if "natural_checks" in design_of(study).settings and study.natural_checks \
+    if study.bad_checks and not design.makes_attention_checks(study, finished):
+        if not finished.filter(system__role=made_of).exists():
+            warnings.append(f"the settings ask for {study.bad_checks} BAD check(s) per participant, but the study has "
+                            f"no {system} system with a finished clip, so no participant gets one and none can be "
+                            f"excluded for it: add a {system} system on the systems page and generate its clips, or "
+                            "set BAD checks to 0")
+        else:
+            warnings.append(f"the settings ask for {study.bad_checks} BAD check(s) per participant, but no finished "
+                            f"{system} clip makes one (the stimuli page says why for each control), so no participant "
+                            "gets one and none can be excluded for it: add held-out controls, or set BAD checks to 0")
+    if "natural_checks" in design.settings and study.natural_checks \
             and not finished.filter(system__role=System.Role.NATURAL).exists():
         warnings.append(f"the settings ask for {study.natural_checks} NAT check(s) per participant, but the study "
                         "has no NAT system with a finished clip: add NAT on the systems page, or set NAT checks to 0")
