@@ -56,7 +56,7 @@ def _parser() -> argparse.ArgumentParser:
                     "Holm correction, pairwise tables sign tests and a Bradley-Terry scale, "
                     "appropriateness tables the share preferring the matched clip, the mean "
                     "appropriateness score and tests between systems; every design but "
-                    "appropriateness gets the ratings needed for 80 %% power per pair.")
+                    "appropriateness gets the ratings needed for 80 % power per pair.")
     report.add_argument("ratings", help="ratings CSV file")
     report.add_argument("--out", required=True, help="folder to write the report into")
     report.add_argument("--reference", help="system to mark significant differences from "

@@ -55,7 +55,7 @@ def add_commands(commands) -> None:
                     "rules, and rank the systems per task and control class with a weighted "
                     "Bradley-Terry model (GENEA leaderboard weights: a clear preference counts "
                     "4 wins, a slight one 2, a plain left/right answer 4, 'no preference' 1 "
-                    "for each side) or Davidson's tie model, on an Elo scale with 95 %% "
+                    "for each side) or Davidson's tie model, on an Elo scale with 95 % "
                     "intervals from a seeded bootstrap over participants. Writes the "
                     "leaderboard, battle counts, win fractions and side-bias test as tables "
                     "(CSV, Markdown, LaTeX, JSON), the heat maps (PNG, SVG) and summary.md.")
@@ -75,7 +75,7 @@ def add_commands(commands) -> None:
         "simulate-pairing", help="simulate pairwise studies with uniform and adaptive pairing",
         description="Simulate pairwise studies with five-level answers, pairs chosen uniformly "
                     "or adaptively (analysis.pairing), score each study's leaderboard at a "
-                    "number of votes (Kendall's tau with the true order, mean 95 %% interval "
+                    "number of votes (Kendall's tau with the true order, mean 95 % interval "
                     "width, coverage of the true Elo), and write how many votes adaptive "
                     "pairing needs to match uniform pairing, with the best allocation's "
                     "saving as the ceiling. Seeded: the same options give the same tables.")

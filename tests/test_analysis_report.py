@@ -82,6 +82,16 @@ def test_help_describes_the_report_command(capsys):
     assert "--reference" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("command", ["report", "objective", "hvrnn-scores", "leaderboard",
+                                     "simulate-pairing", "rater-models"])
+def test_every_help_prints_percent_signs_once(command, capsys):
+    # argparse collapses "%%" in an option's help, not in a description without %(prog)s
+    with pytest.raises(SystemExit) as stop:
+        main([command, "--help"])
+    text = capsys.readouterr().out
+    assert stop.value.code == 0 and "%%" not in text
+
+
 def test_previous_rules_without_the_previous_ratings_is_refused_not_ignored(capsys, tmp_path):
     with pytest.raises(SystemExit) as stop:
         main(["report", "ratings.csv", "--previous-rules", "rules.json", "--out", str(tmp_path / "out")])
