@@ -6,7 +6,7 @@ per participant, participant after participant, the pair of each page chosen
 
 - ``uniform``: every pair equally likely, sides at random;
 - ``adaptive``: by `analysis.pairing.choose_pair` on the votes so far (its default
-  exploration, sides balanced per pair, the anchor's intervals sharpened);
+  exploration, sides balanced per pair, the first system as the anchor);
 
 and answered on five levels by `analysis.graded_votes` (drawn so that the weighted
 Bradley-Terry model holds in expectation whatever the pairs shown, so the true Elo is
@@ -22,8 +22,7 @@ the votes at which the adaptive pairing reaches the same mean tau and the same m
 width (interpolated linearly between its checkpoints; the larger of the two), and the
 share of votes saved. `best_allocation_saving` is the ceiling for the widths: the saving
 of the best fixed allocation of pages over pairs for the true strengths (minimising the
-sum of standard errors, the adaptive criterion), which no pairing can beat
-asymptotically. `best_joint_allocation_saving` is the ceiling for both at once: the best
+sum of standard errors), which no pairing can beat asymptotically. `best_joint_allocation_saving` is the ceiling for both at once: the best
 fixed allocation that matches uniform pairing's summed standard errors and its expected
 number of misordered pairs (the normal approximation of Kendall's tau) with fewest votes.
 """

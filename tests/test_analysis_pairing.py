@@ -1,4 +1,5 @@
-"""Adaptive pairing: the criterion against a brute-force computation, sides balanced,
+"""Adaptive pairing: the criterion against brute-force computations (and its misorders
+against a simulated Gaussian model), sides balanced,
 exploration, refusals, and a small seeded simulation (the full one is in the README)."""
 
 from __future__ import annotations
@@ -7,11 +8,12 @@ import numpy as np
 import pandas as pd
 import pytest
 from scipy.optimize import brentq
-from scipy.stats import norm
+from scipy.stats import multivariate_normal, norm
 
 from analysis.errors import AnalysisInputError
-from analysis.pairing import (PRIOR_TIES, PairingState, choose_pair, current_fit,
-                              expected_standard_errors, next_pair, pairing_state, plan_pairs)
+from analysis.pairing import (PRIOR_TIES, PairingState, choose_pair, current_fit, expected_misorders,
+                              expected_standard_errors, next_pair, page_effect, pair_incidence, pair_scores,
+                              pairing_state, plan_pairs)
 from analysis.pairing_simulation import (Scenario, best_allocation_saving, best_joint_allocation_saving,
                                          compare_pairings, pairing_summary, simulate_votes, votes_saved)
 
@@ -36,31 +38,98 @@ def test_the_votes_are_counted_with_the_leaderboard_weights():
     assert state.left[i["A"], i["B"]] == 1 and state.left[i["B"], i["A"]] == 1
 
 
+def brute_force_covariance(b: np.ndarray, pages: np.ndarray, anchor: int | None) -> np.ndarray:
+    """The covariance of the log-strengths (anchor's row and column zero, or centred) of
+    ``pages`` plain comparisons per pair (``np.triu_indices`` order), summed page by page."""
+    k = len(b)
+    information = np.zeros((k, k))
+    for i, j, n in zip(*np.triu_indices(k, 1), pages):
+        p = 1 / (1 + np.exp(b[j] - b[i]))
+        a = np.zeros(k)
+        a[i], a[j] = 1, -1
+        information += n * p * (1 - p) * np.outer(a, a)
+    if anchor is None:
+        return np.linalg.pinv(information)
+    kept = np.delete(np.arange(k), anchor)
+    covariance = np.zeros((k, k))
+    covariance[np.ix_(kept, kept)] = np.linalg.inv(information[np.ix_(kept, kept)])
+    return covariance
+
+
+def difference_variances(covariance: np.ndarray) -> np.ndarray:
+    """The variance of each pair's difference (``np.triu_indices`` order)."""
+    i, j = np.triu_indices(len(covariance), 1)
+    return covariance[i, i] + covariance[j, j] - 2 * covariance[i, j]
+
+
+def misorder_chance(mean: float, now: float, after: float) -> float:
+    """P(sign of the next fit's difference != sign of the true one), the true difference
+    ~ N(mean, now) and the next fit's ~ N(mean, now - after) with that covariance: two
+    quadrants of scipy's bivariate normal."""
+    settled = now - after
+    joint = multivariate_normal([mean, mean], [[settled, settled], [settled, now]])
+    both_below = joint.cdf([0.0, 0.0])
+    return float(norm.cdf(-mean / np.sqrt(settled)) + norm.cdf(-mean / np.sqrt(now)) - 2 * both_below)
+
+
 @pytest.mark.parametrize("anchor", [0, None])
 def test_the_criterion_equals_a_brute_force_update_of_the_information(anchor):
     state = pairing_state(some_votes(), SYSTEMS)
     b = current_fit(state)
-    fast = expected_standard_errors(state, b, anchor)
-    k = len(SYSTEMS)
-    first, second = np.triu_indices(k, 1)
-
-    def summed_errors(pages: np.ndarray) -> float:
-        information = np.zeros((k, k))
-        for i, j, n in zip(first, second, pages):
-            p = 1 / (1 + np.exp(b[j] - b[i]))
-            a = np.zeros(k)
-            a[i], a[j] = 1, -1
-            information += n * p * (1 - p) * np.outer(a, a)
-        if anchor is None:
-            return float(np.sqrt(np.diag(np.linalg.pinv(information))).sum())
-        kept = np.delete(np.delete(information, anchor, 0), anchor, 1)
-        return float(np.sqrt(np.diag(np.linalg.inv(kept))).sum())
-
+    first, second = np.triu_indices(len(SYSTEMS), 1)
     shown = state.shown[first, second] + PRIOR_TIES
-    brute = [summed_errors(shown + np.eye(len(first))[c]) for c in range(len(first))]
-    np.testing.assert_allclose(fast, brute, rtol=1e-10)
+    errors, misorders = [], []
+    now = difference_variances(brute_force_covariance(b, shown, anchor))
+    for c in range(len(first)):
+        after = brute_force_covariance(b, shown + np.eye(len(first))[c], anchor)
+        errors.append(np.sqrt(np.diag(after)).sum())
+        misorders.append(sum(misorder_chance(b[i] - b[j], *variances)
+                             for i, j, *variances in zip(first, second, now, difference_variances(after))))
+    np.testing.assert_allclose(expected_standard_errors(state, b, anchor), errors, rtol=1e-10)
+    np.testing.assert_allclose(expected_misorders(state, b), misorders, rtol=1e-5)
+    scores = pair_scores(state, b, anchor)
+    np.testing.assert_allclose(scores, np.log(errors) + np.log(misorders), rtol=1e-5)
     left, right = choose_pair(state, np.random.default_rng(0), exploration=0.0, anchor=anchor, log_strength=b)
-    assert {left, right} == {first[np.argmin(brute)], second[np.argmin(brute)]}
+    assert {left, right} == {first[np.argmin(scores)], second[np.argmin(scores)]}
+
+
+def test_the_expected_misorders_are_the_chance_that_the_next_fit_orders_a_pair_wrongly():
+    # A Gaussian model of the log-strengths: the truth drawn from the current fit and its
+    # covariance, one more page of pair c an observation of its difference with variance
+    # 1 / w_c, and the next fit the posterior mean; count the pairs it orders wrongly.
+    state = pairing_state(some_votes(), SYSTEMS)
+    b = current_fit(state)
+    effect = page_effect(state, b, 0)
+    rng = np.random.default_rng(5)
+    c, draws = 3, 400_000
+    first, second, incidence = pair_incidence(len(SYSTEMS))
+    incidence = incidence[:, 1:]
+    truth = b[1:] + rng.standard_normal((draws, len(SYSTEMS) - 1)) @ np.linalg.cholesky(effect.covariance).T
+    w = effect.page_information[c]
+    seen = truth @ incidence[c] + rng.standard_normal(draws) / np.sqrt(w)
+    gain = effect.covariance @ incidence[c] / (effect.variance[c] + 1 / w)
+    fitted = b[1:] + np.outer(seen - incidence[c] @ b[1:], gain)
+    wrong = (np.sign(fitted @ incidence.T) != np.sign(truth @ incidence.T)).sum(axis=1)
+    assert expected_misorders(state, b, effect)[c] == pytest.approx(wrong.mean(), abs=4 * wrong.std() / np.sqrt(draws))
+
+
+def test_a_page_of_a_pair_that_looks_level_settles_misorders_a_page_of_a_settled_pair_does_not():
+    # NAT and A fitted level after three ties (the plug-in Phi(-|m| / s') would stay at 1/2
+    # for them whatever is shown), B far above C after forty clear votes
+    state = PairingState.empty(["NAT", "A", "B", "C"])
+    for _ in range(3):
+        state.add(0, 1, "none", 1.0)
+    for _ in range(40):
+        state.add(2, 3, "left", 4.0)
+    b = current_fit(state)
+    effect = page_effect(state, b, 0)
+    first, second = np.triu_indices(4, 1)
+    expected_now = norm.sf(np.abs(b[first] - b[second]) / np.sqrt(effect.variance)).sum()
+    misorders = expected_misorders(state, b, effect)
+    level, settled = 0, len(first) - 1  # pairs NAT-A and B-C
+    assert expected_now - misorders[level] > 0.1
+    assert misorders[settled] == pytest.approx(expected_now, abs=1e-3)
+    assert np.argmin(misorders) == level
 
 
 def test_every_pair_is_balanced_in_sides_within_one_page():
@@ -89,10 +158,10 @@ def test_pages_planned_together_are_each_the_criterion_s_choice_given_those_befo
             if frozenset((SYSTEMS[a], SYSTEMS[c])) in capacity}
     for left, right in planned:  # the fit stays; each page planned adds its information for the next
         open_pairs = [c for c, (a, d) in enumerate(zip(first, second)) if room.get(frozenset((SYSTEMS[a], SYSTEMS[d])))]
-        errors = expected_standard_errors(state, b, i["NAT"])
-        best = min(errors[c] for c in open_pairs)
-        assert errors[[c for c, (a, d) in enumerate(zip(first, second))
-                       if {a, d} == {i[left], i[right]}][0]] <= best * (1 + 1e-12)
+        scores = pair_scores(state, b, i["NAT"])
+        best = min(scores[c] for c in open_pairs)
+        assert scores[[c for c, (a, d) in enumerate(zip(first, second))
+                       if {a, d} == {i[left], i[right]}][0]] <= best + 1e-12 * max(1.0, abs(best))
         room[frozenset((left, right))] -= 1
         state.hand_out(i[left], i[right])
     assert plan_pairs(votes, SYSTEMS, 1, np.random.default_rng(9)) == [next_pair(votes, SYSTEMS, np.random.default_rng(9))]

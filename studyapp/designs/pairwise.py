@@ -13,9 +13,9 @@ Adaptive pairing (the study's ``adaptive_pairing``): the pairs of systems on a n
 participant's rated pages are planned at enrolment by `analysis.pairing.plan_pairs` from
 the fit of the study's votes stored so far (kept participants' answered pages, early
 answers left out where the study discards them), each page in turn where one more vote is
-expected to narrow the leaderboard's intervals most, a tenth of them uniformly at random,
-and the pages that participants who have not finished hold unanswered counted as shown;
-the sides balanced per pair of systems over the study. Each page of a pair of systems
+expected to narrow the leaderboard's intervals and settle its order most, a tenth of them
+uniformly at random, and the pages that participants who have not finished hold
+unanswered counted as shown; the sides balanced per pair of systems over the study. Each page of a pair of systems
 shows it on another of its controls, the least loaded first, never past
 ``ratings_per_stimulus`` (two pairs of systems may share a control on one participant's
 pages). With fewer stored votes than pairs of systems the fit would be
