@@ -64,7 +64,8 @@ Several pages at once. A study app plans a participant's pages when they enrol, 
 any of them is answered: `plan_pairs` fits the votes once and chooses the pages one
 after another, each counting as shown for the next (its information about the ranking
 and its side, not a vote), as do the pages other participants hold unanswered; with
-``pages=1`` it is `next_pair`.
+``pages=1`` it is `next_pair`. `plan_pages` does the same on a `PairingState` (the
+simulation's participants are planned with it).
 """
 
 from __future__ import annotations
@@ -111,6 +112,10 @@ class PairingState:
     def add(self, left: int, right: int, answer: str, weight: float) -> None:
         """Count one answered page: ``left`` and ``right`` index the systems."""
         self.hand_out(left, right)
+        self.answer(left, right, answer, weight)
+
+    def answer(self, left: int, right: int, answer: str, weight: float) -> None:
+        """Count the answer of a page already handed out."""
         if answer == NO_PREFERENCE:
             self.wins[left, right] += weight
             self.wins[right, left] += weight
@@ -295,14 +300,27 @@ def plan_pairs(votes: pd.DataFrame, systems: Sequence[str], pages: int, rng: np.
     room = (np.full(len(first), pages) if capacity is None else
             np.array([capacity.get(frozenset((state.systems[i], state.systems[j])), 0)
                       for i, j in zip(first, second)]))
-    pair_of = {(i, j): c for c, (i, j) in enumerate(zip(first, second))}
     fixed = state.systems.index(anchor) if anchor in state.systems else None
-    planned = []
     with one_blas_thread():
-        fit = current_fit(state)
-        while len(planned) < pages and room.any():
-            left, right = choose_pair(state, rng, exploration, fixed, fit, allowed=room > 0)
-            room[pair_of[min(left, right), max(left, right)]] -= 1
-            state.hand_out(left, right)
-            planned.append((state.systems[left], state.systems[right]))
+        planned = plan_pages(state, pages, rng, exploration, fixed, room=room)
+    return [(state.systems[left], state.systems[right]) for left, right in planned]
+
+
+def plan_pages(state: PairingState, pages: int, rng: np.random.Generator, exploration: float = EXPLORATION,
+               anchor: int | None = None, log_strength: np.ndarray | None = None,
+               room: np.ndarray | None = None) -> list[tuple[int, int]]:
+    """`plan_pairs` on a `PairingState`: the (left, right) indices of the next ``pages``
+    pages from one fit (``log_strength``, default `current_fit`), each handed out on
+    ``state`` as it is planned. ``room`` (per pair, ``np.triu_indices`` order; default no
+    limit) is how many more pages each pair may take, and is used up."""
+    first, second = np.triu_indices(len(state.systems), 1)
+    room = np.full(len(first), pages) if room is None else room
+    pair_of = {(i, j): c for c, (i, j) in enumerate(zip(first, second))}
+    fit = current_fit(state) if log_strength is None else log_strength
+    planned = []
+    while len(planned) < pages and room.any():
+        left, right = choose_pair(state, rng, exploration, anchor, fit, allowed=room > 0)
+        room[pair_of[min(left, right), max(left, right)]] -= 1
+        state.hand_out(left, right)
+        planned.append((left, right))
     return planned

@@ -5,8 +5,10 @@ Each simulated study collects votes one page at a time, ``pages_per_participant`
 per participant, participant after participant, the pair of each page chosen
 
 - ``uniform``: every pair equally likely, sides at random;
-- ``adaptive``: by `analysis.pairing.choose_pair` on the votes so far (its default
-  exploration, sides balanced per pair, the first system as the anchor);
+- ``adaptive``: as a study with adaptive pairing plans them: a participant's pages at
+  once, when they start, by `analysis.pairing.plan_pages` from one fit of the votes so
+  far (its default exploration, sides balanced per pair, the first system as the
+  anchor; participants one after another, so none holds pages unanswered meanwhile);
 
 and answered on five levels by `analysis.graded_votes` (drawn so that the weighted
 Bradley-Terry model holds in expectation whatever the pairs shown, so the true Elo is
@@ -46,8 +48,8 @@ from analysis.graded_votes import draw_levels, level_answers
 from analysis.leaderboard import (ELO_PER_LOG_ODDS, TIE_WEIGHT, WINS_PER_DEGREE, elo, fit_votes,
                                   pair_votes, vote_weights)
 from analysis.leaderboard_plots import pairing_plot
-from analysis.pairing import (EXPLORATION, PairingState, choose_pair, comparison_information, current_fit,
-                              pair_incidence)
+from analysis.pairing import (EXPLORATION, PairingState, comparison_information, current_fit, pair_incidence,
+                              plan_pages)
 from analysis.tables import write_table
 
 UNIFORM, ADAPTIVE = "uniform", "adaptive"
@@ -98,12 +100,14 @@ def simulate_votes(scenario: Scenario, pairing: str, votes: int, seed: int) -> p
         left, right, levels = np.zeros(votes, int), np.zeros(votes, int), np.zeros(votes, int)
         state = PairingState.empty(scenario.systems)
         fit = np.zeros(k)
-        for vote in range(votes):
+        for start in range(0, votes, scenario.pages_per_participant):  # one participant at a time
             fit = current_fit(state, fit)
-            left[vote], right[vote] = choose_pair(state, rng, scenario.exploration, anchor=0, log_strength=fit)
-            levels[vote] = draw_levels(rng, truth[left[vote]] - truth[right[vote]], scenario.tie_peak)
-            weight = TIE_WEIGHT if levels[vote] == 0 else WINS_PER_DEGREE * abs(levels[vote])
-            state.add(left[vote], right[vote], _ANSWERS[np.sign(levels[vote])], weight)
+            pages = min(scenario.pages_per_participant, votes - start)
+            planned = plan_pages(state, pages, rng, scenario.exploration, anchor=0, log_strength=fit)
+            for vote, (left[vote], right[vote]) in enumerate(planned, start):
+                levels[vote] = draw_levels(rng, truth[left[vote]] - truth[right[vote]], scenario.tie_peak)
+                weight = TIE_WEIGHT if levels[vote] == 0 else WINS_PER_DEGREE * abs(levels[vote])
+                state.answer(left[vote], right[vote], _ANSWERS[np.sign(levels[vote])], weight)
     answer, strength = level_answers(levels)
     system = np.array(scenario.systems)
     rows = {"participant": np.char.add("p", (np.arange(votes) // scenario.pages_per_participant).astype(str)),

@@ -13,7 +13,7 @@ from scipy.stats import multivariate_normal, norm
 from analysis.errors import AnalysisInputError
 from analysis.pairing import (PRIOR_TIES, PairingState, choose_pair, current_fit, expected_misorders,
                               expected_standard_errors, next_pair, page_effect, pair_incidence, pair_scores,
-                              pairing_state, plan_pairs)
+                              pairing_state, plan_pages, plan_pairs)
 from analysis.pairing_simulation import (Scenario, best_allocation_saving, best_joint_allocation_saving,
                                          compare_pairings, pairing_summary, simulate_votes, votes_saved)
 
@@ -238,6 +238,16 @@ def test_a_small_seeded_simulation_is_reproducible_and_adaptive_pairing_narrows_
     shown = pd.crosstab(pages["system_left"], pages["system_right"])
     shown = (shown + shown.T).stack()
     assert shown[("NAT", "D")] < 600 / 10  # a foregone pair gets fewer pages than uniform's share
+
+
+def test_a_simulated_participant_s_pages_are_planned_at_once_as_a_study_plans_them():
+    scenario = Scenario({"NAT": 1000.0, "A": 800.0, "B": 790.0, "C": 400.0}, pages_per_participant=6)
+    pages = simulate_votes(scenario, "adaptive", 12, seed=2)
+    index = {s: i for i, s in enumerate(scenario.systems)}
+    shown = list(zip(pages["system_left"].map(index), pages["system_right"].map(index)))
+    state = PairingState.empty(scenario.systems)
+    assert plan_pages(state, 6, np.random.default_rng(2), anchor=0) == shown[:6]  # from the prior alone
+    assert state.shown.sum() == 2 * 6 and not state.wins.any()  # handed out, not answered
 
 
 def test_the_joint_ceiling_is_the_best_allocation_of_a_grid_and_below_the_width_ceiling():
