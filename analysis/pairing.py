@@ -48,9 +48,11 @@ doubt. Summed over the pairs it is what a page is expected to leave of the misor
 Votes go where they are informative (close systems, p near 1/2), to the pairs that tie
 the systems to the anchor, and to close neighbours whose order is open; a pair whose
 outcome is a foregone conclusion (p near 0 or 1) is rarely shown. Simulated on 10
-systems (`analysis.pairing_simulation`, the README's table), it reaches uniform pairing's
-interval width and Kendall's tau at once with about as few votes as the best fixed
-allocation for the true strengths allows, the ceiling of any pairing.
+systems (`analysis.pairing_simulation`, the README's table), the votes it saves against
+uniform pairing, for interval width and Kendall's tau at once, come within a few points
+of what the best fixed allocation for the true strengths saves (the ceiling of any
+pairing) from about 75 participants on: 30-36 % where the systems spread over 900 Elo or
+more.
 
 Exploration. With probability ``exploration`` (default 0.1, the documented epsilon) the
 pair is drawn uniformly instead, so every pair keeps being shown and a wrong early
