@@ -40,10 +40,10 @@ is ``Phi(h) + Phi(k) - 2 Phi_2(h, k; rho)``, and Owen's formula
 (``r = sqrt(1 - rho^2)``, h and k of one sign) loses its first T since ``k = rho h``; the
 second is ``T(k, r / rho) = T(m / s, s' / t)``. With ``m = 0`` this is
 ``arctan(s' / t) / pi``; with ``t = 0``, a page that says nothing about the pair, it is
-today's ``Phi(-|m| / s)``. Unlike the plug-in
-``Phi(-|m| / s')``, which is flat where two systems look level (``m = 0``), it falls
-most for the pairs that look level and are not settled, the pairs whose order is in
-doubt. Summed over the pairs it is what a page is expected to leave of the misorders.
+today's ``Phi(-|m| / s)``. Unlike the plug-in ``Phi(-|m| / s')``, which is flat where
+two systems look level (``m = 0``), it falls most for the pairs that look level and are
+not settled, the pairs whose order is in doubt. Summed over the pairs it is what a page
+is expected to leave of the misorders.
 
 Votes go where they are informative (close systems, p near 1/2), to the pairs that tie
 the systems to the anchor, and to close neighbours whose order is open; a pair whose

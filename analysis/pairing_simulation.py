@@ -24,9 +24,10 @@ the votes at which the adaptive pairing reaches the same mean tau and the same m
 width (interpolated linearly between its checkpoints; the larger of the two), and the
 share of votes saved. `best_allocation_saving` is the ceiling for the widths: the saving
 of the best fixed allocation of pages over pairs for the true strengths (minimising the
-sum of standard errors), which no pairing can beat asymptotically. `best_joint_allocation_saving` is the ceiling for both at once: the best
-fixed allocation that matches uniform pairing's summed standard errors and its expected
-number of misordered pairs (the normal approximation of Kendall's tau) with fewest votes.
+sum of standard errors), which no pairing can beat asymptotically.
+`best_joint_allocation_saving` is the ceiling for both at once: the best fixed
+allocation that matches uniform pairing's summed standard errors and its expected number
+of misordered pairs (the normal approximation of Kendall's tau) with fewest votes.
 """
 
 from __future__ import annotations
