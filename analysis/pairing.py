@@ -218,6 +218,7 @@ def expected_misorders(state: PairingState, log_strength: np.ndarray,
     """Per candidate pair (``np.triu_indices`` order): the expected number of pairs of
     systems that the fit after one more page of it orders against the truth, under the
     current fit, ``sum over d of 2 T(|m_d| / s_d, s'_dc / t_dc)`` (module docstring)."""
+    # a difference's variance is the same whichever system is fixed: any anchor will do
     effect = page_effect(state, log_strength, 0) if effect is None else effect
     first, second = np.triu_indices(len(state.systems), 1)
     gap = np.abs(log_strength[first] - log_strength[second])[:, None]

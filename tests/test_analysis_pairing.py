@@ -257,18 +257,11 @@ def test_the_joint_ceiling_is_the_best_allocation_of_a_grid_and_below_the_width_
     ceiling = best_joint_allocation_saving(scenario, votes)
     first, second = np.triu_indices(3, 1)
     b = scenario.log_strength
-    p = 1 / (1 + np.exp(b[second] - b[first]))
     gap = np.abs(b[first] - b[second])
 
     def measures(share: np.ndarray, n: float) -> tuple[float, float]:
-        information = np.zeros((3, 3))
-        for i, j, s, w in zip(first, second, share, p * (1 - p)):
-            a = np.zeros(3)
-            a[i], a[j] = 1, -1
-            information += n * s * w * np.outer(a, a)
-        covariance = np.zeros((3, 3))
-        covariance[1:, 1:] = np.linalg.inv(information[1:, 1:])
-        sd = np.sqrt([covariance[i, i] + covariance[j, j] - 2 * covariance[i, j] for i, j in zip(first, second)])
+        covariance = brute_force_covariance(b, n * share, anchor=0)
+        sd = np.sqrt(difference_variances(covariance))
         return float(np.sqrt(np.diag(covariance)).sum()), float(norm.sf(gap / sd).sum())
 
     target = measures(np.full(3, 1 / 3), votes)

@@ -15,11 +15,11 @@ the fit of the study's votes stored so far (kept participants' answered pages, e
 answers left out where the study discards them), each page in turn where one more vote is
 expected to narrow the leaderboard's intervals and settle its order most, a tenth of them
 uniformly at random, and the pages that participants who have not finished hold
-unanswered counted as shown; the sides balanced per pair of systems over the study. Each page of a pair of systems
-shows it on another of its controls, the least loaded first, never past
-``ratings_per_stimulus`` (two pairs of systems may share a control on one participant's
-pages). With fewer stored votes than pairs of systems the fit would be
-the prior's, so pages are planned evenly as without the setting.
+unanswered counted as shown; the sides balanced per pair of systems over the study. Each
+page of a pair of systems shows it on another of its controls, the least loaded first,
+never past ``ratings_per_stimulus`` (two pairs of systems may share a control on one
+participant's pages). With fewer stored votes than pairs of systems the fit would be the
+prior's, so pages are planned evenly as without the setting.
 
 ABX, the variant: the control's natural clip is shown above A and B as a reference X, and
 the question is which of them is closer to it; pages pair the systems other than NAT, on

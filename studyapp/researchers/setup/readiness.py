@@ -49,14 +49,13 @@ def open_warnings(study: Study) -> list[str]:
     system = "BAD" if made_of == System.Role.BAD else "NAT"
     if study.bad_checks and not design.makes_attention_checks(study, finished):
         if not finished.filter(system__role=made_of).exists():
-            warnings.append(f"the settings ask for {study.bad_checks} BAD check(s) per participant, but the study has "
-                            f"no {system} system with a finished clip, so no participant gets one and none can be "
-                            f"excluded for it: add a {system} system on the systems page and generate its clips, or "
-                            "set BAD checks to 0")
+            why, remedy = (f"the study has no {system} system with a finished clip",
+                           f"add a {system} system on the systems page and generate its clips")
         else:
-            warnings.append(f"the settings ask for {study.bad_checks} BAD check(s) per participant, but no finished "
-                            f"{system} clip makes one (the stimuli page says why for each control), so no participant "
-                            "gets one and none can be excluded for it: add held-out controls, or set BAD checks to 0")
+            why, remedy = (f"no finished {system} clip makes one (the stimuli page says why for each control)",
+                           "add held-out controls")
+        warnings.append(f"the settings ask for {study.bad_checks} BAD check(s) per participant, but {why}, so no "
+                        f"participant gets one and none can be excluded for it: {remedy}, or set BAD checks to 0")
     if "natural_checks" in design.settings and study.natural_checks \
             and not finished.filter(system__role=System.Role.NATURAL).exists():
         warnings.append(f"the settings ask for {study.natural_checks} NAT check(s) per participant, but the study "
