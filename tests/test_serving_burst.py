@@ -170,6 +170,15 @@ def test_the_tested_commands_are_the_documented_ones():
     assert '"manage.py", "serve"' in Path(REPO / "studyapp" / "server" / "demo.py").read_text()
 
 
+def test_gunicorns_workers_import_every_view_when_they_load_the_app_not_in_their_first_request(environment):
+    # Else each worker would import them (and the analysis modules behind the researcher
+    # pages) while a participant's first request waits, and outside the frozen start-up.
+    loaded = subprocess.run([sys.executable, "-c", "import sys, gc, studyapp.server.wsgi; "
+                             "print('studyapp.participants.views' in sys.modules, gc.get_freeze_count() > 0)"],
+                            cwd=REPO, env=environment, capture_output=True, text=True, timeout=120, check=True)
+    assert loaded.stdout.split() == ["True", "True"]
+
+
 @pytest.mark.slow
 def test_manage_py_serve_answers_from_the_processes_asked_for_and_serves_static_files_with_debug_on(environment):
     port = _free_port()
