@@ -8,9 +8,11 @@ from collections import Counter, defaultdict
 from datetime import timedelta
 
 import pytest
+from django.db import connection
 from django.utils import timezone
 
 from studyapp.designs.multi_clip import page_loads
+from studyapp.designs.single import stimulus_loads
 from studyapp.models import Assignment, Participant, Rating, Stimulus, Study, System
 from studyapp.participants.assignment import StudyFull, enrol
 from studyapp.participants.simulated import run_participants
@@ -133,3 +135,27 @@ def test_an_idle_participant_back_after_their_page_was_filled_by_others_loses_on
     idle = renew_reservations(Participant.objects.get(pk=idle.pk))
     assert not idle.assignments.exists() and idle.finished_at is not None  # nothing fits under the targets now
     assert set(page_loads(study, an_hour_ago()).values()) == {1}
+
+
+@pytest.mark.django_db
+def test_a_clip_rendered_again_while_a_participant_waits_for_the_lock_keeps_its_load():
+    # Enrolment reads the clips before it queues for the study's lock; a clip whose video
+    # is being rendered again by the time it plans still counts the answers it has.
+    study = make_study(controls=2, clips_per_participant=7, ratings_per_stimulus=1, bad_checks=1, natural_checks=0)
+    first = enrol(study, "first", {}, rng=random.Random(0))  # every rated clip, each at its target of 1
+    rendered_again = first.assignments.filter(is_check=False).first().stimulus_id
+    clips_read = []
+
+    def render_again_once_the_clips_are_read(execute, sql, params, many, context):
+        if clips_read == [True]:
+            clips_read.append(True)
+            Stimulus.objects.filter(pk=rendered_again).update(status=Stimulus.Status.RUNNING)
+        if not clips_read and sql.startswith('SELECT "studyapp_stimulus"') and '"studyapp_system"."role"' in sql:
+            clips_read.append(True)
+        return execute(sql, params, many, context)
+
+    with connection.execute_wrapper(render_again_once_the_clips_are_read), pytest.raises(StudyFull):
+        enrol(study, "second", {}, rng=random.Random(1))
+    assert clips_read == [True, True]
+    assert Stimulus.objects.get(pk=rendered_again).status == Stimulus.Status.RUNNING
+    assert stimulus_loads(study, an_hour_ago())[rendered_again] == 1

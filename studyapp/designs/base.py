@@ -192,8 +192,9 @@ class Design:
 
     def loads(self, study: Study, cutoff: datetime) -> Counter:
         """Load of each page content (``PageKey``): answers that will be kept plus pages held
-        by participants active since ``cutoff``. Pages are handed out least loaded first and
-        never past ``ratings_per_stimulus``."""
+        by participants active since ``cutoff``, whatever the clips' status now (enrolment
+        reads the rendered clips before it takes the lock). Pages are handed out least
+        loaded first and never past ``ratings_per_stimulus``."""
         raise NotImplementedError
 
     def plan(self, study: Study, rendered: list[Stimulus], loads: Counter, count: int,

@@ -29,6 +29,7 @@ def page_loads(study: Study, cutoff: datetime) -> Counter:
     """Load of each page content (``PageKey``): kept answered pages plus pages held by
     participants active since ``cutoff``. Instructed checks repeat other pages and do not count."""
     rows = (Assignment.objects.filter(participant__study=study, participant__excluded=False, expected="")
+            .order_by()  # grouped below: no joins to sort by
             .values_list("participant_id", "page", "stimulus_id", "stimulus__system__role", "rating__id",
                          "rating__answered_before_end", "participant__finished_at", "participant__last_seen"))
     pages: dict[tuple[int, int], list[tuple]] = defaultdict(list)

@@ -34,8 +34,9 @@ from studyapp.participants.refusal import AnswerRefused
 
 
 def stimulus_loads(study: Study, cutoff: datetime | None = None) -> dict[int, int]:
-    """Load of each rendered stimulus of the study: kept ratings + reservations of
-    participants active since ``cutoff`` (default: those who hold their clips now)."""
+    """Load of each stimulus of the study: kept ratings + reservations of participants
+    active since ``cutoff`` (default: those who hold their clips now). Whatever its status:
+    a clip being rendered again keeps the answers and reservations it has."""
     cutoff = cutoff or active_since(study)
     kept = Q(assignments__rating__isnull=False)
     if study.discard_early:
@@ -45,7 +46,7 @@ def stimulus_loads(study: Study, cutoff: datetime | None = None) -> dict[int, in
         | Q(assignments__rating__isnull=True, assignments__participant__finished_at__isnull=True,
             assignments__participant__last_seen__gte=cutoff)
     )
-    rows = (Stimulus.objects.filter(study=study, status=Stimulus.Status.DONE)
+    rows = (Stimulus.objects.filter(study=study).order_by()  # unordered: no joins to sort by
             .annotate(load=Count("assignments", filter=counted)).values_list("id", "load"))
     return dict(rows)
 

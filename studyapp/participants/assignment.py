@@ -124,9 +124,12 @@ def enrol(study: Study, platform_id: str, platform_data: dict, user_agent: str =
     """Create a participant with their pages, or raise StudyFull / StudyNotReady (nothing saved)."""
     rng = rng or random.SystemRandom()
     design = design_of(study)
+    # Read before the lock that every arriving participant queues for: only the loads must
+    # be read under it. A clip finished meanwhile is left out of these pages; one being
+    # rendered again keeps its load (``Design.loads`` counts clips whatever their status).
+    rendered = list(Stimulus.objects.filter(study=study, status=Stimulus.Status.DONE).select_related("system"))
     with transaction.atomic():
         Study.objects.select_for_update().get(pk=study.pk)
-        rendered = list(Stimulus.objects.filter(study=study, status=Stimulus.Status.DONE).select_related("system"))
         pages = _pages(study, design, rendered, rng)
         participant = Participant.objects.create(
             study=study, platform_id=platform_id, platform_data=platform_data, user_agent=user_agent[:300],
