@@ -12,6 +12,7 @@ from __future__ import annotations
 import re
 
 import pytest
+from django.db import connection
 from django.test import Client
 from django.urls import reverse
 
@@ -191,3 +192,16 @@ def test_an_answer_in_place_costs_fewer_queries_than_the_post_and_the_page(djang
     statements = [query["sql"].split()[0] for query in queries.captured_queries]
     assert statements.count("INSERT") == 1 and statements.count("UPDATE") == 1
     assert Rating.objects.filter(assignment=on_screen).count() == 1
+
+
+@pytest.mark.skipif(connection.vendor != "postgresql", reason="prepared statements are PostgreSQL's")
+def test_on_postgresql_the_rating_steps_statements_are_prepared_once_a_connection_has_run_them_a_few_times():
+    study = study_of("single", training_clips=0, clips_per_participant=8)
+    client = Client()
+    participant = through_instructions(client, study)
+    for _ in range(6):
+        assert rate(client, study, participant).status_code == 200
+    with connection.cursor() as cursor:
+        cursor.execute("SELECT statement FROM pg_prepared_statements")
+        prepared = [statement for (statement,) in cursor.fetchall()]
+    assert any(statement.startswith('INSERT INTO "studyapp_rating"') for statement in prepared), prepared

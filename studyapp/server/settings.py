@@ -92,6 +92,13 @@ DATABASES = {
         conn_health_checks=True,
     )
 }
+if DATABASES["default"]["ENGINE"].endswith("postgresql"):
+    # Values travel apart from the statement text, so the few statements that every page
+    # runs are the same text each time, and psycopg prepares one the fifth time a
+    # connection runs it: PostgreSQL then skips parsing and planning it. At saturation
+    # this took a quarter of the database's CPU per rating away (benchmarks/bench_study.py).
+    DATABASES["default"].setdefault("OPTIONS", {}).update(server_side_binding=True, prepare_threshold=5)
+
 if DATABASES["default"]["ENGINE"] == "django.db.backends.sqlite3":
     # Writers take the lock when their transaction begins, so the read-then-write of
     # assigning clips cannot interleave between two participants; waiters queue up.
