@@ -14,7 +14,7 @@ from django.utils import timezone
 
 from studyapp.designs.rules import StudyRules
 from studyapp.designs.single import stimulus_loads
-from studyapp.models import Participant, Rating, Stimulus, Study, System
+from studyapp.models import Assignment, Participant, Rating, Stimulus, Study, System
 from studyapp.participants.assignment import StudyFull, enrol
 from studyapp.researchers.results.export import ratings_rows
 from tests.study_fixtures import current_clip, make_study
@@ -117,6 +117,34 @@ def test_assignment_balances_loads_and_never_passes_the_target():
             assert max(pool_loads) <= study.ratings_per_stimulus
     assert all(stimulus_loads(study)[s.id] == study.ratings_per_stimulus for s in pool)
     assert Participant.objects.filter(study=study).count() == enrolled  # a full study enrols nobody more
+
+
+@pytest.mark.parametrize("discard_early", [True, False])
+def test_stimulus_loads_count_kept_answers_and_active_reservations_as_a_count_per_assignment_does(discard_early):
+    study = make_study(controls=3, clips_per_participant=5, ratings_per_stimulus=9, bad_checks=1, natural_checks=0,
+                       reservation_minutes=30, discard_early=discard_early)
+    rng = random.Random(0)
+    participants = [enrol(study, f"p{i}", {}, rng=random.Random(i)) for i in range(8)]
+    long_ago = timezone.now() - timedelta(minutes=31)
+    for participant, (idle, finished, excluded) in zip(participants, [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1),
+                                                                      (1, 1, 0), (0, 0, 0), (1, 0, 1), (0, 0, 0)]):
+        for assignment in participant.assignments.all():
+            if rng.random() < 0.5:  # answered, in time or before the clip's end
+                Rating.objects.create(assignment=assignment, value=3, answered_before_end=rng.random() < 0.5)
+        Participant.objects.filter(pk=participant.pk).update(
+            last_seen=long_ago if idle else timezone.now(), finished_at=timezone.now() if finished else None,
+            excluded=bool(excluded))
+    Stimulus.objects.filter(pk=participants[0].assignments.first().stimulus_id).update(status=Stimulus.Status.RUNNING)
+    cutoff = timezone.now() - timedelta(minutes=30)
+    expected = Counter()
+    for assignment in Assignment.objects.filter(participant__study=study).select_related("participant"):
+        participant, rating = assignment.participant, Rating.objects.filter(assignment=assignment).first()
+        kept = rating is not None and not (discard_early and rating.answered_before_end)
+        held = rating is None and participant.finished_at is None and participant.last_seen >= cutoff
+        expected[assignment.stimulus_id] += not participant.excluded and (kept or held)
+    loads = stimulus_loads(study, cutoff)
+    assert {s: n for s, n in loads.items() if n} == {s: n for s, n in expected.items() if n}
+    assert all(loads[s.id] == expected[s.id] for s in Stimulus.objects.filter(study=study))  # 0 where none
 
 
 def test_an_idle_participant_stops_holding_clips():

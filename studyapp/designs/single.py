@@ -28,27 +28,25 @@ from analysis.exclusions import ExclusionRules
 from analysis.report import Report
 from studyapp.designs.answers import client_times
 from studyapp.designs.base import (Answer, Design, OnPage, Page, PlannedPage, rated_clip_exclusion)
-from studyapp.models import Stimulus, Study, System
+from studyapp.models import Assignment, Stimulus, Study, System
 from studyapp.participants.assignment import active_since
 from studyapp.participants.refusal import AnswerRefused
 
 
-def stimulus_loads(study: Study, cutoff: datetime | None = None) -> dict[int, int]:
-    """Load of each stimulus of the study: kept ratings + reservations of participants
-    active since ``cutoff`` (default: those who hold their clips now). Whatever its status:
-    a clip being rendered again keeps the answers and reservations it has."""
+def stimulus_loads(study: Study, cutoff: datetime | None = None) -> Counter:
+    """Load of each stimulus of the study (0 where none): kept ratings + reservations of
+    participants active since ``cutoff`` (default: those who hold their clips now). Whatever
+    its status: a clip being rendered again keeps the answers and reservations it has."""
     cutoff = cutoff or active_since(study)
-    kept = Q(assignments__rating__isnull=False)
+    kept = Q(rating__isnull=False)
     if study.discard_early:
-        kept &= Q(assignments__rating__answered_before_end=False)
-    counted = Q(assignments__participant__excluded=False) & (
-        kept
-        | Q(assignments__rating__isnull=True, assignments__participant__finished_at__isnull=True,
-            assignments__participant__last_seen__gte=cutoff)
-    )
-    rows = (Stimulus.objects.filter(study=study).order_by()  # unordered: no joins to sort by
-            .annotate(load=Count("assignments", filter=counted)).values_list("id", "load"))
-    return dict(rows)
+        kept &= Q(rating__answered_before_end=False)
+    held = Q(rating__isnull=True, participant__finished_at__isnull=True, participant__last_seen__gte=cutoff)
+    # Counted over the study's assignments, unordered and without joining the stimuli:
+    # half the time of a count per stimulus (600 participants), and enrolment's lock waits on it.
+    rows = (Assignment.objects.filter(kept | held, participant__study=study, participant__excluded=False)
+            .order_by().values("stimulus_id").annotate(load=Count("id")).values_list("stimulus_id", "load"))
+    return Counter(dict(rows))
 
 
 def _least_loaded(candidates: list[Stimulus], loads: Counter, count: int, rng: random.Random,
