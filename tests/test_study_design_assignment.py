@@ -144,18 +144,18 @@ def test_a_clip_rendered_again_while_a_participant_waits_for_the_lock_keeps_its_
     study = make_study(controls=2, clips_per_participant=7, ratings_per_stimulus=1, bad_checks=1, natural_checks=0)
     first = enrol(study, "first", {}, rng=random.Random(0))  # every rated clip, each at its target of 1
     rendered_again = first.assignments.filter(is_check=False).first().stimulus_id
-    clips_read = []
+    seen = {"clips read": False, "rendered again": False}
 
     def render_again_once_the_clips_are_read(execute, sql, params, many, context):
-        if clips_read == [True]:
-            clips_read.append(True)
+        if seen["clips read"] and not seen["rendered again"]:  # the statement after the read: the lock
+            seen["rendered again"] = True
             Stimulus.objects.filter(pk=rendered_again).update(status=Stimulus.Status.RUNNING)
-        if not clips_read and sql.startswith('SELECT "studyapp_stimulus"') and '"studyapp_system"."role"' in sql:
-            clips_read.append(True)
+        if sql.startswith('SELECT "studyapp_stimulus"') and '"studyapp_system"."role"' in sql:
+            seen["clips read"] = True
         return execute(sql, params, many, context)
 
     with connection.execute_wrapper(render_again_once_the_clips_are_read), pytest.raises(StudyFull):
         enrol(study, "second", {}, rng=random.Random(1))
-    assert clips_read == [True, True]
+    assert seen == {"clips read": True, "rendered again": True}
     assert Stimulus.objects.get(pk=rendered_again).status == Stimulus.Status.RUNNING
     assert stimulus_loads(study, an_hour_ago())[rendered_again] == 1
