@@ -70,6 +70,7 @@ DATABASE_TESTS = (
     "tests/test_study_bundles.py",
     "tests/test_hostile_bundles.py",
     "tests/test_study_bundle_pages.py",
+    "tests/test_server_queries.py",
 )
 
 

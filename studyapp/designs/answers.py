@@ -33,6 +33,7 @@ from studyapp.designs.rules import StudyRules
 from studyapp.models import Assignment, Participant, Rating, Study, export_name
 from studyapp.participants.assignment import last_seen_is_stale
 from studyapp.participants.refusal import AnswerRefused
+from studyapp.server.compiled_queries import CompiledQuery
 
 
 class AnsweredTooSoon(AnswerRefused):
@@ -124,15 +125,20 @@ def record_answer(participant: Participant, answer: Answer) -> list[Rating]:
         raise
 
 
+# The participant's unrated clips in order, locked (see _store), with what an answer's checks need.
+_unrated_for_update = CompiledQuery(
+    lambda participant: Assignment.objects.filter(participant_id=participant, rating__isnull=True).order_by("position")
+    .annotate(clip_seconds=F("stimulus__duration_s"), system_role=F("stimulus__system__role"),
+              system_name=F("stimulus__system__name"))
+    .select_for_update(of=("self",)), int)
+
+
 def _store(study: Study, participant: Participant, answer: Answer) -> list[Rating]:
     design = design_of(study)
     # The page on screen is the first with an unrated clip. Locking the unrated clips
     # orders the participant's own concurrent requests (two tabs, a double click) and no
     # one else's; a race past them ends at the rating's unique assignment (IntegrityError).
-    unrated = list(participant.assignments.filter(rating__isnull=True).order_by("position")
-                   .annotate(clip_seconds=F("stimulus__duration_s"), system_role=F("stimulus__system__role"),
-                             system_name=F("stimulus__system__name"))
-                   .select_for_update(of=("self",)))
+    unrated = _unrated_for_update(participant.pk)
     if not unrated:
         raise AnswerRefused("this participant has already finished the study", status=409)
     if unrated[0].token != answer.page:

@@ -20,19 +20,25 @@ from django.utils import timezone
 from studyapp.designs.base import Page, PageClip, PlannedPage
 from studyapp.designs.registry import design_of
 from studyapp.models import Assignment, Participant, Stimulus, Study, System
+from studyapp.server.compiled_queries import CompiledQuery
 
 
 def _video_url(token: str) -> str:
     return Stimulus(token=token).video_url
 
 
+# Every clip of a participant, in order, with what their pages show.
+_clips_in_order = CompiledQuery(
+    lambda participant: Assignment.objects.filter(participant_id=participant).order_by("position").values(
+        "pk", "token", "page", "slot", "shown_at", "expected", "rating", "stimulus__token",
+        "stimulus__duration_s", "stimulus__control_id", "stimulus__shown_control_id"), int)
+
+
 def rating_page(study: Study, participant: Participant) -> dict:
     """The context of the participant's page on screen (marked as shown, if it was not)."""
     design = design_of(study)
     pages: dict[int, list[dict]] = {}
-    for clip in participant.assignments.order_by("position").values(
-            "pk", "token", "page", "slot", "shown_at", "expected", "rating", "stimulus__token",
-            "stimulus__duration_s", "stimulus__control_id", "stimulus__shown_control_id"):
+    for clip in _clips_in_order(participant.pk):
         pages.setdefault(clip["page"], []).append(clip)
     unrated = [page for page in pages.values() if any(clip["rating"] is None for clip in page)]
     current, upcoming = unrated[0], unrated[1] if len(unrated) > 1 else []

@@ -25,6 +25,8 @@ from django.utils import timezone
 from studyapp.designs.base import Design, PlannedPage
 from studyapp.designs.registry import design_of
 from studyapp.models import Assignment, Participant, Stimulus, Study, System
+from studyapp.participants.study_cache import rendered_clips
+from studyapp.server.round_trips import draw_id, insert, lock_rows, pipeline
 
 
 class StudyFull(Exception):
@@ -127,16 +129,19 @@ def enrol(study: Study, platform_id: str, platform_data: dict, user_agent: str =
     # Read before the lock that every arriving participant queues for: only the loads must
     # be read under it. A clip finished meanwhile is left out of these pages; one being
     # rendered again keeps its load (``Design.loads`` counts clips whatever their status).
-    rendered = list(Stimulus.objects.filter(study=study, status=Stimulus.Status.DONE).select_related("system"))
-    with transaction.atomic():
-        Study.objects.select_for_update().get(pk=study.pk)
+    rendered = rendered_clips(study)
+    participant = Participant(pk=draw_id(Participant), study=study, platform_id=platform_id,
+                              platform_data=platform_data, user_agent=user_agent[:300])
+    # Under the lock the server waits for the database twice (round_trips): for the loads,
+    # sent with the lock, and for the commit, sent with the new rows.
+    with pipeline(), transaction.atomic():
+        lock_rows(Study.objects.filter(pk=study.pk))
         pages = _pages(study, design, rendered, rng)
-        participant = Participant.objects.create(
-            study=study, platform_id=platform_id, platform_data=platform_data, user_agent=user_agent[:300],
-            training=design.practice(study, rendered, [page for page in pages if not page.expected], rng))
+        participant.training = design.practice(study, rendered, [page for page in pages if not page.expected], rng)
+        insert([participant])
         clips = [(index, slot, stimulus, page) for index, page in enumerate(pages)
                  for slot, stimulus in enumerate(page.clips, start=1)]
-        Assignment.objects.bulk_create([
+        insert([
             Assignment(participant=participant, stimulus=stimulus, position=position, page=index, slot=slot,
                        is_check=page.is_check, expected=page.expected[slot - 1] if page.expected else "")
             for position, (index, slot, stimulus, page) in enumerate(clips)

@@ -27,6 +27,7 @@ from studyapp.participants.assignment import StudyFull, StudyNotReady, enrol
 from studyapp.participants.path import Step, current_page, may_post, message, mturk_submit_url, stage
 from studyapp.participants.refusal import AnswerRefused
 from studyapp.participants.study_cache import current_study
+from studyapp.server.compiled_queries import CompiledQuery
 
 # The query parameters each platform adds to the entry link; the first one is the id.
 PLATFORM_PARAMETERS = {
@@ -122,17 +123,20 @@ def plain_pages(view: Callable[..., HttpResponse]) -> Callable[..., HttpResponse
     return shielded
 
 
+_participant_in_study = CompiledQuery(
+    lambda pk, key: Participant.objects.annotate(study_updated=F("study__updated")).filter(pk=pk, study__key=key),
+    int, str)
+
+
 def _participant(request: HttpRequest, key: str) -> tuple[Study, Participant | None]:
     """The study of an entry key (StudyUnavailable if none) and this browser's participant in it, if
     any: one query for both when there is one, as on every page of the path (the study
     itself from this process's memory while unchanged)."""
     pk = _participant_pk(request, key)
-    try:
-        found = Participant.objects.annotate(study_updated=F("study__updated")).get(pk=pk, study__key=key) if pk else None
-    except Participant.DoesNotExist:
-        found = None
-    if found is None:
+    rows = _participant_in_study(int(pk), key) if pk and pk.isdigit() else []
+    if not rows:
         return _study(key), None
+    found = rows[0]
     found.study = current_study(found.study_id, found.study_updated)
     return found.study, found
 
