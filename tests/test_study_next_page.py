@@ -72,7 +72,7 @@ def through_instructions(client: Client, study: Study) -> Participant:
 
 
 @pytest.mark.parametrize("design", DESIGNS)
-def test_each_answer_is_one_request_whose_response_is_the_next_page_marked_shown(design):
+def test_each_answer_is_one_request_whose_response_is_the_next_page_marked_shown_without_its_head(design):
     study = study_of(design, training_clips=0)
     client = Client()
     participant = through_instructions(client, study)
@@ -88,8 +88,12 @@ def test_each_answer_is_one_request_whose_response_is_the_next_page_marked_shown
         assert f" {number + 1} of {pages}" in html
         assert all(clip.shown_at is not None for clip in on_screen)  # the server's clock starts with the response
         assert response["Cache-Control"].startswith("max-age=0")
+        # Only what the script swaps in: the page on screen has the head and the scripts.
+        assert "<title>" in html and "<main data-page-id=" in html
+        assert "<head>" not in html and "<script" not in html and "stylesheet" not in html
         reloaded = client.get(reverse("participant-page", args=[study.key])).content.decode()
         assert f'value="{on_screen[0].token}"' in reloaded  # a reload shows the same page
+        assert "<head>" in reloaded and "next-page.js" in reloaded  # the whole page, loaded anew
     last = rate(client, study, participant)  # the next page is the end: the redirect, to be loaded
     assert last.status_code == 302 and last["Location"] == reverse("participant-page", args=[study.key])
     assert "C0MPL3TE" in client.get(last["Location"]).content.decode()

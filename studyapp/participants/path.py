@@ -97,12 +97,15 @@ def message(request: HttpRequest, title: str, text: str, status: int = 200, back
                   status=status)
 
 
-def current_page(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
+def current_page(request: HttpRequest, study: Study, participant: Participant, in_place: bool = False) -> HttpResponse:
     """The page the participant is on: its step's template and context (a rating page is
-    marked shown as it is rendered, ``designs.pages``)."""
+    marked shown as it is rendered, ``designs.pages``); ``in_place``, only what the clip
+    pages' script swaps in (a page of clips: ``in_place.html`` instead of ``base.html``)."""
     participant = renew_reservations(participant)
     step = current_step(participant)
     context = {"study": study, **step.page(study, participant)}
+    if in_place:
+        context["frame"] = "studyapp/participant/in_place.html"
     # Names this page among the participant's, so that another tab still on an earlier one moves on.
     context["page_id"] = "-".join([step.name, *map(str, context.get("form", {}).values())])
     return render(request, f"studyapp/participant/{step.template_for(study)}", context)
@@ -113,7 +116,7 @@ def next_page(request: HttpRequest, study: Study, participant: Participant) -> H
     the clip pages' script, the participant's next page itself where it is a page of clips
     (``participant``: as the form left it, in memory)."""
     if request.headers.get(NEXT_PAGE_HEADER) == "in-place" and current_step(participant).in_place:
-        return current_page(request, study, participant)
+        return current_page(request, study, participant, in_place=True)
     return redirect("participant-page", key=study.key)
 
 

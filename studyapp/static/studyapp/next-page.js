@@ -3,8 +3,9 @@
 // The page's own script (clip-page.js, page-clips.js) says how a page is set up
 // (window.studyappSetUpPage); this one sets up the page on load, and sends its form with
 // the Studyapp-Next-Page header. The server answers with the next page itself where that
-// is another page of clips (rendered as a page loaded anew is, and marked shown by the
-// server's clock as the answer is stored), which replaces this one: the clips that the
+// is another page of clips (its title and main part, rendered as a page loaded anew
+// renders them, and marked shown by the server's clock as the answer is stored), whose
+// main part replaces this one's: the clips that the
 // page had been loading in its hidden "upcoming" videos take the new clips' places, so they
 // play at once. Any other next page (questions, the end) comes as a redirect, followed by
 // loading the page; a refused answer (too early, say) shows the server's reason on the
