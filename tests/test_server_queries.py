@@ -134,3 +134,30 @@ def test_the_rendered_clips_are_read_again_only_when_what_a_plan_reads_of_them_c
     assert {s.system.role for s in edited if s.system_id == model.pk} == {System.Role.NATURAL}
     Stimulus.objects.filter(pk=clips[0].pk).update(status=Stimulus.Status.RUNNING)  # being rendered again
     assert sorted(s.pk for s in rendered_clips(study)) == sorted(s.pk for s in clips[1:])
+
+
+def test_an_answer_is_read_and_written_in_one_pipeline_whose_writes_return_nothing():
+    """On PostgreSQL the transaction's start goes out with the page's clips, and the
+    rating (and any update of the participant's rows) with the commit: two waits for the
+    database."""
+    from django.test import Client
+
+    from tests.test_study_next_page import rate, study_of, through_instructions
+
+    study = study_of("single", training_clips=0)
+    client = Client()
+    participant = through_instructions(client, study)
+    statements: list[tuple[str, bool]] = []
+
+    def note(execute, sql, params, many, context):
+        statements.append((sql, connection.vendor == "postgresql" and connection.connection.pgconn.pipeline_status != 0))
+        return execute(sql, params, many, context)
+
+    with connection.execute_wrapper(note):
+        assert rate(client, study, participant).status_code == 200
+    pipelined = [sql.split(None, 1)[0] for sql, in_pipeline in statements if in_pipeline]
+    if connection.vendor == "postgresql":
+        assert pipelined[:2] == ["SELECT", "INSERT"] and set(pipelined[2:]) <= {"UPDATE"}, statements
+        assert "FOR UPDATE" in next(sql for sql, in_pipeline in statements if in_pipeline)
+        assert not any("RETURNING" in sql for sql, in_pipeline in statements if in_pipeline)
+    assert participant.assignments.filter(rating__isnull=False).count() == 1

@@ -34,6 +34,7 @@ from studyapp.models import Assignment, Participant, Rating, Study, export_name
 from studyapp.participants.assignment import last_seen_is_stale
 from studyapp.participants.refusal import AnswerRefused
 from studyapp.server.compiled_queries import CompiledQuery
+from studyapp.server.round_trips import insert, pipeline, update
 
 
 class AnsweredTooSoon(AnswerRefused):
@@ -109,14 +110,16 @@ def failure_changes(study: Study, participant: Participant, now: datetime) -> di
     return changes
 
 
-def record_answer(participant: Participant, answer: Answer) -> list[Rating]:
+def record_answer(participant: Participant, answer: Answer) -> None:
     """Store the answer to the participant's current page, or raise AnswerRefused (nothing
     stored); ``participant`` is updated in memory as the answer changed it."""
     if participant.finished_at is not None:  # the last page answered, or stopped with pages left
         raise AnswerRefused("this participant has already finished the study", status=409)
     try:
-        with transaction.atomic():
-            return _store(participant.study, participant, answer)
+        # The server waits for the database twice (round_trips): for the page's clips, sent
+        # with the transaction's start, and for the commit, sent with the writes.
+        with pipeline(), transaction.atomic():
+            _store(participant.study, participant, answer)
     except IntegrityError:  # a second submission racing this one; the transaction stored nothing
         raise AnswerRefused(f"that {design_of(participant.study).page_word.lower()} has already been answered",
                             status=409) from None
@@ -133,7 +136,7 @@ _unrated_for_update = CompiledQuery(
     .select_for_update(of=("self",)), int)
 
 
-def _store(study: Study, participant: Participant, answer: Answer) -> list[Rating]:
+def _store(study: Study, participant: Participant, answer: Answer) -> None:
     design = design_of(study)
     # The page on screen is the first with an unrated clip. Locking the unrated clips
     # orders the participant's own concurrent requests (two tabs, a double click) and no
@@ -152,7 +155,7 @@ def _store(study: Study, participant: Participant, answer: Answer) -> list[Ratin
                 if (waited := _sooner_than_clip(a.shown_at, a.clip_seconds, now)) is not None]
         if late:
             raise AnsweredTooSoon(late[0][0], max(a.clip_seconds or 0.0 for a in page), len(page))
-    ratings = Rating.objects.bulk_create([
+    insert([
         Rating(assignment=a, value=answer.values.get(a.slot), answer=answer.choice, strength=answer.strength,
                client_started_s=times.started_s, client_ended_s=times.ended_s, client_answered_s=times.answered_s,
                played_until_s=times.played_until_s,
@@ -168,10 +171,10 @@ def _store(study: Study, participant: Participant, answer: Answer) -> list[Ratin
     if following:
         # The answer leads straight to the next page: marking it shown in this
         # transaction spares that page a write of its own (a second commit per answer).
-        Assignment.objects.filter(pk__in=following).update(shown_at=now)
+        update(Assignment.objects.filter(pk__in=following), shown_at=now)
     if changes or last_seen_is_stale(participant, now):
         changes["last_seen"] = now
-        Participant.objects.filter(pk=participant.pk).update(**changes)
+        update(Participant.objects.filter(pk=participant.pk), **changes)
     on_page = [OnPage(a, export_name(a.system_role, a.system_name), a.clip_seconds or 0.0) for a in page]
     reason = "" if any(expected) else design.exclusion_reason(rules.exclusion, study, on_page, answer)
     if reason and not participant.excluded:  # the first reason stays
@@ -181,7 +184,6 @@ def _store(study: Study, participant: Participant, answer: Answer) -> list[Ratin
     # The participant as stored now, so that the next page is read from it without a query.
     for name, value in changes.items():
         setattr(participant, name, value)
-    return ratings
 
 
 def refusal(participant: Participant, token: str, unit: str) -> AnswerRefused:

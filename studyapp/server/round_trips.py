@@ -4,12 +4,13 @@ A statement normally goes to the database and the server process waits for its a
 before sending the next one. Under a crowd each of those waits costs milliseconds more
 than the database's own work: the thread must get a core and Python's interpreter lock
 back before it can go on. Inside the study's lock (``participants.assignment.enrol``)
-every such wait is a wait for every participant queued behind it.
+every such wait is a wait for every participant queued behind it, and every answer
+(``designs.answers.record_answer``) made five of them, the transaction's start included.
 
 In a ``pipeline`` (psycopg's pipeline mode) statements go out without waiting, and the
 server process waits only where it reads an answer (a query's rows) and at the commit.
 So a lock taken with ``lock_rows`` goes out with the query after it, and rows written
-with ``insert`` go out with the commit. On SQLite, which runs in the server's own
+with ``insert`` or ``update`` go out with the commit. On SQLite, which runs in the server's own
 process, there are no round trips to save: ``pipeline`` does nothing there and
 ``insert`` reads the new rows' ids back as ``bulk_create`` does.
 """
@@ -21,6 +22,8 @@ from collections.abc import Iterator
 
 from django.db import connection
 from django.db.models import Model, QuerySet
+from django.db.models.sql import UpdateQuery
+from django.db.models.sql.constants import NO_RESULTS
 
 
 def _pipelines() -> bool:
@@ -86,3 +89,11 @@ def insert(objects: list[Model]) -> None:
     model._base_manager._insert(objects, fields=fields, using=connection.alias)
     for obj in objects:  # saved, as bulk_create leaves them
         obj._state.adding, obj._state.db = False, connection.alias
+
+
+def update(queryset: QuerySet, **values: object) -> None:
+    """``queryset.update(**values)`` without reading how many rows changed, so that a
+    ``pipeline`` need not wait for it."""
+    query = queryset.query.chain(UpdateQuery)
+    query.add_update_values(values)
+    query.get_compiler(queryset.db).execute_sql(NO_RESULTS)
