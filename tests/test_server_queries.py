@@ -14,7 +14,7 @@ from studyapp.models import Assignment, Participant, Stimulus, Study, System
 from studyapp.participants.assignment import enrol
 from studyapp.participants.study_cache import rendered_clips
 from studyapp.server.compiled_queries import CompiledQuery
-from studyapp.server.round_trips import draw_id, insert, lock_rows, pipeline
+from studyapp.server.round_trips import draw_id, insert, lock_rows, pipeline, updated_count
 from tests.study_fixtures import make_study
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -161,3 +161,12 @@ def test_an_answer_is_read_and_written_in_one_pipeline_whose_writes_return_nothi
         assert "FOR UPDATE" in next(sql for sql, in_pipeline in statements if in_pipeline)
         assert not any("RETURNING" in sql for sql, in_pipeline in statements if in_pipeline)
     assert participant.assignments.filter(rating__isnull=False).count() == 1
+
+
+def test_a_count_of_updated_rows_read_in_a_pipeline_is_the_number_of_rows_changed():
+    study = make_study(controls=2)
+    with pipeline(), transaction.atomic():
+        lock_rows(Study.objects.filter(pk=study.pk))
+        assert updated_count(Study.objects.filter(pk=study.pk), title="Renamed") == 1
+        assert updated_count(Study.objects.filter(pk=study.pk, title="Not its title"), title="Again") == 0
+    assert Study.objects.get(pk=study.pk).title == "Renamed"

@@ -34,7 +34,7 @@ from studyapp.models import Assignment, Participant, Rating, Study, export_name
 from studyapp.participants.assignment import last_seen_is_stale
 from studyapp.participants.refusal import AnswerRefused
 from studyapp.server.compiled_queries import CompiledQuery
-from studyapp.server.round_trips import insert, pipeline, update
+from studyapp.server.round_trips import insert, pipeline, update, updated_count
 
 
 class AnsweredTooSoon(AnswerRefused):
@@ -178,8 +178,8 @@ def _store(study: Study, participant: Participant, answer: Answer) -> None:
     on_page = [OnPage(a, export_name(a.system_role, a.system_name), a.clip_seconds or 0.0) for a in page]
     reason = "" if any(expected) else design.exclusion_reason(rules.exclusion, study, on_page, answer)
     if reason and not participant.excluded:  # the first reason stays
-        if Participant.objects.filter(pk=participant.pk, excluded=False).update(excluded=True,
-                                                                                 exclusion_reason=reason):
+        if updated_count(Participant.objects.filter(pk=participant.pk, excluded=False), excluded=True,
+                         exclusion_reason=reason):
             changes.update(excluded=True, exclusion_reason=reason)
     # The participant as stored now, so that the next page is read from it without a query.
     for name, value in changes.items():

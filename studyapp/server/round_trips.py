@@ -10,7 +10,9 @@ every such wait is a wait for every participant queued behind it, and every answ
 In a ``pipeline`` (psycopg's pipeline mode) statements go out without waiting, and the
 server process waits only where it reads an answer (a query's rows) and at the commit.
 So a lock taken with ``lock_rows`` goes out with the query after it, and rows written
-with ``insert`` or ``update`` go out with the commit. On SQLite, which runs in the server's own
+with ``insert`` or ``update`` go out with the commit. A count of changed rows is known only
+once the database has answered: in a pipeline ``QuerySet.update`` returns -1, and
+``updated_count`` waits for the answer instead. On SQLite, which runs in the server's own
 process, there are no round trips to save: ``pipeline`` does nothing there and
 ``insert`` reads the new rows' ids back as ``bulk_create`` does.
 """
@@ -23,7 +25,7 @@ from collections.abc import Iterator
 from django.db import connection
 from django.db.models import Model, QuerySet
 from django.db.models.sql import UpdateQuery
-from django.db.models.sql.constants import NO_RESULTS
+from django.db.models.sql.constants import CURSOR, NO_RESULTS
 
 
 def _pipelines() -> bool:
@@ -97,3 +99,16 @@ def update(queryset: QuerySet, **values: object) -> None:
     query = queryset.query.chain(UpdateQuery)
     query.add_update_values(values)
     query.get_compiler(queryset.db).execute_sql(NO_RESULTS)
+
+
+def updated_count(queryset: QuerySet, **values: object) -> int:
+    """``queryset.update(**values)``: how many rows changed, also in a ``pipeline`` (which
+    then waits here for the database's answers so far)."""
+    if not _pipelines():
+        return queryset.update(**values)
+    query = queryset.query.chain(UpdateQuery)
+    query.add_update_values(values)
+    with pipeline():  # entered again: leaving it waits for the answers, this UPDATE's count among them
+        cursor = query.get_compiler(queryset.db).execute_sql(CURSOR)
+    with cursor:
+        return cursor.rowcount
