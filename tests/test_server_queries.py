@@ -20,6 +20,10 @@ from tests.study_fixtures import make_study
 pytestmark = pytest.mark.django_db(transaction=True)
 
 
+def in_a_pipeline() -> bool:
+    return connection.vendor == "postgresql" and connection.connection.pgconn.pipeline_status != 0
+
+
 def _fields(obj) -> dict:
     return {name: value for name, value in vars(obj).items() if not name.startswith("_")}
 
@@ -95,7 +99,7 @@ def test_enrolment_under_the_lock_sends_only_the_loads_query_and_writes_that_ret
     statements: list[tuple[str, bool]] = []
 
     def note(execute, sql, params, many, context):
-        statements.append((sql, connection.vendor == "postgresql" and connection.connection.pgconn.pipeline_status != 0))
+        statements.append((sql, in_a_pipeline()))
         return execute(sql, params, many, context)
 
     with connection.execute_wrapper(note):
@@ -150,7 +154,7 @@ def test_an_answer_is_read_and_written_in_one_pipeline_whose_writes_return_nothi
     statements: list[tuple[str, bool]] = []
 
     def note(execute, sql, params, many, context):
-        statements.append((sql, connection.vendor == "postgresql" and connection.connection.pgconn.pipeline_status != 0))
+        statements.append((sql, in_a_pipeline()))
         return execute(sql, params, many, context)
 
     with connection.execute_wrapper(note):

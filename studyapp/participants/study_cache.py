@@ -26,9 +26,10 @@ from studyapp.server.compiled_queries import CompiledQuery
 _studies: dict[int, Study] = {}
 _rendered: dict[int, tuple[frozenset[tuple], list[Stimulus]]] = {}  # by study: what plans read of them, and the clips
 
-PLANNED_FIELDS = ("pk", "system_id", "system__role", "control_id", "shown_control_id")  # what plans read of a clip
+_PLANNED_FIELDS = ("pk", "system_id", "system__role", "control_id", "shown_control_id")  # what plans read of a clip
 _planned_fields = CompiledQuery(
-    lambda study: Stimulus.objects.filter(study_id=study, status=Stimulus.Status.DONE).values_list(*PLANNED_FIELDS), int)
+    lambda study: Stimulus.objects.filter(study_id=study, status=Stimulus.Status.DONE).values_list(*_PLANNED_FIELDS),
+    int)
 
 
 def current_study(pk: int, updated: datetime) -> Study:
