@@ -9,6 +9,7 @@ import threading
 import pytest
 from django.db import IntegrityError, connection, connections, transaction
 from django.db.models import F
+from django.test import Client
 
 from studyapp.models import Assignment, Participant, Stimulus, Study, System
 from studyapp.participants.assignment import enrol
@@ -16,6 +17,7 @@ from studyapp.participants.study_cache import rendered_clips
 from studyapp.server.compiled_queries import CompiledQuery
 from studyapp.server.round_trips import draw_id, insert, lock_rows, pipeline, updated_count
 from tests.study_fixtures import make_study
+from tests.test_study_next_page import rate, study_of, through_instructions
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -144,10 +146,6 @@ def test_an_answer_is_read_and_written_in_one_pipeline_whose_writes_return_nothi
     """On PostgreSQL the transaction's start goes out with the page's clips, and the
     rating (and any update of the participant's rows) with the commit: two waits for the
     database."""
-    from django.test import Client
-
-    from tests.test_study_next_page import rate, study_of, through_instructions
-
     study = study_of("single", training_clips=0)
     client = Client()
     participant = through_instructions(client, study)

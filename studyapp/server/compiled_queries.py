@@ -4,11 +4,12 @@ Django builds a queryset and compiles it to SQL each time it runs. For the three
 of a rating step that read rows (the participant, the page answered, the page shown
 next) building and compiling took about a quarter of the step's CPU time on this
 machine (benchmarks/bench_study.py), and a crowd of participants is held back by
-exactly that time. Their SQL differs only in the values it compares, so
-``CompiledQuery`` builds its queryset once per process and database with stand-in
-values, keeps the SQL, and runs it with the real values put where the stand-ins were.
-The rows are read by the ORM as the queryset reads them: model objects (annotations as
-attributes) or, for a ``values()`` query, dicts, converted as usual.
+exactly that time (enrolment's check of the rendered clips is compiled the same way).
+Their SQL differs only in the values it compares, so ``CompiledQuery`` builds its
+queryset once per process (which has one database) with stand-in values, keeps the
+SQL, and runs it with the real values put where the stand-ins were. The rows are read
+by the ORM as the queryset reads them: model objects (annotations as attributes) or, for
+a ``values()`` query, dicts, converted as usual.
 
 A compiled query takes its values as integers or strings that the ORM passes to the
 database unchanged (``pk=``, ``participant_id=``, ``study__key=``; not ``__in`` lists,
@@ -39,33 +40,32 @@ def _stand_in(kind: type) -> int | str:
 
 
 class CompiledQuery:
-    """``build(*values)``'s queryset, compiled once per database with stand-ins for its
-    values (of the types ``kinds``); calling it runs it with the values given."""
+    """``build(*values)``'s queryset, compiled once with stand-ins for its values (of the
+    types ``kinds``); calling it runs it with the values given."""
 
     def __init__(self, build: Callable[..., QuerySet], *kinds: type) -> None:
         self._build, self._kinds = build, kinds
-        self._compiled: dict[str, tuple] = {}  # by database alias: queryset, compiler, SQL, params, slots
+        self._compiled: tuple | None = None  # queryset, compiler, SQL, params, slots
 
-    def _compile(self, alias: str) -> tuple:
+    def _compile(self) -> tuple:
         stand_ins = [_stand_in(kind) for kind in self._kinds]
         queryset = self._build(*stand_ins)
-        compiler = queryset.query.get_compiler(using=alias)
+        compiler = queryset.query.get_compiler(using=DEFAULT_DB_ALIAS)
         sql, params = compiler.as_sql()  # also sets up what reading the rows needs (select, klass_info)
         slots = [[i for i, param in enumerate(params) if type(param) is type(value) and param == value]
                  for value in stand_ins]
         if missing := [n for n, positions in enumerate(slots) if not positions]:
             raise TypeError(f"value {missing[0] + 1} of {self._build.__qualname__} does not reach the SQL as "
                             f"it is given, so it cannot be compiled once")
-        self._compiled[alias] = (queryset, compiler, sql, tuple(params), slots)
-        return self._compiled[alias]
+        self._compiled = (queryset, compiler, sql, tuple(params), slots)
+        return self._compiled
 
     def __call__(self, *values: int | str) -> list:
         """The query's rows with ``values`` (model objects, or dicts for a ``values()`` query)."""
         if len(values) != len(self._kinds) or any(type(v) is not k for v, k in zip(values, self._kinds)):
             raise TypeError(f"{self._build.__qualname__} takes values of the types "
                             f"{[kind.__name__ for kind in self._kinds]}, not {values!r}")
-        alias = DEFAULT_DB_ALIAS
-        template, compiler, sql, params, slots = self._compiled.get(alias) or self._compile(alias)
+        template, compiler, sql, params, slots = self._compiled or self._compile()
         params = list(params)
         for value, positions in zip(values, slots):
             for position in positions:
@@ -73,7 +73,7 @@ class CompiledQuery:
         # This thread's connection (a compiler holds the connection it was made with),
         # and the compiled SQL instead of compiling again.
         run = copy.copy(compiler)
-        run.connection = connections[alias]
+        run.connection = connections[DEFAULT_DB_ALIAS]
         run.as_sql = lambda *args, **kwargs: (sql, params)
         queryset = template._chain()
         queryset.query.get_compiler = lambda *args, **kwargs: run

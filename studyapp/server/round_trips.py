@@ -93,12 +93,17 @@ def insert(objects: list[Model]) -> None:
         obj._state.adding, obj._state.db = False, connection.alias
 
 
+def _update_compiler(queryset: QuerySet, values: dict):
+    """The compiler of ``queryset.update(**values)``, as ``QuerySet.update`` makes it."""
+    query = queryset.query.chain(UpdateQuery)
+    query.add_update_values(values)
+    return query.get_compiler(queryset.db)
+
+
 def update(queryset: QuerySet, **values: object) -> None:
     """``queryset.update(**values)`` without reading how many rows changed, so that a
     ``pipeline`` need not wait for it."""
-    query = queryset.query.chain(UpdateQuery)
-    query.add_update_values(values)
-    query.get_compiler(queryset.db).execute_sql(NO_RESULTS)
+    _update_compiler(queryset, values).execute_sql(NO_RESULTS)
 
 
 def updated_count(queryset: QuerySet, **values: object) -> int:
@@ -106,9 +111,7 @@ def updated_count(queryset: QuerySet, **values: object) -> int:
     then waits here for the database's answers so far)."""
     if not _pipelines():
         return queryset.update(**values)
-    query = queryset.query.chain(UpdateQuery)
-    query.add_update_values(values)
     with pipeline():  # entered again: leaving it waits for the answers, this UPDATE's count among them
-        cursor = query.get_compiler(queryset.db).execute_sql(CURSOR)
+        cursor = _update_compiler(queryset, values).execute_sql(CURSOR)
     with cursor:
         return cursor.rowcount
