@@ -224,8 +224,8 @@ def _parse_hierarchy(path: Path, lines: list[str]):
             continue
         line, keyword = i + 1, tokens[0]
         if not seen_header:
-            if keyword != "HIERARCHY":
-                raise BVHError(path, f"expected 'HIERARCHY', found {keyword!r}", line)
+            if keyword != "HIERARCHY":  # nothing of it is repeated: it may be any file, a secret one among them
+                raise BVHError(path, "not a BVH file (it does not start with HIERARCHY)", line)
             seen_header = True
             continue
         if pending is not None and keyword != "{":

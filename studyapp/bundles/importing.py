@@ -47,6 +47,7 @@ from django.db import transaction
 from generation.files import atomic_folder, atomic_output
 from generation.motion.npz import MotionFileError, load_motion_npz
 from generation.store import SHA256_HEX, SUFFIX, CheckpointError, content_digest, read_header
+from studyapp import ownership
 from studyapp.bundles import records
 from studyapp.bundles.manifest import BundleRefused
 from studyapp.bundles.reading import ReadBundle, read_bundle
@@ -57,7 +58,8 @@ from studyapp.models import (Assignment, ControlSignal, Participant, PreviousRun
 from studyapp.plan.lock import preregistration, restore_preregistration
 from studyapp.plan.words import plan_markdown
 from studyapp.stimuli.clips import CODE_VERSION, content_key
-from studyapp.stimuli.sources import sampled_folder
+from studyapp.stimuli.sources import imported_sampled_path
+from studyapp.stimuli.natural import is_take_name
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER, stored_motion_digest
 from studyapp.stimuli.systems import UploadRefused, checked_checkpoint, video_duration
 
@@ -126,6 +128,21 @@ def _free(model, field: str, value: object) -> object:
     return new_token() if isinstance(value, str) and model.objects.filter(**{field: value}).exists() else value
 
 
+def _check_take(control: ControlSignal, owner, where: str) -> None:
+    """A held-out control's take must be a file inside its folders, and each folder one the
+    owner may use (``studyapp.ownership``): NAT and the controls' download read it."""
+    if control.source_clip and not is_take_name(control.source_clip):
+        raise records.RecordError(f"{where}: its take {control.source_clip[:80]!r} is no file inside a motion folder")
+    folders = control.natural.get("folders", []) if isinstance(control.natural, dict) else []
+    if not isinstance(folders, list) or not all(isinstance(folder, str) for folder in folders):
+        raise records.RecordError(f"{where}: its natural record's folders are no list of paths")
+    for folder in folders:
+        try:
+            ownership.owned(owner, ownership.MOTION_FOLDER, folder)
+        except ownership.NotYours as error:
+            raise records.RecordError(f"{where}: {error}") from None
+
+
 class _Import:
     """One bundle's import: the rows made so far by name or token, and the files to place."""
 
@@ -153,6 +170,7 @@ class _Import:
         study = _saved(Study(owner=owner, is_open=False, **values), f"{where}: study")
         for index, item in enumerate(_items(data, "controls", where)):
             control = ControlSignal(study=study, **records.row_values(ControlSignal, item, f"{where}: controls[{index}]"))
+            _check_take(control, owner, f"{where}: control {control.name!r}")  # before it is one of the owner's
             self.controls[control.name] = _saved(control, f"{where}: control {control.name!r}")
         for index, item in enumerate(_items(data, "systems", where)):
             system = System(study=study, **records.row_values(System, item, f"{where}: systems[{index}]"))
@@ -227,13 +245,13 @@ class _Import:
             if video is True or uploaded:
                 stimulus.status, stimulus.duration_s = Stimulus.Status.DONE, self.video(recorded_token, stimulus)
             self.stimuli[recorded_token] = _saved(stimulus, here)
-        keys = {stimulus.content_key for stimulus in self.stimuli.values()}
+        by_key = {stimulus.content_key: stimulus for stimulus in self.stimuli.values()}
         for path in sorted(self.bundle.path(records.SAMPLED).glob("*")):
             name = f"{records.SAMPLED}{path.name}"
-            if path.suffix != ".npz" or path.stem not in keys:
+            if path.suffix != ".npz" or path.stem not in by_key:
                 raise BundleRefused(f"{name}: sampled motion of no clip of the study")
             load_motion_npz(path, name)
-            self.place_file(path, sampled_folder() / path.name)
+            self.place_file(path, imported_sampled_path(by_key[path.stem]))  # this study's own, no other's cache
 
     def video(self, token: str, stimulus: Stimulus) -> float:
         """Check and place a clip's video; its duration."""

@@ -19,7 +19,6 @@ from pathlib import Path as FilePath
 
 import numpy as np
 from django import forms
-from django.conf import settings
 from django.contrib.auth.base_user import AbstractBaseUser
 from django.core.exceptions import ValidationError
 from django.core.files import File
@@ -28,7 +27,8 @@ from django.db import transaction
 from generation import registry
 from generation.control import PathControl
 from generation.render.camera import Camera
-from generation.store import SHA256_HEX, SUFFIX as CHECKPOINT_SUFFIX
+from generation.store import SHA256_HEX
+from studyapp import ownership
 from studyapp.bounds import check_field
 from studyapp.definitions import layout
 from studyapp.definitions.errors import DefinitionError
@@ -40,7 +40,7 @@ from studyapp.researchers.setup.forms import (CAMERA_PREFIX, HeldOutControlsForm
                                        StudyForm)
 from studyapp.stimuli.controls import (ControlError, add_held_out_controls, add_label_controls, add_path_control,
                                        add_preset_controls, control_kind, study_labels)
-from studyapp.stimuli.submissions import SUBMITTED_FOLDER, Reading, add_submitted_system, read_folder
+from studyapp.stimuli.submissions import Reading, add_submitted_system, read_folder
 from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system, add_natural_system
 
 
@@ -125,6 +125,13 @@ class _Builder:
                 where = (*path, keys.get(name, name)) if name != "__all__" else path
                 self.problem(where, f"{_where(where)}: {' '.join(messages)}")
             self.stop()
+
+    def owned(self, path: Path, kind: str, name: str) -> FilePath:
+        """Where the ``kind`` that ``name`` names lies, if it is the owner's or shared (``studyapp.ownership``)."""
+        try:
+            return ownership.owned(self.owner, kind, name)
+        except ownership.NotYours as error:
+            raise self.fail(path, f"{_where(path)}: {error}") from None
 
     def digest(self, path: Path, value: str) -> str:
         if not SHA256_HEX.fullmatch(value):
@@ -229,10 +236,7 @@ class _Builder:
         spec = self.mapping(where, given["checkpoint"], layout.CHECKPOINT_KEYS, required=("digest", "file"))
         self.stop()
         digest = self.digest((*where, "digest"), spec["digest"])
-        stored = FilePath(settings.CHECKPOINT_ROOT) / f"{digest}{CHECKPOINT_SUFFIX}"
-        if not stored.is_file():
-            raise self.fail((*where, "digest"), f"no checkpoint {digest} in the checkpoint store "
-                                                f"({settings.CHECKPOINT_ROOT}): put its file there first")
+        stored = self.owned((*where, "digest"), ownership.CHECKPOINT, digest)
         try:
             with File(stored.open("rb"), name=spec["file"]) as upload:
                 system = add_checkpoint_system(study, given["name"], upload, given["role"], given.get("temperature", 1.0))
@@ -252,9 +256,7 @@ class _Builder:
     def submitted_system(self, study: Study, path: Path, given: dict, spec: dict) -> None:
         where = (*path, "submitted")
         digest = self.digest((*where, "digest"), spec["digest"])
-        folder = FilePath(settings.CHECKPOINT_ROOT) / SUBMITTED_FOLDER / digest
-        if not folder.is_dir():
-            raise self.fail((*where, "digest"), f"no submitted motion {digest} in the checkpoint store ({folder.parent})")
+        folder = self.owned((*where, "digest"), ownership.SUBMITTED_MOTION, digest)
         try:  # the stored clips are already the body, on the control's path: read again, as they are
             system = add_submitted_system(study, given["name"], read_folder(folder), given["role"], spec.get("file", ""),
                                           Reading(keep_root=True))
@@ -343,6 +345,8 @@ class _Builder:
         spec = self.mapping(where, value, layout.HELD_OUT_KEYS, required=("take", "seconds"))
         folders = self.texts((*where, "folders"), spec.get("folders", []))
         self.stop()
+        for i, folder in enumerate(folders):  # before anything reads them: a folder not theirs is not looked into
+            self.owned((*where, "folders", i), ownership.MOTION_FOLDER, folder)
         take = spec["take"]
         # Checked as the controls page checks its held-out form; the unit and up axis only
         # where the study has no checkpoint to fix them (the service refuses them otherwise).

@@ -185,6 +185,10 @@ if not 0 < 3 * STUDY_HEARTBEAT_S < STUDY_LOST_AFTER_S:
 # Uploaded checkpoints live here, named by content digest; never under MEDIA_ROOT,
 # which is served to the public.
 CHECKPOINT_ROOT = Path(env_str("CHECKPOINT_ROOT", str(VAR_DIR / "checkpoints")))
+# Checkpoints every researcher may name by digest in a definition, read-only (studyapp.ownership):
+# by default the project's committed models, which the demo's study is made of. Any other
+# checkpoint is a researcher's own, named only by them.
+SHARED_CHECKPOINTS = Path(env_str("SHARED_CHECKPOINTS", str(BASE_DIR / "models")))
 # The motion capture that held-out controls and natural (NAT) clips are read from: one
 # folder of BVH files, or several joined with ":" (by default both Bandai-Namco folders,
 # the data the committed MoGlow was trained on).

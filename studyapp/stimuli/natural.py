@@ -13,7 +13,7 @@ axis detected (or given) when the controls were added, and a take of a folder ou
 
 from __future__ import annotations
 
-from pathlib import Path
+from pathlib import Path, PurePath
 
 from django.conf import settings
 
@@ -40,12 +40,19 @@ def natural_source(folders: list[Path], options: DatasetOptions) -> dict:
     return {"folders": [str(folder.absolute()) for folder in folders], "options": options.to_dict()}
 
 
+def is_take_name(source: str) -> bool:
+    """Whether ``source`` names a file inside a motion folder: a relative path that never
+    goes up (``..``), so it names nothing outside whichever folder it is looked for in."""
+    path = PurePath(source)
+    return bool(source) and not path.is_absolute() and not path.anchor and ".." not in path.parts
+
+
 def natural_clip(source: str, recorded: list[str] = ()) -> Path:
     """The BVH file a held-out control was cut from: in the folders it was found in
-    (``recorded``), else in those of ``MOTION_DATA``."""
+    (``recorded``), else in those of ``MOTION_DATA``; never outside them."""
     folders = list(dict.fromkeys([*map(Path, recorded), *data_folders()]))
     for folder in folders:
-        if (folder / source).is_file():
+        if is_take_name(source) and (folder / source).is_file():
             return folder / source
     raise FileNotFoundError(f"the natural clip {source} is in none of the motion folders "
                             f"{', '.join(map(str, folders))} (MOTION_DATA)")

@@ -27,7 +27,7 @@ from generation.control import PathControl, in_control_frame
 from generation.motion.npz import load_motion_npz, save_motion_npz
 from generation.motion.root import RootOptions, root_trajectory
 from generation.motion.types import Motion
-from studyapp.models import ControlSignal, Stimulus, StoredDataError, System, json_object
+from studyapp.models import ControlSignal, Stimulus, StoredDataError, Study, System, json_object
 from studyapp.stimuli.controls import natural_options, study_options
 from studyapp.stimuli.natural import natural_motion
 from studyapp.stimuli.submissions import read_stored_motion
@@ -97,14 +97,29 @@ def _generator(path: str, digest: str, device: str):
 
 def sampled_folder() -> Path:
     """Where sampled motion lies, one ``<content key>.npz`` per clip; studies whose clips
-    have the same content key share the file (``removal`` deletes what none refers to)."""
+    have the same content key share the file (``removal`` deletes what none refers to).
+    Only what this server's workers sampled is kept here."""
     return Path(settings.VAR_DIR) / "sampled"
 
 
+def imported_sampled_folder(study: Study) -> Path:
+    """Where the motion a study's bundle carried is kept: under that study (by its key,
+    which no later study gets), never in the shared folder, where a clip of any study with
+    the same content key would be drawn from it instead of being sampled."""
+    return sampled_folder() / "imported" / study.key
+
+
+def imported_sampled_path(stimulus: Stimulus) -> Path:
+    """Where the motion the bundle of a stimulus's study carried for it is kept."""
+    return imported_sampled_folder(stimulus.study) / f"{stimulus.content_key}.npz"
+
+
 def sampled_path(stimulus: Stimulus) -> Path:
-    """Where a sampling worker leaves a stimulus's motion for the rendering worker (named by
-    its content key, so it is the motion of exactly this clip)."""
-    return sampled_folder() / f"{stimulus.content_key}.npz"
+    """Where a stimulus's motion is: the motion its study's bundle carried, where it came
+    with one, else where a sampling worker leaves it for the rendering worker (named by its
+    content key, so it is the motion of exactly this clip)."""
+    imported = imported_sampled_path(stimulus)
+    return imported if imported.is_file() else sampled_folder() / f"{stimulus.content_key}.npz"
 
 
 class CheckpointSource:
@@ -249,4 +264,5 @@ def source_of(system: System) -> MotionSource:
     return source
 
 
-__all__ = ["Clip", "MotionSource", "SOURCES", "commanded_floor", "sampled_folder", "sampled_path", "source_of"]
+__all__ = ["Clip", "MotionSource", "SOURCES", "commanded_floor", "imported_sampled_folder", "imported_sampled_path",
+           "sampled_folder", "sampled_path", "source_of"]

@@ -48,7 +48,7 @@ def edit_system(system: System, name: str, temperature: float | None = None) -> 
     resample = temperature is not None and temperature != system.temperature
     with transaction.atomic():
         require_not_started(system.study)
-        stale = list(system.stimuli.all()) if resample else []
+        stale = list(system.stimuli.select_related("study")) if resample else []
         Stimulus.objects.filter(pk__in=[s.pk for s in stale]).delete()
         system.name = name
         if resample:

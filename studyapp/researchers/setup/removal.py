@@ -4,17 +4,19 @@ Removing a whole study (the admin's delete) takes its clips' files with it.
 
 Sampled motion (``sources.sampled_folder``) is named by content key, and two studies
 whose clips have the same key share one file: a removal deletes only the files that no
-remaining stimulus of any study refers to.
+remaining stimulus of any study refers to. The motion a study's bundle carried is that
+study's alone (``sources.imported_sampled_path``) and goes with its clip.
 """
 
 from __future__ import annotations
 
 import re
+import shutil
 
 from django.db import transaction
 
 from studyapp.models import ControlSignal, Rating, Stimulus, Study, System
-from studyapp.stimuli.sources import sampled_folder
+from studyapp.stimuli.sources import imported_sampled_folder, imported_sampled_path, sampled_folder
 
 SAMPLED_NAME = re.compile(r"[0-9a-f]{64}\.npz")  # a content key; anything else there is not ours to delete
 
@@ -34,6 +36,7 @@ def delete_files(stimuli: list[Stimulus]) -> None:
     more; call after the rows' deletion commits, so a failed delete leaves the files in place."""
     for stimulus in stimuli:
         stimulus.video_path().unlink(missing_ok=True)
+        imported_sampled_path(stimulus).unlink(missing_ok=True)  # its study's own: no other stimulus refers to it
     delete_unreferenced_samples()
 
 
@@ -86,7 +89,8 @@ def remove(item: System | ControlSignal) -> int:
     stimulus shares); returns how many clips went."""
     with transaction.atomic():
         require_not_started(item.study)
-        stimuli = list(Stimulus.objects.filter(**{"system" if isinstance(item, System) else "control": item}))
+        stimuli = list(Stimulus.objects.filter(**{"system" if isinstance(item, System) else "control": item})
+                       .select_related("study"))
         item.delete()  # its stimuli go with it (CASCADE)
     delete_files(stimuli)
     return len(stimuli)
@@ -100,6 +104,7 @@ def remove_study(study: Study) -> int:
         study.participants.all().delete()  # their assignments first: a rated clip is protected from deletion
         study.delete()
     delete_files(stimuli)
+    shutil.rmtree(imported_sampled_folder(study), ignore_errors=True)  # what its bundle carried for clips renamed since
     return len(stimuli)
 
 
