@@ -2,7 +2,9 @@
 
 A researcher who is staff sees and writes only the rows of their own studies, as on the
 study pages: a new study is theirs (the owner comes from the request, so the form never
-lists other researchers' names); a superuser sees everything.
+lists other researchers' names); a superuser sees everything. The names a row holds of
+files and folders (a held-out control's take and folders, a submitted system's folder)
+point only at the study owner's own or at what is shared (``studyapp.ownership``).
 """
 
 from django import forms
@@ -11,7 +13,9 @@ from django.core.exceptions import ValidationError
 from django.db import models
 
 from studyapp.models import Assignment, ControlSignal, Participant, Rating, Stimulus, Study, System
+from studyapp.ownership import NotYours, check_take
 from studyapp.researchers.setup.removal import remove_study
+from studyapp.stimuli.submissions import SUBMITTED_FOLDER
 
 
 class ReadableJSONField(forms.JSONField):
@@ -86,15 +90,44 @@ class StudyAdmin(OwnStudiesOnly):
             remove_study(study)
 
 
+class SystemForm(forms.ModelForm):
+    """Submitted motion is read from the folder named by the system's digest, which the admin
+    does not change: another folder would be another researcher's motion."""
+
+    def clean(self):
+        cleaned = super().clean()
+        metadata, folder = cleaned.get("metadata"), f"{SUBMITTED_FOLDER}/{self.instance.checkpoint_digest}"
+        if cleaned.get("kind") == System.SourceKind.SUBMITTED and isinstance(metadata, dict) \
+                and metadata.get("folder") != folder:
+            raise ValidationError(f"submitted motion lies in the folder named by its digest: its metadata's folder "
+                                  f"must be {folder!r}")
+        return cleaned
+
+
 @admin.register(System)
 class SystemAdmin(OwnStudiesOnly):
+    form = SystemForm
     list_display = ["name", "study", "role", "kind", "temperature"]
     list_filter = ["role"]
     readonly_fields = ["checkpoint", "checkpoint_digest", "created"]
 
 
+class ControlSignalForm(forms.ModelForm):
+    """A held-out take and its folders are names: of the study owner's own, or shared."""
+
+    def clean(self):
+        cleaned = super().clean()
+        if (study := cleaned.get("study")) is not None:
+            try:
+                check_take(study.owner, cleaned.get("source_clip") or "", cleaned.get("natural"))
+            except NotYours as error:
+                raise ValidationError(str(error)) from None
+        return cleaned
+
+
 @admin.register(ControlSignal)
 class ControlSignalAdmin(OwnStudiesOnly):
+    form = ControlSignalForm
     list_display = ["name", "study", "origin", "seconds", "source_clip"]
     list_filter = ["origin"]
 

@@ -1,9 +1,10 @@
 """What a name in a researcher's definition, bundle or form may point at on the server.
 
 A study definition names checkpoints and submitted motion by their digest and motion
-folders by their path; a bundle's records name motion folders too. ``owned`` resolves
-every such name, in one place, inside the researcher's own space or a space every
-researcher shares read-only, and refuses it otherwise:
+folders by their path; a bundle's records and the admin's control form name a held-out
+take and its folders (``check_take``). ``owned`` resolves every such name, in one place,
+inside the researcher's own space or a space every researcher shares read-only, and
+refuses it otherwise:
 
 - a **checkpoint**: one a system of the researcher's studies was made of (uploaded on a
   systems page, or carried in a bundle they imported), or one of the shared checkpoints
@@ -30,7 +31,7 @@ from django.contrib.auth.base_user import AbstractBaseUser
 from generation.motion.dataset import motion_folders
 from generation.store import SUFFIX as CHECKPOINT_SUFFIX, CheckpointError, content_digest, read_header
 from studyapp.models import ControlSignal, System
-from studyapp.stimuli.natural import data_folders
+from studyapp.stimuli.natural import data_folders, is_take_name
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER
 
 CHECKPOINT, SUBMITTED_MOTION, MOTION_FOLDER = "checkpoint", "submitted motion", "motion folder"
@@ -117,4 +118,17 @@ def owned(owner: AbstractBaseUser, kind: str, name: str) -> Path:
     return path
 
 
-__all__ = ["CHECKPOINT", "MOTION_FOLDER", "NotYours", "SUBMITTED_MOTION", "owned", "shared_checkpoints"]
+def check_take(owner: AbstractBaseUser, source_clip: str, natural: object) -> None:
+    """A held-out control's record of where its take is (NAT and the controls' download read
+    it): ``source_clip`` a file inside its folders, and each folder ``natural`` records one
+    ``owner`` may name; NotYours otherwise."""
+    if source_clip and not is_take_name(source_clip):
+        raise NotYours(f"its take {source_clip[:80]!r} is no file inside a motion folder")
+    folders = natural.get("folders", []) if isinstance(natural, dict) else []
+    if not isinstance(folders, list) or not all(isinstance(folder, str) for folder in folders):
+        raise NotYours("its natural record's folders are no list of paths")
+    for folder in folders:
+        owned(owner, MOTION_FOLDER, folder)
+
+
+__all__ = ["CHECKPOINT", "MOTION_FOLDER", "NotYours", "SUBMITTED_MOTION", "check_take", "owned", "shared_checkpoints"]

@@ -1,8 +1,11 @@
 """Random, oversized, non-finite and wrongly-typed values sent to every participant step
 (every design's rating step and the entry link's query included) and every researcher
 form (the study's and its items' edits, moves, removals, copies and retries, the report,
-the crowd platform's page and the admin's study and control forms included): whatever
-comes in, no answer is a server error, and a refused request (4xx) changes no row.
+the crowd platform's page and the admin's study and control forms included), and the
+uploads of a study definition and of a study bundle, which also get definitions and
+bundles that name another researcher's checkpoint or motion, server folders, takes
+outside their folder and planted sampled motion: whatever comes in, no answer is a server
+error, and a refused request (4xx) changes no row.
 
 Each drawn form starts from a valid one, so that a hostile value gets past the fields
 before it: some fields get hostile values (NaN, infinities, 5000 digits, 70,000
@@ -16,12 +19,15 @@ test takes seconds.
 from __future__ import annotations
 
 import io
+import json
 import re
 import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import pytest
+from django.conf import settings as django_settings
 from django.contrib.auth.models import Permission, User
 from django.core.files.uploadedfile import SimpleUploadedFile
 from django.db import connection, transaction
@@ -34,11 +40,13 @@ from hypothesis import settings as fuzz_settings
 from hypothesis import strategies as st
 
 from generation.motion.dataset import DatasetOptions
+from studyapp.definitions import create_study_from_definition
 from studyapp.models import (Assignment, ControlSignal, Participant, PlatformAction, Question, Rating, Stimulus, Study,
                              System)
 from studyapp.participants.views import _remember
 from tests.appropriateness_fixtures import make_appropriateness_study
 from tests.platform_standins import ProlificStandIn
+from tests.test_study_definition_refusals import VALID, mutated_definition
 from tests.study_fixtures import make_study
 from tests.test_hostile_numbers import study_fields
 
@@ -241,10 +249,12 @@ def test_hostile_entry_links_never_answer_500_and_a_refusal_enrols_nobody(platfo
 
 @dataclass(frozen=True)
 class Upload:
-    """A file field of a valid form: its name and content (drawn forms replace either)."""
+    """A file field of a valid form: its name and content (drawn forms replace either, the
+    content also with what is ``hostile`` to this form in particular)."""
 
     name: str
     content: bytes
+    hostile: st.SearchStrategy[bytes] | None = None
 
 
 @dataclass
@@ -254,6 +264,7 @@ class Lab:
     client: Client
     study: Study
     ids: dict[str, str]  # "<name>" placeholders in the forms, by the real id
+    made: dict[str, object] = field(default_factory=dict)  # what a form's valid values are made of, made once
 
 
 def _zip(members: dict[str, bytes]) -> bytes:
@@ -296,6 +307,13 @@ def lab(client, settings, tmp_path) -> Lab:
                                        kind=Question.Kind.TEXT)
     Question.objects.create(study=study, part=Question.Part.AFTER, name="hours", text="Hours?", kind="number")
     other = make_study(owner_name="another-researcher")
+    # Another researcher's checkpoint and submitted motion, in the store every researcher's uploads share.
+    for digest, kind in ((OTHERS_CHECKPOINT, "moglow"), (OTHERS_MOTION, System.SourceKind.SUBMITTED)):
+        checkpoint = f"{digest}.safetensors" if kind == "moglow" else ""
+        System.objects.create(study=other, name=f"Private {kind}", checkpoint=checkpoint, checkpoint_digest=digest,
+                              kind=kind, metadata={"folder": f"submitted/{digest}"})
+    (settings.CHECKPOINT_ROOT / "submitted" / OTHERS_MOTION).mkdir(parents=True)
+    (settings.CHECKPOINT_ROOT / f"{OTHERS_CHECKPOINT}.safetensors").write_bytes(b"their private weights")
     yield Lab(client, study, {"<moglow>": str(moglow.pk), "<control>": str(controls[0].pk), "<failed>": str(failed.pk),
                               "<question>": str(question.pk), "<other-question>": str(
                                   Question.objects.create(study=other, part="after", name="x", text="x",
@@ -306,6 +324,61 @@ def lab(client, settings, tmp_path) -> Lab:
 GOOD_RATINGS = ("participant,system,stimulus,value,scale_min,scale_max\n" +
                 "".join(f"p{p},{s},{s}-{c},{(p + c) % 5 + 1},1,5\n" for p in range(4) for s in ("NAT", "MoGlow")
                         for c in range(3))).encode()
+
+
+OTHERS_CHECKPOINT, OTHERS_MOTION = "2" * 64, "3" * 64
+SERVER_FOLDERS = ["/", "/etc", "/root", "/no/such/folder", "..", "../..", "~", "/tmp/../etc", "no-motion-data/..",
+                  "a:/etc"]
+DEFINITION_SYSTEMS = {
+    "another researcher's checkpoint": f"- name: M\n  role: model\n  checkpoint:\n    digest: {OTHERS_CHECKPOINT}\n"
+                                       "    file: m.safetensors\n",
+    "another researcher's motion": f"- name: M\n  role: model\n  submitted:\n    digest: {OTHERS_MOTION}\n",
+}
+
+
+def _hostile_definitions() -> st.SearchStrategy[bytes]:
+    """Definitions naming what is not the researcher's: another's checkpoint or submitted
+    motion by digest, server folders and takes outside them; and VALID drawn otherwise."""
+    named = [VALID.replace("systems:\n", f"systems:\n{system}") for system in DEFINITION_SYSTEMS.values()]
+    named += [VALID + f"- name: take\n  held_out:\n    take: {take}\n    seconds: 1\n    folders: [{folder!r}]\n"
+              for folder in SERVER_FOLDERS for take in ("data/walk.bvh", "../../etc/passwd")]
+    return st.one_of(st.sampled_from([text.encode() for text in named]), mutated_definition().map(str.encode))
+
+
+def _bundles(lab: Lab) -> list[bytes]:
+    """A real bundle (a study of NAT and two presets, exported), then the same bundle with
+    its records naming what is not the importer's: a held-out take of a server folder or
+    outside its folder, sampled motion of no clip (planted for other studies), another
+    researcher's checkpoint without its file."""
+    if "bundles" in lab.made:
+        return lab.made["bundles"]
+    from studyapp.bundles.pseudonyms import export_key
+    from studyapp.bundles.writing import write_study_bundle
+    from tests.test_hostile_bundles import members, rewritten
+
+    folder = Path(django_settings.VAR_DIR) / "bundles"
+    folder.mkdir(parents=True)
+    study = create_study_from_definition(VALID, lab.study.owner, source="study.yaml")
+    write_study_bundle(study, folder / "study.zip", export_key(None))
+    study.delete()
+    record = json.loads(members(folder / "study.zip")["study.json"])
+    variants = []
+    for take, folders in (("data/walk.bvh", ["/etc"]), ("../../../etc/passwd", [str(folder)]), ("x.bvh", "/etc")):
+        changed = json.loads(json.dumps(record))
+        changed["controls"][0] |= {"origin": "held-out", "source_clip": take, "natural": {"folders": folders}}
+        variants.append({"study.json": json.dumps(changed).encode()})
+    borrowed = json.loads(json.dumps(record))
+    borrowed["systems"].append({**borrowed["systems"][0], "name": "Borrowed", "role": "model", "kind": "moglow",
+                                "checkpoint": f"{OTHERS_CHECKPOINT}.safetensors", "checkpoint_digest": OTHERS_CHECKPOINT})
+    variants += [{"study.json": json.dumps(borrowed).encode()}, {f"sampled/{'a' * 64}.npz": b"PK planted motion"}]
+    lab.made["bundles"] = [(folder / "study.zip").read_bytes(),
+                           *(rewritten(folder / "study.zip", changes).read_bytes() for changes in variants)]
+    return lab.made["bundles"]
+
+
+def _bundle_form(lab: Lab) -> dict:
+    valid, *hostile = _bundles(lab)
+    return {"bundle": Upload("study.zip", valid, st.sampled_from(hostile)), "rerun": ""}
 
 
 def _study_form(lab: Lab) -> dict:
@@ -357,6 +430,9 @@ RESEARCHER_FORMS: dict[str, tuple[Callable[[Lab], str], Callable[[Lab], dict]]] 
     "duplicate the study": (lambda lab: reverse("study-duplicate", args=[lab.study.pk]), lambda lab: {}),
     "the study's report": (lambda lab: reverse("study-report", args=[lab.study.pk]), lambda lab: {}),
     "open the study": (lambda lab: reverse("study-open", args=[lab.study.pk]), lambda lab: {"open": "1"}),
+    "study from a definition": (lambda lab: reverse("study-from-definition"), lambda lab: {
+        "definition": Upload("study.yaml", VALID.encode(), _hostile_definitions())}),
+    "import a bundle": (lambda lab: reverse("study-import"), _bundle_form),
     "analysis upload": (lambda lab: reverse("analysis"), lambda lab: {
         "ratings": Upload("ratings.csv", GOOD_RATINGS), "reference": "NAT"}),
     "admin: a study": (lambda lab: "/admin/studyapp/study/add/", lambda lab: {
@@ -378,7 +454,8 @@ def _posted(value: object, draw) -> object:
     """A drawn form value as the client sends it: an upload becomes a file, sometimes drawn anew."""
     if isinstance(value, Upload):
         name = draw(st.one_of(st.just(value.name), FILE_NAMES))
-        content = draw(st.one_of(st.just(value.content), HOSTILE_FILES))
+        own = [value.hostile] if value.hostile is not None else []
+        content = draw(st.one_of(st.just(value.content), HOSTILE_FILES, *own))
         return SimpleUploadedFile(name, content)
     return value
 

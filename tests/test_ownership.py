@@ -290,3 +290,49 @@ def test_a_take_outside_its_folders_is_never_read(settings, files, tmp_path):
         with pytest.raises(FileNotFoundError):
             natural_clip(source, [str(files.clips)])
     assert natural_clip("data/dataset-1_walk_normal_001.bvh", [str(files.clips)]).is_file()
+
+
+# --- the admin's forms: a control's take and folders, a submitted system's folder ----------------
+
+def test_the_admin_refuses_a_control_or_system_pointing_at_folders_not_the_owners(client, settings, files, outside):
+    from django.contrib.auth.models import Permission
+
+    from studyapp.models import ControlSignal
+
+    settings.MOTION_DATA = files.clips
+    staff = User.objects.create_user("staff-researcher", is_staff=True)
+    staff.user_permissions.set(Permission.objects.filter(content_type__app_label="studyapp"))
+    client.force_login(staff)
+    study = new_study(staff)
+    control = ControlSignal.objects.create(study=study, name="take", origin="held-out", seconds=1.0,
+                                           control={"type": "path", "fps": 20, "velocities": [[1, 0, 0], [1, 0, 0]]},
+                                           source_clip="data/dataset-1_walk_normal_001.bvh",
+                                           natural={"folders": [str(files.clips)], "options": {}})
+    fields = {"study": study.pk, "name": "take", "origin": "held-out", "seconds": 1, "export_id": "",
+              "control": json.dumps(control.control)}
+    url = f"/admin/studyapp/controlsignal/{control.pk}/change/"
+    hostile = [("../../private-takes/data/private-walk_normal_001.bvh", [str(files.clips)]),
+               ("/etc/passwd", [str(files.clips)]), ("data/private-walk_normal_001.bvh", [str(outside)]),
+               ("data/x.bvh", ["/etc"]), ("data/x.bvh", [f"{files.clips}/../../{outside.parent.name}"])]
+    for source_clip, folders in hostile:
+        response = client.post(url, {**fields, "source_clip": source_clip,
+                                     "natural": json.dumps({"folders": folders, "options": {}})})
+        page = response.content.decode()
+        assert response.status_code == 200 and ("is not a motion folder you may use" in page
+                                                or "is no file inside a motion folder" in page), source_clip
+    control.refresh_from_db()
+    assert control.source_clip == "data/dataset-1_walk_normal_001.bvh" and control.natural["folders"] == [
+        str(files.clips)]
+    assert client.post(url, {**fields, "source_clip": control.source_clip,
+                             "natural": json.dumps(control.natural)}).status_code == 302  # its own, as it was
+
+    theirs = System.objects.create(study=new_study(another_researcher()), name="Lab", kind="submitted",
+                                   checkpoint_digest="4" * 64, metadata={"folder": f"submitted/{'4' * 64}"})
+    mine = System.objects.create(study=study, name="NAT", role="natural", kind="natural")
+    response = client.post(f"/admin/studyapp/system/{mine.pk}/change/", {
+        "study": study.pk, "name": "NAT", "role": "model", "kind": "submitted", "temperature": 1,
+        "metadata": json.dumps(theirs.metadata)})
+    assert response.status_code == 200 and "submitted motion lies in the folder named by its digest" in \
+        response.content.decode()
+    mine.refresh_from_db()
+    assert mine.kind == "natural"

@@ -18,7 +18,11 @@ its ratings table is then the original's, and so is the report computed from it.
 stimulus's content key is computed again here from the imported study, system and
 control, and must be the recorded one (the stimulus code being the same version): a
 bundle whose clips would not be the ones rated is refused. Clips whose video came in
-the bundle are finished; the others wait for ``generate_stimuli`` to render them again.
+the bundle are finished; the others wait for ``generate_stimuli`` to render them again,
+from the bundle's sampled motion, which is kept under the new study alone
+(``sources.imported_sampled_path``): never in the shared folder, where another study's
+clip of the same content key would be drawn from it. A held-out control's take must be a
+file inside its folders, and each folder one the owner may name (``studyapp.ownership``).
 
 As a rerun (``rerun``), the participants and ratings are not imported: the study is
 the same design, systems, controls and clips, for new participants, and the bundle's
@@ -59,7 +63,6 @@ from studyapp.plan.lock import preregistration, restore_preregistration
 from studyapp.plan.words import plan_markdown
 from studyapp.stimuli.clips import CODE_VERSION, content_key
 from studyapp.stimuli.sources import imported_sampled_path
-from studyapp.stimuli.natural import is_take_name
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER, stored_motion_digest
 from studyapp.stimuli.systems import UploadRefused, checked_checkpoint, video_duration
 
@@ -129,18 +132,10 @@ def _free(model, field: str, value: object) -> object:
 
 
 def _check_take(control: ControlSignal, owner, where: str) -> None:
-    """A held-out control's take must be a file inside its folders, and each folder one the
-    owner may use (``studyapp.ownership``): NAT and the controls' download read it."""
-    if control.source_clip and not is_take_name(control.source_clip):
-        raise records.RecordError(f"{where}: its take {control.source_clip[:80]!r} is no file inside a motion folder")
-    folders = control.natural.get("folders", []) if isinstance(control.natural, dict) else []
-    if not isinstance(folders, list) or not all(isinstance(folder, str) for folder in folders):
-        raise records.RecordError(f"{where}: its natural record's folders are no list of paths")
-    for folder in folders:
-        try:
-            ownership.owned(owner, ownership.MOTION_FOLDER, folder)
-        except ownership.NotYours as error:
-            raise records.RecordError(f"{where}: {error}") from None
+    try:
+        ownership.check_take(owner, control.source_clip, control.natural)
+    except ownership.NotYours as error:
+        raise records.RecordError(f"{where}: {error}") from None
 
 
 class _Import:

@@ -6,8 +6,10 @@ control through the services the systems and controls pages call (``stimuli.syst
 ``stimuli.submissions``, ``stimuli.controls``). This module only reads the definition
 into their inputs (a value of the wrong type or under an unknown key is refused here,
 before any of them sees it) and says on which line of the file each of their refusals
-is. A checkpoint or submitted motion is named by its digest and must already be in the
-checkpoint store (``CHECKPOINT_ROOT``), where the systems page keeps them.
+is. A checkpoint or submitted motion is named by its digest and must be the owner's
+(one their systems were made of, which the systems page keeps in the checkpoint store,
+``CHECKPOINT_ROOT``) or a shared checkpoint; a held-out control's folders must be ones
+the owner may name (``studyapp.ownership``, asked before anything reads them).
 
 Everything is made in one transaction: a definition refused anywhere leaves no row.
 """

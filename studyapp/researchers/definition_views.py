@@ -27,7 +27,8 @@ class DefinitionUploadForm(forms.Form):
     definition = forms.FileField(
         label="Study definition", widget=forms.ClearableFileInput(attrs={"accept": ".yaml,.yml,text/yaml"}),
         help_text=f"a YAML file as “Download definition” writes it, at most {MAX_DEFINITION_BYTES / 1e6:g} MB; its "
-                  "checkpoints and submitted motion must be on this server already")
+                  "checkpoints and submitted motion must be yours (uploaded on one of your studies) or shared on "
+                  "this server")
 
     def clean_definition(self):
         upload = self.cleaned_data["definition"]
