@@ -369,7 +369,8 @@ def _bundles(lab: Lab) -> list[bytes]:
         variants.append({"study.json": json.dumps(changed).encode()})
     borrowed = json.loads(json.dumps(record))
     borrowed["systems"].append({**borrowed["systems"][0], "name": "Borrowed", "role": "model", "kind": "moglow",
-                                "checkpoint": f"{OTHERS_CHECKPOINT}.safetensors", "checkpoint_digest": OTHERS_CHECKPOINT})
+                                "checkpoint": f"{OTHERS_CHECKPOINT}.safetensors",
+                                "checkpoint_digest": OTHERS_CHECKPOINT})
     variants += [{"study.json": json.dumps(borrowed).encode()}, {f"sampled/{'a' * 64}.npz": b"PK planted motion"}]
     lab.made["bundles"] = [(folder / "study.zip").read_bytes(),
                            *(rewritten(folder / "study.zip", changes).read_bytes() for changes in variants)]

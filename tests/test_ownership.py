@@ -19,7 +19,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from django.contrib.auth.models import User
+from django.contrib.auth.models import Permission, User
 from django.core.files import File
 from django.core.management import call_command
 
@@ -27,11 +27,12 @@ from generation.motion.bvh import BVHError, read_bvh
 from generation.motion.npz import load_motion_npz, save_motion_npz
 from generation.motion.types import Motion
 from studyapp.definitions import DefinitionError, create_study_from_definition
-from studyapp.models import Study, System
+from studyapp.models import ControlSignal, Study, System
 from studyapp.researchers.setup.removal import remove_study
 from studyapp.stimuli.clips import plan_stimuli
 from studyapp.stimuli.controls import add_preset_controls
-from studyapp.stimuli.sources import sampled_path, source_of
+from studyapp.stimuli.natural import natural_clip
+from studyapp.stimuli.sources import imported_sampled_folder, sampled_path, source_of
 from studyapp.stimuli.systems import add_checkpoint_system
 from tests.test_hostile_bundles import bundle, members, refused, rewritten  # noqa: F401 (fixtures)
 from tests.test_study_definitions import submitted_motion
@@ -247,8 +248,6 @@ def test_sampled_motion_a_bundle_carries_is_its_studys_own_and_never_another_stu
     motion = source_of(theirs.system).clip(theirs).motion
     assert not np.allclose(motion.positions, load_motion_npz(tmp_path / "planted.npz").positions)
 
-    from studyapp.stimuli.sources import imported_sampled_folder
-
     assert sampled_path(own).is_relative_to(imported_sampled_folder(imported))  # the imported study's own motion
     assert sampled_path(own).read_bytes() == (tmp_path / "planted.npz").read_bytes()
 
@@ -283,8 +282,6 @@ def test_a_bundle_whose_controls_name_a_folder_or_take_outside_the_importers_is_
 
 
 def test_a_take_outside_its_folders_is_never_read(settings, files, tmp_path):
-    from studyapp.stimuli.natural import natural_clip
-
     (tmp_path / "secret.bvh").write_text(f"{SECRET}\n")
     for source in ("../secret.bvh", str(tmp_path / "secret.bvh"), "data/../../secret.bvh"):
         with pytest.raises(FileNotFoundError):
@@ -295,10 +292,6 @@ def test_a_take_outside_its_folders_is_never_read(settings, files, tmp_path):
 # --- the admin's forms: a control's take and folders, a submitted system's folder ----------------
 
 def test_the_admin_refuses_a_control_or_system_pointing_at_folders_not_the_owners(client, settings, files, outside):
-    from django.contrib.auth.models import Permission
-
-    from studyapp.models import ControlSignal
-
     settings.MOTION_DATA = files.clips
     staff = User.objects.create_user("staff-researcher", is_staff=True)
     staff.user_permissions.set(Permission.objects.filter(content_type__app_label="studyapp"))

@@ -44,7 +44,7 @@ def is_take_name(source: str) -> bool:
     """Whether ``source`` names a file inside a motion folder: a relative path that never
     goes up (``..``), so it names nothing outside whichever folder it is looked for in."""
     path = PurePath(source)
-    return bool(source) and not path.is_absolute() and not path.anchor and ".." not in path.parts
+    return bool(source) and not path.is_absolute() and ".." not in path.parts
 
 
 def natural_clip(source: str, recorded: list[str] = ()) -> Path:

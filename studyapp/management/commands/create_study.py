@@ -54,7 +54,8 @@ class Command(BaseCommand):
         parser.add_argument("title", nargs="?", help="the study's title (not with --from: the file has it)")
         parser.add_argument("--from", dest="definition", type=Path, metavar="STUDY.yaml",
                             help="a study definition (as describe_study writes): its settings, questions, systems "
-                                 "and controls; checkpoints and submitted motion must be in the checkpoint store")
+                                 "and controls; its checkpoints and submitted motion must be the owner's (uploaded to "
+                                 "one of their studies) or shared (SHARED_CHECKPOINTS)")
         parser.add_argument("--design", choices=list(designs.DESIGNS), default=designs.DEFAULT)
         parser.add_argument("--scale", nargs=2, type=int, metavar=("MIN", "MAX"),
                             help="default 1 5, or the design's own (side-by-side: 0 100)")
