@@ -31,7 +31,7 @@ from django.contrib.auth.base_user import AbstractBaseUser
 from generation.motion.dataset import motion_folders
 from generation.store import SUFFIX as CHECKPOINT_SUFFIX, CheckpointError, content_digest, read_header
 from studyapp.models import ControlSignal, System
-from studyapp.stimuli.natural import data_folders, is_take_name
+from studyapp.stimuli.natural import is_take_name
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER
 
 CHECKPOINT, SUBMITTED_MOTION, MOTION_FOLDER = "checkpoint", "submitted motion", "motion folder"
@@ -71,7 +71,7 @@ def _recorded_folders(owner: AbstractBaseUser) -> list[str]:
     """The folders the owner's held-out controls were found in."""
     folders = []
     for natural in ControlSignal.objects.filter(study__owner=owner, origin=ControlSignal.Origin.HELD_OUT) \
-            .exclude(natural={}).values_list("natural", flat=True):
+            .values_list("natural", flat=True):
         recorded = natural.get("folders") if isinstance(natural, dict) else None
         folders += [folder for folder in recorded if isinstance(folder, str)] if isinstance(recorded, list) else []
     return folders
@@ -84,15 +84,21 @@ def _resolved(path: Path) -> Path | None:
         return None
 
 
-def _motion_folder(owner: AbstractBaseUser, name: str) -> Path | None:
+def _folders(names: str) -> list[Path]:
+    """The folders ``names`` gives, several joined with ":" as MOTION_DATA joins them (none for none)."""
     try:
-        parts = motion_folders(name)  # several joined with ":", as MOTION_DATA joins them
+        return motion_folders(names)
     except FileNotFoundError:
-        return None
+        return []
+
+
+def _motion_folder(owner: AbstractBaseUser, name: str) -> Path | None:
+    parts = _folders(name)
     folders = [_resolved(part) if part.is_absolute() else None for part in parts]
-    roots = [_resolved(root) for root in [*data_folders(), *map(Path, dict.fromkeys(_recorded_folders(owner)))]]
-    usable = all(folder is not None and any(root is not None and folder.is_relative_to(root) for root in roots)
-                 for folder in folders)
+    shared = _folders(str(settings.MOTION_DATA))
+    roots = [_resolved(root) for root in [*shared, *map(Path, dict.fromkeys(_recorded_folders(owner)))]]
+    usable = bool(folders) and all(folder is not None and any(root is not None and folder.is_relative_to(root)
+                                                              for root in roots) for folder in folders)
     return Path(name) if usable else None
 
 
