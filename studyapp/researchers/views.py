@@ -49,7 +49,7 @@ from studyapp.server.health import collect_health
 from studyapp.stimuli.clips import progress
 from studyapp.stimuli.control_export import bundle_zip
 from studyapp.stimuli.controls import (ControlError, add_control_file, add_held_out_controls, add_label_controls,
-                               add_preset_controls, control_kind, study_labels)
+                               add_preset_controls, control_kind, shorter_than_asked_warnings, study_labels)
 from studyapp.stimuli.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
 from studyapp.stimuli.mismatched import study_pairings
 from studyapp.stimuli.motion_export import exported_stimuli, motion_zip
@@ -174,9 +174,7 @@ def study_controls(request: HttpRequest, pk: int) -> HttpResponse:
     else:
         forms["labels"] = partial(LabelControlsForm, labels=study_labels(study))
     actions = {
-        "held_out": lambda data: "{} held-out control(s).".format(len(add_held_out_controls(
-            study, data["seconds"], data["count"], data.get("lead_in") or 0.0, takes=data["takes"],
-            scale=data.get("unit"), up=data.get("up")))),
+        "held_out": lambda data: _add_held_out_controls(request, study, data),
         "presets": lambda data: f"{len(add_preset_controls(study, data['presets']))} synthetic control(s).",
         "file": lambda data: f"{len(add_control_file(study, data['description']))} control(s) from the file.",
         "labels": lambda data: "{} label control(s).".format(
@@ -184,6 +182,15 @@ def study_controls(request: HttpRequest, pk: int) -> HttpResponse:
     }
     return _forms_page(request, study, "controls", forms, actions, ControlError,
                        {"controls": study.controls.all(), "kind": kind, "trained": trained})
+
+
+def _add_held_out_controls(request: HttpRequest, study: Study, data: dict) -> str:
+    """Add the form's held-out controls; warn of each that lasts less than asked."""
+    added = add_held_out_controls(study, data["seconds"], data["count"], data.get("lead_in") or 0.0,
+                                  takes=data["takes"], scale=data.get("unit"), up=data.get("up"))
+    for warning in shorter_than_asked_warnings(added, data["seconds"]):
+        messages.warning(request, warning)
+    return f"{len(added)} held-out control(s)."
 
 
 @never_cache
