@@ -51,6 +51,7 @@ from studyapp.stimuli.control_export import bundle_zip
 from studyapp.stimuli.controls import (ControlError, add_control_file, add_held_out_controls, add_label_controls,
                                add_preset_controls, control_kind, shorter_than_asked_warnings, study_labels)
 from studyapp.stimuli.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
+from studyapp.stimuli.lost_tasks import worker_seen_lately
 from studyapp.stimuli.mismatched import study_pairings
 from studyapp.stimuli.motion_export import exported_stimuli, motion_zip
 from studyapp.stimuli.submissions import Reading, add_submitted_upload
@@ -225,9 +226,12 @@ def study_stimuli(request: HttpRequest, pk: int) -> HttpResponse:
     elif request.method == "POST":
         status = 400  # the form, with what is wrong with it
     state = progress(study)
-    # Queued clips with nobody to make them: say so rather than let the bar sit still.
+    # Queued clips with nobody to make them: say so rather than let the bar sit still. A
+    # worker busy rendering may miss the ping, so a row a worker took (or one queued too
+    # recently for any to take) within the heartbeat's time says more than the ping.
     waiting = state["counts"]["queued"] + state["counts"]["running"]
-    health = collect_health(celery_app, settings.HEALTH_TIMEOUT_S) if waiting else None
+    health = (collect_health(celery_app, settings.HEALTH_TIMEOUT_S)
+              if waiting and not worker_seen_lately() else None)
     context = {"study": study, "form": form,
                "stimuli": study.stimuli.select_related("system", "control", "shown_control"),
                "pairings": study_pairings(study) if design_of(study).mismatched_clips else None,
