@@ -57,6 +57,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.blas import one_blas_thread
+from analysis.bradley_terry import never_compared_reason
 from analysis.designs import NO_PREFERENCE, PAGE
 from analysis.errors import AnalysisInputError
 from analysis.minimums import few_participants_warning, too_few_for_bootstrap
@@ -276,6 +277,11 @@ def _not_estimable_reason(model: str, votes: PairVotes) -> str:
                 "the weighted Bradley-Terry model fits such votes")
     if model == DAVIDSON and not (won + lost).any():
         return "every page was answered 'no preference'"
+    compared = np.zeros((k, k), dtype=bool)
+    compared[votes.first, votes.second] = votes.pages.sum(axis=0) > 0
+    apart = never_compared_reason(compared, votes.systems)
+    if apart:
+        return apart
     lost_any, won_any = np.zeros(k), np.zeros(k)
     np.add.at(won_any, votes.first, won + tied)
     np.add.at(won_any, votes.second, lost + tied)
@@ -286,8 +292,8 @@ def _not_estimable_reason(model: str, votes: PairVotes) -> str:
     if never_lost or never_won:
         return (f"{', '.join(never_lost) or 'no system'} never lost and {', '.join(never_won) or 'no system'} "
                 "never won a vote, so their strengths are unbounded")
-    return ("the systems fall into groups of which one always beat the other, so the "
-            "groups' distance is unbounded")
+    return ("the systems fall into groups of which one always beat the other (they were compared, but the "
+            "other group never won), so the groups' distance is unbounded")
 
 
 def _start(model: str, votes: PairVotes, rows: int) -> np.ndarray:
