@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.designs import NO_PREFERENCE, PAGE
-from analysis.minimums import few_participants_warning, too_few_for_bootstrap
+from analysis.minimums import few_participants_warning, too_few_for_bootstrap, with_participant_warnings
 from analysis.multiple_comparisons import holm_by_cell
 from analysis.pairwise import sign_test_p, wilson_interval
 from analysis.signed_rank import signed_rank_test
@@ -66,7 +66,8 @@ def matched_preference(data: pd.DataFrame, groupby: Sequence[str] = CELL, alpha:
     """Per system: n_pages, matched, mismatched, no_preference (page counts),
     share_matched ((matched + no_preference / 2) / n_pages) with its Wilson interval
     (ci_low, ci_high), p (exact two-sided sign test of matched against mismatched),
-    p_holm (over the systems of the cell) and reject (p_holm < alpha)."""
+    p_holm (over the systems of the cell), reject (p_holm < alpha), participants and
+    warning (an interval from few participants, `analysis.minimums`)."""
     pages = appropriateness_pages(data, groupby)
     for answer in ("matched", "mismatched", NO_PREFERENCE):
         pages[answer] = pages["preferred"] == answer
@@ -80,7 +81,7 @@ def matched_preference(data: pd.DataFrame, groupby: Sequence[str] = CELL, alpha:
     table["p"] = sign_test_p(table["matched"], table["matched"] + table["mismatched"])
     table["p_holm"] = holm_by_cell(table, groupby)
     table["reject"] = table["p_holm"] < alpha
-    return table
+    return with_participant_warnings(table, pages, [*groupby, "system"])
 
 
 def appropriateness_scores(data: pd.DataFrame, groupby: Sequence[str] = CELL, confidence: float = 0.95,

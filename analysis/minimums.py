@@ -75,11 +75,12 @@ def cells_for_models(data: pd.DataFrame, what: str, groupby: Sequence[str] = CEL
     return (pd.concat(keep) if keep else data.iloc[:0]), notes
 
 
-def with_participant_warnings(table: pd.DataFrame, ratings: pd.DataFrame, groupby: Sequence[str] = CELL,
-                              between: str = "system") -> pd.DataFrame:
-    """``table`` (a row per cell and system, with an interval) with the columns
-    ``participants`` (who gave the row's ratings) and ``warning`` (`few_participants_warning`)."""
-    keys = [*groupby, between]
+def with_participant_warnings(table: pd.DataFrame, ratings: pd.DataFrame,
+                              keys: Sequence[str] = (*CELL, "system")) -> pd.DataFrame:
+    """``table`` (a row per ``keys``: cell and system, or cell and pair, with an interval)
+    with the columns ``participants`` (who gave the row's ratings or pages, by the same
+    keys in ``ratings``) and ``warning`` (`few_participants_warning`)."""
+    keys = list(keys)
     counts = ratings.groupby(keys)["participant"].nunique().rename("participants").reset_index()
     joined = table.drop(columns=["participants", "warning"], errors="ignore").merge(counts, on=keys, how="left")
     joined["participants"] = joined["participants"].fillna(0).astype(int)
