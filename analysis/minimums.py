@@ -41,7 +41,8 @@ def too_few_for_model(data: pd.DataFrame, between: str = "system", participant: 
     fewest = int(per_system.min()) if len(per_system) else 0
     if participants >= MODEL_MIN_PARTICIPANTS and fewest >= MODEL_MIN_RATINGS_PER_SYSTEM:
         return ""
-    least = f" ({per_system.idxmin()} has {fewest})" if fewest < MODEL_MIN_RATINGS_PER_SYSTEM and len(per_system) else ""
+    short_system = fewest < MODEL_MIN_RATINGS_PER_SYSTEM and len(per_system)
+    least = f" ({per_system.idxmin()} has {fewest})" if short_system else ""
     return (f"too few ratings: {len(data)} from {_counted(participants, 'participant')}{least}; a model needs at "
             f"least {MODEL_MIN_PARTICIPANTS} participants and {MODEL_MIN_RATINGS_PER_SYSTEM} ratings per system")
 
