@@ -59,6 +59,8 @@ DESIGNS = {
                                        ratings_per_stimulus=10, **CAREFUL),
     "pairwise": lambda: make_study(design="pairwise", controls=2, pages_per_participant=3, training_clips=1,
                                    preference_strengths=2, ratings_per_stimulus=10, **CAREFUL),
+    "abx": lambda: make_study(design="pairwise", abx=True, controls=2, pages_per_participant=3, training_clips=1,
+                              ratings_per_stimulus=10, **CAREFUL),
     "appropriateness": lambda: make_appropriateness_study(pages_per_participant=4, training_clips=1, **CAREFUL),
 }
 
