@@ -34,6 +34,7 @@ from scipy import stats as sps
 from scipy.sparse.csgraph import connected_components
 
 from analysis.errors import AnalysisInputError
+from analysis.minimums import with_participant_warnings
 from analysis.stats import CELL, iter_cells
 
 _TOLERANCE = 1e-10
@@ -132,8 +133,9 @@ def bradley_terry_scale(pages: pd.DataFrame, groupby: Sequence[str] = CELL,
     Columns: *groupby, system, comparisons (pages with a preference), wins, strength
     (centred log-strength), se, ci_low, ci_high, reference (``reference`` where compared
     in the cell, else the first system in sorted order), strength_vs_reference and
-    se_vs_reference (the strength with the reference fixed at 0). Cells where the
-    strengths do not exist are left out; the notes say why.
+    se_vs_reference (the strength with the reference fixed at 0), participants (who saw
+    the system) and warning (intervals from few participants, `analysis.minimums`).
+    Cells where the strengths do not exist are left out; the notes say why.
     """
     z = sps.norm.ppf(0.5 + confidence / 2)
     rows, notes = [], []
@@ -148,7 +150,11 @@ def bradley_terry_scale(pages: pd.DataFrame, groupby: Sequence[str] = CELL,
                                   "strength_vs_reference": b - b[r], "se_vs_reference": se_fixed}))
     columns = [*groupby, "system", "comparisons", "wins", "strength", "se", "ci_low", "ci_high",
                "reference", "strength_vs_reference", "se_vs_reference"]
-    return (pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=columns)), notes
+    if not rows:
+        return pd.DataFrame(columns=[*columns, "participants", "warning"]), notes
+    shown = pd.concat([pages[[*groupby, "participant", side]].rename(columns={side: "system"})
+                       for side in ("system_left", "system_right")])
+    return with_participant_warnings(pd.concat(rows, ignore_index=True), shown, [*groupby, "system"]), notes
 
 
 def bradley_terry_covariance(pages: pd.DataFrame, groupby: Sequence[str] = CELL) -> pd.DataFrame:

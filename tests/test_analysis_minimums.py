@@ -8,12 +8,13 @@ import numpy as np
 import pandas as pd
 
 from analysis.appropriateness import appropriateness_scores, matched_preference
+from analysis.bradley_terry import bradley_terry_scale
 from analysis.cli import main
 from analysis.exclusions import ExclusionRules, apply_exclusions, compared_ratings
 from analysis.leaderboard import leaderboard
 from analysis.minimums import (BOOTSTRAP_MIN_PARTICIPANTS, INTERVAL_FEW_PARTICIPANTS, MODEL_MIN_PARTICIPANTS,
                                MODEL_MIN_RATINGS_PER_SYSTEM)
-from analysis.pairwise import preference_pairs
+from analysis.pairwise import preference_pages, preference_pairs
 from analysis.ratings import validate_ratings
 from analysis.report import build_report
 from analysis.side_by_side import median_and_mean
@@ -111,7 +112,8 @@ def test_every_designs_interval_tables_warn_of_intervals_from_few_participants()
     sbs = kept(simulate_side_by_side({"NAT": 80, "A": 60}, n_participants=4, inattentive_share=0.0, seed=6))
     pairs = kept(simulate_pairwise({"NAT": 1.0, "A": 0.0}, n_participants=4, inattentive_share=0.0, seed=6))
     shown = kept(simulate_appropriateness({"NAT": 0.8, "A": 0.6}, n_participants=4, inattentive_share=0.0, seed=6))
-    for table in (median_and_mean(sbs), preference_pairs(pairs), matched_preference(shown)):
+    scale, _ = bradley_terry_scale(preference_pages(pairs))
+    for table in (median_and_mean(sbs), preference_pairs(pairs), scale, matched_preference(shown)):
         assert len(table) and (table["participants"] == 4).all()
         assert set(table["warning"]) == {"from 4 participants only (fewer than 10): the interval is less certain "
                                          "than it looks"}
