@@ -35,6 +35,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.designs import NO_PREFERENCE, PAGE
+from analysis.minimums import few_participants_warning, too_few_for_bootstrap, with_participant_warnings
 from analysis.multiple_comparisons import holm_by_cell
 from analysis.pairwise import sign_test_p, wilson_interval
 from analysis.signed_rank import signed_rank_test
@@ -65,7 +66,8 @@ def matched_preference(data: pd.DataFrame, groupby: Sequence[str] = CELL, alpha:
     """Per system: n_pages, matched, mismatched, no_preference (page counts),
     share_matched ((matched + no_preference / 2) / n_pages) with its Wilson interval
     (ci_low, ci_high), p (exact two-sided sign test of matched against mismatched),
-    p_holm (over the systems of the cell) and reject (p_holm < alpha)."""
+    p_holm (over the systems of the cell), reject (p_holm < alpha), participants and
+    warning (an interval from few participants, `analysis.minimums`)."""
     pages = appropriateness_pages(data, groupby)
     for answer in ("matched", "mismatched", NO_PREFERENCE):
         pages[answer] = pages["preferred"] == answer
@@ -79,27 +81,34 @@ def matched_preference(data: pd.DataFrame, groupby: Sequence[str] = CELL, alpha:
     table["p"] = sign_test_p(table["matched"], table["matched"] + table["mismatched"])
     table["p_holm"] = holm_by_cell(table, groupby)
     table["reject"] = table["p_holm"] < alpha
-    return table
+    return with_participant_warnings(table, pages, [*groupby, "system"])
 
 
 def appropriateness_scores(data: pd.DataFrame, groupby: Sequence[str] = CELL, confidence: float = 0.95,
                            resamples: int = BOOTSTRAP_RESAMPLES, seed: int = 0) -> pd.DataFrame:
     """Per system: n_pages, n_participants, mean_score, ci_low and ci_high (percentile
     bootstrap over participants: each resample draws the system's participants with
-    replacement and averages all their pages)."""
+    replacement and averages all their pages) and warning: why there is no interval (too
+    few participants for a bootstrap, `analysis.minimums`) or what makes it less certain
+    than it looks (few participants), else empty."""
     rng = np.random.default_rng(seed)
     rows = []
     for key, frame in iter_cells(appropriateness_pages(data, groupby), groupby):
         for system, pages in frame.groupby("system", sort=True):
             per_participant = pages.groupby("participant")["score"].agg(["sum", "size"])
             sums, sizes = per_participant["sum"].to_numpy(float), per_participant["size"].to_numpy(float)
-            drawn = rng.integers(0, len(sums), (resamples, len(sums)))
-            means = sums[drawn].sum(axis=1) / sizes[drawn].sum(axis=1)
-            low, high = np.quantile(means, [(1 - confidence) / 2, (1 + confidence) / 2])
+            warning = too_few_for_bootstrap(len(sums))
+            low = high = np.nan
+            if not warning:
+                drawn = rng.integers(0, len(sums), (resamples, len(sums)))
+                means = sums[drawn].sum(axis=1) / sizes[drawn].sum(axis=1)
+                low, high = np.quantile(means, [(1 - confidence) / 2, (1 + confidence) / 2])
+                warning = few_participants_warning(len(sums))
             rows.append({**key, "system": system, "n_pages": len(pages), "n_participants": len(sums),
-                         "mean_score": float(pages["score"].mean()), "ci_low": float(low), "ci_high": float(high)})
+                         "mean_score": float(pages["score"].mean()), "ci_low": float(low), "ci_high": float(high),
+                         "warning": warning})
     return pd.DataFrame(rows, columns=[*groupby, "system", "n_pages", "n_participants", "mean_score",
-                                       "ci_low", "ci_high"])
+                                       "ci_low", "ci_high", "warning"])
 
 
 def score_pairs(data: pd.DataFrame, groupby: Sequence[str] = CELL, alpha: float = 0.05,

@@ -34,6 +34,7 @@ from scipy import stats as sps
 from scipy.sparse.csgraph import connected_components
 
 from analysis.errors import AnalysisInputError
+from analysis.minimums import with_participant_warnings
 from analysis.stats import CELL, iter_cells
 
 _TOLERANCE = 1e-10
@@ -51,15 +52,16 @@ def win_matrix(pages: pd.DataFrame) -> tuple[list[str], np.ndarray]:
     return systems, wins
 
 
-def fit_bradley_terry(wins: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+def fit_bradley_terry(wins: np.ndarray, systems: Sequence[str] | None = None) -> tuple[np.ndarray, np.ndarray, int]:
     """Centred log-strengths, their covariance, and the MM iterations used.
 
-    Raises AnalysisInputError when the maximum-likelihood strengths do not exist.
+    Raises AnalysisInputError when the maximum-likelihood strengths do not exist, naming
+    why (and the ``systems``, where given, of groups never compared).
     """
     k = len(wins)
-    count, label = connected_components(wins > 0, directed=True, connection="strong")
+    count, _ = connected_components(wins > 0, directed=True, connection="strong")
     if k < 2 or count > 1:
-        raise AnalysisInputError(_not_connected_reason(wins, label, count))
+        raise AnalysisInputError(_not_connected_reason(wins, systems or [str(i) for i in range(k)]))
     games = wins + wins.T
     won = wins.sum(axis=1)
     strength = np.ones(k)
@@ -80,18 +82,34 @@ def fit_bradley_terry(wins: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     return b, np.linalg.pinv(information), iteration
 
 
-def _not_connected_reason(wins: np.ndarray, label: np.ndarray, count: int) -> str:
+def never_compared_reason(compared: np.ndarray, systems: Sequence[str]) -> str:
+    """Why no scale joins systems that fall into groups never compared with each other
+    (``compared[i, j]``: some page put i and j side by side), or "" when every system is
+    compared, directly or through others, with every other. A separated graph, where
+    the groups were compared but one always won, is another cause (with another cure)."""
+    count, label = connected_components(compared | compared.T, directed=False)
+    if count < 2:
+        return ""
+    groups = "; ".join("{" + ", ".join(systems[i] for i in np.flatnonzero(label == g)) + "}" for g in range(count))
+    return (f"the systems fall into {count} groups never compared with each other ({groups}): no page puts the "
+            "groups on one scale; compare a system of each group with one of another")
+
+
+def _not_connected_reason(wins: np.ndarray, systems: Sequence[str]) -> str:
     if len(wins) < 2:
         return "fewer than two systems were compared"
     if not wins.any():
         return "no page stated a preference"
+    apart = never_compared_reason(wins > 0, systems)
+    if apart:
+        return apart
     never_lost = np.flatnonzero((wins.sum(axis=0) == 0))
     never_won = np.flatnonzero((wins.sum(axis=1) == 0))
     if len(never_lost) or len(never_won):
         return (f"{len(never_lost)} system(s) never lost and {len(never_won)} never won a "
                 "comparison, so their strengths are unbounded")
-    return (f"the systems fall into {count} groups of which one always beat the other, so "
-            "the groups' distance is unbounded")
+    return ("the systems fall into groups of which one always beat the other (they were compared, but the "
+            "other group never won), so the groups' distance is unbounded")
 
 
 def _cell_fits(pages: pd.DataFrame, groupby: Sequence[str], notes: list[str]):
@@ -100,7 +118,7 @@ def _cell_fits(pages: pd.DataFrame, groupby: Sequence[str], notes: list[str]):
     for key, frame in iter_cells(pages, groupby):
         systems, wins = win_matrix(frame)
         try:
-            b, covariance, _ = fit_bradley_terry(wins)
+            b, covariance, _ = fit_bradley_terry(wins, systems)
         except AnalysisInputError as exc:
             where = " · ".join(map(str, key.values())) or "all pages"
             notes.append(f"No Bradley-Terry scale for {where}: {exc}.")
@@ -115,8 +133,9 @@ def bradley_terry_scale(pages: pd.DataFrame, groupby: Sequence[str] = CELL,
     Columns: *groupby, system, comparisons (pages with a preference), wins, strength
     (centred log-strength), se, ci_low, ci_high, reference (``reference`` where compared
     in the cell, else the first system in sorted order), strength_vs_reference and
-    se_vs_reference (the strength with the reference fixed at 0). Cells where the
-    strengths do not exist are left out; the notes say why.
+    se_vs_reference (the strength with the reference fixed at 0), participants (who saw
+    the system) and warning (intervals from few participants, `analysis.minimums`).
+    Cells where the strengths do not exist are left out; the notes say why.
     """
     z = sps.norm.ppf(0.5 + confidence / 2)
     rows, notes = [], []
@@ -131,7 +150,11 @@ def bradley_terry_scale(pages: pd.DataFrame, groupby: Sequence[str] = CELL,
                                   "strength_vs_reference": b - b[r], "se_vs_reference": se_fixed}))
     columns = [*groupby, "system", "comparisons", "wins", "strength", "se", "ci_low", "ci_high",
                "reference", "strength_vs_reference", "se_vs_reference"]
-    return (pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=columns)), notes
+    if not rows:
+        return pd.DataFrame(columns=[*columns, "participants", "warning"]), notes
+    shown = pd.concat([pages[[*groupby, "participant", side]].rename(columns={side: "system"})
+                       for side in ("system_left", "system_right")])
+    return with_participant_warnings(pd.concat(rows, ignore_index=True), shown, [*groupby, "system"]), notes
 
 
 def bradley_terry_covariance(pages: pd.DataFrame, groupby: Sequence[str] = CELL) -> pd.DataFrame:

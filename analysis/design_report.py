@@ -94,8 +94,9 @@ def in_cell(table: pd.DataFrame, task: str, cc: str) -> pd.DataFrame:
     return table[(table["task"] == task) & (table["control_class"] == cc)] if len(table) else table
 
 
-def interval_text(value: float, low: float, high: float, decimals: int) -> str:
-    bounds = "n < 6" if pd.isna(low) else f"{low:.{decimals}f}, {high:.{decimals}f}"
+def interval_text(value: float, low: float, high: float, decimals: int, missing: str = "n < 6") -> str:
+    """``value [low, high]``, or ``value [missing]`` (why there is no interval) where low is missing."""
+    bounds = missing if pd.isna(low) else f"{low:.{decimals}f}, {high:.{decimals}f}"
     return f"{value:.{decimals}f} [{bounds}]"
 
 

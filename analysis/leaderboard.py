@@ -57,8 +57,10 @@ import numpy as np
 import pandas as pd
 
 from analysis.blas import one_blas_thread
+from analysis.bradley_terry import never_compared_reason
 from analysis.designs import NO_PREFERENCE, PAGE
 from analysis.errors import AnalysisInputError
+from analysis.minimums import few_participants_warning, too_few_for_bootstrap
 from analysis.pairwise import preference_pages
 from analysis.stats import CELL, iter_cells
 
@@ -275,6 +277,11 @@ def _not_estimable_reason(model: str, votes: PairVotes) -> str:
                 "the weighted Bradley-Terry model fits such votes")
     if model == DAVIDSON and not (won + lost).any():
         return "every page was answered 'no preference'"
+    compared = np.zeros((k, k), dtype=bool)
+    compared[votes.first, votes.second] = votes.pages.sum(axis=0) > 0
+    apart = never_compared_reason(compared, votes.systems)
+    if apart:
+        return apart
     lost_any, won_any = np.zeros(k), np.zeros(k)
     np.add.at(won_any, votes.first, won + tied)
     np.add.at(won_any, votes.second, lost + tied)
@@ -285,8 +292,8 @@ def _not_estimable_reason(model: str, votes: PairVotes) -> str:
     if never_lost or never_won:
         return (f"{', '.join(never_lost) or 'no system'} never lost and {', '.join(never_won) or 'no system'} "
                 "never won a vote, so their strengths are unbounded")
-    return ("the systems fall into groups of which one always beat the other, so the "
-            "groups' distance is unbounded")
+    return ("the systems fall into groups of which one always beat the other (they were compared, but the "
+            "other group never won), so the groups' distance is unbounded")
 
 
 def _start(model: str, votes: PairVotes, rows: int) -> np.ndarray:
@@ -378,8 +385,9 @@ def leaderboard(kept: pd.DataFrame, anchor: str | None = None, model: str = BRAD
     else the systems' mean). Columns: *groupby, rank (1 = best; equal Elo, equal rank),
     system, elo, ci_low, ci_high (bootstrap percentiles), pages (shown), wins, losses,
     ties (pages won, lost, without preference), model, anchor, tie_parameter (Davidson's
-    nu, NaN otherwise), resamples, resamples_used. Cells without a fit are left out;
-    the notes say why.
+    nu, NaN otherwise), resamples, resamples_used, warning (why a cell of too few
+    participants has no intervals, or what makes its intervals less certain than they
+    look, `analysis.minimums`). Cells without a fit are left out; the notes say why.
     """
     if anchor is not None and anchor not in set(kept["system"]):
         raise AnalysisInputError(f"anchor system {anchor!r} is not among the compared systems: "
@@ -389,9 +397,10 @@ def leaderboard(kept: pd.DataFrame, anchor: str | None = None, model: str = BRAD
     for key, frame in iter_cells(vote_pages(kept, groupby), groupby):
         where = " · ".join(map(str, key.values())) or "all pages"
         votes = pair_votes(frame)
+        warning = too_few_for_bootstrap(len(votes.won))
         try:
             with one_blas_thread():
-                fit = fit_votes(votes, model, resamples, seed)
+                fit = fit_votes(votes, model, 0 if warning else resamples, seed)
         except AnalysisInputError as exc:
             notes.append(f"No leaderboard for {where}: {exc}.")
             continue
@@ -403,7 +412,9 @@ def leaderboard(kept: pd.DataFrame, anchor: str | None = None, model: str = BRAD
         scores = elo(fit.log_strength, position)
         low, high = (np.percentile(elo(fit.resampled, position), [tail, 100 - tail], axis=0)
                      if len(fit.resampled) else (np.full(len(scores), np.nan),) * 2)
-        if len(fit.resampled) < resamples:
+        if warning:
+            notes.append(f"No intervals on the leaderboard for {where}: {warning}.")
+        elif len(fit.resampled) < resamples:
             notes.append(f"Leaderboard for {where}: {resamples - len(fit.resampled)} of {resamples} "
                          "bootstrap resamples had a system that never lost or never won and were "
                          "left out of the intervals.")
@@ -411,9 +422,10 @@ def leaderboard(kept: pd.DataFrame, anchor: str | None = None, model: str = BRAD
                                   "ci_high": high, **_page_counts(frame, votes.systems),
                                   "model": model, "anchor": chosen or "mean",
                                   "tie_parameter": fit.tie_parameter, "resamples": resamples,
-                                  "resamples_used": len(fit.resampled)}))
+                                  "resamples_used": len(fit.resampled),
+                                  "warning": warning or few_participants_warning(len(votes.won))}))
     columns = [*groupby, "rank", "system", "elo", "ci_low", "ci_high", "pages", "wins", "losses",
-               "ties", "model", "anchor", "tie_parameter", "resamples", "resamples_used"]
+               "ties", "model", "anchor", "tie_parameter", "resamples", "resamples_used", "warning"]
     if not rows:
         return pd.DataFrame(columns=columns), notes
     table = pd.concat(rows, ignore_index=True).sort_values([*groupby, "elo"], ascending=[True] * len(groupby) + [False])

@@ -28,6 +28,7 @@ import pandas as pd
 from scipy import stats as sps
 
 from analysis.designs import NO_PREFERENCE, PAGE, SIDES
+from analysis.minimums import with_participant_warnings
 from analysis.multiple_comparisons import holm_by_cell
 from analysis.stats import CELL, iter_cells
 
@@ -78,7 +79,8 @@ def preference_pairs(data: pd.DataFrame, groupby: Sequence[str] = CELL, alpha: f
     no_preference_share, share_a (wins_a / (wins_a + wins_b)), share_ci_low,
     share_ci_high (Wilson), p (exact two-sided binomial test of share_a = 1/2), p_holm
     (over all pairs of the cell), reject (p_holm < alpha), preferred (the system
-    preferred more often, empty when equal).
+    preferred more often, empty when equal), participants (who saw the pair) and warning
+    (an interval from few participants, `analysis.minimums`).
     """
     pages = preference_pages(data, groupby)
     pages["a_won"] = pages["winner"] == pages["system_a"]
@@ -98,7 +100,7 @@ def preference_pairs(data: pd.DataFrame, groupby: Sequence[str] = CELL, alpha: f
     table["reject"] = table["p_holm"] < alpha
     table["preferred"] = np.where(table["wins_a"] > table["wins_b"], table["system_a"],
                                   np.where(table["wins_b"] > table["wins_a"], table["system_b"], ""))
-    return table
+    return with_participant_warnings(table, pages, [*groupby, "system_a", "system_b"])
 
 
 def side_bias(data: pd.DataFrame, groupby: Sequence[str] = CELL,

@@ -17,6 +17,7 @@ import pandas as pd
 
 from analysis.agreement import rater_agreement
 from analysis.crossed_mixed import CrossedModelTables, crossed_mixed_model
+from analysis.minimums import cells_for_models
 from analysis.ordinal_mixed import OrdinalModelTables, ordinal_mixed_model
 from analysis.stats import CELL
 from analysis.tables import write_table
@@ -52,19 +53,21 @@ class RaterModels:
 
 def build_rater_models(kept: pd.DataFrame, reference: str | None = None,
                        alpha: float = 0.05) -> RaterModels:
-    """The three analyses of a single or side-by-side table's compared ratings."""
-    points = kept["scale_max"] - kept["scale_min"] + 1
-    likert = kept[points <= ORDINAL_MAX_POINTS]
+    """The three analyses of a single or side-by-side table's compared ratings; the two
+    models only in the cells with enough ratings for them (`analysis.minimums`)."""
+    modelled, too_few = cells_for_models(kept, "rater- and clip-aware models")
+    agreement, agreement_notes = rater_agreement(kept)
+    points = modelled["scale_max"] - modelled["scale_min"] + 1
+    likert = modelled[points <= ORDINAL_MAX_POINTS]
     notes = [f"No cumulative link mixed model for {task}: its {lo}-{hi} scale has more than "
              f"{ORDINAL_MAX_POINTS} points (the linear model reads it as numbers)."
-             for task, lo, hi in kept.loc[points > ORDINAL_MAX_POINTS, ["task", "scale_min", "scale_max"]]
+             for task, lo, hi in modelled.loc[points > ORDINAL_MAX_POINTS, ["task", "scale_min", "scale_max"]]
              .drop_duplicates().itertuples(index=False)]
-    crossed = crossed_mixed_model(kept, reference, alpha=alpha)
+    crossed = crossed_mixed_model(modelled, reference, alpha=alpha)
     ordinal = (ordinal_mixed_model(likert, reference, alpha=alpha) if len(likert)
                else OrdinalModelTables(pd.DataFrame(), pd.DataFrame(), pd.DataFrame()))
-    agreement, agreement_notes = rater_agreement(kept)
     return RaterModels(crossed, ordinal, agreement,
-                       crossed.notes + notes + ordinal.notes + agreement_notes)
+                       too_few + crossed.notes + notes + ordinal.notes + agreement_notes)
 
 
 def _in_cell(table: pd.DataFrame, task: str, cc: str) -> pd.DataFrame:

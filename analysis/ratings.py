@@ -43,13 +43,16 @@ schema plus task, control_class, clip_duration_s, shown_at, answered_at and the 
 from __future__ import annotations
 
 import os
-from typing import IO
+from typing import IO, TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
-from analysis.designs import design_of
+from analysis.designs import DEFAULT, DESIGNS, design_named, design_of
 from analysis.errors import AnalysisInputError
+
+if TYPE_CHECKING:
+    from analysis.designs.base import RatingDesign
 
 REQUIRED_COLUMNS = ("participant", "system", "stimulus", "value", "scale_min", "scale_max")
 LABEL_COLUMNS = ("participant", "system", "stimulus", "task", "control_class")
@@ -96,10 +99,7 @@ def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
     required = design.required_columns(REQUIRED_COLUMNS)
     missing = [c for c in required if c not in ratings.columns]
     if missing:
-        raise AnalysisInputError(
-            f"ratings table lacks the required column(s) {', '.join(missing)}; {design.schema_title()} is "
-            f"{', '.join(required)} (see docs/ratings-schema.md)"
-        )
+        raise AnalysisInputError(_missing_columns_reason(ratings, design, missing, required))
     if len(ratings) == 0:
         raise AnalysisInputError("ratings table has no rows")
     df = ratings.rename(columns=APP_FLAG_COLUMNS).copy()
@@ -126,6 +126,23 @@ def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
         if column in df.columns:
             df[column] = _booleans(df[column], column)
     return df.reset_index(drop=True)
+
+
+def _missing_columns_reason(ratings: pd.DataFrame, design: RatingDesign, missing: list[str],
+                            required: tuple[str, ...]) -> str:
+    """What a table lacking ``missing`` lacks: where it has no ``design`` column but every
+    column of another design, the design column (it was read as single ratings)."""
+    if "design" not in ratings.columns:
+        others = [design_named(name) for name in DESIGNS if name != DEFAULT]
+        fitting = [other for other in others if set(other.required_columns(REQUIRED_COLUMNS)) <= set(ratings.columns)]
+        if fitting:
+            likely = max(fitting, key=lambda named: len(named.required_columns(REQUIRED_COLUMNS)))  # the most specific
+            own = [c for c in likely.required_columns(REQUIRED_COLUMNS) if c not in REQUIRED_COLUMNS]
+            return (f"ratings table has no 'design' column, so it was read as single ratings, which need "
+                    f"{', '.join(missing)}; its columns {', '.join(own)} are those of the {likely.name} design: add a "
+                    f"column 'design' holding {likely.name!r} on every row (see docs/ratings-schema.md)")
+    return (f"ratings table lacks the required column(s) {', '.join(missing)}; {design.schema_title()} is "
+            f"{', '.join(required)} (see docs/ratings-schema.md)")
 
 
 def _check_scale(df: pd.DataFrame) -> None:

@@ -33,6 +33,8 @@ from analysis.errors import AnalysisInputError
 from analysis.exclusions import (ExclusionRules, apply_exclusions, compared_ratings, exclusion_notes,
                                  exclusion_summary, removed_by_reason)
 from analysis.levels import POWER
+from analysis.minimums import (INTERVAL_FEW_PARTICIPANTS, cells_for_models, participant_warning_notes,
+                               with_participant_warnings)
 from analysis.mixed import mixed_model_means
 from analysis.motion_io import SystemClips
 from analysis.objective import METRIC_COLUMNS, objective_metrics
@@ -40,7 +42,8 @@ from analysis.power import more_ratings_for_power, power_summary
 from analysis.rater_models import RaterModels, build_rater_models, rater_models_text, write_rater_models
 from analysis.stats import (CELL, anova, comparable_cells, pvalue_matrix, system_means,
                             too_few_ratings, tukey_hsd)
-from analysis.tables import objective_table, pvalue_display, significance_table, slug, write_table
+from analysis.tables import (FEW_PARTICIPANTS_MARK, objective_table, pvalue_display, significance_table, slug,
+                             write_table)
 
 if TYPE_CHECKING:
     from analysis.designs.base import RatingDesign
@@ -153,12 +156,15 @@ def build_single_report(ratings: pd.DataFrame, design: RatingDesign, rules: Excl
     if usable.empty:
         raise AnalysisInputError("no system has two or more kept ratings in any cell")
     reference = _resolve_reference(reference, set(usable["system"].unique()), rated, rules, notes)
-    means = system_means(usable)
+    means = with_participant_warnings(system_means(usable), usable)
+    notes += participant_warning_notes(means)
     comparable, compare_notes = comparable_cells(usable)
     notes += compare_notes
     anova_table = anova(comparable) if len(comparable) else pd.DataFrame()
     tukey_table = tukey_hsd(comparable) if len(comparable) else pd.DataFrame()
-    mixed_table = mixed_model_means(comparable) if len(comparable) else pd.DataFrame()
+    modelled, model_notes = cells_for_models(comparable, "mixed model")
+    notes += model_notes
+    mixed_table = mixed_model_means(modelled) if len(modelled) else pd.DataFrame()
     power_table = more_ratings_for_power(usable, power=POWER)
     rater_models = build_rater_models(comparable, reference) if len(comparable) else None
     notes += rater_models.notes if rater_models else []
@@ -274,7 +280,9 @@ def write_report(report: Report | DesignReport, folder: str | Path) -> list[Path
         if table is not None and len(table):
             written += write_table(table, tables, name)
     written += write_table(report.significance_display, tables, "table2_significance",
-                           caption="Mean ratings ± 95 % CI per system (MoGlow Table 2 layout).")
+                           caption="Mean ratings ± 95 % CI per system (MoGlow Table 2 layout); "
+                                   f"{FEW_PARTICIPANTS_MARK.strip()}: an interval from fewer than "
+                                   f"{INTERVAL_FEW_PARTICIPANTS} participants.")
     for (task, cc), matrix in report.pvalues_display.items():
         written += write_table(matrix, tables, f"pvalues_{slug(task, cc)}",
                                caption=f"Tukey HSD adjusted p-values, {task} · {cc}.")

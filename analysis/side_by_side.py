@@ -28,6 +28,7 @@ import pandas as pd
 from scipy import stats as sps
 
 from analysis.designs import PAGE
+from analysis.minimums import with_participant_warnings
 from analysis.multiple_comparisons import holm_by_cell
 from analysis.signed_rank import signed_rank_test
 from analysis.stats import CELL, iter_cells, system_means
@@ -46,7 +47,8 @@ def median_interval(values, confidence: float = 0.95) -> tuple[float, float]:
 def median_and_mean(data: pd.DataFrame, dv: str = "value", between: str = "system",
                     groupby: Sequence[str] = CELL, confidence: float = 0.95) -> pd.DataFrame:
     """Per system and cell: n, median, median_ci_low, median_ci_high, mean, ci_half,
-    ci_low, ci_high (every system needs two or more ratings, as for `system_means`)."""
+    ci_low, ci_high (every system needs two or more ratings, as for `system_means`),
+    participants and warning (intervals from few participants, `analysis.minimums`)."""
     means = system_means(data, dv, between, groupby, confidence)
     medians = []
     for key, frame in iter_cells(data, groupby):
@@ -55,8 +57,9 @@ def median_and_mean(data: pd.DataFrame, dv: str = "value", between: str = "syste
             medians.append({**key, between: system, "median": float(values.median()),
                             "median_ci_low": low, "median_ci_high": high})
     table = means.merge(pd.DataFrame(medians), on=[*groupby, between])
-    return table[[*groupby, between, "n", "median", "median_ci_low", "median_ci_high",
-                  "mean", "sd", "ci_half", "ci_low", "ci_high"]]
+    table = table[[*groupby, between, "n", "median", "median_ci_low", "median_ci_high",
+                   "mean", "sd", "ci_half", "ci_low", "ci_high"]]
+    return with_participant_warnings(table, data, [*groupby, between])
 
 
 def page_differences(data: pd.DataFrame, dv: str = "value", between: str = "system",

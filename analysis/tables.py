@@ -27,6 +27,7 @@ from analysis.objective import METRIC_COLUMNS
 
 NOT_EVALUATED = "-"
 CLOSEST_MARK = "†"  # plain-text mark; Markdown and LaTeX render the cell bold instead
+FEW_PARTICIPANTS_MARK = " ‡"  # after a Table 2 cell whose interval rests on few participants (analysis.minimums)
 
 
 def significance_stars(p: float) -> str:
@@ -44,7 +45,9 @@ def significance_table(means: pd.DataFrame, pairs: pd.DataFrame, reference: str 
     """MoGlow Table 2 from `system_means` and `tukey_hsd` output.
 
     ``too_few`` (columns task, control_class, system, n) lists systems left out of a
-    cell for having fewer than two ratings; their cell says so instead of a dash.
+    cell for having fewer than two ratings; their cell says so instead of a dash. A mean
+    whose ``warning`` column (`analysis.minimums.with_participant_warnings`) says its
+    interval rests on few participants is marked ``FEW_PARTICIPANTS_MARK``.
     """
     columns = pd.MultiIndex.from_frame(
         means[["task", "control_class"]].drop_duplicates().sort_values(["task", "control_class"]))
@@ -60,8 +63,9 @@ def significance_table(means: pd.DataFrame, pairs: pd.DataFrame, reference: str 
             against[(row.task, row.control_class, other)] = row.p_adj
     for row in means.itertuples(index=False):
         stars = significance_stars(against.get((row.task, row.control_class, row.system), 1.0))
+        few = FEW_PARTICIPANTS_MARK if getattr(row, "warning", "") else ""
         table.loc[row.system, (row.task, row.control_class)] = (
-            f"{row.mean:.{decimals}f}±{row.ci_half:.{decimals}f}{stars}")
+            f"{row.mean:.{decimals}f}±{row.ci_half:.{decimals}f}{stars}{few}")
     if too_few is not None:
         for row in too_few.itertuples(index=False):
             if (row.task, row.control_class) in table.columns:
@@ -157,7 +161,8 @@ _LATEX_SPECIAL = {"&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{
 
 
 # A significance cell: "mean±ci" then its stars; only these carry stars as marks.
-_SIGNIFICANCE_CELL = re.compile(r"^-?\d+(\.\d+)?±\d+(\.\d+)?(?P<stars>\*+)$")
+_SIGNIFICANCE_CELL = re.compile(r"^-?\d+(\.\d+)?±\d+(\.\d+)?(?P<stars>\*+)(?P<few>"
+                                + re.escape(FEW_PARTICIPANTS_MARK) + ")?$")
 
 
 def _latex_cell(value, marked: bool = True) -> str:
@@ -174,7 +179,7 @@ def _latex_cell(value, marked: bool = True) -> str:
     text = "".join(_LATEX_SPECIAL.get(ch, ch) for ch in text)
     text = text.replace("±", r"$\pm$")
     if stars:
-        text += f"$^{{{stars.group('stars')}}}$"
+        text += f"$^{{{stars.group('stars')}}}$" + (stars.group("few") or "")
     return rf"\textbf{{{text}}}" if bold else text
 
 

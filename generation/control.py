@@ -310,6 +310,20 @@ def take_paths(takes: Iterable[tuple[str, np.ndarray]], fps: float, seconds: flo
     return result
 
 
+def shorter_than_asked(controls: Iterable[Control], seconds: float | None) -> list[Control]:
+    """The controls cut to ``seconds`` (``take_paths``, ``take_attributes``) that last less,
+    their take ending sooner: a clip of another length than asked, which must say so."""
+    if seconds is None:
+        return []
+    return [control for control in controls if control.n_frames < _frames_of(seconds, control.fps)]
+
+
+def length_warning(control: Control, seconds: float) -> str:
+    """What a control shorter than the ``seconds`` asked tells the researcher."""
+    return (f"{control.name} lasts {control.n_frames / control.fps:.2f} s ({control.n_frames} frames), not the "
+            f"{seconds:g} s asked: its take ends sooner")
+
+
 def lead_in_frames(seconds: float, fps: float) -> int:
     """A lead-in of ``seconds`` (0 for none) as a number of frames, refusing what no take lasts."""
     if not (math.isfinite(seconds) and 0 <= seconds <= MAX_PATH_SECONDS):

@@ -64,3 +64,11 @@ def test_a_take_read_from_a_start_is_the_take_from_that_frame_and_a_start_past_i
     np.testing.assert_array_equal(load_body_motion(path, 20.0, start=1.0).positions, take.positions[20:])
     with pytest.raises(ValueError, match=f"{path}: the take lasts {take.n_frames} frames at 20 fps"):
         load_body_motion(path, 20.0, start=take.n_frames / 20.0)
+
+
+def test_held_out_samples_shorter_than_asked_are_warned_of_with_their_real_length(  # noqa: F811
+        checkpoint, clips_folder, tmp_path, capsys):
+    assert main(["sample", str(checkpoint), "-c", "held-out", "--data", str(clips_folder), "--seconds", "59",
+                 "--lead-in", "1", "--out", str(tmp_path / "MoGlow")]) == 0
+    errors = capsys.readouterr().err
+    assert "s asked: its take ends sooner" in errors and "not the 59 s asked" in errors

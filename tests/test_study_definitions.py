@@ -286,6 +286,8 @@ controls:
         "study.yaml:11: controls[0].held_out.seconds: Ensure this value is less than or equal to 60.0.",
         "study.yaml:12: controls[0].held_out.up: Select a valid choice. x is not one of the available choices."]),
     ("data/no_such_take.bvh", 1, "y", ["study.yaml:9: controls[0]: cannot read the motion data at"]),
+    ("data/dataset-1_walk_old_002.bvh", 59, "y", [  # longer than the take: refused, not cut short silently
+        "study.yaml:11: controls[0].held_out.seconds: data/dataset-1_walk_old_002.bvh lasts "]),
 ])
 def test_held_out_takes_are_checked_as_the_controls_page_checks_them(site, take, seconds, up, problems):
     owner = User.objects.create_user("researcher")

@@ -15,6 +15,7 @@ from django.utils import timezone
 from scipy import stats
 
 from analysis.exclusions import scaled_threshold
+from analysis.minimums import INTERVAL_FEW_PARTICIPANTS, MODEL_MIN_PARTICIPANTS
 from studyapp.models import Assignment, Participant, Rating, Stimulus
 from studyapp.researchers.results.export import EXPORT_COLUMNS
 from studyapp.researchers.results.monitor import study_monitor
@@ -138,3 +139,17 @@ def test_open_close_and_the_analysis_report(client, study):
     client.post(f"/studies/{study.pk}/open/", {"open": "0"})
     study.refresh_from_db()
     assert not study.is_open
+
+
+def test_the_monitor_says_too_few_ratings_instead_of_fitting_models_and_marks_intervals_from_few_participants(
+        client, study):
+    monitor = study_monitor(study)
+    assert not any("mixed model" in title for title, _ in monitor.tables)
+    assert any("too few ratings: " in note and "from 3 participants" in note
+               and f"a model needs at least {MODEL_MIN_PARTICIPANTS} participants" in note
+               for note in monitor.analysis_notes)
+    moglow = next(row for row in monitor.means if row.system == "MoGlow")
+    assert moglow.participants == 2 and moglow.warning.startswith("from 2 participants only")
+    page = client.get(f"/studies/{study.pk}/monitor/").content.decode()
+    assert "‡ from 2 participants only" in page and 'id="few-participants"' in page
+    assert f"fewer than {INTERVAL_FEW_PARTICIPANTS} participants" in page

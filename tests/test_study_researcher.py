@@ -445,7 +445,8 @@ def study_with_everything(client, researcher, files) -> Study:
 
 
 @pytest.mark.django_db
-def test_generating_twice_makes_the_same_stimuli_and_queues_them_once(client, researcher, site, files, queue):
+def test_generating_twice_makes_the_same_stimuli_and_queues_them_once(client, researcher, site, files, queue,
+                                                                      settings):
     study = study_with_everything(client, researcher, files)
     first = client.post(f"/studies/{study.pk}/stimuli/", {"seed": "0"})
     assert first.status_code == 302
@@ -455,6 +456,10 @@ def test_generating_twice_makes_the_same_stimuli_and_queues_them_once(client, re
     assert Stimulus.objects.filter(system__role="natural", control__origin="synthetic").count() == 0
     assert set(Stimulus.objects.values_list("status", flat=True)) == {"queued"}
     assert len(list(queue.iterdir())) == 2 + 2  # one sampling message per model system, one render per NAT clip
+    # Right after Generate no worker has had the time to take a clip: no false alarm.
+    assert "no worker answers" not in client.get(f"/studies/{study.pk}/stimuli/").content.decode()
+    # A heartbeat's time later, nothing touched and no worker answering the ping: now say so.
+    Stimulus.objects.update(updated=timezone.now() - timedelta(seconds=settings.STUDY_LOST_AFTER_S + 1))
     assert "no worker answers" in client.get(f"/studies/{study.pk}/stimuli/").content.decode()
 
     second = client.post(f"/studies/{study.pk}/stimuli/", {"seed": "0"})

@@ -14,6 +14,7 @@ from django.urls import reverse
 
 from analysis.cli import main as analysis_main
 from analysis.exclusions import ExclusionRules
+from analysis.minimums import MODEL_MIN_PARTICIPANTS
 from analysis.ratings import read_ratings
 from analysis.report import build_report
 from studyapp.models import Participant, System
@@ -199,6 +200,9 @@ def test_the_monitor_and_the_in_app_report_show_the_rater_and_clip_aware_models(
     settings.MEDIA_ROOT = tmp_path / "media"
     study = make_study(controls=3, clips_per_participant=7, ratings_per_stimulus=10, training_clips=0, **fields)
     populate(study)
+    for n in range(2):  # five kept participants: enough for the models (analysis.minimums)
+        for pid in ("careful", "fair"):
+            take_part(study, f"{pid}-{n}", SCORES[pid])
     app, page, rater_models, shown = rater_models_three_ways(study, settings, tmp_path)
     models, monitor = rater_models.tables(), dict(shown.tables)
     # No cumulative link model on either design: the side-by-side sliders (0-100) have too
@@ -220,7 +224,7 @@ def test_ratings_that_overlap_get_the_cumulative_link_model_in_the_monitor_and_t
     settings.MEDIA_ROOT = tmp_path / "media"
     study = make_study(controls=3, clips_per_participant=7, ratings_per_stimulus=10, training_clips=0,
                        natural_threshold=1.0)  # nobody excluded: every system's ratings spread over 2-5
-    for n in range(4):
+    for n in range(MODEL_MIN_PARTICIPANTS):
         client = Client()
         participant = through_practice(client, study, f"varied-{n}")
         rated = 0

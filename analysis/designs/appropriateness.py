@@ -90,11 +90,14 @@ class Appropriateness(Pairwise):
         untested = pairs[pairs["method"] == "not computed"]
         report.notes += [f"No Wilcoxon test of {r.system_a} and {r.system_b} in {r.task} · {r.control_class}: no "
                          "participant who saw both scored them differently." for r in untested.itertuples(index=False)]
+        scores = appropriateness_scores(kept)
+        report.notes += [f"Appropriateness score of {r.system} in {r.task} · {r.control_class}: {r.warning}."
+                         for r in scores.itertuples(index=False) if r.warning]
         report.tables.update({
             "matched_preference": ("Share of pages preferring the matched clip ('no preference' split), Wilson "
                                    "95 % intervals, sign tests of 50 %, Holm corrected over systems", shares),
             "appropriateness_scores": ("Mean appropriateness score (-2..+2) with 95 % bootstrap intervals over "
-                                       "participants", appropriateness_scores(kept)),
+                                       "participants", scores),
             "score_pairs": ("Wilcoxon signed-rank tests of participants' mean scores between systems, Holm "
                             "corrected", pairs),
             "side_bias": ("Share of preferences for the left clip", side_bias(kept)),
@@ -103,7 +106,8 @@ class Appropriateness(Pairwise):
     def cell_sentence(self, report: DesignReport, task: str, cc: str) -> str:
         shares = in_cell(report.table("matched_preference"), task, cc).set_index("system")
         scores = in_cell(report.table("appropriateness_scores"), task, cc).sort_values("mean_score", ascending=False)
-        each = [f"{r.system} {interval_text(r.mean_score, r.ci_low, r.ci_high, 2)}, matched preferred on "
+        each = [f"{r.system} {interval_text(r.mean_score, r.ci_low, r.ci_high, 2, 'too few ratings')}, "
+                f"matched preferred on "
                 f"{shares.at[r.system, 'share_matched'] * 100:.0f} % of {shares.at[r.system, 'n_pages']} pages "
                 f"(95 % CI {shares.at[r.system, 'ci_low'] * 100:.0f}-{shares.at[r.system, 'ci_high'] * 100:.0f} %, "
                 f"sign test {p_text(shares.at[r.system, 'p_holm'])} Holm-adjusted)"

@@ -85,6 +85,13 @@ def dataset_units(args: argparse.Namespace) -> dict:
     return {"scale": args.scale, "up": up_axis(args), "mirror_pairs": pairs, "root": RootOptions(pairs=pairs)}
 
 
+def chosen_contents(args: argparse.Namespace) -> tuple[str, ...] | None:
+    """--contents, else every content (None): what ``build-dataset`` and ``natural`` read by
+    default, so that natural's held-out takes are the held-out takes of the dataset built
+    with the same options (the split holds out a share of each content chosen)."""
+    return tuple(args.contents.split(",")) if args.contents else None
+
+
 def up_axis(args: argparse.Namespace) -> str | None:
     return None if args.up == "auto" else args.up
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from ..motion.bvh import read_bvh
 from ..motion.dataset import SPLITS, DatasetOptions, MotionDataset, build_dataset, default_cache_dir
 from ..motion.unit_detection import choose_units
-from .common import add_unit_arguments, dataset_units, up_axis, warn
+from .common import add_unit_arguments, chosen_contents, dataset_units, up_axis, warn
 
 
 def info(args: argparse.Namespace) -> int:
@@ -41,7 +41,7 @@ def build(args: argparse.Namespace) -> int:
         overlap=args.overlap,
         mirror=not args.no_mirror,
         reverse=args.reverse,
-        contents=tuple(args.contents.split(",")) if args.contents else None,
+        contents=chosen_contents(args),
         holdout_fraction=args.holdout,
         validation_fraction=args.validation,
         seed=args.seed,

@@ -20,7 +20,8 @@ from tqdm import tqdm
 from measures.feet import choose_foot_joints
 from measures.units import UNIT_NAMES, UNITS
 
-from ..control import PRESETS, following_arrays, lead_in_frames, load_control_file, preset_path, take_paths
+from ..control import (PRESETS, following_arrays, lead_in_frames, length_warning, load_control_file, preset_path,
+                       shorter_than_asked, take_paths)
 from ..motion.bvh import motion_to_bvh, write_bvh
 from ..motion.dataset import LOCOMOTION, DatasetOptions, build_dataset, contents_or_all
 from ..motion.npz import save_motion_npz
@@ -28,7 +29,8 @@ from ..motion.root import RootOptions, integrate, root_trajectory
 from ..motion.takes import natural_takes
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
-from .common import add_camera_arguments, add_unit_arguments, camera_from, dataset_units, shown_control, warn
+from .common import (add_camera_arguments, add_unit_arguments, camera_from, chosen_contents, dataset_units,
+                     shown_control, warn)
 
 
 OWN_CONTROL = "own"  # --draw-control without a value: each clip's own control
@@ -123,6 +125,7 @@ def _controls(args: argparse.Namespace, dataset_options: dict):
             held_out = take_paths([(take.name, take.control) for take in takes], fps, args.seconds, args.lead_in)
             if not held_out:
                 raise ValueError(f"no held-out take is longer than the lead-in of {args.lead_in:g} s")
+            warn([length_warning(c, args.seconds) for c in shorter_than_asked(held_out, args.seconds)])
             controls += held_out
         elif name in PRESETS:
             controls.append(preset_path(name, fps))
@@ -243,7 +246,7 @@ def _note_training_unit(generator, bvh_unit: str) -> None:
 def natural_command(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.seconds) and args.seconds > 0):
         raise ValueError(f"--seconds must be a positive number, not {args.seconds}")
-    options = DatasetOptions(contents=None if args.takes else _contents(args), holdout_fraction=args.holdout,
+    options = DatasetOptions(contents=None if args.takes else chosen_contents(args), holdout_fraction=args.holdout,
                              seed=args.seed, **dataset_units(args))
     takes, options = natural_takes(args.folder, options, args.takes, args.split, progress=True)
     lead = lead_in_frames(args.lead_in, options.fps)
@@ -430,16 +433,19 @@ def add_commands(commands: argparse._SubParsersAction) -> None:
     p = commands.add_parser("natural", help="export natural clips (held-out takes by default) like samples",
                             description="Write natural clips of FOLDER as npz (and optionally MP4), read exactly as "
                                         "the models' training data is: the NAT system of a study or of the objective "
-                                        "metrics. The takes are those the seeded split that training makes of the "
-                                        "folder holds out (no model needs to have been trained on it), or the takes "
-                                        "named with --takes.")
+                                        "metrics. The takes are those the seeded split that build-dataset and training "
+                                        "make of the folder hold out, of every content by default as build-dataset "
+                                        "reads it (each content's share is drawn on its own, so a model trained on "
+                                        "some contents has its held-out takes among them; no model needs to have been "
+                                        "trained on it), or the takes named with --takes.")
     p.add_argument("folder", nargs="+", help="folder of .bvh files; several are pooled (clip names must differ)")
     p.add_argument("--out", "-o", required=True, help="output folder")
     p.add_argument("--split", choices=("test", "train"), default="test", help="which takes (default: held-out)")
     p.add_argument("--takes", type=_take_names, metavar="NAME,...",
                    help="these takes (file names without .bvh, comma-separated) instead of a split's, whatever "
                         "their content")
-    p.add_argument("--contents", help="content labels (default: locomotion; every clip where the clips have no labels)")
+    p.add_argument("--contents", help="comma-separated content labels to keep (default: every content, as "
+                                      "build-dataset's)")
     p.add_argument("--holdout", type=float, default=0.1,
                    help="fraction of each content's takes the split holds out, as build-dataset's (default "
                         "%(default)s, as train's)")

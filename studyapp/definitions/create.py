@@ -41,7 +41,7 @@ from studyapp.researchers.setup.editing import EditRefused, rename_control
 from studyapp.researchers.setup.forms import (CAMERA_PREFIX, HeldOutControlsForm, LabelControlsForm, QuestionForm,
                                        StudyForm)
 from studyapp.stimuli.controls import (ControlError, add_held_out_controls, add_label_controls, add_path_control,
-                                       add_preset_controls, control_kind, study_labels)
+                                       add_preset_controls, control_kind, shorter_than_asked_warnings, study_labels)
 from studyapp.stimuli.submissions import Reading, add_submitted_system, read_folder
 from studyapp.stimuli.systems import UploadRefused, add_checkpoint_system, add_natural_system
 
@@ -366,6 +366,10 @@ class _Builder:
         if control is None:
             raise self.fail((*where, "take"), f"{_where(where)}: {take} is not among the held-out takes of "
                                               f"{', '.join(folders) or 'MOTION_DATA'}")
+        if shorter_than_asked_warnings([control], chosen["seconds"]):  # a definition asks for exactly what it names
+            raise self.fail((*where, "seconds"), f"{_where((*where, 'seconds'))}: {take} lasts {control.seconds:.2f} s "
+                                                 f"after its lead-in, not the {chosen['seconds']:g} s asked; ask for "
+                                                 f"{control.seconds:.2f} s or less")
         return control
 
     def build(self) -> Study:

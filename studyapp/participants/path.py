@@ -182,8 +182,15 @@ def _device_check(request: HttpRequest, study: Study, participant: Participant) 
 
 
 def _instructions_page(study: Study, participant: Participant) -> dict:
-    """What each page of the study's design will ask."""
-    return {"task": design_of(study).task(study)}
+    """What each page of the study's design will ask, and whether practice comes first:
+    the participant's own practice clips, which a study asking for practice may not have
+    (no finished clip to practise on when they enrolled)."""
+    return {"task": design_of(study).task(study), "practice": participant.training_done < len(participant.training)}
+
+
+def _instructions_preview(study: Study) -> list[dict]:
+    """The instructions as a participant enrolled now reads them (practice where the study's plan has it)."""
+    return [{"task": design_of(study).task(study), "practice": bool(preview_practice_pages(study))}]
 
 
 def _questions_preview(part: str) -> Callable[[Study], list[dict]]:
@@ -316,7 +323,7 @@ PATH: tuple[Step, ...] = (
     Step("screening", "questions.html", pending=lambda p: p.screened_at is None,
          page=questions_page(Question.Part.BEFORE), submit=_screening, preview=_questions_preview(Question.Part.BEFORE)),
     Step("instructions", "instructions.html", pending=lambda p: p.instructed_at is None,
-         page=_instructions_page, submit=_passing("instructed_at")),
+         page=_instructions_page, submit=_passing("instructed_at"), preview=_instructions_preview),
     Step("practice", _design_template, pending=lambda p: p.training_done < len(p.training), page=practice_page,
          submit=_practice, in_place=True, preview=preview_practice_pages),
     Step("rate", _design_template, pending=lambda p: p.finished_at is None, page=rating_page, submit=_rate,

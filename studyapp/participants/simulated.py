@@ -2,13 +2,21 @@
 
 A dry run before a study goes to the crowd, the concurrency test and the ratings
 benchmark all use it. Each participant is an independent cookie-carrying client that
-reads the page it is on, as a browser would, and answers it: consent, instructions,
-practice clips, then a rating per clip, or an answer per side-by-side or pairwise page
-(claiming to have watched every clip to its end, and so answering no sooner than the
-longest clip on the page lasts). Pages of clips are answered as their script answers
+reads the page it is on, as a browser would, and answers it: the device check (with a
+screen as large as the study asks), consent, screening questions (a random choice, which
+may screen it out; a number within the question's range; a line of text), instructions,
+practice clips, then a rating per clip, or an answer per side-by-side, pairwise or
+appropriateness page (claiming to have watched every clip to its end, and so answering no
+sooner than the longest clip on the page lasts; an instructed check answered as it asks),
+and the closing questions. Pages of clips are answered as their script answers
 them, asking for the next page in the answer's response (``path.NEXT_PAGE_HEADER``); a
 server that answers with a redirect instead (the form without the script, or an older
 version of the app) has its redirect followed.
+
+Each participant ends one of four ways, which the summary counts: finished, screened out,
+refused because the study was full, or failed, with the reason (the page's own message of
+a refused form or request, or where the study ended otherwise, as on failed instructed
+checks).
 
     python -m studyapp.participants.simulated http://127.0.0.1:8000/p/KEY/ -n 20
 
@@ -20,6 +28,7 @@ from __future__ import annotations
 import argparse
 import html
 import http.cookiejar
+import math
 import random
 import re
 import statistics
@@ -28,6 +37,7 @@ import time
 import urllib.error
 import urllib.parse
 import urllib.request
+from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -44,6 +54,23 @@ _CLIP_STEPS = ("/practice/", _RATING_STEP)  # the forms that the clip pages' scr
 # path.NEXT_PAGE_HEADER (not imported: this module runs with the standard library alone).
 _IN_PLACE = {"Studyapp-Next-Page": "in-place"}
 _CLIP_SECONDS = re.compile(r'<video [^>]*data-seconds="([0-9.]+)"')
+_DEVICE_STEP = "/device/"
+_DEVICE_NEED = re.compile(r"const minWidth = (\d+), minHeight = (\d+);")
+_SCREEN = (1280, 800)  # a laptop's viewport, or the study's least screen where that is larger
+_QUESTIONS = 'class="questions"'
+_CHOICE = re.compile(r'<input type="radio" name="([^"]+)" value="([^"]*)"')
+_NUMBER = re.compile(r'<input type="number" step="([^"]+)" min="([^"]+)" max="([^"]+)" name="([^"]+)"')
+_TEXT = re.compile(r'<textarea name="([^"]+)"')
+# The instructed check's words (the designs' ``instruction``): the point, or the clip, it asks for.
+_INSTRUCTION = re.compile(r'<p class="instruction">Attention check: whatever you think of [^,]+, please '
+                          r'(?:answer (?P<point>-?\d+)|choose clip (?P<choose>[A-Z])|move the slider of clip '
+                          r'(?P<slider>[A-Z]) to the far right)')
+_HEADING = re.compile(r"<h1>(.*?)</h1>", re.S)
+_NOTICE = re.compile(r'<p class="notice[^"]*"[^>]*>(.*?)</p>', re.S)
+# How a participant's study ended, by the words of its last page.
+FINISHED, SCREENED_OUT, FULL, FAILED = "finished", "screened out", "refused because the study was full", "failed"
+_ENDINGS = ((FINISHED, "You have finished the study"), (SCREENED_OUT, "looking for participants with other answers"),
+            (FULL, "<h1>The study is full</h1>"))
 
 
 def longest_clip_s(page: str) -> float:
@@ -61,7 +88,20 @@ class Outcome:
     ratings: int = 0  # accepted by the server (answered with the next page, or the redirect to it)
     rating_latencies_s: list[float] = field(default_factory=list)
     final_page: str = ""
-    error: str = ""
+    error: str = ""  # why it failed: the server's message, or where the study ended otherwise
+
+    @property
+    def ending(self) -> str:
+        """FINISHED, SCREENED_OUT, FULL or FAILED."""
+        if self.error:
+            return FAILED
+        return next((ending for ending, words in _ENDINGS if words in self.final_page), FAILED)
+
+
+def page_message(body: str) -> str:
+    """A page's heading and its notice (the app's message pages: a refused form, a full study), in plain words."""
+    parts = [m.group(1) for m in (_HEADING.search(body), _NOTICE.search(body)) if m]
+    return ": ".join(html.unescape(re.sub(r"<[^>]+>", "", part)).strip() for part in parts)
 
 
 class _KeepRedirects(urllib.request.HTTPRedirectHandler):
@@ -106,13 +146,27 @@ class SimulatedParticipant:
         sliders, answers = _SLIDER.findall(body), _ANSWER.findall(form)
         if action.endswith("/consent/"):
             data["agree"] = "yes"
+        elif action.endswith(_DEVICE_STEP):
+            need = _DEVICE_NEED.search(body)
+            width, height = (max(int(n), least) for n, least in zip(need.groups() if need else (0, 0), _SCREEN))
+            data.update(width=str(width), height=str(height))
+        elif _QUESTIONS in match.group(0):
+            data.update(self._questions_answer(form))
         elif points or sliders or answers:  # a rating page: every clip on it played to its end first
             time.sleep(max(self.watch_s, longest_clip_s(body)))
+            asked = _INSTRUCTION.search(body)
             if points:
-                data.update(value=str(self.rng.choice(points)), started_s="0.05", ended_s="0.5",
-                            answered_s="0.6", played_until_s="0.45")
+                value = asked.group("point") if asked and asked.group("point") else str(self.rng.choice(points))
+                data.update(value=value, started_s="0.05", ended_s="0.5", answered_s="0.6", played_until_s="0.45")
             else:
                 data.update(self._page_answer(body, sliders, answers, _STRENGTH.findall(form)))
+                if asked and asked.group("choose"):
+                    data["answer"] = ("left", "right")[ord(asked.group("choose")) - ord("A")]
+                    if strengths := _STRENGTH.findall(form):  # a choice asked with its strength
+                        data["strength"] = self.rng.choice(strengths)
+                elif asked and asked.group("slider"):
+                    name, _, high = sliders[ord(asked.group("slider")) - ord("A")]
+                    data[name] = high
         if action.endswith(_RATING_STEP):
             start = time.perf_counter()
             next_url, next_body = self._rate(url, data)
@@ -134,6 +188,21 @@ class SimulatedParticipant:
         for slot in _PLAY.findall(body):
             data.update({f"started_s-{slot}": "0.05", f"ended_s-{slot}": "0.5", f"answered_s-{slot}": "0.6",
                          f"played_until_s-{slot}": "0.45"})
+        return data
+
+    def _questions_answer(self, form: str) -> dict:
+        """An answer to every question of a questionnaire: a random choice, a number within
+        the question's range (whole where it asks for one), a line of text."""
+        data: dict[str, str] = {}
+        for name, choice in _CHOICE.findall(form):
+            data.setdefault(name, [])
+            data[name].append(html.unescape(choice))
+        data = {name: self.rng.choice(choices) for name, choices in data.items()}
+        for step, low, high, name in _NUMBER.findall(form):
+            value = self.rng.uniform(float(low), float(high))
+            data[name] = str(min(max(round(value), math.ceil(float(low))), math.floor(float(high)))
+                             if step == "1" else round(value, 2))
+        data.update({name: "An answer from the dry run." for name in _TEXT.findall(form)})
         return data
 
     def _rate(self, url: str, data: dict) -> tuple[str, str | None]:
@@ -158,7 +227,13 @@ class SimulatedParticipant:
                     break
                 url, body = answered
             self.outcome.final_page = body
-            self.outcome.finished = "You have finished the study" in body
+            self.outcome.finished = self.outcome.ending == FINISHED
+            if self.outcome.ending == FAILED:
+                self.outcome.error = f"the study ended at {urllib.parse.urlsplit(url).path}: {page_message(body)}"
+        except urllib.error.HTTPError as error:  # the app's message page says why it refused
+            where = urllib.parse.urlsplit(error.url or "").path
+            said = page_message(error.read().decode(errors="replace"))
+            self.outcome.error = f"HTTP {error.code} on {where}" + (f": {said}" if said else f": {error.reason}")
         except (urllib.error.URLError, TimeoutError, ConnectionError) as error:
             self.outcome.error = f"{type(error).__name__}: {error}"
         return self.outcome
@@ -204,15 +279,20 @@ def main(argv: list[str] | None = None) -> int:
                                 args.watch)
     seconds = time.perf_counter() - start
     latencies = [s for o in outcomes for s in o.rating_latencies_s]
-    finished = sum(o.finished for o in outcomes)
-    print(f"{finished} of {len(outcomes)} participants finished, {len(latencies)} ratings in {seconds:.1f} s")
+    print(summary(outcomes) + f"; {len(latencies)} ratings in {seconds:.1f} s")
     if latencies:
         print(f"rating submission: median {statistics.median(latencies) * 1000:.0f} ms, "
               f"p95 {percentile(latencies, 0.95) * 1000:.0f} ms")
-    for outcome in outcomes:
-        if outcome.error:
-            print(f"{outcome.platform_id}: {outcome.error}", file=sys.stderr)
+    for reason, count in Counter(o.error for o in outcomes if o.error).most_common():
+        print(f"failed ({count}): {reason}", file=sys.stderr)
     return 0 if all(not o.error for o in outcomes) else 1
+
+
+def summary(outcomes: list[Outcome]) -> str:
+    """How the participants ended: finished, screened out, refused because full, failed."""
+    counts = Counter(o.ending for o in outcomes)
+    return (f"{len(outcomes)} participants: " + ", ".join(f"{counts[ending]} {ending}"
+                                                          for ending in (FINISHED, SCREENED_OUT, FULL, FAILED)))
 
 
 if __name__ == "__main__":

@@ -49,8 +49,9 @@ from studyapp.server.health import collect_health
 from studyapp.stimuli.clips import progress
 from studyapp.stimuli.control_export import bundle_zip
 from studyapp.stimuli.controls import (ControlError, add_control_file, add_held_out_controls, add_label_controls,
-                               add_preset_controls, control_kind, study_labels)
+                               add_preset_controls, control_kind, shorter_than_asked_warnings, study_labels)
 from studyapp.stimuli.dispatch import BrokerUnavailable, generate_stimuli, retry_stimulus
+from studyapp.stimuli.lost_tasks import worker_seen_lately
 from studyapp.stimuli.mismatched import study_pairings
 from studyapp.stimuli.motion_export import exported_stimuli, motion_zip
 from studyapp.stimuli.submissions import Reading, add_submitted_upload
@@ -174,9 +175,7 @@ def study_controls(request: HttpRequest, pk: int) -> HttpResponse:
     else:
         forms["labels"] = partial(LabelControlsForm, labels=study_labels(study))
     actions = {
-        "held_out": lambda data: "{} held-out control(s).".format(len(add_held_out_controls(
-            study, data["seconds"], data["count"], data.get("lead_in") or 0.0, takes=data["takes"],
-            scale=data.get("unit"), up=data.get("up")))),
+        "held_out": lambda data: _add_held_out_controls(request, study, data),
         "presets": lambda data: f"{len(add_preset_controls(study, data['presets']))} synthetic control(s).",
         "file": lambda data: f"{len(add_control_file(study, data['description']))} control(s) from the file.",
         "labels": lambda data: "{} label control(s).".format(
@@ -184,6 +183,15 @@ def study_controls(request: HttpRequest, pk: int) -> HttpResponse:
     }
     return _forms_page(request, study, "controls", forms, actions, ControlError,
                        {"controls": study.controls.all(), "kind": kind, "trained": trained})
+
+
+def _add_held_out_controls(request: HttpRequest, study: Study, data: dict) -> str:
+    """Add the form's held-out controls; warn of each that lasts less than asked."""
+    added = add_held_out_controls(study, data["seconds"], data["count"], data.get("lead_in") or 0.0,
+                                  takes=data["takes"], scale=data.get("unit"), up=data.get("up"))
+    for warning in shorter_than_asked_warnings(added, data["seconds"]):
+        messages.warning(request, warning)
+    return f"{len(added)} held-out control(s)."
 
 
 @never_cache
@@ -218,9 +226,12 @@ def study_stimuli(request: HttpRequest, pk: int) -> HttpResponse:
     elif request.method == "POST":
         status = 400  # the form, with what is wrong with it
     state = progress(study)
-    # Queued clips with nobody to make them: say so rather than let the bar sit still.
+    # Queued clips with nobody to make them: say so rather than let the bar sit still. A
+    # worker busy rendering may miss the ping, so a row a worker took (or one queued too
+    # recently for any to take) within the heartbeat's time says more than the ping.
     waiting = state["counts"]["queued"] + state["counts"]["running"]
-    health = collect_health(celery_app, settings.HEALTH_TIMEOUT_S) if waiting else None
+    health = (collect_health(celery_app, settings.HEALTH_TIMEOUT_S)
+              if waiting and not worker_seen_lately() else None)
     context = {"study": study, "form": form,
                "stimuli": study.stimuli.select_related("system", "control", "shown_control"),
                "pairings": study_pairings(study) if design_of(study).mismatched_clips else None,

@@ -31,7 +31,7 @@ from django.conf import settings
 from django.core.files import File
 
 from generation.control import (AttributeControl, Control, PathControl, held_out_attributes, held_out_paths,
-                                lead_in_frames, load_control_file, preset_path, take_paths)
+                                lead_in_frames, load_control_file, preset_path, shorter_than_asked, take_paths)
 from generation import registry
 from generation.motion.dataset import (LOCOMOTION, DatasetOptions, build_dataset, contents_or_all, find_bvh_files,
                                        motion_folders)
@@ -182,12 +182,24 @@ def add_held_out_controls(study: Study, seconds: float, count: int | None = None
     files = {path.stem: path for path in find_bvh_files(folders)}
     source = natural_source(folders, options)
     result = []
+    short = {control.name for control in shorter_than_asked(held_out, seconds)}
     for control in _spread(held_out, contents, count):
-        cut = f"{lead:g}s+{seconds:g}s" if lead else f"{seconds:g}s"
+        # Named by the length it has: a take that ends sooner gives a shorter clip than asked.
+        length = f"{round(control.n_frames / control.fps, 2):g}" if control.name in short else f"{seconds:g}"
+        cut = f"{lead:g}s+{length}s" if lead else f"{length}s"
         named = dataclasses.replace(control, name=f"{control.name}-{cut}")
         result.append(_save(study, named, ControlSignal.Origin.HELD_OUT, source_name(files[control.name], folders),
                             source))
     return result
+
+
+def shorter_than_asked_warnings(controls: list[ControlSignal], seconds: float) -> list[str]:
+    """A warning for each of ``controls`` (as ``add_held_out_controls`` returns them) that
+    lasts less than the ``seconds`` asked, its take ending sooner: the page and the command
+    line say so, and its name gives its real length."""
+    return [f"{control.name} lasts {control.seconds:.2f} s, not the {seconds:g} s asked: its take ends sooner"
+            for control in controls
+            if round(control.seconds * control.control["fps"]) < round(seconds * control.control["fps"])]
 
 
 def _trained_takes(study: Study, folders: list[Path], options: DatasetOptions, kind: str, wanted: list[str],
@@ -285,4 +297,5 @@ def add_control_file(study: Study, upload: File) -> list[ControlSignal]:
 
 
 __all__ = ["ControlError", "add_control_file", "add_held_out_controls", "add_label_controls", "add_path_control",
-           "add_preset_controls", "control_kind", "natural_options", "study_labels", "study_options", "training_options"]
+           "add_preset_controls", "control_kind", "natural_options", "shorter_than_asked_warnings", "study_labels",
+           "study_options", "training_options"]

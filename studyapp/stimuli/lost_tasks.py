@@ -102,6 +102,16 @@ def lost_stimuli(waiting: set[str]) -> list[Stimulus]:
     return [stimulus for stimulus in stale if stimulus.task_id not in waiting]
 
 
+def worker_seen_lately() -> bool:
+    """Whether a worker may be at work: a row touched within ``STUDY_LOST_AFTER_S``, the
+    time in which a worker's heartbeat touches every row it holds. A row a worker started,
+    finished or holds counts, and so does one just queued, which no worker had the time to
+    take: the page says "no worker answers" only once rows have waited that long untouched
+    and no worker has taken a task since."""
+    cutoff = timezone.now() - timedelta(seconds=settings.STUDY_LOST_AFTER_S)
+    return Stimulus.objects.filter(updated__gte=cutoff).exclude(status=Stimulus.Status.PENDING).exists()
+
+
 def release(stimuli: list[Stimulus]) -> list[Stimulus]:
     """Make lost rows pending again (each only if nobody touched it since it was read), so
     that ``queue_stimuli`` sends them; the rows released."""

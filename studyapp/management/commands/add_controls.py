@@ -6,7 +6,8 @@ from django.core.files import File
 from django.core.management.base import BaseCommand
 
 from generation.cli.common import add_unit_arguments
-from studyapp.stimuli.controls import ControlError, add_control_file, add_held_out_controls, add_label_controls, add_preset_controls
+from studyapp.stimuli.controls import (ControlError, add_control_file, add_held_out_controls, add_label_controls,
+                                      add_preset_controls, shorter_than_asked_warnings)
 
 from ._study import InputError, study_by_id
 
@@ -48,10 +49,11 @@ class Command(BaseCommand):
             raise InputError("--folder, --takes, --scale and --up choose the held-out takes: give --held-out SECONDS")
         added = []
         try:
-            if options["held_out"]:
-                added += add_held_out_controls(study, options["held_out"], options["count"], options["lead_in"],
-                                               options["folder"], options["takes"], options["scale"],
-                                               None if options["up"] == "auto" else options["up"])
+            held_out = add_held_out_controls(study, options["held_out"], options["count"], options["lead_in"],
+                                             options["folder"], options["takes"], options["scale"],
+                                             None if options["up"] == "auto" else options["up"]
+                                             ) if options["held_out"] else []
+            added += held_out
             if options["preset"]:
                 added += add_preset_controls(study, options["preset"])
             if options["actions"] or options["styles"]:
@@ -65,3 +67,5 @@ class Command(BaseCommand):
             raise InputError(str(error)) from None
         for control in added:
             self.stdout.write(f"{control.pk} {control}")
+        for warning in shorter_than_asked_warnings(held_out, options["held_out"]):
+            self.stderr.write(f"warning: {warning}")

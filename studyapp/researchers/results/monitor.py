@@ -19,6 +19,7 @@ from django.db.models import Q
 from django.utils.safestring import SafeString
 
 from analysis.exclusions import apply_exclusions, compared_ratings
+from analysis.minimums import INTERVAL_FEW_PARTICIPANTS, few_participants_warning
 from analysis.power import more_ratings_for_power
 from analysis.rater_models import build_rater_models
 from analysis.ratings import read_ratings
@@ -46,6 +47,12 @@ class SystemMean:
     ci_low: float | None  # None with fewer than two ratings: no interval exists
     ci_high: float | None
     scale: tuple[int, int] | None = None  # the rating scale, which no shown interval leaves
+    participants: int = 0  # who gave the kept ratings
+
+    @property
+    def warning(self) -> str:
+        """What makes the interval less certain than it looks (few participants), or ""."""
+        return "" if self.ci_low is None else few_participants_warning(self.participants)
 
     @property
     def ci_half(self) -> float | None:
@@ -80,22 +87,32 @@ class StudyMonitor:
     analysis_notes: list[str]  # what the models of the tables say of their fits
     means_by_class: dict[str, list[SystemMean]]  # control class (held-out, synthetic, ...) -> the same per system
 
+    few_participants = INTERVAL_FEW_PARTICIPANTS  # intervals from fewer participants carry a warning
+
+    @property
+    def means_warned(self) -> bool:
+        """Whether an interval of the means tables carries a warning (the page explains the mark)."""
+        return any(row.warning for rows in [self.means, *self.means_by_class.values()] for row in rows)
+
 
 def system_mean_rows(kept: pd.DataFrame, systems: list[str], scale: tuple[int, int] | None = None) -> list[SystemMean]:
-    """Mean ± 95 % CI of each system's kept ratings; systems with fewer than two get what exists."""
+    """Mean ± 95 % CI of each system's kept ratings; systems with fewer than two get what exists.
+    An interval from fewer than ``INTERVAL_FEW_PARTICIPANTS`` participants carries a warning."""
     counts = kept.groupby("system").size()
+    participants = kept.groupby("system")["participant"].nunique()
     rateable = [s for s in systems if counts.get(s, 0) >= 2]
     table = (system_means(kept[kept["system"].isin(rateable)], groupby=()).set_index("system")
              if rateable else pd.DataFrame())
     rows = []
     for system in systems:
-        n = int(counts.get(system, 0))
+        n, raters = int(counts.get(system, 0)), int(participants.get(system, 0))
         if system in rateable:
             row = table.loc[system]
-            rows.append(SystemMean(system, n, float(row["mean"]), float(row["ci_low"]), float(row["ci_high"]), scale))
+            rows.append(SystemMean(system, n, float(row["mean"]), float(row["ci_low"]), float(row["ci_high"]), scale,
+                                   raters))
         else:
             values = kept.loc[kept["system"] == system, "value"]
-            rows.append(SystemMean(system, n, float(values.mean()) if n else None, None, None, scale))
+            rows.append(SystemMean(system, n, float(values.mean()) if n else None, None, None, scale, raters))
     return rows
 
 
