@@ -48,4 +48,10 @@ class PlatformError(Exception):
         self.status = status
 
 
-__all__ = ["Call", "Payee", "PlatformError"]
+class UnconfirmedAnswer(PlatformError):
+    """The request went out, but the answer does not confirm that the platform did it (a
+    server error, a redirect, an answer cut short, not JSON, not what the API answers):
+    it may or may not have been done, so it is never recorded as done."""
+
+
+__all__ = ["Call", "Payee", "PlatformError", "UnconfirmedAnswer"]

@@ -21,7 +21,7 @@ from botocore.exceptions import BotoCoreError, ClientError
 from botocore import xform_name
 from django.conf import settings
 
-from studyapp.platforms.calls import Call, Payee, PlatformError
+from studyapp.platforms.calls import Call, Payee, PlatformError, UnconfirmedAnswer
 from studyapp.platforms.rules import APPROVE, REJECT
 
 NAME = "MTurk"
@@ -90,7 +90,13 @@ class MTurkAPI:
         return _plain(answer)
 
     def statuses(self, answer: dict) -> dict[str, str]:
-        return {a["AssignmentId"]: a.get("AssignmentStatus", "") for a in answer.get("Assignments", [])}
+        """Each assignment's status, by assignment id; PlatformError for a listing that names none."""
+        listed = answer.get("Assignments")
+        if not isinstance(listed, list) or not all(
+                isinstance(a, dict) and isinstance(a.get("AssignmentId"), str) and isinstance(
+                    a.get("AssignmentStatus", ""), str) for a in listed):
+            raise UnconfirmedAnswer("MTurk's listing has an assignment without an id or a status")
+        return {a["AssignmentId"]: a.get("AssignmentStatus", "") for a in listed}
 
 
 def _plain(value: object) -> object:
