@@ -44,6 +44,14 @@ def read_back(client: Client, study: Study) -> str:
     return html.unescape(response.content.decode())
 
 
+def mturk_client(study: Study) -> Client:
+    client = Client()
+    client.force_login(study.owner)
+    client.post(reverse("study-platform", args=[study.pk]), {"access_key_id": ACCESS_KEY,
+                                                             "secret_access_key": SECRET_KEY})
+    return client
+
+
 def assert_pending(client: Client, study: Study, result: str, why: str) -> None:
     """The approval of "good" is reported as not confirmed, kept as failed, and planned again."""
     assert "<td>not confirmed</td>" in result and why in result, result[-3000:]
@@ -317,10 +325,7 @@ def test_a_listing_redirected_to_another_host_is_not_followed(prolific):
 
 def test_an_mturk_listing_of_assignments_without_ids_is_reported_and_nothing_is_read(mturk):
     study = mturk_study()
-    client = Client()
-    client.force_login(study.owner)
-    client.post(reverse("study-platform", args=[study.pk]), {"access_key_id": ACCESS_KEY,
-                                                             "secret_access_key": SECRET_KEY})
+    client = mturk_client(study)
     mturk.refuse_next.append((200, {"NumResults": 1, "Assignments": [{"AssignmentStatus": "Approved"}]}, {}))
     assert "Nothing was read: MTurk's listing has an assignment without an id" in read_back(client, study)
 
@@ -381,3 +386,38 @@ def test_the_token_reaches_no_log_and_no_message_whatever_prolific_answers(proli
     assert TOKEN not in json.dumps(list(PlatformAction.objects.values_list("response", flat=True)))
     assert all("\r" not in record.getMessage() and "\n" not in record.getMessage() for record in caplog.records
                if record.name == "studyapp.platforms")
+
+
+# MTurk, through boto3 ---------------------------------------------------------------------
+
+MTURK_NOT_CONFIRMING = {
+    "an HTML page with 200": ((200, b"<html>Sign in</html>", {"Content-Type": "text/html"}), "with text/html"),
+    "broken JSON with 200": ((200, b'{"a": ', {}), "not its JSON"),
+    "an answer cut short": (Raw(http_answer(200, b'{"a"', content_type="application/x-amz-json-1.1", length=90)),
+                            "not its JSON"),
+    "a server error": ((500, {"__type": "ServiceUnavailableException", "Message": "Down."}, {}),
+                       "MTurk answered 500, which confirms nothing: Down."),
+    "a redirect": ((302, b"", {"Location": "http://127.0.0.1:9/"}), "MTurk answered 302"),
+    "bytes that are not HTTP": (Raw(b"SSH-2.0-OpenSSH_9.6\r\n"), "MTurk gave no whole answer"),
+}
+
+
+@pytest.mark.parametrize("answer, why", MTURK_NOT_CONFIRMING.values(), ids=MTURK_NOT_CONFIRMING.keys())
+def test_an_mturk_answer_that_does_not_confirm_an_approval_leaves_it_pending_and_says_so(mturk, answer, why):
+    study = mturk_study()
+    client = mturk_client(study)
+    mturk.refuse_next += [answer] * 4  # botocore's own retries of a server error meet it too
+    result = html.unescape(apply(client, study, ticked(dry_run(client, study))[:1]))
+    assert "<td>not confirmed</td>" in result and why in result, result[-2000:]
+    assert done_keys() == [] and mturk.assignments["A-W-good"]["AssignmentStatus"] == "Submitted"
+
+
+def test_an_mturk_listing_of_endless_pages_is_read_to_its_bound(mturk, monkeypatch):
+    monkeypatch.setattr("studyapp.platforms.mturk.MAX_PAGES", 5)
+    study = mturk_study()
+    client = mturk_client(study)
+    # A new NextToken on every page; after 50 the stand-in ends, so that a client that follows it does not loop for ever.
+    mturk.misbehave = lambda method, path, body, headers: None if len(mturk.requests) > 50 else (
+        200, {"NumResults": 0, "Assignments": [], "NextToken": f"t{len(mturk.requests)}"}, {})
+    assert "Nothing was read: MTurk's listing goes on past 5 pages" in read_back(client, study)
+    assert len(mturk.requests) == 6  # the pages to the bound, and the one that went past it
