@@ -283,6 +283,7 @@ MALFORMED_LISTINGS = {
     "a result without an id": {"results": [{"status": "APPROVED"}]},
     "a result whose id is a number": {"results": [{"id": 5, "status": "APPROVED"}]},
     "a result that is text": {"results": ["sub-good"]},
+    "a result without a status": {"results": [{"id": "sub-good"}]},
     "a status that is not text": {"results": [{"id": "sub-good", "status": {"a": 1}}]},
     "a status of 10,000 characters": {"results": [{"id": "sub-good", "status": "A" * 10_000}]},
     "links that are text": {"results": [], "_links": "next"},
@@ -297,7 +298,8 @@ def test_a_malformed_listing_is_reported_and_nothing_is_read(prolific, listing):
     client = researcher(study)
     prolific.refuse_next.append((200, listing, {}))
     page = read_back(client, study)
-    assert "Nothing was read: Prolific" in page
+    assert "Nothing was read: Prolific's listing" in page
+    assert "Prolific answered 404" not in page
     assert not PlatformAction.objects.filter(action="read").exists()
 
 

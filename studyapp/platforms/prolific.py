@@ -142,16 +142,20 @@ class ProlificAPI:
                                         f"not read")
             asked.add(url)
             page = self._request("GET", url, None, deadline)
-            if page.status != 200 or not isinstance(page.json, dict):
-                raise UnconfirmedAnswer(f"Prolific answered {page.status} without a listing: {page.text}", page.status)
+            if page.status != 200:
+                raise UnconfirmedAnswer(f"Prolific answered {page.status} to a listing, not 200: {page.text}",
+                                        page.status)
             results += _listed(page.json, len(asked))
-            url = self._next_page(page.json, url)
+            url = self._next_page(page.json, url)  # a dict: _listed read it
         return {"results": results}
 
     def _next_page(self, page: dict, url: str) -> str | None:
         """The listing's next page, if it is one of Prolific's own (PlatformError otherwise)."""
         links = page.get("_links") or {}
-        following = links.get("next") if isinstance(links, dict) else links
+        if not isinstance(links, dict):
+            raise UnconfirmedAnswer("Prolific's listing has links that are not an object: the submissions were not "
+                                    "read")
+        following = links.get("next")
         href = following.get("href") if isinstance(following, dict) else following
         if href is None:
             return None
@@ -212,14 +216,14 @@ def _confirmed(call: Call, answer: Answer) -> dict:
     return body
 
 
-def _listed(page: dict, number: int) -> list[dict[str, str]]:
+def _listed(page: object, number: int) -> list[dict[str, str]]:
     """A listing page's submissions, each its id and status."""
-    results = page.get("results")
+    results = page.get("results") if isinstance(page, dict) else None
     if not isinstance(results, list):
         raise UnconfirmedAnswer(f"Prolific's listing (page {number}) has no list of results")
     listed = []
     for position, submission in enumerate(results, start=1):
-        status = submission.get("status", "") if isinstance(submission, dict) else None
+        status = submission.get("status") if isinstance(submission, dict) else None
         if not (isinstance(submission, dict) and isinstance(submission.get("id"), str) and ID.fullmatch(
                 submission["id"]) and isinstance(status, str) and len(status) <= MAX_STATUS_LENGTH):
             raise UnconfirmedAnswer(f"Prolific's listing (page {number}, result {position}) is not a submission "
