@@ -17,12 +17,13 @@ from datetime import datetime, timezone
 import pytest
 from django.test import Client
 from django.urls import reverse
+from django.utils.timezone import now
 
 from studyapp.models import PlatformAction, Study
 from studyapp.platforms import credentials, prolific as prolific_api
 from tests.platform_standins import Elsewhere, Raw, http_answer
 from tests.test_platform_api import (ACCESS_KEY, SECRET_KEY, TOKEN, apply, dry_run, mturk, mturk_study,  # noqa: F401
-                                     prolific, prolific_study, researcher, ticked)
+                                     participant, prolific, prolific_study, researcher, ticked)
 
 pytestmark = pytest.mark.django_db
 
@@ -178,16 +179,16 @@ def test_a_retry_after_is_read_as_seconds_or_a_date_and_bounded():
     from studyapp.platforms import json_exchange  # imported here: the tests above run against any client
     from studyapp.platforms.json_exchange import retry_after_s
 
-    now = datetime(2026, 12, 1, 12, 0, 0, tzinfo=timezone.utc)
-    assert retry_after_s("3", now) == 3.0
-    assert retry_after_s("0", now) == 0.0
-    assert retry_after_s("9" * 5000, now) == json_exchange.LONGEST_WAIT_S
-    assert retry_after_s("Tue, 01 Dec 2026 12:00:04 GMT", now) == 4.0
-    assert retry_after_s("Tue, 01 Dec 2026 11:00:00 GMT", now) == 0.0  # already past
-    assert retry_after_s("Tue, 01 Dec 2099 12:00:00 GMT", now) == json_exchange.LONGEST_WAIT_S
+    noon = datetime(2026, 12, 1, 12, 0, 0, tzinfo=timezone.utc)
+    assert retry_after_s("3", noon) == 3.0
+    assert retry_after_s("0", noon) == 0.0
+    assert retry_after_s("9" * 5000, noon) == json_exchange.LONGEST_WAIT_S
+    assert retry_after_s("Tue, 01 Dec 2026 12:00:04 GMT", noon) == 4.0
+    assert retry_after_s("Tue, 01 Dec 2026 11:00:00 GMT", noon) == 0.0  # already past
+    assert retry_after_s("Tue, 01 Dec 2099 12:00:00 GMT", noon) == json_exchange.LONGEST_WAIT_S
     for meaningless in ("abc", "-5", "nan", "NaN", "inf", "-inf", "1.5", "1e9", "", " ", None, "\x00", "\u0663",
                         "0x10", "+3", "3 s", "Wed, 99 Foo 2026", "Tue, 01 Dec 99999 12:00:00 GMT"):
-        assert retry_after_s(meaningless, now) == json_exchange.DEFAULT_WAIT_S, meaningless
+        assert retry_after_s(meaningless, noon) == json_exchange.DEFAULT_WAIT_S, meaningless
 
 
 def test_a_rate_limit_that_lasts_is_reported_after_the_retries_and_nothing_is_done(prolific):
@@ -423,3 +424,23 @@ def test_an_mturk_listing_of_endless_pages_is_read_to_its_bound(mturk, monkeypat
         200, {"NumResults": 0, "Assignments": [], "NextToken": f"t{len(mturk.requests)}"}, {})
     assert "Nothing was read: MTurk's listing goes on past 5 pages" in read_back(client, study)
     assert len(mturk.requests) == 6  # the pages to the bound, and the one that went past it
+
+
+# Ids from the entry link -------------------------------------------------------------------
+
+def test_a_submission_or_study_id_no_platform_gives_never_goes_into_a_request(prolific):
+    study = prolific_study()
+    finished = {"finished_at": now()}
+    for pid, session, group in (("climber", "../../../studies/PS1", "PS1"), ("asker", "sub-x?page=2", "PS1"),
+                                ("reader", "sub-r", "../../workspaces/W1")):
+        participant(study, pid, {"PROLIFIC_PID": pid, "STUDY_ID": group, "SESSION_ID": session}, **finished)
+    client = researcher(study)
+    page = html.unescape(dry_run(client, study))
+    assert "Not listed: climber, asker." in page and "../" not in page.split('id="unsendable"')[0]
+    apply(client, study, ticked(page))
+    read_back(client, study)
+    bonus = client.post(reverse("study-platform-dry-run", args=[study.pk]), {"kind": "bonuses",
+                                                                             "bonuses": "reader,1.00"})
+    assert bonus.status_code == 400 and "came without a submission id and study id" in html.unescape(
+        bonus.content.decode())
+    assert all(".." not in r["path"] and "?" not in r["path"].removesuffix("?page=2") for r in prolific.requests)

@@ -25,7 +25,7 @@ from django.utils import timezone
 
 from studyapp.models import Participant, PlatformAction, Study
 from studyapp.participants.views import SESSION_PARAMETERS
-from studyapp.platforms.calls import Call, Payee, PlatformError, UnconfirmedAnswer
+from studyapp.platforms.calls import Call, Payee, PlatformError, UnconfirmedAnswer, is_platform_id
 from studyapp.platforms.mturk import MTurkAPI
 from studyapp.platforms.prolific import ProlificAPI
 from studyapp.platforms.rules import APPROVE, REJECT, REQUEST_RETURN, Standing
@@ -96,7 +96,7 @@ def decision_calls(study: Study, api: PlatformAPI) -> list[Call]:
     participants = {p.platform_id: p for p in study.participants.all()}
     calls = []
     for row in participant_rows(study):
-        if row.suggested_action not in (APPROVE, REJECT, REQUEST_RETURN) or not row.session:
+        if row.suggested_action not in (APPROVE, REJECT, REQUEST_RETURN) or not is_platform_id(row.session):
             continue
         call = api.decision(_payee(study, participants[row.platform_id]), row.suggested_action, row.failed_checks,
                             RETURN_REASONS.get(Standing(row.status), ""))
@@ -107,9 +107,10 @@ def decision_calls(study: Study, api: PlatformAPI) -> list[Call]:
 
 def without_submission(study: Study) -> list[str]:
     """Platform ids with a suggested decision that no request can carry: their entry link
-    brought no submission id (decide them on the platform's own pages)."""
+    brought no submission id, or one no platform gives (it would go into the request's
+    path: "../", a query): decide them on the platform's own pages."""
     return [row.platform_id for row in participant_rows(study)
-            if row.suggested_action in (APPROVE, REJECT, REQUEST_RETURN) and not row.session]
+            if row.suggested_action in (APPROVE, REJECT, REQUEST_RETURN) and not is_platform_id(row.session)]
 
 
 def bonus_calls(study: Study, api: PlatformAPI, text: str, reason: str) -> list[Call]:
@@ -137,8 +138,9 @@ def bonus_calls(study: Study, api: PlatformAPI, text: str, reason: str) -> list[
             raise BonusListError(f"line {number}: the amount must be above 0 and at most {LARGEST_BONUS}, in "
                                  f"cents at most (e.g. 1.50), not {amount_text[:20]!r}")
         payee = _payee(study, participant)
-        if not payee.session:
-            raise BonusListError(f"line {number}: {platform_id[:60]!r} came without the platform's submission id")
+        if not is_platform_id(payee.session) or not is_platform_id(payee.group):
+            raise BonusListError(f"line {number}: {platform_id[:60]!r} came without a submission id and study id "
+                                 f"as the platform gives them")
         seen.add(platform_id)
         amounts.append((payee, amount.quantize(Decimal("0.01"))))
     if not amounts:
@@ -214,7 +216,8 @@ def _failure(error: PlatformError, platform: str) -> tuple[str, str]:
 def read_back(study: Study, api: PlatformAPI, researcher: AbstractBaseUser) -> list[ReadRow]:
     """The platform's status of every participant's submission beside the participant
     list's; a refused read raises PlatformError."""
-    reads = api.reads(sorted({_payee(study, p).group for p in study.participants.all()} - {""}))
+    reads = api.reads(sorted(group for group in {_payee(study, p).group for p in study.participants.all()}
+                             if is_platform_id(group)))  # it goes into the request's path
     statuses: dict[str, str] = {}
     for call in reads:
         statuses |= api.statuses(api.send(call, {}))

@@ -25,14 +25,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-import re
 import time
 from decimal import Decimal
 from urllib.parse import urljoin, urlsplit
 
 from django.conf import settings
 
-from studyapp.platforms.calls import Call, Payee, PlatformError, UnconfirmedAnswer
+from studyapp.platforms.calls import Call, Payee, PlatformError, UnconfirmedAnswer, is_platform_id
 from studyapp.platforms.credentials import is_secret_text
 from studyapp.platforms.json_exchange import Answer, exchange, shown
 from studyapp.platforms.rules import APPROVE, REJECT, REQUEST_RETURN
@@ -43,7 +42,6 @@ MIN_REJECTION_MESSAGE = 100  # characters, as Prolific requires of a rejection's
 REQUEST_DEADLINE_S = 60.0  # one request, the waits after a 429 included
 READ_DEADLINE_S = 60.0  # every page of a listing
 MAX_PAGES = 1000
-ID = re.compile(r"[A-Za-z0-9_-]{1,100}")  # a submission's or a bonus payment's id, as it goes into a path
 MAX_STATUS_LENGTH = 40
 # The statuses Prolific answers each call with when it did it, and the status a transition leaves.
 CONFIRMING = {APPROVE: {200}, REJECT: {200}, REQUEST_RETURN: {200}, "bonus": {200, 201}, "pay bonus": {200, 202}}
@@ -182,7 +180,7 @@ class ProlificAPI:
 def _payment_id(answer: object) -> str | None:
     """The id of the bonus payment that a set-up's answer names, if it names one fit for a path."""
     payment = answer.get("id") if isinstance(answer, dict) else None
-    return payment if isinstance(payment, str) and ID.fullmatch(payment) else None
+    return payment if isinstance(payment, str) and is_platform_id(payment) else None
 
 
 def _confirmed(call: Call, answer: Answer) -> dict:
@@ -224,8 +222,7 @@ def _listed(page: object, number: int) -> list[dict[str, str]]:
     listed = []
     for position, submission in enumerate(results, start=1):
         status = submission.get("status") if isinstance(submission, dict) else None
-        if not (isinstance(submission, dict) and isinstance(submission.get("id"), str) and ID.fullmatch(
-                submission["id"]) and isinstance(status, str) and len(status) <= MAX_STATUS_LENGTH):
+        if not (isinstance(submission, dict) and is_platform_id(submission.get("id")) and isinstance(status, str) and len(status) <= MAX_STATUS_LENGTH):
             raise UnconfirmedAnswer(f"Prolific's listing (page {number}, result {position}) is not a submission "
                                     f"with an id and a status")
         listed.append({"id": submission["id"], "status": status})
