@@ -70,7 +70,7 @@ def retry_after_s(value: str | None, now: datetime | None = None) -> float:
     """The wait a ``Retry-After`` header asks for, bounded; DEFAULT_WAIT_S when it says nothing usable."""
     text = (value or "").strip()
     if text.isascii() and text.isdigit():
-        return min(float(text[:6]) if len(text) <= 6 else LONGEST_WAIT_S, LONGEST_WAIT_S)
+        return min(float(text), LONGEST_WAIT_S) if len(text) <= 6 else LONGEST_WAIT_S  # 5000 digits: no int
     try:
         when = parsedate_to_datetime(text)
     except (TypeError, ValueError, IndexError, OverflowError):

@@ -103,7 +103,7 @@ class MTurkAPI:
             raise UnconfirmedAnswer(f"MTurk gave no whole answer ({shown(str(error))}); it may have done it or "
                                     f"not") from None
         except BotoCoreError as error:
-            raise PlatformError(f"MTurk was not asked: {error}") from None
+            raise PlatformError(f"the request to MTurk failed: {shown(str(error))}") from None
         answer.pop("ResponseMetadata", None)
         return _plain(answer)
 
