@@ -10,14 +10,38 @@ endpoint is idempotent), and listings in pages. ``MTurkStandIn`` answers MTurk's
 protocol (the X-Amz-Target header) for the operations the study uses, with MTurk's
 RequestError for what it refuses and a refusal of requests signed with another access
 key. Both record every request they get, for the tests to compare with the dry run.
+
+Either can also misbehave as no real API should (``refuse_next``, ``misbehave``): answer
+slowly, with a server error, with broken or cut JSON, with HTML, with bytes that are not
+HTTP at all (``Raw``), with another submission's id, a redirect, or a listing whose next
+page is itself, another host or a file. ``Elsewhere`` is another host, which records what
+reaches it.
 """
 
 from __future__ import annotations
 
 import json
 import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from urllib.parse import parse_qs, urlparse
+
+
+@dataclass(frozen=True)
+class Raw:
+    """Bytes written to the connection as they are in place of an answer (one that is not
+    HTTP, or an HTTP answer cut short), after ``delay_s``; then the connection is closed."""
+    data: bytes
+    delay_s: float = 0.0
+
+
+def http_answer(status: int, body: bytes, content_type: str = "application/json", length: int | None = None) -> bytes:
+    """An HTTP answer's bytes, with a Content-Length of ``length`` (the body's own by default)."""
+    head = (f"HTTP/1.1 {status} Whatever\r\nContent-Type: {content_type}\r\n"
+            f"Content-Length: {len(body) if length is None else length}\r\nConnection: close\r\n\r\n")
+    return head.encode() + body
 
 REJECTION_CATEGORIES = {"TOO_QUICKLY", "TOO_SLOWLY", "FAILED_INSTRUCTIONS", "INCOMP_LONGITUDINAL", "FAILED_CHECK",
                         "LOW_EFFORT", "MALINGERING", "NO_CODE", "BAD_CODE", "NO_DATA", "UNSUPP_DEVICE", "OTHER"}
@@ -30,7 +54,11 @@ class StandIn:
 
     def __init__(self) -> None:
         self.requests: list[dict] = []
-        self.refuse_next: list[tuple[int, dict, dict]] = []  # (status, body, headers) answered before anything else
+        # Answered before anything else, in turn: (status, body, headers) or Raw. A body of
+        # bytes goes as it is, and headers may name another Content-Type.
+        self.refuse_next: list[tuple[int, object, dict] | Raw] = []
+        # Asked first about every request (method, path, body, headers): an answer, or None for the usual one.
+        self.misbehave: Callable[[str, str, dict, object], tuple[int, object, dict] | Raw | None] | None = None
         stand_in = self
 
         class Handler(BaseHTTPRequestHandler):
@@ -43,16 +71,24 @@ class StandIn:
                 body = json.loads(raw) if raw else {}
                 stand_in.requests.append({"method": method, "path": self.path, "body": body,
                                           "headers": dict(self.headers)})
-                if stand_in.refuse_next:
-                    status, answer, headers = stand_in.refuse_next.pop(0)
-                else:
-                    status, answer, headers = stand_in.answer(method, self.path, body, self.headers)
-                payload = (answer if isinstance(answer, str) else json.dumps(answer)).encode()
+                answer = stand_in.misbehave(method, self.path, body, self.headers) if stand_in.misbehave else None
+                if answer is None and stand_in.refuse_next:
+                    answer = stand_in.refuse_next.pop(0)
+                if answer is None:
+                    answer = stand_in.answer(method, self.path, body, self.headers)
+                if isinstance(answer, Raw):
+                    time.sleep(answer.delay_s)
+                    self.wfile.write(answer.data)
+                    self.close_connection = True
+                    return
+                status, content, headers = answer
+                payload = content if isinstance(content, bytes) else json.dumps(content).encode()
                 self.send_response(status)
-                self.send_header("Content-Type", stand_in.content_type)
+                self.send_header("Content-Type", headers.get("Content-Type", stand_in.content_type))
                 self.send_header("Content-Length", str(len(payload)))
                 for name, value in headers.items():
-                    self.send_header(name, value)
+                    if name != "Content-Type":
+                        self.send_header(name, value)
                 self.end_headers()
                 self.wfile.write(payload)
 
@@ -82,6 +118,17 @@ class StandIn:
     def sent(self, method: str | None = None) -> list[dict]:
         """The requests received, less reads unless ``method`` asks for them."""
         return [r for r in self.requests if (r["method"] == method if method else r["method"] != "GET")]
+
+
+class Elsewhere(StandIn):
+    """Another host: it answers 200 with ``answer_json`` to everything, and records what reaches it."""
+
+    def __init__(self, answer_json: object) -> None:
+        super().__init__()
+        self.answer_json = answer_json
+
+    def answer(self, method: str, path: str, body: dict, headers) -> tuple[int, object, dict]:
+        return 200, self.answer_json, {}
 
 
 def prolific_error(status: int, title: str, detail: object) -> tuple[int, dict, dict]:

@@ -55,6 +55,8 @@ DATABASE_TESTS = (
     "tests/test_platform_rules.py",
     "tests/test_platform_codes.py",
     "tests/test_platform_api.py",
+    "tests/test_platform_id_binding.py",
+    "tests/test_platform_misbehaving.py",
     "tests/test_study_natural_folder.py",
     "tests/test_hostile_numbers.py",
     "tests/test_hostile_ids.py",

@@ -5,7 +5,10 @@ the crowd platform's page and the admin's study and control forms included), and
 uploads of a study definition and of a study bundle, which also get definitions and
 bundles that name another researcher's checkpoint or motion, server folders, takes
 outside their folder and planted sampled motion: whatever comes in, no answer is a server
-error, and a refused request (4xx) changes no row.
+error, and a refused request (4xx) changes no row. The crowd platform's answers are drawn
+too (statuses, content types, headers and bodies, or bytes that are not HTTP, from its
+API's stand-in on 127.0.0.1): the pages that send to it and read from it never answer 500,
+and only an answer that confirms a request makes it done.
 
 Each drawn form starts from a valid one, so that a hostile value gets past the fields
 before it: some fields get hostile values (NaN, infinities, 5000 digits, 70,000
@@ -45,7 +48,7 @@ from studyapp.models import (Assignment, ControlSignal, Participant, PlatformAct
                              System)
 from studyapp.participants.views import _remember
 from tests.appropriateness_fixtures import make_appropriateness_study
-from tests.platform_standins import ProlificStandIn
+from tests.platform_standins import ProlificStandIn, Raw, http_answer
 from tests.test_study_definition_refusals import VALID, mutated_definition
 from tests.study_fixtures import make_study
 from tests.test_hostile_numbers import study_fields
@@ -476,10 +479,15 @@ def test_hostile_values_on_a_researcher_form_never_answer_500_and_a_refusal_chan
 TOKEN = "prolific-token-fuzz"
 
 
+@dataclass
+class Crowd(Lab):
+    prolific: ProlificStandIn | None = None
+
+
 @pytest.fixture
-def crowd(client, settings) -> Lab:
+def crowd(client, settings) -> Crowd:
     """A Prolific study with one participant to approve and one to reject, a stand-in of
-    Prolific's API, and the researcher's token kept; ``<calls>`` are the dry run's."""
+    Prolific's API (``prolific``), and the researcher's token kept; ``<calls>`` are the dry run's."""
     study = make_study(platform=Study.Platform.PROLIFIC, instructed_checks=3, stop_after_failed_checks=2)
     now = timezone.now()
     for pid, failed in (("good", 0), ("cheat", 2)):
@@ -496,7 +504,7 @@ def crowd(client, settings) -> Lab:
         plan = client.post(reverse("study-platform-dry-run", args=[study.pk]), {"kind": "decisions"}).content.decode()
         calls = re.findall(r'name="call" value="([0-9a-f]{64})" checked', plan)
         assert len(calls) == 2
-        yield Lab(client, study, {"<calls>": calls})
+        yield Crowd(client, study, {"<calls>": calls}, stand_in)
 
 
 PLATFORM_FORMS: dict[str, tuple[str, Callable[[Lab], dict]]] = {
@@ -516,3 +524,66 @@ PLATFORM_FORMS: dict[str, tuple[str, Callable[[Lab], dict]]] = {
 def test_hostile_values_on_the_platform_page_never_answer_500_and_a_refusal_changes_nothing(name, valid, crowd, data):
     form = data.draw(hostile_form(valid(crowd)))
     post_in_a_rolled_back_transaction(crowd.client, reverse(name, args=[crowd.study.pk]), form)
+
+
+# --- the crowd platform's answers --------------------------------------------------------
+
+# Whatever Prolific's API answers (a drawn status, content type, Retry-After and body, or
+# bytes that are not HTTP), the pages that send to it or read it never answer 500, and a
+# request counts as done only with an answer that says so.
+ANSWER_KEYS = st.sampled_from(["id", "status", "error", "results", "_links", "next", "href", "study", "detail"])
+JSON_VALUES = st.recursive(
+    st.one_of(st.none(), st.booleans(), st.integers(), st.floats(), st.text(max_size=20),
+              st.sampled_from(["sub-good", "sub-cheat", "APPROVED", "REJECTED", "../x", "file:///etc/passwd"])),
+    lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(st.one_of(ANSWER_KEYS, st.text(max_size=8)),
+                                                                         inner, max_size=5)),
+    max_leaves=20)
+ANSWER_BODIES = st.one_of(
+    JSON_VALUES.map(lambda value: json.dumps(value).encode()),  # NaN and infinities as Python writes them
+    st.binary(max_size=200),
+    st.sampled_from([b'{"id": "sub-good", "status": "APPROVED"}', b'{"id": "sub-good", "status": "APPROVED"',
+                     b"<html><body>Log in</body></html>", b"\xff\xfe{}", b"[" * 5000, b"", b"null",
+                     b'{"results": [{"id": "sub-good", "status": "X"}], "_links": {"next": {"href": "http://evil/"}}}']))
+ANSWER_HEADERS = st.fixed_dictionaries({}, optional={
+    "Content-Type": st.sampled_from(["application/json", "application/json; charset=utf-8", "text/html",
+                                     "text/plain", "application/problem+json", "", "json"]),
+    "Retry-After": st.sampled_from(["abc", "-5", "nan", "inf", "0", "1", "9" * 400, "1e9", "", "Wed, 99 Foo 2026",
+                                    "Tue, 01 Dec 2099 12:00:00 GMT"]),
+    "Location": st.sampled_from(["http://127.0.0.1:9/x", "file:///etc/passwd", "/api/v1/x", ""])})
+ANSWER_STATUSES = st.sampled_from([200, 201, 202, 204, 301, 302, 307, 400, 401, 404, 405, 429, 500, 502, 503, 599])
+PLATFORM_ANSWERS = st.one_of(
+    st.tuples(ANSWER_STATUSES, ANSWER_BODIES, ANSWER_HEADERS),
+    st.sampled_from([Raw(b""), Raw(b"SSH-2.0-OpenSSH_9.6\r\n"), Raw(b"HTTP/1.1 200\r\n\r\n"),
+                     Raw(http_answer(200, b'{"id": "sub-good", "st', length=300)),
+                     Raw(http_answer(200, b'{"id": "sub-good", "status": "APPROVED"}', content_type="text/html"))]))
+PLATFORM_SURFACES = {"send the decisions": "study-platform-apply", "read back": "study-platform-read"}
+
+
+def confirmed_as_done(action: PlatformAction) -> bool:
+    """Whether a done row's answer says that Prolific did what its key names."""
+    kind, _, submission = action.key.partition(":")
+    wanted = {"approve": "APPROVED", "reject": "REJECTED"}
+    if kind == "read":
+        statuses = action.response.get("statuses", {})
+        return all(isinstance(key, str) and isinstance(value, str) and len(value) <= 40
+                   for key, value in statuses.items())
+    return (isinstance(action.response, dict) and action.response.get("id") == submission
+            and action.response.get("status") == wanted[kind] and "error" not in action.response)
+
+
+@pytest.mark.parametrize("name", PLATFORM_SURFACES.values(), ids=PLATFORM_SURFACES.keys())
+@FUZZ
+@given(data=st.data())
+def test_hostile_platform_answers_never_answer_500_and_only_a_confirming_answer_counts_as_done(name, crowd,
+                                                                                              monkeypatch, data):
+    monkeypatch.setattr("studyapp.platforms.json_exchange.LONGEST_WAIT_S", 0.01)
+    monkeypatch.setattr("studyapp.platforms.json_exchange.DEFAULT_WAIT_S", 0.01)
+    crowd.prolific.refuse_next[:] = data.draw(st.lists(PLATFORM_ANSWERS, min_size=1, max_size=3))
+    with transaction.atomic():
+        response = crowd.client.post(reverse(name, args=[crowd.study.pk]),
+                                     {"kind": "decisions", "call": crowd.ids["<calls>"]})
+        assert response.status_code < 500, (crowd.prolific.refuse_next, response.status_code)
+        done = PlatformAction.objects.filter(outcome=PlatformAction.Outcome.DONE)
+        assert all(confirmed_as_done(action) for action in done), [(a.key, a.response) for a in done]
+        transaction.set_rollback(True)
+    crowd.prolific.refuse_next.clear()

@@ -180,7 +180,12 @@ def enter(request: HttpRequest, key: str) -> HttpResponse:
 def _enrolled(request: HttpRequest, study: Study) -> HttpResponse:
     key = study.key
     names = PLATFORM_PARAMETERS[study.platform]
-    data = {name: request.GET[name][:MAX_ID_LENGTH] for name in names if request.GET.get(name)}
+    data = {name: request.GET[name] for name in names if request.GET.get(name)}
+    # Refused rather than cut: two ids that differ only past the limit would become one participant.
+    if too_long := [name for name, value in data.items() if len(value) > MAX_ID_LENGTH]:
+        return message(request, "Link not valid", f"The link's {too_long[0]} is longer than {MAX_ID_LENGTH} "
+                       f"characters, longer than any platform gives. Please open the study from the platform again.",
+                       400)
     if study.platform == Study.Platform.MTURK and data.get("assignmentId") == "ASSIGNMENT_ID_NOT_AVAILABLE":
         return message(request, study.title, "This is a preview. Accept the task to take part.")
     if study.platform == Study.Platform.MTURK and mturk_submit_url(data) is None:
@@ -205,9 +210,11 @@ def _enrolled(request: HttpRequest, study: Study) -> HttpResponse:
                            "received the ratings it needs. Please return the study on your platform.")
         except StudyNotReady:
             return message(request, "Not ready yet", "This study has no clips yet. Please try again later.", 503)
-        except IntegrityError:  # the same id arriving twice at once (a double click): the other request enrolled it
+        except IntegrityError:  # the same id arriving at once elsewhere enrolled it: its session decides, as below
             participant = Participant.objects.get(study=study, platform_id=platform_id)
-    elif not _same_session(study, participant, data):
+        else:
+            return _remember(redirect("participant-page", key=key), participant)
+    if not _same_session(study, participant, data):
         return message(request, "Already started elsewhere", "This id has already started the study in another "
                        "browser or platform session. Please go on where you started it.", 409)
     participant.study = study

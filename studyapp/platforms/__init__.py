@@ -4,6 +4,7 @@
     credentials.py  the researcher's API token, kept encrypted in their login session only
     calls.py        one request to a platform's API, exactly as it will be sent
     prolific.py     Prolific's API over HTTPS
+    json_exchange.py  one HTTP(S) request and its answer, believed only as far as it shows
     mturk.py        MTurk's API through boto3 (its sandbox unless asked otherwise)
     actions.py      the requests for a study's participants: planned (the dry run), sent
                     once each, and logged

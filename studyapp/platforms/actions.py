@@ -7,7 +7,10 @@ participant list (``platforms.rules``), ``bonus_calls`` the bonuses of a list of
 study to set beside the list. ``apply`` sends each planned call whose key was never done,
 in order, and keeps every attempt (``PlatformAction``) and logs it: a retry after a
 failure sends only what is still undone, and a call refused by the platform holds back
-only the calls that need its answer.
+only the calls that need its answer. A call whose answer does not confirm it
+(``UnconfirmedAnswer``: a server error, a timeout, an answer that is not the API's) is
+kept as failed and reported as not confirmed: it stays undone, and the researcher is
+asked to look on the platform's pages before sending it again.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from django.utils import timezone
 
 from studyapp.models import Participant, PlatformAction, Study
 from studyapp.participants.views import SESSION_PARAMETERS
-from studyapp.platforms.calls import Call, Payee, PlatformError
+from studyapp.platforms.calls import Call, Payee, PlatformError, UnconfirmedAnswer, is_platform_id
 from studyapp.platforms.mturk import MTurkAPI
 from studyapp.platforms.prolific import ProlificAPI
 from studyapp.platforms.rules import APPROVE, REJECT, REQUEST_RETURN, Standing
@@ -36,7 +39,7 @@ RETURN_REASONS = {Standing.STOPPED: "The study stopped after answers that did no
                                     "the page, so it was not finished.",
                   Standing.SCREENED_OUT: "The answers to the screening questions did not match what this study "
                                          "looks for."}
-SENT, ALREADY_DONE, REFUSED, HELD_BACK = "sent", "already done", "refused", "not sent"
+SENT, ALREADY_DONE, REFUSED, UNCONFIRMED, HELD_BACK = "sent", "already done", "refused", "not confirmed", "not sent"
 LARGEST_BONUS = Decimal("100")
 
 PlatformAPI = ProlificAPI | MTurkAPI
@@ -59,7 +62,7 @@ class Planned:
 @dataclass(frozen=True)
 class Result:
     call: Call
-    outcome: str  # SENT, ALREADY_DONE, REFUSED, HELD_BACK
+    outcome: str  # SENT, ALREADY_DONE, REFUSED, UNCONFIRMED, HELD_BACK
     detail: str
 
 
@@ -93,7 +96,7 @@ def decision_calls(study: Study, api: PlatformAPI) -> list[Call]:
     participants = {p.platform_id: p for p in study.participants.all()}
     calls = []
     for row in participant_rows(study):
-        if row.suggested_action not in (APPROVE, REJECT, REQUEST_RETURN) or not row.session:
+        if row.suggested_action not in (APPROVE, REJECT, REQUEST_RETURN) or not is_platform_id(row.session):
             continue
         call = api.decision(_payee(study, participants[row.platform_id]), row.suggested_action, row.failed_checks,
                             RETURN_REASONS.get(Standing(row.status), ""))
@@ -104,9 +107,10 @@ def decision_calls(study: Study, api: PlatformAPI) -> list[Call]:
 
 def without_submission(study: Study) -> list[str]:
     """Platform ids with a suggested decision that no request can carry: their entry link
-    brought no submission id (decide them on the platform's own pages)."""
+    brought no submission id, or one no platform gives (it would go into the request's
+    path: "../", a query): decide them on the platform's own pages."""
     return [row.platform_id for row in participant_rows(study)
-            if row.suggested_action in (APPROVE, REJECT, REQUEST_RETURN) and not row.session]
+            if row.suggested_action in (APPROVE, REJECT, REQUEST_RETURN) and not is_platform_id(row.session)]
 
 
 def bonus_calls(study: Study, api: PlatformAPI, text: str, reason: str) -> list[Call]:
@@ -134,8 +138,9 @@ def bonus_calls(study: Study, api: PlatformAPI, text: str, reason: str) -> list[
             raise BonusListError(f"line {number}: the amount must be above 0 and at most {LARGEST_BONUS}, in "
                                  f"cents at most (e.g. 1.50), not {amount_text[:20]!r}")
         payee = _payee(study, participant)
-        if not payee.session:
-            raise BonusListError(f"line {number}: {platform_id[:60]!r} came without the platform's submission id")
+        if not is_platform_id(payee.session) or not is_platform_id(payee.group):
+            raise BonusListError(f"line {number}: {platform_id[:60]!r} came without a submission id and study id "
+                                 f"as the platform gives them")
         seen.add(platform_id)
         amounts.append((payee, amount.quantize(Decimal("0.01"))))
     if not amounts:
@@ -180,11 +185,12 @@ def apply(study: Study, api: PlatformAPI, calls: list[Call], researcher: Abstrac
         try:
             answer = api.send(call, answers)
         except PlatformError as error:
-            PlatformAction.objects.create(**record, outcome=PlatformAction.Outcome.FAILED,
-                                          response={"error": str(error), "status": error.status})
-            logger.warning("study %s: %s %s %s refused by %s: %s", study.pk, researcher, call.action, call.key,
-                           api.name, error)
-            results.append(Result(call, REFUSED, str(error)))
+            outcome, detail = _failure(error, api.name)
+            PlatformAction.objects.create(**record, outcome=PlatformAction.Outcome.FAILED, response={
+                "error": detail if outcome == REFUSED else f"{outcome}: {detail}", "status": error.status})
+            logger.warning("study %s: %s %s %s %s by %s: %s", study.pk, researcher, call.action, call.key,
+                           outcome, api.name, error)
+            results.append(Result(call, outcome, detail))
             continue
         try:
             PlatformAction.objects.create(**record, outcome=PlatformAction.Outcome.DONE, response=answer)
@@ -198,10 +204,20 @@ def apply(study: Study, api: PlatformAPI, calls: list[Call], researcher: Abstrac
     return results
 
 
+def _failure(error: PlatformError, platform: str) -> tuple[str, str]:
+    """What a call that was not done reports: refused, or not confirmed (it may have been
+    done: it stays undone, so that a later apply sends it again once the researcher has looked)."""
+    if isinstance(error, UnconfirmedAnswer):
+        return UNCONFIRMED, (f"{error}. It is not recorded as done: look on {platform}'s own pages whether it was "
+                             f"done before sending it again")
+    return REFUSED, str(error)
+
+
 def read_back(study: Study, api: PlatformAPI, researcher: AbstractBaseUser) -> list[ReadRow]:
     """The platform's status of every participant's submission beside the participant
     list's; a refused read raises PlatformError."""
-    reads = api.reads(sorted({_payee(study, p).group for p in study.participants.all()} - {""}))
+    reads = api.reads(sorted(group for group in {_payee(study, p).group for p in study.participants.all()}
+                             if is_platform_id(group)))  # it goes into the request's path
     statuses: dict[str, str] = {}
     for call in reads:
         statuses |= api.statuses(api.send(call, {}))
@@ -221,5 +237,5 @@ def _done_keys(study: Study, keys: list[str]) -> set[str]:
 
 
 __all__ = ["ALREADY_DONE", "BonusListError", "HELD_BACK", "PlanChanged", "Planned", "REFUSED", "ReadRow", "Result",
-           "SENT", "apply", "bonus_calls", "chosen", "decision_calls", "planned", "platform_api", "read_back",
-           "without_submission"]
+           "SENT", "UNCONFIRMED", "apply", "bonus_calls", "chosen", "decision_calls", "planned", "platform_api",
+           "read_back", "without_submission"]

@@ -11,7 +11,16 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 from dataclasses import asdict, dataclass, field
+
+# An id as the platforms give them (Prolific's 24 hex digits, MTurk's letters and digits)
+# and as it may go into a request's path: one segment, never "../" or a query.
+PLATFORM_ID = re.compile(r"[A-Za-z0-9_-]{1,100}")
+
+
+def is_platform_id(text: object) -> bool:
+    return isinstance(text, str) and PLATFORM_ID.fullmatch(text) is not None
 
 
 @dataclass(frozen=True)
@@ -36,7 +45,7 @@ class Call:
 class Payee:
     """A participant as a platform knows them."""
     platform_id: str  # Prolific's PROLIFIC_PID, MTurk's workerId
-    session: str  # their submission: Prolific's SESSION_ID, MTurk's assignmentId
+    session: str  # their submission: Prolific's SESSION_ID, MTurk's assignmentId (from the entry link: checked)
     group: str  # what the submission belongs to: Prolific's STUDY_ID, MTurk's hitId
 
 
@@ -48,4 +57,10 @@ class PlatformError(Exception):
         self.status = status
 
 
-__all__ = ["Call", "Payee", "PlatformError"]
+class UnconfirmedAnswer(PlatformError):
+    """The request went out, but the answer does not confirm that the platform did it (a
+    server error, a redirect, an answer cut short, not JSON, not what the API answers):
+    it may or may not have been done, so it is never recorded as done."""
+
+
+__all__ = ["Call", "PLATFORM_ID", "Payee", "PlatformError", "UnconfirmedAnswer", "is_platform_id"]

@@ -9,19 +9,40 @@ was entered for and no longer: it ends with the login, and after ``CREDENTIALS_T
 it must be entered again. A Prolific token never expires and carries every permission
 of the account, so it is worth less to keep than to ask for again. It never reaches a
 log, a page or the action log.
+
+A token or key is kept only if it is printable ASCII without spaces, as the platforms
+give them (``validate_secret_text``): each goes into an HTTP header (MTurk's into its
+signature), where a CR or LF would split the header, and http.client refuses such a
+value with an error that quotes it, the token, into the traceback and the log.
 """
 
 from __future__ import annotations
 
 import base64
 import json
+import re
 
 from cryptography.fernet import Fernet, InvalidToken
 from django.contrib.sessions.backends.base import SessionBase
+from django.core.exceptions import ValidationError
 from django.utils.crypto import salted_hmac
 
 SESSION_KEY = "platform_credentials"
 CREDENTIALS_TTL_S = 4 * 3600
+SECRET_TEXT = re.compile(r"[!-~]+")
+
+
+def is_secret_text(value: object) -> bool:
+    """Whether ``value`` may be sent as a token or key: printable ASCII, no spaces."""
+    return isinstance(value, str) and SECRET_TEXT.fullmatch(value) is not None
+
+
+def validate_secret_text(value: str) -> None:
+    """A form field's validator; the message never repeats the value."""
+    if not is_secret_text(value):
+        raise ValidationError("This holds a space, a control character (such as a line break) or a character "
+                              "outside ASCII, which no platform's token or key has: copy it again from the "
+                              "platform.", code="secret_text")
 
 
 def _fernet() -> Fernet:
@@ -41,10 +62,14 @@ def read(session: SessionBase, platform: str) -> dict | None:
     if sealed is None:
         return None
     try:
-        return json.loads(_fernet().decrypt(sealed.encode(), ttl=CREDENTIALS_TTL_S))
+        secret = json.loads(_fernet().decrypt(sealed.encode(), ttl=CREDENTIALS_TTL_S))
     except InvalidToken:  # expired, or sealed under another SECRET_KEY
         forget(session, platform)
         return None
+    if not all(is_secret_text(value) for value in secret.values() if not isinstance(value, bool)):
+        forget(session, platform)  # kept before tokens were checked: asked for again
+        return None
+    return secret
 
 
 def forget(session: SessionBase, platform: str) -> None:
@@ -53,4 +78,4 @@ def forget(session: SessionBase, platform: str) -> None:
         session[SESSION_KEY] = kept
 
 
-__all__ = ["CREDENTIALS_TTL_S", "forget", "keep", "read"]
+__all__ = ["CREDENTIALS_TTL_S", "forget", "is_secret_text", "keep", "read", "validate_secret_text"]

@@ -8,25 +8,35 @@ sandbox unless the researcher asks for the real marketplace.
 
 MTurk has no request to return a submission: a worker who submitted is approved or
 rejected. SendBonus's UniqueRequestToken makes MTurk itself refuse a bonus sent twice.
+
+botocore takes any 2xx answer for success, whatever it holds (an HTML page, broken or
+cut JSON): here only a JSON object in MTurk's content type confirms a call
+(``_answer_is_mturks``). A 4xx is MTurk's refusal; a server error, a redirect or an answer
+cut short raises ``UnconfirmedAnswer`` (MTurk may or may not have done it), and a listing
+is read to ``MAX_PAGES`` pages at most.
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 from decimal import Decimal
 
 import boto3
 from botocore.config import Config
-from botocore.exceptions import BotoCoreError, ClientError
+from botocore.exceptions import BotoCoreError, ClientError, HTTPClientError
+from botocore.exceptions import ConnectionError as NotReached
 from botocore import xform_name
 from django.conf import settings
 
-from studyapp.platforms.calls import Call, Payee, PlatformError
+from studyapp.platforms.calls import Call, Payee, PlatformError, UnconfirmedAnswer
+from studyapp.platforms.json_exchange import shown
 from studyapp.platforms.rules import APPROVE, REJECT
 
 NAME = "MTurk"
 REGION = "us-east-1"  # MTurk's only region
 PAGE_SIZE = 100
+MAX_PAGES = 1000
 APPROVAL_FEEDBACK = "Thank you for taking part."
 
 
@@ -45,6 +55,7 @@ class MTurkAPI:
         self._client = boto3.client(
             "mturk", region_name=REGION, endpoint_url=self.address, aws_access_key_id=access_key_id,
             aws_secret_access_key=secret_access_key, config=Config(retries={"max_attempts": 3, "mode": "standard"}))
+        self._client.meta.events.register("before-parse.mturk", _answer_is_mturks)
 
     # What will be sent (the dry run)
 
@@ -77,20 +88,60 @@ class MTurkAPI:
         operation = getattr(self._client, xform_name(call.operation))
         try:
             if call.operation == "ListAssignmentsForHIT":
-                return {"Assignments": [assignment for page in self._client.get_paginator(
-                    xform_name(call.operation)).paginate(**call.body) for assignment in page["Assignments"]]}
+                return {"Assignments": self._listed(call)}
             answer = operation(**call.body)
         except ClientError as error:
             details = error.response.get("Error", {})
-            raise PlatformError(f"MTurk refused: {details.get('Message') or details.get('Code') or error}",
-                                error.response.get("ResponseMetadata", {}).get("HTTPStatusCode")) from None
-        except BotoCoreError as error:
+            words = shown(str(details.get("Message") or details.get("Code") or error))
+            status = error.response.get("ResponseMetadata", {}).get("HTTPStatusCode")
+            if isinstance(status, int) and 400 <= status < 500:
+                raise PlatformError(f"MTurk refused: {words}", status) from None
+            raise UnconfirmedAnswer(f"MTurk answered {status}, which confirms nothing: {words}", status) from None
+        except NotReached as error:
             raise PlatformError(f"MTurk could not be reached at {self.address}: {error}") from None
+        except HTTPClientError as error:  # sent; the answer is missing or cut short
+            raise UnconfirmedAnswer(f"MTurk gave no whole answer ({shown(str(error))}); it may have done it or "
+                                    f"not") from None
+        except BotoCoreError as error:
+            raise PlatformError(f"the request to MTurk failed: {shown(str(error))}") from None
         answer.pop("ResponseMetadata", None)
         return _plain(answer)
 
+    def _listed(self, call: Call) -> list:
+        assignments = []
+        for number, page in enumerate(self._client.get_paginator(xform_name(call.operation)).paginate(**call.body),
+                                      start=1):
+            if number > MAX_PAGES:
+                raise UnconfirmedAnswer(f"MTurk's listing goes on past {MAX_PAGES} pages: the assignments were not "
+                                        f"read")
+            assignments += page.get("Assignments", [])
+        return assignments
+
     def statuses(self, answer: dict) -> dict[str, str]:
-        return {a["AssignmentId"]: a.get("AssignmentStatus", "") for a in answer.get("Assignments", [])}
+        """Each assignment's status, by assignment id; PlatformError for a listing that names none."""
+        listed = answer.get("Assignments")
+        if not isinstance(listed, list) or not all(
+                isinstance(a, dict) and isinstance(a.get("AssignmentId"), str) and isinstance(
+                    a.get("AssignmentStatus", ""), str) for a in listed):
+            raise UnconfirmedAnswer("MTurk's listing has an assignment without an id or a status")
+        return {a["AssignmentId"]: a.get("AssignmentStatus", "") for a in listed}
+
+
+def _answer_is_mturks(response_dict: dict, **_) -> None:
+    """botocore's hook before it reads an answer: a 2xx that is not a JSON object in MTurk's
+    content type confirms nothing (botocore would take it for success)."""
+    if not 200 <= response_dict["status_code"] < 300:
+        return
+    kind = response_dict["headers"].get("content-type", "")
+    try:
+        answer = json.loads(response_dict["body"] or b"null")
+    except (ValueError, RecursionError):
+        answer = None
+    if not kind.startswith("application/x-amz-json") or not isinstance(answer, dict):
+        raise UnconfirmedAnswer(f"MTurk answered {response_dict['status_code']} with {shown(kind) or 'no type'}, "
+                                f"not its JSON, which confirms nothing: "
+                                f"{shown(response_dict['body'].decode('utf-8', errors='replace'))}",
+                                response_dict["status_code"])
 
 
 def _plain(value: object) -> object:

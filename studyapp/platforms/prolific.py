@@ -8,10 +8,17 @@
     read back         GET /api/v1/studies/{study id}/submissions/   (pages followed)
 
 A submission's id is the SESSION_ID Prolific puts in the entry link. Requests carry
-``Authorization: Token <token>``; the token goes nowhere else. Prolific answers 400 for a
-request it refuses (with its reason), 401 for a token it does not know, 404 for an id it
-does not know and 429 when asked too often (then it is asked again after the wait it names,
-up to ``RATE_LIMIT_RETRIES`` times).
+``Authorization: Token <token>``; the token goes nowhere else: no redirect is followed,
+and a listing's next page is followed only within Prolific's own address, each page once,
+at most ``MAX_PAGES`` within ``READ_DEADLINE_S``. Prolific answers 400 for a request it
+refuses (with its reason), 401 for a token it does not know, 404 for an id it does not
+know and 429 when asked too often (then it is asked again after the wait it names:
+``json_exchange``).
+
+A call counts as done only when the answer confirms it: the status Prolific answers it
+with (``CONFIRMING``), JSON without an error, and the same submission in the state asked
+for, or the id of the bonus payment set up (which the payment then goes to). Any other
+answer raises ``UnconfirmedAnswer``, so that the call stays undone and says so.
 """
 
 from __future__ import annotations
@@ -19,20 +26,26 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-import urllib.error
-import urllib.request
 from decimal import Decimal
+from urllib.parse import urljoin, urlsplit
 
 from django.conf import settings
 
-from studyapp.platforms.calls import Call, Payee, PlatformError
+from studyapp.platforms.calls import Call, Payee, PlatformError, UnconfirmedAnswer, is_platform_id
+from studyapp.platforms.credentials import is_secret_text
+from studyapp.platforms.json_exchange import Answer, exchange, shown
 from studyapp.platforms.rules import APPROVE, REJECT, REQUEST_RETURN
 
 NAME = "Prolific"
 REJECTION_CATEGORY = "FAILED_CHECK"  # Prolific's category for failed attention checks
 MIN_REJECTION_MESSAGE = 100  # characters, as Prolific requires of a rejection's message
-RATE_LIMIT_RETRIES, LONGEST_WAIT_S = 2, 10.0
-TIMEOUT_S = 30.0
+REQUEST_DEADLINE_S = 60.0  # one request, the waits after a 429 included
+READ_DEADLINE_S = 60.0  # every page of a listing
+MAX_PAGES = 1000
+MAX_STATUS_LENGTH = 40
+# The statuses Prolific answers each call with when it did it, and the status a transition leaves.
+CONFIRMING = {APPROVE: {200}, REJECT: {200}, REQUEST_RETURN: {200}, "bonus": {200, 201}, "pay bonus": {200, 202}}
+TRANSITIONED = {APPROVE: "APPROVED", REJECT: "REJECTED"}
 
 
 def rejection_message(failed_checks: int) -> str:
@@ -47,6 +60,8 @@ class ProlificAPI:
     name = NAME
 
     def __init__(self, token: str, base_url: str | None = None) -> None:
+        if not is_secret_text(token):  # the forms and the session refuse it before: never sent, never quoted
+            raise ValueError("a Prolific token is printable ASCII without spaces")
         self._token = token
         self.address = (base_url or settings.PROLIFIC_API_URL).rstrip("/")
 
@@ -85,63 +100,147 @@ class ProlificAPI:
     # Sending
 
     def send(self, call: Call, answers: dict[str, dict]) -> dict:
-        """Send ``call`` (``answers``: earlier calls' answers by key, for one that needs them)."""
+        """Send ``call`` (``answers``: earlier calls' answers by key, for one that needs them)
+        and return Prolific's answer once it confirms the call; UnconfirmedAnswer if it does not."""
+        try:
+            return self._send(call, answers)
+        except PlatformError as error:  # an answer that quotes the token back quotes it no further
+            raise type(error)(str(error).replace(self._token, "[the token]"), error.status) from None
+
+    def _send(self, call: Call, answers: dict[str, dict]) -> dict:
         method, path = call.operation.split(" ", 1)
         if call.after:
-            path = path.replace("{id}", str(answers[call.after]["id"]))
+            payment = _payment_id(answers[call.after])
+            if payment is None:
+                raise PlatformError(f"the recorded answer to {call.after} names no bonus payment to pay: set the "
+                                    f"bonuses up again on Prolific's pages")
+            path = path.replace("{id}", payment)
         if method == "GET":
             return self._read_all(path)
-        return self._request(method, self.address + path, call.body)
+        return _confirmed(call, self._request(method, self.address + path, call.body,
+                                              time.monotonic() + REQUEST_DEADLINE_S))
 
     def statuses(self, answer: dict) -> dict[str, str]:
-        """Each submission's status in a read-back answer, by submission id."""
-        return {submission["id"]: submission.get("status", "") for submission in answer.get("results", [])}
+        """Each submission's status in a read-back answer (``_read_all``'s), by submission id."""
+        return {submission["id"]: submission["status"] for submission in answer["results"]}
 
     def _read_all(self, path: str) -> dict:
-        """Every page of a listing, joined."""
-        results, url = [], self.address + path
+        """Every page of a listing, joined: pages only of Prolific's own address, each once,
+        at most MAX_PAGES of them within READ_DEADLINE_S."""
+        deadline = time.monotonic() + READ_DEADLINE_S
+        results: list[dict[str, str]] = []
+        url: str | None = self.address + path
+        asked: set[str] = set()
         while url:
-            page = self._request("GET", url, None)
-            results += page.get("results", [])
-            url = (page.get("_links", {}).get("next") or {}).get("href")
+            if url in asked:
+                raise UnconfirmedAnswer(f"Prolific's listing links to a page it gave already ({shown(url)}): the "
+                                        f"submissions were not read")
+            if len(asked) == MAX_PAGES:
+                raise UnconfirmedAnswer(f"Prolific's listing goes on past {MAX_PAGES} pages: the submissions were "
+                                        f"not read")
+            asked.add(url)
+            page = self._request("GET", url, None, deadline)
+            if page.status != 200:
+                raise UnconfirmedAnswer(f"Prolific answered {page.status} to a listing, not 200: {page.text}",
+                                        page.status)
+            results += _listed(page.json, len(asked))
+            url = self._next_page(page.json, url)  # a dict: _listed read it
         return {"results": results}
 
-    def _request(self, method: str, url: str, body: dict | None) -> dict:
-        data = json.dumps(body).encode() if body is not None and method != "GET" else None
-        request = urllib.request.Request(url, data=data, method=method, headers={
-            "Authorization": f"Token {self._token}", "Content-Type": "application/json", "Accept": "application/json"})
-        for attempt in range(RATE_LIMIT_RETRIES + 1):
-            try:
-                with urllib.request.urlopen(request, timeout=TIMEOUT_S) as response:
-                    text = response.read().decode()
-                    return json.loads(text) if text.strip().startswith(("{", "[")) else {"answer": text}
-            except urllib.error.HTTPError as error:
-                if error.code == 429 and attempt < RATE_LIMIT_RETRIES:
-                    time.sleep(min(float(error.headers.get("Retry-After") or 1), LONGEST_WAIT_S))
-                    continue
-                raise PlatformError(_refusal(error), error.code) from None
-            except (urllib.error.URLError, TimeoutError, OSError) as error:
-                raise PlatformError(f"Prolific could not be reached at {self.address}: "
-                                    f"{getattr(error, 'reason', error)}") from None
-        raise AssertionError("unreachable")
+    def _next_page(self, page: dict, url: str) -> str | None:
+        """The listing's next page, if it is one of Prolific's own (PlatformError otherwise)."""
+        links = page.get("_links") or {}
+        if not isinstance(links, dict):
+            raise UnconfirmedAnswer("Prolific's listing has links that are not an object: the submissions were not "
+                                    "read")
+        following = links.get("next")
+        href = following.get("href") if isinstance(following, dict) else following
+        if href is None:
+            return None
+        if not isinstance(href, str):
+            raise UnconfirmedAnswer(f"Prolific's listing names its next page as {shown(json.dumps(href))}, not an "
+                                    f"address")
+        target, own = urlsplit(urljoin(url, href)), urlsplit(self.address)
+        if (target.scheme.lower(), target.netloc.lower()) != (own.scheme.lower(), own.netloc.lower()) or (
+                not target.path.startswith(own.path + "/api/")):
+            raise PlatformError(f"Prolific's listing names a next page outside {self.address} "
+                                f"({shown(href)!r}): not followed, and the submissions were not read")
+        return target.geturl()
+
+    def _request(self, method: str, url: str, body: dict | None, deadline: float) -> Answer:
+        """Prolific's 2xx answer; its refusal (4xx) raises PlatformError in its words."""
+        answer = exchange(NAME, method, url, body if method != "GET" else None, {
+            "Authorization": f"Token {self._token}", "Content-Type": "application/json",
+            "Accept": "application/json"}, deadline)
+        if answer.status >= 400:
+            raise PlatformError(_refusal(answer), answer.status)
+        return answer
 
 
-def _refusal(error: urllib.error.HTTPError) -> str:
+def _payment_id(answer: object) -> str | None:
+    """The id of the bonus payment that a set-up's answer names, if it names one fit for a path."""
+    payment = answer.get("id") if isinstance(answer, dict) else None
+    return payment if isinstance(payment, str) and is_platform_id(payment) else None
+
+
+def _confirmed(call: Call, answer: Answer) -> dict:
+    """Prolific's answer to ``call`` as it is kept, if it confirms what the call asked."""
+    statuses = CONFIRMING[call.action]
+    body = answer.json
+
+    def unconfirmed(why: str) -> UnconfirmedAnswer:
+        return UnconfirmedAnswer(f"Prolific answered {answer.status} {why}, which does not confirm it: "
+                                 f"{answer.text}", answer.status)
+
+    if answer.status not in statuses:
+        raise unconfirmed(f"(not {' or '.join(map(str, sorted(statuses)))})")
+    if isinstance(body, dict) and "error" in body:
+        raise unconfirmed("with an error")
+    if call.action == "pay bonus":  # Prolific answers with a sentence
+        return body if isinstance(body, dict) else {"answer": body}
+    if not isinstance(body, dict):
+        raise unconfirmed("with JSON that is not an object")
+    if call.action == "bonus":
+        if _payment_id(body) is None:
+            raise unconfirmed("without the id of the bonus payment")
+        if body.get("study", call.body["study_id"]) != call.body["study_id"]:
+            raise unconfirmed(f"for another study than {call.body['study_id']}")
+        return body
+    submission = call.key.partition(":")[2]
+    if body.get("id") != submission:
+        raise unconfirmed(f"about another submission than {submission}")
+    if call.action in TRANSITIONED and body.get("status") != TRANSITIONED[call.action]:
+        raise unconfirmed(f"with the status {shown(str(body.get('status')))}, not {TRANSITIONED[call.action]}")
+    return body
+
+
+def _listed(page: object, number: int) -> list[dict[str, str]]:
+    """A listing page's submissions, each its id and status."""
+    results = page.get("results") if isinstance(page, dict) else None
+    if not isinstance(results, list):
+        raise UnconfirmedAnswer(f"Prolific's listing (page {number}) has no list of results")
+    listed = []
+    for position, submission in enumerate(results, start=1):
+        status = submission.get("status") if isinstance(submission, dict) else None
+        if not (isinstance(submission, dict) and is_platform_id(submission.get("id")) and isinstance(status, str) and len(status) <= MAX_STATUS_LENGTH):
+            raise UnconfirmedAnswer(f"Prolific's listing (page {number}, result {position}) is not a submission "
+                                    f"with an id and a status")
+        listed.append({"id": submission["id"], "status": status})
+    return listed
+
+
+def _refusal(answer: Answer) -> str:
     """Prolific's reason for refusing, in its words where it gave any."""
-    text = error.read().decode(errors="replace")
-    try:
-        answer = json.loads(text)
-    except ValueError:
-        answer = None
-    if isinstance(answer, dict):
-        detail = answer.get("error", answer)
+    text = answer.text
+    if isinstance(answer.json, dict):
+        detail = answer.json.get("error", answer.json)
         if isinstance(detail, dict):
             words = detail.get("detail") or detail.get("title") or detail
-            text = words if isinstance(words, str) else json.dumps(words)
+            text = shown(words if isinstance(words, str) else json.dumps(words))
     meaning = {401: "the token was not accepted (check it, or create another on Prolific)",
                404: "Prolific knows no such submission or study", 429: "asked too often; try again in a minute"}
-    return f"Prolific answered {error.code}" + (f", {meaning[error.code]}" if error.code in meaning else "") + (
-        f": {text[:300]}" if text else "")
+    meant = f", {meaning[answer.status]}" if answer.status in meaning else ""
+    return f"Prolific answered {answer.status}{meant}" + (f": {text}" if text else "")
 
 
 __all__ = ["NAME", "ProlificAPI", "rejection_message"]

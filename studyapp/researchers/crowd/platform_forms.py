@@ -4,20 +4,24 @@ from __future__ import annotations
 
 from django import forms
 
+from studyapp.platforms.credentials import validate_secret_text
+
 
 class ProlificCredentialsForm(forms.Form):
     token = forms.CharField(
         label="Prolific API token", max_length=500, strip=True, widget=forms.PasswordInput(render_value=False),
-        help_text="Prolific: your account › API tokens › Create API token")
+        validators=[validate_secret_text], help_text="Prolific: your account › API tokens › Create API token")
 
     def secret(self) -> dict:
         return {"token": self.cleaned_data["token"]}
 
 
 class MTurkCredentialsForm(forms.Form):
-    access_key_id = forms.CharField(label="AWS access key id", max_length=128, strip=True)
+    access_key_id = forms.CharField(label="AWS access key id", max_length=128, strip=True,
+                                    validators=[validate_secret_text])
     secret_access_key = forms.CharField(label="AWS secret access key", max_length=128, strip=True,
-                                        widget=forms.PasswordInput(render_value=False))
+                                        widget=forms.PasswordInput(render_value=False),
+                                        validators=[validate_secret_text])
     live = forms.BooleanField(label="Send to the real MTurk marketplace", required=False,
                               help_text="unticked: MTurk's requester sandbox, where nothing is paid")
 
