@@ -143,10 +143,14 @@ def fit_crossed(y: np.ndarray, layout: CrossedLayout) -> CrossedFit:
                                  "participants, clips or the residual to explain")
     s = _sums(y, layout)
     objective = lambda t: _solve(t, s).deviance  # noqa: E731
-    # from t = 1, as lme4 starts; an optimum on a bound is checked for below
-    best = optimize.minimize(objective, (1.0, 1.0), method="L-BFGS-B", bounds=[(0.0, _MAX_RELATIVE_SD)] * 2,
-                             options={"ftol": 1e-14, "gtol": 1e-9, "maxiter": 500})
-    t = best.x
+    # The deviance depends on t through t_p^2 and t_s^2 only, so its gradient at t = 0 is
+    # zero: an optimiser bounded at 0 that steps onto the bound stops there, whatever the
+    # optimum. Searched over the whole line instead (t and -t are the same model), from
+    # t = 1 as lme4 starts, a component at zero is a minimum like any other.
+    best = optimize.minimize(objective, (1.0, 1.0), method="L-BFGS-B",
+                             bounds=[(-_MAX_RELATIVE_SD, _MAX_RELATIVE_SD)] * 2,
+                             options={"ftol": 1e-15, "gtol": 1e-9, "maxiter": 500})
+    t = np.abs(best.x)
     for axis in range(2):  # a component the optimiser left a hair above zero belongs at zero
         at_zero = t.copy()
         at_zero[axis] = 0.0

@@ -304,8 +304,12 @@ def fit_ordinal(y: np.ndarray, layout: CrossedLayout,
                               bounds=fixed + [(0.0, 0.0)] * 2, options={"gtol": 1e-5})
     start[: j + data.k - 1] = plain.x[: j + data.k - 1]
     memo.clear()
+    # L depends on an sd through s u with u ~ N(0, 1): s and -s are the same model, and
+    # L's derivative in s is 0 at s = 0, so an optimiser bounded at 0 that steps onto the
+    # bound stops there, whatever the optimum. Searched over both signs, a zero sd is a
+    # minimum like any other.
     found = optimize.minimize(evaluate, start, jac=True, method="L-BFGS-B",
-                              bounds=fixed + [(0.0, _MAX_SD) if free else (0.0, 0.0) for free in data.free],
+                              bounds=fixed + [(-_MAX_SD, _MAX_SD) if free else (0.0, 0.0) for free in data.free],
                               options={"ftol": 1e-15, "gtol": 1e-7, "maxiter": 2000})
     theta = _to_natural(found.x, data)
     if np.abs(theta[: j + data.k - 1]).max() >= _MAX_LOGIT * (1 - 1e-6):
@@ -314,7 +318,12 @@ def fit_ordinal(y: np.ndarray, layout: CrossedLayout,
             "for some systems, as when each system's ratings keep to values of their own), so log-odds "
             "grow without bound and have no finite estimate; the linear mixed model and the rank-based "
             "tests still apply")
-    theta[-2:] = np.where(theta[-2:] < 1e-6, 0.0, theta[-2:])  # a hair above the bound is the bound
+    theta[-2:] = np.abs(theta[-2:])
+    for index in (-2, -1):  # an sd the optimiser left a hair above zero belongs at zero
+        at_zero = theta.copy()
+        at_zero[index] = 0.0
+        if theta[index] > 0 and _laplace(at_zero, data, memo.get("mode")).value >= -found.fun - 1e-9:
+            theta = at_zero
     covariance = _covariance(theta, data, _laplace(theta, data, memo.get("mode")).mode)
     alpha, beta, (s_p, s_s) = _split(theta, data)
     return OrdinalFit(list(categories), layout.systems, alpha, beta, covariance, float(s_p), float(s_s),
