@@ -23,9 +23,11 @@ is factorised through the Schur complement of its smaller block. Writing the ran
 effects as Lambda w keeps L defined at s = 0: a variance component estimated at zero
 sits on its bound (``at_boundary``) and the fit does not fail.
 
-Gradient. L is maximised over theta = (alpha, beta, s_p, s_s) by L-BFGS-B (s >= 0;
-the thresholds through alpha_1 and the logs of their increments, which keeps them in
-order) with the exact gradient of the approximation: at the mode dg/dw = 0, so
+Gradient. L is maximised over theta = (alpha, beta, s_p, s_s) by L-BFGS-B (the
+thresholds through alpha_1 and the logs of their increments, which keeps them in order;
+each s over both signs: s and -s are the same model, and L's derivative in s is zero at
+s = 0, where an optimiser bounded at 0 would stop whatever the optimum; |s| is kept)
+with the exact gradient of the approximation: at the mode dg/dw = 0, so
 
     dL/dtheta = dg/dtheta|_w* - 1/2 tr(H^-1 dH/dtheta),
 
@@ -44,8 +46,8 @@ Standard errors: from the inverse of the numerical Hessian (forward differences 
 exact gradient, accurate to about 1e-5 relative) of -L in (alpha, beta) and the standard
 deviations that are not on their bound, as ordinal does for clmm's fixed effects.
 
-The tests check the fit against statsmodels' OrderedModel when the random effects are
-left out, the Laplace approximation against one computed independently with dense
+The tests check the fit against ordinal's ``clmm`` run in R, statsmodels' OrderedModel
+when the random effects are left out, the Laplace approximation against one computed independently with dense
 matrices and scipy, and, with one random factor, the estimates against the exact
 marginal likelihood integrated numerically.
 """
