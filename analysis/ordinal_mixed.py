@@ -77,6 +77,9 @@ _MAX_SD = 20.0
 # the ratings separate the systems, and the fit stops there instead of following it.
 _MAX_LOGIT = 30.0
 _OUTER_END = 1e4
+# Where an sd's optimum is 0 the optimiser ends within some 1e-5 of it (L curves up from
+# there); only sds below this are checked against 0, each check a Laplace fit.
+_HAIR = 1e-3
 
 
 @dataclass(frozen=True)
@@ -324,7 +327,7 @@ def fit_ordinal(y: np.ndarray, layout: CrossedLayout,
     for index in (-2, -1):  # an sd the optimiser left a hair above zero belongs at zero
         at_zero = theta.copy()
         at_zero[index] = 0.0
-        if theta[index] > 0 and _laplace(at_zero, data, memo.get("mode")).value >= -found.fun - 1e-9:
+        if 0 < theta[index] < _HAIR and _laplace(at_zero, data, memo.get("mode")).value >= -found.fun - 1e-9:
             theta = at_zero
     covariance = _covariance(theta, data, _laplace(theta, data, memo.get("mode")).mode)
     alpha, beta, (s_p, s_s) = _split(theta, data)
