@@ -147,10 +147,8 @@ def fit_crossed(y: np.ndarray, layout: CrossedLayout) -> CrossedFit:
                                  "participants, clips or the residual to explain")
     s = _sums(y, layout)
     objective = lambda t: _solve(t, s).deviance  # noqa: E731
-    # The deviance depends on t through t_p^2 and t_s^2 only, so its gradient at t = 0 is
-    # zero: an optimiser bounded at 0 that steps onto the bound stops there, whatever the
-    # optimum. Searched over the whole line instead (t and -t are the same model), from
-    # t = 1 as lme4 starts, a component at zero is a minimum like any other.
+    # over both signs, from t = 1 as lme4 starts: bounded at 0, where the gradient vanishes,
+    # the search stops wherever it steps onto the bound (module docstring)
     best = optimize.minimize(objective, (1.0, 1.0), method="L-BFGS-B",
                              bounds=[(-_MAX_RELATIVE_SD, _MAX_RELATIVE_SD)] * 2,
                              options={"ftol": 1e-15, "gtol": 1e-9, "maxiter": 500})

@@ -47,9 +47,9 @@ exact gradient, accurate to about 1e-5 relative) of -L in (alpha, beta) and the 
 deviations that are not on their bound, as ordinal does for clmm's fixed effects.
 
 The tests check the fit against ordinal's ``clmm`` run in R, statsmodels' OrderedModel
-when the random effects are left out, the Laplace approximation against one computed independently with dense
-matrices and scipy, and, with one random factor, the estimates against the exact
-marginal likelihood integrated numerically.
+when the random effects are left out, the Laplace approximation against one computed
+independently with dense matrices and scipy, and, with one random factor, the estimates
+against the exact marginal likelihood integrated numerically.
 """
 
 from __future__ import annotations
@@ -309,10 +309,8 @@ def fit_ordinal(y: np.ndarray, layout: CrossedLayout,
                               bounds=fixed + [(0.0, 0.0)] * 2, options={"gtol": 1e-5})
     start[: j + data.k - 1] = plain.x[: j + data.k - 1]
     memo.clear()
-    # L depends on an sd through s u with u ~ N(0, 1): s and -s are the same model, and
-    # L's derivative in s is 0 at s = 0, so an optimiser bounded at 0 that steps onto the
-    # bound stops there, whatever the optimum. Searched over both signs, a zero sd is a
-    # minimum like any other.
+    # each sd over both signs: bounded at 0, where L's derivative in it vanishes, the search
+    # stops wherever it steps onto the bound (module docstring)
     found = optimize.minimize(evaluate, start, jac=True, method="L-BFGS-B",
                               bounds=fixed + [(-_MAX_SD, _MAX_SD) if free else (0.0, 0.0) for free in data.free],
                               options={"ftol": 1e-15, "gtol": 1e-7, "maxiter": 2000})
