@@ -32,6 +32,7 @@ TEST_WORKERS ?= $(shell n=$$(nproc); echo $$(( n < 8 ? n + 1 : 8 )))
 PYTEST_PARALLEL = -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 test: $(INSTALLED)
 	scripts/ensure-redis.sh
+	scripts/ensure-r.sh
 	scripts/ensure-chromium.sh
 	DATABASE_URL= $(BIN)/python -m pytest $(PYTEST_PARALLEL)
 	$(BIN)/python -m tests.postgres_pass $(PYTEST_PARALLEL)

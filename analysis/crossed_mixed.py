@@ -28,16 +28,20 @@ criterion, profiled over b and s^2, is
 
     -2 l_R(t) = log|M| + log|R| + (n - k) (1 + log(2 pi r^2 / (n - k))),
 
-minimised over t >= 0 (L-BFGS-B). A variance component estimated at zero sits on its
-bound (``at_boundary``): the model is then the one without that factor, and the fit
-does not fail. At the optimum ``s^2 = r^2 / (n - k)`` and ``Var(b) = s^2 R^-1``.
+minimised over t >= 0. It depends on t through Lambda's squares only (t and -t give the
+same model), so its gradient in a component at 0 is zero and an optimiser bounded at 0
+would stop wherever it steps onto the bound; it is minimised over both signs instead
+(L-BFGS-B from t = 1, as lme4 starts), where a component at 0 is a minimum like any
+other, and |t| kept. A variance component estimated at zero sits on its bound
+(``at_boundary``): the model is then the one without that factor, and the fit does not
+fail. At the optimum ``s^2 = r^2 / (n - k)`` and ``Var(b) = s^2 R^-1``.
 
 Speed: Z'Z has diagonal blocks (`analysis.crossed_design`), so M is factorised through
 the Schur complement of its smaller block, and every quantity is a function of sums per
 participant, stimulus and system: an evaluation costs the same for 700 or 70,000
-ratings. The tests check the fit against statsmodels' MixedLM with variance components
-for the two factors and against the REML likelihood written with the n x n covariance
-matrix and maximised by scipy.
+ratings. The tests check the fit against lme4's ``lmer`` run in R, statsmodels' MixedLM
+with variance components for the two factors, and the REML likelihood written with the
+n x n covariance matrix and maximised by scipy.
 """
 
 from __future__ import annotations
@@ -143,10 +147,12 @@ def fit_crossed(y: np.ndarray, layout: CrossedLayout) -> CrossedFit:
                                  "participants, clips or the residual to explain")
     s = _sums(y, layout)
     objective = lambda t: _solve(t, s).deviance  # noqa: E731
-    # from t = 1, as lme4 starts; an optimum on a bound is checked for below
-    best = optimize.minimize(objective, (1.0, 1.0), method="L-BFGS-B", bounds=[(0.0, _MAX_RELATIVE_SD)] * 2,
-                             options={"ftol": 1e-14, "gtol": 1e-9, "maxiter": 500})
-    t = best.x
+    # over both signs, from t = 1 as lme4 starts: bounded at 0, where the gradient vanishes,
+    # the search stops wherever it steps onto the bound (module docstring)
+    best = optimize.minimize(objective, (1.0, 1.0), method="L-BFGS-B",
+                             bounds=[(-_MAX_RELATIVE_SD, _MAX_RELATIVE_SD)] * 2,
+                             options={"ftol": 1e-15, "gtol": 1e-9, "maxiter": 500})
+    t = np.abs(best.x)
     for axis in range(2):  # a component the optimiser left a hair above zero belongs at zero
         at_zero = t.copy()
         at_zero[axis] = 0.0

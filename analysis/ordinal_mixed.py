@@ -23,9 +23,11 @@ is factorised through the Schur complement of its smaller block. Writing the ran
 effects as Lambda w keeps L defined at s = 0: a variance component estimated at zero
 sits on its bound (``at_boundary``) and the fit does not fail.
 
-Gradient. L is maximised over theta = (alpha, beta, s_p, s_s) by L-BFGS-B (s >= 0;
-the thresholds through alpha_1 and the logs of their increments, which keeps them in
-order) with the exact gradient of the approximation: at the mode dg/dw = 0, so
+Gradient. L is maximised over theta = (alpha, beta, s_p, s_s) by L-BFGS-B (the
+thresholds through alpha_1 and the logs of their increments, which keeps them in order;
+each s over both signs: s and -s are the same model, and L's derivative in s is zero at
+s = 0, where an optimiser bounded at 0 would stop whatever the optimum; |s| is kept)
+with the exact gradient of the approximation: at the mode dg/dw = 0, so
 
     dL/dtheta = dg/dtheta|_w* - 1/2 tr(H^-1 dH/dtheta),
 
@@ -44,10 +46,10 @@ Standard errors: from the inverse of the numerical Hessian (forward differences 
 exact gradient, accurate to about 1e-5 relative) of -L in (alpha, beta) and the standard
 deviations that are not on their bound, as ordinal does for clmm's fixed effects.
 
-The tests check the fit against statsmodels' OrderedModel when the random effects are
-left out, the Laplace approximation against one computed independently with dense
-matrices and scipy, and, with one random factor, the estimates against the exact
-marginal likelihood integrated numerically.
+The tests check the fit against ordinal's ``clmm`` run in R, statsmodels' OrderedModel
+when the random effects are left out, the Laplace approximation against one computed
+independently with dense matrices and scipy, and, with one random factor, the estimates
+against the exact marginal likelihood integrated numerically.
 """
 
 from __future__ import annotations
@@ -75,6 +77,9 @@ _MAX_SD = 20.0
 # the ratings separate the systems, and the fit stops there instead of following it.
 _MAX_LOGIT = 30.0
 _OUTER_END = 1e4
+# Where an sd's optimum is 0 the optimiser ends within some 1e-5 of it (L curves up from
+# there); only sds below this are checked against 0, each check a Laplace fit.
+_HAIR = 1e-3
 
 
 @dataclass(frozen=True)
@@ -304,8 +309,10 @@ def fit_ordinal(y: np.ndarray, layout: CrossedLayout,
                               bounds=fixed + [(0.0, 0.0)] * 2, options={"gtol": 1e-5})
     start[: j + data.k - 1] = plain.x[: j + data.k - 1]
     memo.clear()
+    # each sd over both signs: bounded at 0, where L's derivative in it vanishes, the search
+    # stops wherever it steps onto the bound (module docstring)
     found = optimize.minimize(evaluate, start, jac=True, method="L-BFGS-B",
-                              bounds=fixed + [(0.0, _MAX_SD) if free else (0.0, 0.0) for free in data.free],
+                              bounds=fixed + [(-_MAX_SD, _MAX_SD) if free else (0.0, 0.0) for free in data.free],
                               options={"ftol": 1e-15, "gtol": 1e-7, "maxiter": 2000})
     theta = _to_natural(found.x, data)
     if np.abs(theta[: j + data.k - 1]).max() >= _MAX_LOGIT * (1 - 1e-6):
@@ -314,7 +321,12 @@ def fit_ordinal(y: np.ndarray, layout: CrossedLayout,
             "for some systems, as when each system's ratings keep to values of their own), so log-odds "
             "grow without bound and have no finite estimate; the linear mixed model and the rank-based "
             "tests still apply")
-    theta[-2:] = np.where(theta[-2:] < 1e-6, 0.0, theta[-2:])  # a hair above the bound is the bound
+    theta[-2:] = np.abs(theta[-2:])
+    for index in (-2, -1):  # an sd the optimiser left a hair above zero belongs at zero
+        at_zero = theta.copy()
+        at_zero[index] = 0.0
+        if 0 < theta[index] < _HAIR and _laplace(at_zero, data, memo.get("mode")).value >= -found.fun - 1e-9:
+            theta = at_zero
     covariance = _covariance(theta, data, _laplace(theta, data, memo.get("mode")).mode)
     alpha, beta, (s_p, s_s) = _split(theta, data)
     return OrdinalFit(list(categories), layout.systems, alpha, beta, covariance, float(s_p), float(s_s),
