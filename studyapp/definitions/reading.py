@@ -3,7 +3,8 @@
 Only YAML's safe types are read (mappings, lists, text, numbers, true/false, null): the
 text is composed into YAML's node tree (``yaml.compose`` with the safe loader, which
 builds no object), and each node is turned into a value here, so every value keeps its
-line. A hostile text is refused before it costs anything: past ``MAX_DEFINITION_BYTES``,
+line. Numbers are only those written as JSON writes them (``bounded_reading.PlainLoader``):
+``0x10``, ``1_0`` or ``+3`` are text, which a number's setting refuses by its name. A hostile text is refused before it costs anything: past ``MAX_DEFINITION_BYTES``,
 nested past ``MAX_DEPTH``, expanding past ``MAX_NODES`` values through aliases (a
 "billion laughs"), with a key twice, a number that is not finite or text with a NUL
 character (PostgreSQL cannot store one).
@@ -17,10 +18,10 @@ from dataclasses import dataclass, field
 import yaml
 
 from studyapp.definitions.errors import DefinitionError
+from studyapp.server.bounded_reading import MAX_DEPTH, PlainLoader
 
 # A definition with a hundred custom paths of a minute each is about this long.
 MAX_DEFINITION_BYTES = 4_000_000
-MAX_DEPTH = 20
 MAX_NODES = 500_000
 Path = tuple[str | int, ...]
 PLAIN_COLLECTIONS = ("tag:yaml.org,2002:map", "tag:yaml.org,2002:seq")
@@ -108,7 +109,7 @@ def read_definition(text: str | bytes, source: str) -> Located:
         except UnicodeDecodeError as error:
             raise DefinitionError(source, [(None, f"not UTF-8 text (byte {error.start})")]) from None
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        root = yaml.compose(text, Loader=PlainLoader)
     except yaml.MarkedYAMLError as error:
         mark = error.problem_mark or error.context_mark
         raise DefinitionError(source, [(mark.line + 1 if mark else None,
