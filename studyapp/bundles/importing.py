@@ -65,10 +65,16 @@ from studyapp.stimuli.systems import UploadRefused, checked_checkpoint, video_du
 TOKEN = re.compile(r"[0-9A-Za-z_-]{1,32}")
 
 
-def _file_name(value: object, pattern: re.Pattern, what: str, where: str) -> str:
+def _file_name(value: object, pattern: re.Pattern, what: str, where: str, why: str = "it names a file") -> str:
     if not isinstance(value, str) or not pattern.fullmatch(value):
-        raise records.RecordError(f"{where}: its {what} {str(value)[:80]!r} is no {what} (it names a file)")
+        raise records.RecordError(f"{where}: its {what} {str(value)[:80]!r} is no {what} ({why})")
     return value
+
+
+def _id(value: object, what: str, where: str) -> str:
+    """A participant's code or a page's token: there, and no longer than its column (a model
+    field Django fills itself is not validated by ``full_clean``)."""
+    return _file_name(value, TOKEN, what, where, "1 to 32 letters, digits, '-' or '_'")
 
 
 def _member(bundle: ReadBundle, name: str) -> Path:
@@ -272,7 +278,7 @@ class _Import:
             if not isinstance(training, list) or not isinstance(pages, list):
                 raise records.RecordError(f"{here}: 'training' and 'assignments' must be lists")
             values = records.row_values(Participant, item, here)
-            values["code"] = _free(Participant, "code", values.get("code"))
+            values["code"] = _free(Participant, "code", _id(values.get("code"), "code", here))
             practice = [self._named(self.stimuli, token, here).pk for token in training]
             participant = _saved(Participant(study=study, training=practice, **values), here,
                                  self._stamps(Participant, values))
@@ -280,7 +286,7 @@ class _Import:
                 there = f"{here}: assignments[{position}]"
                 stimulus = self._named(self.stimuli, _pop(page, "stimulus", there), there)
                 values = records.row_values(Assignment, page, there)
-                recorded = values.get("token")
+                recorded = _id(values.get("token"), "token", there)
                 assignment = Assignment(participant=participant, stimulus=stimulus,
                                         **{**values, "token": _free(Assignment, "token", recorded)})
                 self.assignments[recorded] = _saved(assignment, there)
