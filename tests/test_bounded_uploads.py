@@ -149,13 +149,23 @@ def test_twenty_megabytes_of_empty_objects_are_refused_before_any_is_built(bundl
 
 
 @pytest.mark.django_db
-@pytest.mark.parametrize("written", ["0x10", "010", "0o17", "1_0", "1:30", "+3", "٣", "３", "16.0e", "0b10000"])
+@pytest.mark.parametrize("written", ["0x10", "010", "0o17", "1_0", "1:30", "+3", "٣", "３", "16.0e", "0b10000",
+                                     "9" * 5000])
 def test_a_yaml_number_json_does_not_write_is_text_and_refused_naming_the_setting(written, owner):
     text = VALID.replace("pages_per_participant: 6", f"pages_per_participant: {written}")
     with pytest.raises(DefinitionError) as error:
         create_study_from_definition(text, owner, source="study.yaml")
     assert str(error.value) == "study.yaml:6: design.pages_per_participant must be a whole number, not text"
     assert not Study.objects.exists()
+
+
+@pytest.mark.django_db
+def test_an_impossible_yaml_date_is_refused_with_its_line(owner):
+    text = VALID.replace("title: Gait", "title: 2026-02-30")
+    with pytest.raises(DefinitionError) as error:
+        create_study_from_definition(text, owner, source="study.yaml")
+    assert str(error.value) == ("study.yaml:3: '2026-02-30' reads as no value (day is out of range for month): quote it "
+                                "if it is text")
 
 
 @pytest.mark.django_db

@@ -84,6 +84,8 @@ class _Reader:
             value = self.constructor.construct_object(node)
         except yaml.constructor.ConstructorError as error:
             raise self.fail(node, f"not a plain YAML value ({error.problem})") from None
+        except ValueError as error:  # the form of a date, but no date (February 30th)
+            raise self.fail(node, f"{node.value[:40]!r} reads as no value ({error}): quote it if it is text") from None
         if isinstance(value, float) and not math.isfinite(value):
             raise self.fail(node, f"numbers must be finite, not {node.value}")
         if isinstance(value, str) and "\0" in value:

@@ -46,9 +46,9 @@ def started(study: Study) -> bool:
 
 
 def study_of(row: models.Model) -> Study | None:
-    """The study a row belongs to (None for a row not yet given one)."""
+    """The study a row belongs to (None for a row not yet given one, and for a study not yet saved)."""
     if isinstance(row, Study):
-        return row
+        return row if row.pk is not None else None
     if isinstance(row, Rating):
         row = row.assignment if row.assignment_id else None
     if isinstance(row, Assignment):

@@ -110,14 +110,16 @@ def json_value(data: bytes, name: str, limit: int) -> object:
 class PlainLoader(yaml.SafeLoader):
     """The safe loader, reading as numbers only what JSON writes as numbers (and YAML's
     ``.inf`` and ``.nan``, which the reader refuses by name); YAML 1.1's other forms of
-    numbers (hexadecimal, octal, underscores, sexagesimal, a leading ``+`` or zero) are text."""
+    numbers (hexadecimal, octal, underscores, sexagesimal, a leading ``+`` or zero) are
+    text, and so is an integer of more than ``MAX_DIGITS`` digits (which Python refuses to convert)."""
 
 
 PlainLoader.yaml_implicit_resolvers = {
     first: [(tag, regexp) for tag, regexp in resolvers if tag not in ("tag:yaml.org,2002:int",
                                                                      "tag:yaml.org,2002:float")]
     for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
-PlainLoader.add_implicit_resolver("tag:yaml.org,2002:int", re.compile(r"^-?(?:0|[1-9][0-9]*)$"), list("-0123456789"))
+PlainLoader.add_implicit_resolver("tag:yaml.org,2002:int", re.compile(rf"^-?(?:0|[1-9][0-9]{{0,{MAX_DIGITS - 1}}})$"),
+                                  list("-0123456789"))
 PlainLoader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
     re.compile(r"^(?:-?(?:0|[1-9][0-9]*)(?:\.[0-9]+(?:[eE][-+]?[0-9]+)?|[eE][-+]?[0-9]+)"
