@@ -23,7 +23,7 @@ from pathlib import Path
 import yaml
 
 MAX_DEPTH = 20  # a bundle's records and a definition nest at most about 8 levels
-MAX_ITEMS = 2_000_000  # values (about 40 MB of a bundle's records as export_study writes them)
+MAX_ITEMS = 2_000_000  # values; a rating with its page is 20 of them in a bundle's participants.json
 MAX_DIGITS = 40  # of an integer; no field stores more than 20
 
 _STRING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"', re.DOTALL)
