@@ -22,6 +22,7 @@ from studyapp.definitions.reading import read_definition
 from studyapp.models import Rating, Study
 from studyapp.server.bounded_reading import MAX_DEPTH, MAX_ITEMS
 from tests.test_hostile_bundles import bundle, members, refused, rewritten  # noqa: F401 (fixtures)
+from tests.test_hostile_web import UnreadBody
 from tests.test_study_definition_refusals import VALID, owner  # noqa: F401 (fixtures)
 from tests.test_study_researcher import files, researcher, site  # noqa: F401 (fixtures)
 
@@ -34,8 +35,8 @@ def with_a_rating(bundle: Path, rating: dict | None = None, participant: dict | 
     dictionaries change the records of the rating, the participant and their page."""
     first = json.loads(members(bundle)["stimuli.json"])[0]["token"]
     page = {"position": 0, "token": PAGE, "stimulus": first, **(page or {})}
-    record = {"participants": [{"platform_id": "p-1", "code": "code-1", "started_at": "2026-01-05T10:00:00+00:00", "training": [],
-                                "assignments": [page], **(participant or {})}],
+    record = {"participants": [{"platform_id": "p-1", "code": "code-1", "started_at": "2026-01-05T10:00:00+00:00",
+                                "training": [], "assignments": [page], **(participant or {})}],
               "ratings": [{"assignment": page["token"], "value": 3, "answered_at": "2026-01-05T10:01:00+00:00",
                            **(rating or {})}]}
     return rewritten(bundle, {"participants.json": json.dumps(record, ensure_ascii=False).encode()})
@@ -164,8 +165,8 @@ def test_an_impossible_yaml_date_is_refused_with_its_line(owner):
     text = VALID.replace("title: Gait", "title: 2026-02-30")
     with pytest.raises(DefinitionError) as error:
         create_study_from_definition(text, owner, source="study.yaml")
-    assert str(error.value) == ("study.yaml:3: '2026-02-30' reads as no value (day is out of range for month): quote it "
-                                "if it is text")
+    assert str(error.value) == ("study.yaml:3: '2026-02-30' reads as no value (day is out of range for month): "
+                                "quote it if it is text")
 
 
 @pytest.mark.django_db
@@ -173,3 +174,13 @@ def test_an_impossible_yaml_date_is_refused_with_its_line(owner):
                                             ("0", 0)])
 def test_yaml_numbers_as_json_writes_them_are_numbers(written, value):
     assert read_definition(f"version: 1\nx: {written}\n", "study.yaml").value["x"] == value
+
+
+@pytest.mark.django_db
+def test_a_definition_upload_over_its_limit_is_refused_before_its_body_is_read(client):
+    body = UnreadBody()
+    response = client.generic("POST", "/studies/new/from-definition/", b"",
+                              content_type="multipart/form-data; boundary=x", CONTENT_LENGTH=str(10_000_000),
+                              **{"wsgi.input": body})
+    assert response.status_code == 413 and "this page takes at most 5 MB" in response.content.decode()
+    assert body.bytes_read == 0

@@ -4,10 +4,11 @@ Only YAML's safe types are read (mappings, lists, text, numbers, true/false, nul
 text is composed into YAML's node tree (``yaml.compose`` with the safe loader, which
 builds no object), and each node is turned into a value here, so every value keeps its
 line. Numbers are only those written as JSON writes them (``bounded_reading.PlainLoader``):
-``0x10``, ``1_0`` or ``+3`` are text, which a number's setting refuses by its name. A hostile text is refused before it costs anything: past ``MAX_DEFINITION_BYTES``,
-nested past ``MAX_DEPTH``, expanding past ``MAX_NODES`` values through aliases (a
-"billion laughs"), with a key twice, a number that is not finite or text with a NUL
-character (PostgreSQL cannot store one).
+``0x10``, ``1_0`` or ``+3`` are text, which a number's setting refuses by its name. A
+hostile text is refused before it costs anything: past ``MAX_DEFINITION_BYTES``, nested
+past ``MAX_DEPTH``, expanding past ``MAX_NODES`` values through aliases (a "billion
+laughs"), with a key twice, a number that is not finite, a date that is no date or text
+with a NUL character (PostgreSQL cannot store one).
 """
 
 from __future__ import annotations

@@ -86,12 +86,6 @@ def deletion_refusal(row: models.Model) -> str | None:
     return f"{STARTED}: {_what(row)} cannot be removed"
 
 
-def require_change_allowed(row: models.Model, changed: Iterable[str]) -> None:
-    """StudyFixed where ``change_refusal`` refuses the change."""
-    if (refusal := change_refusal(row, changed)) is not None:
-        raise StudyFixed(refusal)
-
-
 def seed_refusal(study: Study, seed: int) -> str | None:
     """Why clips drawn with ``seed`` are refused (a second set in a study whose plan is locked), or None."""
     if not StudyPlan.objects.filter(study=study).exists():
@@ -109,5 +103,5 @@ def require_seed_allowed(study: Study, seed: int) -> None:
         raise StudyFixed(refusal)
 
 
-__all__ = ["FIXED_FIELDS", "INSTRUMENT", "STARTED", "StudyFixed", "change_refusal", "deletion_refusal", "require_change_allowed",
+__all__ = ["FIXED_FIELDS", "INSTRUMENT", "STARTED", "StudyFixed", "change_refusal", "deletion_refusal",
            "require_seed_allowed", "seed_refusal", "started", "study_of"]
