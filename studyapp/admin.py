@@ -4,16 +4,20 @@ A researcher who is staff sees and writes only the rows of their own studies, as
 study pages: a new study is theirs (the owner comes from the request, so the form never
 lists other researchers' names); a superuser sees everything. The names a row holds of
 files and folders (a held-out control's take and folders, a submitted system's folder)
-point only at the study owner's own or at what is shared (``studyapp.ownership``).
+point only at the study owner's own or at what is shared (``studyapp.ownership``). What
+a study that has begun keeps fixed (``studyapp.plan.fixed``) is refused here as on the
+study's pages, and what it allows is recorded as a deviation from its plan, as on every
+path (``studyapp.plan.lock``).
 """
 
 from django import forms
-from django.contrib import admin
+from django.contrib import admin, messages
 from django.core.exceptions import ValidationError
 from django.db import models
 
 from studyapp.models import Assignment, ControlSignal, Participant, Rating, Stimulus, Study, System
 from studyapp.ownership import NotYours, check_take
+from studyapp.plan.fixed import change_refusal, deletion_refusal
 from studyapp.researchers.setup.removal import remove_study
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER
 
@@ -37,14 +41,45 @@ class ReadableJSONField(forms.JSONField):
             return forms.fields.InvalidJSONInput(data)
 
 
+# The fields that tie a row to its study, directly or through a participant's page.
+LINKS = ("study", "participant", "assignment")
+
+
+class PlanLockedForm(forms.ModelForm):
+    """A row's admin form, refusing what a study that has begun keeps fixed (``plan.fixed``),
+    as the study's pages and commands refuse it."""
+
+    def clean(self):
+        cleaned = super().clean()
+        row = self.instance
+        if row.pk is None:  # the study it is added to, as the form gives it
+            row = self._meta.model(**{name: cleaned[name] for name in LINKS if cleaned.get(name) is not None},
+                                   **({"seed": cleaned["seed"]} if "seed" in cleaned else {}))
+        if (refusal := change_refusal(row, self.changed_data)) is not None:
+            raise ValidationError(refusal)
+        return cleaned
+
+
 class OwnStudiesOnly(admin.ModelAdmin):
     """Rows (and the choices in foreign-key fields) limited to the user's own studies.
 
-    ``owner_path`` is the lookup from this model to the study's owner.
+    ``owner_path`` is the lookup from this model to the study's owner. What a study that
+    has begun keeps fixed (``plan.fixed``) is refused on change, on adding and on deletion.
     """
 
     owner_path = "study__owner"
+    form = PlanLockedForm
     formfield_overrides = {models.JSONField: {"form_class": ReadableJSONField}}
+
+    def has_delete_permission(self, request, obj=None):
+        return super().has_delete_permission(request, obj) and (obj is None or deletion_refusal(obj) is None)
+
+    def delete_queryset(self, request, queryset):
+        refusals = [refusal for row in queryset if (refusal := deletion_refusal(row)) is not None]
+        if refusals:
+            self.message_user(request, f"Nothing deleted: {refusals[0]}", messages.ERROR)
+            return
+        super().delete_queryset(request, queryset)
 
     def get_queryset(self, request):
         rows = super().get_queryset(request)

@@ -24,6 +24,7 @@ from __future__ import annotations
 import io
 import json
 import re
+import tempfile
 import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -42,8 +43,12 @@ from hypothesis import HealthCheck, given
 from hypothesis import settings as fuzz_settings
 from hypothesis import strategies as st
 
+from generation.control import preset_path
 from generation.motion.dataset import DatasetOptions
 from studyapp.definitions import create_study_from_definition
+from studyapp.bundles.manifest import entry_of
+from studyapp.bundles.pseudonyms import export_key
+from studyapp.bundles.writing import write_study_bundle
 from studyapp.models import (Assignment, ControlSignal, Participant, PlatformAction, Question, Rating, Stimulus, Study,
                              System)
 from studyapp.participants.views import _remember
@@ -280,7 +285,6 @@ def _zip(members: dict[str, bytes]) -> bytes:
 
 @pytest.fixture
 def lab(client, settings, tmp_path) -> Lab:
-    from generation.control import preset_path
     from studyapp.server.celery import app as celery_app
     from studyapp.server.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options
 
@@ -587,3 +591,101 @@ def test_hostile_platform_answers_never_answer_500_and_only_a_confirming_answer_
         assert all(confirmed_as_done(action) for action in done), [(a.key, a.response) for a in done]
         transaction.set_rollback(True)
     crowd.prolific.refuse_next.clear()
+# --- the bundle and definition uploads ---------------------------------------------------
+
+# JSON values past every bound and of every wrong type, for any place in a bundle's records.
+HOSTILE_JSON = st.sampled_from([
+    None, True, False, 0, -1, 99, 4.7, 2 ** 63, 10 ** 30, 1e308, "", "+3", "٣", "３", "0x10", "1_0", "\x00",
+    "a" * 70_000, "2026-02-30T10:00:00+00:00", "9999-99-99T99:99:99", "../../escape", [], {}, [[[[[]]]]],
+    {"training": [], "assignments": []}])
+HOSTILE_JSON_TEXTS = st.sampled_from([
+    b"[" * 5000 + b"]" * 5000, b'{"a":' * 5000 + b"1" + b"}" * 5000, b"[" * 100_000, b"9" * 5000, b"NaN",
+    b'{"participants": [' + b"{}," * 2_100_000 + b"{}]}", b"1e400", b'{"locked": true}', b"\xff\xfe{}", b""])
+# YAML scalars that YAML 1.1 reads as numbers JSON does not write, and others no setting takes.
+HOSTILE_YAML = st.sampled_from([
+    "0x10", "010", "0o17", "0b11", "1_0", "1:30", "+3", "٣", "３", ".nan", "-.inf", "1e400", "9" * 5000, "~",
+    "[]", "{}", "!!python/object/apply:os.system ['true']", "&a [*a, *a]", '"\\0"', "*unknown", "yes", "2026-02-30",
+    "!!binary aGVsbG8=", "[" * 5000 + "]" * 5000])
+
+
+def _bundled_study(owner: User) -> bytes:
+    """A study with NAT and two controls, written as a bundle (nothing else to unpack)."""
+    study = Study.objects.create(owner=owner, title="Bundled", video_width=160, video_height=120)
+    System.objects.create(study=study, name="NAT", role=System.Role.NATURAL, kind="natural")
+    for name in ("walk-straight", "walk-circle"):
+        ControlSignal.objects.create(study=study, name=name, origin="synthetic", seconds=4.0,
+                                     control=preset_path(name, 20.0).to_dict())
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "study.zip"
+        write_study_bundle(study, path, export_key(None))
+        data = path.read_bytes()
+    study.delete()
+    return data
+
+
+def _changed_json(text: bytes, draw) -> bytes:
+    """A JSON record with one drawn place (an object's member, a list's new item) given a hostile value."""
+    data = json.loads(text)
+    place = data
+    for _ in range(draw(st.integers(0, 3))):
+        inner = [value for value in (place.values() if isinstance(place, dict) else place)
+                 if isinstance(value, (dict, list)) and value]
+        if not inner:
+            break
+        place = draw(st.sampled_from(inner))
+    if isinstance(place, dict):
+        place[draw(st.sampled_from([*sorted(place), "owner", "id"]))] = draw(HOSTILE_JSON)
+    elif isinstance(place, list):
+        place.append(draw(HOSTILE_JSON))
+    return json.dumps(data, ensure_ascii=False).encode()
+
+
+def _hostile_bundle(valid: bytes, draw) -> bytes:
+    """The bundle with one record or the manifest changed (the manifest then listing the change, mostly)."""
+    with zipfile.ZipFile(io.BytesIO(valid)) as archive:
+        files = {name: archive.read(name) for name in archive.namelist()}
+    name = draw(st.sampled_from(["study.json", "stimuli.json", "participants.json", "plan.json", "rules.json",
+                                 "study.yaml", "manifest.json"]))
+    if name.endswith(".json") and draw(st.booleans()):
+        files[name] = _changed_json(files[name], draw)
+    else:
+        files[name] = draw(st.one_of(HOSTILE_JSON_TEXTS, HOSTILE_YAML.map(lambda text: f"version: {text}\n".encode())))
+    if name != "manifest.json" and draw(st.integers(0, 4)):
+        manifest = json.loads(files["manifest.json"])
+        manifest["files"][name] = {"sha256": entry_of(files[name]).sha256, "bytes": len(files[name])}
+        files["manifest.json"] = json.dumps(manifest).encode()
+    return _zip(files)
+
+
+def _hostile_definition(draw) -> bytes:
+    """A valid definition with one drawn setting's value hostile, or a hostile text instead."""
+    lines = VALID.splitlines()
+    settings_lines = [i for i, line in enumerate(lines) if ": " in line and not line.lstrip().startswith("- ")]
+    if draw(st.integers(0, 5)):
+        i = draw(st.sampled_from(settings_lines))
+        key = lines[i].split(": ", 1)[0]
+        lines[i] = f"{key}: {draw(HOSTILE_YAML)}"
+        return ("\n".join(lines) + "\n").encode()
+    return draw(HOSTILE_JSON_TEXTS)
+
+
+@pytest.fixture
+def valid_bundle(lab) -> bytes:
+    return _bundled_study(lab.study.owner)
+
+
+@FUZZ
+@given(data=st.data())
+def test_hostile_bundles_uploaded_never_answer_500_and_a_refusal_changes_nothing(lab, valid_bundle, data):
+    bundle = SimpleUploadedFile("study.zip", _hostile_bundle(valid_bundle, data.draw))
+    status = post_in_a_rolled_back_transaction(lab.client, reverse("study-import"), {
+        "bundle": bundle, "rerun": data.draw(st.sampled_from(["", "on"]))})
+    assert status in (302, 400), status
+
+
+@FUZZ
+@given(data=st.data())
+def test_hostile_definitions_uploaded_never_answer_500_and_a_refusal_changes_nothing(lab, data):
+    status = post_in_a_rolled_back_transaction(lab.client, reverse("study-from-definition"), {
+        "definition": SimpleUploadedFile("study.yaml", _hostile_definition(data.draw))})
+    assert status in (302, 400), status

@@ -179,10 +179,10 @@ def test_a_member_claiming_two_gigabytes_is_refused_before_anything_is_read(bund
 
 
 def test_a_member_that_inflates_past_its_kind_limit_or_its_declared_size_is_refused(bundle, settings):
-    settings.MAX_MOTION_UPLOAD_BYTES = 1_000_000
+    settings.MAX_RECORD_UPLOAD_BYTES = 1_000_000
     big = rewritten(bundle, {"participants.json": b" " * 2_000_000})  # deflates to a few kB
     assert "participants.json: 2 MB, over the 1 MB limit for such a file" in refused(big, settings)
-    settings.MAX_MOTION_UPLOAD_BYTES = 200_000_000
+    settings.MAX_RECORD_UPLOAD_BYTES = 50_000_000
     lying = claimed_size(rewritten(bundle, {"participants.json": b" " * 2_000_000}), "participants.json", 1000)
     assert "participants.json: a damaged zip member (Bad CRC-32" in refused(lying, settings)  # read to 1000 bytes
 

@@ -36,7 +36,6 @@ plan; a rerun locks a plan of its own when it opens.
 
 from __future__ import annotations
 
-import json
 import re
 import shutil
 import tempfile
@@ -54,13 +53,14 @@ from generation.store import SHA256_HEX, SUFFIX, CheckpointError, content_digest
 from studyapp import ownership
 from studyapp.bundles import records
 from studyapp.bundles.manifest import BundleRefused
-from studyapp.bundles.reading import ReadBundle, read_bundle
+from studyapp.bundles.reading import ReadBundle, member_limit, read_bundle
 from studyapp.definitions import DefinitionError, definition_yaml
 from studyapp.definitions.reading import read_definition
 from studyapp.models import (Assignment, ControlSignal, Participant, PreviousRun, Question, Rating, Stimulus,
                              StoredDataError, Study, System, new_token)
 from studyapp.plan.lock import preregistration, restore_preregistration
 from studyapp.plan.words import plan_markdown
+from studyapp.server.bounded_reading import ReadRefused, json_value, read_bytes, utf8_text
 from studyapp.stimuli.clips import CODE_VERSION, content_key
 from studyapp.stimuli.sources import imported_sampled_path
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER, stored_motion_digest
@@ -70,10 +70,16 @@ from studyapp.stimuli.systems import UploadRefused, checked_checkpoint, video_du
 TOKEN = re.compile(r"[0-9A-Za-z_-]{1,32}")
 
 
-def _file_name(value: object, pattern: re.Pattern, what: str, where: str) -> str:
+def _file_name(value: object, pattern: re.Pattern, what: str, where: str, why: str = "it names a file") -> str:
     if not isinstance(value, str) or not pattern.fullmatch(value):
-        raise records.RecordError(f"{where}: its {what} {str(value)[:80]!r} is no {what} (it names a file)")
+        raise records.RecordError(f"{where}: its {what} {str(value)[:80]!r} is no {what} ({why})")
     return value
+
+
+def _id(value: object, what: str, where: str) -> str:
+    """A participant's code or a page's token: there, and no longer than its column (a model
+    field Django fills itself is not validated by ``full_clean``)."""
+    return _file_name(value, TOKEN, what, where, "1 to 32 letters, digits, '-' or '_'")
 
 
 def _member(bundle: ReadBundle, name: str) -> Path:
@@ -84,18 +90,17 @@ def _member(bundle: ReadBundle, name: str) -> Path:
     return path
 
 
+def _bytes(bundle: ReadBundle, name: str) -> bytes:
+    """The file ``name``, within the limit of its kind (``reading.member_limit``, which its unpacking held it to)."""
+    return read_bytes(_member(bundle, name), name, member_limit(name))
+
+
 def _text(bundle: ReadBundle, name: str) -> str:
-    try:
-        return _member(bundle, name).read_text(encoding="utf-8")
-    except UnicodeDecodeError as error:
-        raise BundleRefused(f"{name}: not UTF-8 text ({error})") from None
+    return utf8_text(_bytes(bundle, name), name)
 
 
 def _json(bundle: ReadBundle, name: str) -> object:
-    try:
-        return json.loads(_text(bundle, name))
-    except json.JSONDecodeError as error:
-        raise BundleRefused(f"{name}: not JSON ({error})") from None
+    return json_value(_bytes(bundle, name), name, member_limit(name))
 
 
 def _items(data: object, key: str, where: str) -> list:
@@ -136,6 +141,17 @@ def _check_take(control: ControlSignal, owner, where: str) -> None:
         ownership.check_take(owner, control.source_clip, control.natural)
     except ownership.NotYours as error:
         raise records.RecordError(f"{where}: {error}") from None
+def _answer(study: Study, values: dict, where: str) -> dict:
+    """A rating's values, refused where the rating pages would refuse the answer: a value
+    off the study's scale, a strength of preference the study does not offer."""
+    value, strength = values.get("value"), values.get("strength")
+    if value is not None and value not in study.scale:
+        raise records.RecordError(f"{where}: value {value} is outside the study's scale "
+                                  f"{study.scale_min}-{study.scale_max}")
+    if strength is not None and strength not in study.strengths:
+        raise records.RecordError(f"{where}: strength {strength} is not one of the study's "
+                                  f"{study.preference_strengths} degrees of preference")
+    return values
 
 
 class _Import:
@@ -273,7 +289,7 @@ class _Import:
             if not isinstance(training, list) or not isinstance(pages, list):
                 raise records.RecordError(f"{here}: 'training' and 'assignments' must be lists")
             values = records.row_values(Participant, item, here)
-            values["code"] = _free(Participant, "code", values.get("code"))
+            values["code"] = _free(Participant, "code", _id(values.get("code"), "code", here))
             practice = [self._named(self.stimuli, token, here).pk for token in training]
             participant = _saved(Participant(study=study, training=practice, **values), here,
                                  self._stamps(Participant, values))
@@ -281,14 +297,14 @@ class _Import:
                 there = f"{here}: assignments[{position}]"
                 stimulus = self._named(self.stimuli, _pop(page, "stimulus", there), there)
                 values = records.row_values(Assignment, page, there)
-                recorded = values.get("token")
+                recorded = _id(values.get("token"), "token", there)
                 assignment = Assignment(participant=participant, stimulus=stimulus,
                                         **{**values, "token": _free(Assignment, "token", recorded)})
                 self.assignments[recorded] = _saved(assignment, there)
         for index, item in enumerate(_items(data, "ratings", where)):
             here = f"{where}: ratings[{index}]"
             assignment = self._named(self.assignments, _pop(item, "assignment", here), here)
-            values = records.row_values(Rating, item, here)
+            values = _answer(study, records.row_values(Rating, item, here), here)
             _saved(Rating(assignment=assignment, **values), here, self._stamps(Rating, values))
 
     @staticmethod
@@ -339,7 +355,7 @@ def _restore_plan(bundle: ReadBundle, study: Study) -> None:
 def _check_definition(bundle: ReadBundle, study: Study) -> None:
     """The bundle's definition must describe the study its records made (DefinitionError
     with its line where it is no definition; BundleRefused where it describes another)."""
-    text = _member(bundle, records.DEFINITION_FILE).read_bytes()
+    text = _bytes(bundle, records.DEFINITION_FILE)
     read_definition(text, records.DEFINITION_FILE)
     lines, made = text.decode(errors="replace").splitlines(), definition_yaml(study).splitlines()
     for number, (given, expected) in enumerate(zip(lines, made), start=1):
@@ -368,7 +384,8 @@ def import_study(stream: BinaryIO | str, owner, rerun: bool = False) -> Study:
                 else:
                     run.make_participants(study)
                     _restore_plan(bundle, study)
-        except (records.RecordError, DefinitionError, UploadRefused, MotionFileError, StoredDataError) as error:
+        except (records.RecordError, ReadRefused, DefinitionError, UploadRefused, MotionFileError,
+                StoredDataError) as error:
             raise BundleRefused(str(error).replace(f"{scratch}/", "")) from None
     return study
 

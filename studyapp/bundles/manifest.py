@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 from generation.store import SHA256_HEX
+from studyapp.server.bounded_reading import ReadRefused, json_value
 
 FORMAT = "motion-study bundle"
 VERSION = 1
@@ -83,9 +84,9 @@ def parse_manifest(text: bytes) -> Manifest:
         return BundleRefused(f"{MANIFEST_NAME}: {problem}")
 
     try:
-        data = json.loads(text.decode())
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise refuse(f"not JSON ({error})") from None
+        data = json_value(text, MANIFEST_NAME, MAX_MANIFEST_BYTES)
+    except ReadRefused as error:
+        raise BundleRefused(str(error)) from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise refuse(f"not the manifest of a study bundle (its format is not {FORMAT!r})")
     version = data.get("version")

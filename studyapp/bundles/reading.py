@@ -3,7 +3,8 @@
 The zip is read as every zip from outside is (``studyapp.server.zips``): at most
 ``MAX_MEMBERS`` members, no encrypted one, no name that leaves the folder (zip slip), no
 member past its declared size; and here also no member past the upload limit of its kind
-(a checkpoint's, a video's, the motion limit for the rest) nor all of them past
+(a checkpoint's, a video's, a definition's, a ratings table's, the records' limit for the
+JSON records, the motion limit for the rest) nor all of them past
 ``MAX_BUNDLE_UPLOAD_BYTES``. The manifest is read first and its format version checked;
 then every member must be listed in it, with the SHA-256 and size it lists, and every
 listed file must be there. The first problem refuses the whole bundle with
@@ -22,6 +23,7 @@ from django.conf import settings
 
 from studyapp.bundles import records
 from studyapp.bundles.manifest import MANIFEST_NAME, MAX_MANIFEST_BYTES, BundleRefused, HashingWriter, Manifest, parse_manifest
+from studyapp.definitions.reading import MAX_DEFINITION_BYTES
 from studyapp.server.zips import ZipRefused, checked_members, copy_member, member_path, opened_zip
 
 
@@ -35,11 +37,18 @@ class ReadBundle:
 
 
 def member_limit(name: str) -> int:
-    """The most bytes a file of the bundle may hold: the upload limit of its kind."""
+    """The most bytes a file of the bundle may hold: the upload limit of its kind (the
+    records, read whole into memory, the smallest)."""
     if name.startswith(records.CHECKPOINTS):
         return settings.MAX_CHECKPOINT_UPLOAD_BYTES
     if name.startswith(records.VIDEOS):
         return settings.MAX_VIDEO_UPLOAD_BYTES
+    if name == records.DEFINITION_FILE:
+        return MAX_DEFINITION_BYTES
+    if name == records.RATINGS_FILE:
+        return settings.MAX_RATINGS_UPLOAD_BYTES
+    if name in records.RECORD_FILES:
+        return settings.MAX_RECORD_UPLOAD_BYTES
     return settings.MAX_MOTION_UPLOAD_BYTES
 
 

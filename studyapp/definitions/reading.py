@@ -3,10 +3,12 @@
 Only YAML's safe types are read (mappings, lists, text, numbers, true/false, null): the
 text is composed into YAML's node tree (``yaml.compose`` with the safe loader, which
 builds no object), and each node is turned into a value here, so every value keeps its
-line. A hostile text is refused before it costs anything: past ``MAX_DEFINITION_BYTES``,
-nested past ``MAX_DEPTH``, expanding past ``MAX_NODES`` values through aliases (a
-"billion laughs"), with a key twice, a number that is not finite or text with a NUL
-character (PostgreSQL cannot store one).
+line. Numbers are only those written as JSON writes them (``bounded_reading.PlainLoader``):
+``0x10``, ``1_0`` or ``+3`` are text, which a number's setting refuses by its name. A
+hostile text is refused before it costs anything: past ``MAX_DEFINITION_BYTES``, nested
+past ``MAX_DEPTH``, expanding past ``MAX_NODES`` values through aliases (a "billion
+laughs"), with a key twice, a number that is not finite, a date that is no date or text
+with a NUL character (PostgreSQL cannot store one).
 """
 
 from __future__ import annotations
@@ -17,10 +19,10 @@ from dataclasses import dataclass, field
 import yaml
 
 from studyapp.definitions.errors import DefinitionError
+from studyapp.server.bounded_reading import MAX_DEPTH, PlainLoader
 
 # A definition with a hundred custom paths of a minute each is about this long.
 MAX_DEFINITION_BYTES = 4_000_000
-MAX_DEPTH = 20
 MAX_NODES = 500_000
 Path = tuple[str | int, ...]
 PLAIN_COLLECTIONS = ("tag:yaml.org,2002:map", "tag:yaml.org,2002:seq")
@@ -83,6 +85,8 @@ class _Reader:
             value = self.constructor.construct_object(node)
         except yaml.constructor.ConstructorError as error:
             raise self.fail(node, f"not a plain YAML value ({error.problem})") from None
+        except ValueError as error:  # the form of a date, but no date (February 30th)
+            raise self.fail(node, f"{node.value[:40]!r} reads as no value ({error}): quote it if it is text") from None
         if isinstance(value, float) and not math.isfinite(value):
             raise self.fail(node, f"numbers must be finite, not {node.value}")
         if isinstance(value, str) and "\0" in value:
@@ -108,7 +112,7 @@ def read_definition(text: str | bytes, source: str) -> Located:
         except UnicodeDecodeError as error:
             raise DefinitionError(source, [(None, f"not UTF-8 text (byte {error.start})")]) from None
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        root = yaml.compose(text, Loader=PlainLoader)
     except yaml.MarkedYAMLError as error:
         mark = error.problem_mark or error.context_mark
         raise DefinitionError(source, [(mark.line + 1 if mark else None,

@@ -26,6 +26,7 @@ from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
 from studyapp.participants.views import PLATFORM_PARAMETERS
+from studyapp.plan.fixed import StudyFixed, started
 from studyapp.plan.lock import preregistration
 from studyapp.plan.words import in_words
 from studyapp.researchers.setup import question_order
@@ -220,6 +221,9 @@ def study_stimuli(request: HttpRequest, pk: int) -> HttpResponse:
         except BrokerUnavailable as error:
             messages.error(request, str(error))
             status = 503
+        except StudyFixed as error:
+            form.add_error("seed", str(error))
+            status = 409
         else:
             messages.success(request, f"{result.total} stimuli ({result.created} new); {result.queued} sent to the workers.")
             return redirect("study-stimuli", pk=study.pk)
@@ -281,7 +285,7 @@ def study_item_edit(request: HttpRequest, pk: int, kind: str, item: int) -> Http
             status = 400
         except SystemsFixed:
             status = 409
-    context = {"study": study, "form": form, "target": target, "kind": kind, "locked": study.participants.exists()}
+    context = {"study": study, "form": form, "target": target, "kind": kind, "locked": started(study)}
     return render(request, "studyapp/researcher/edit_item.html", context, status=status)
 
 
@@ -303,7 +307,7 @@ def study_remove(request: HttpRequest, pk: int, kind: str, item: int) -> HttpRes
     target = _item(study, kind, item)
     if request.method != "POST":
         fixed = "participants have started this study: its systems and controls are fixed" \
-            if study.participants.exists() else ""
+            if started(study) else ""
         return _confirm_removal(request, study, target, reverse(f"study-{kind}", args=[study.pk]), fixed)
     try:
         clips = remove(target)
@@ -444,7 +448,7 @@ def study_participants(request: HttpRequest, pk: int) -> HttpResponse:
 def study_questions(request: HttpRequest, pk: int) -> HttpResponse:
     """Questions before the ratings (screening) and after them; fixed once anyone has started."""
     study = _study(request, pk)
-    locked = study.participants.exists()
+    locked = started(study)
     form = QuestionForm(instance=Question(study=study))
     status = 200
     if request.method == "POST":
@@ -477,7 +481,7 @@ def study_question_edit(request: HttpRequest, pk: int, question: int) -> HttpRes
     """Change a question (its text, choices, part, ...) until anyone has started."""
     study = _study(request, pk)
     target = get_object_or_404(Question, pk=question, study=study)
-    locked = study.participants.exists()
+    locked = started(study)
     part = target.part
     form = QuestionForm(request.POST or None, instance=target)
     status = 200
@@ -504,7 +508,7 @@ def study_question_move(request: HttpRequest, pk: int, question: int) -> HttpRes
     step = {"up": -1, "down": 1}.get(request.POST.get("direction", ""))
     if step is None:
         return HttpResponse("direction must be up or down", status=400, content_type="text/plain")
-    if study.participants.exists():
+    if started(study):
         messages.error(request, "Participants have started: the questions are fixed.")
     elif not question_order.move(target, step):
         messages.error(request, f"“{target.text}” is {'first' if step < 0 else 'last'} of its part already.")

@@ -199,8 +199,11 @@ MAX_CHECKPOINT_UPLOAD_BYTES = int(env_float("MAX_CHECKPOINT_UPLOAD_MB", 500) * 1
 MAX_VIDEO_UPLOAD_BYTES = int(env_float("MAX_VIDEO_UPLOAD_MB", 50) * 1_000_000)
 MAX_MOTION_UPLOAD_BYTES = int(env_float("MAX_MOTION_UPLOAD_MB", 200) * 1_000_000)  # a zip, and what it unpacks to
 # A study bundle (studyapp.bundles): the zip, and what it unpacks to; each file in it is held
-# to the limit of its kind above (checkpoints, videos, and the motion limit for the rest).
+# to the limit of its kind (checkpoints, videos, records, and the motion limit for the rest).
 MAX_BUNDLE_UPLOAD_BYTES = int(env_float("MAX_BUNDLE_UPLOAD_MB", 1000) * 1_000_000)
+# A bundle's records (study.json, participants.json, ...), each read whole into memory: a
+# rating with its page is about 575 bytes of participants.json, so this is about 85,000 ratings.
+MAX_RECORD_UPLOAD_BYTES = int(env_float("MAX_RECORD_UPLOAD_MB", 50) * 1_000_000)
 # Large uploads go to a temporary file, not memory.
 FILE_UPLOAD_MAX_MEMORY_SIZE = 5_000_000
 

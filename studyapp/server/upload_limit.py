@@ -15,14 +15,16 @@ from django.http import HttpRequest, HttpResponse
 from django.template.loader import render_to_string
 from django.urls import Resolver404, resolve
 
+from studyapp.definitions.reading import MAX_DEFINITION_BYTES
+
 # Room for a form's other fields and the multipart boundaries around its file.
 FORM_MARGIN_BYTES = 1_000_000
 
 
 def request_limit(path: str) -> int:
     """The most bytes a request to ``path`` may carry: the systems page takes checkpoints
-    and videos, the import page a study bundle, every other page at most a ratings table
-    or a control file."""
+    and videos, the import page a study bundle, the definition page a definition, every
+    other page at most a ratings table or a control file."""
     try:
         name = resolve(path).url_name
     except Resolver404:
@@ -31,6 +33,8 @@ def request_limit(path: str) -> int:
         return max(settings.MAX_CHECKPOINT_UPLOAD_BYTES, settings.MAX_VIDEO_UPLOAD_BYTES) + FORM_MARGIN_BYTES
     if name == "study-import":
         return settings.MAX_BUNDLE_UPLOAD_BYTES + FORM_MARGIN_BYTES
+    if name == "study-from-definition":
+        return MAX_DEFINITION_BYTES + FORM_MARGIN_BYTES
     return settings.DATA_UPLOAD_MAX_MEMORY_SIZE + FORM_MARGIN_BYTES
 
 

@@ -40,6 +40,7 @@ from generation.render import Camera, render_video
 from generation.render.video_check import VideoError, check_rendered_video
 from studyapp.designs.registry import design_of
 from studyapp.models import ControlSignal, Stimulus, Study, System
+from studyapp.plan.fixed import require_seed_allowed
 from studyapp.stimuli.controls import study_options
 from studyapp.stimuli.mismatched import mismatched_clips
 from studyapp.stimuli.sources import Clip, source_of
@@ -82,9 +83,11 @@ def _pairs(study: Study) -> list[tuple[System, ControlSignal, ControlSignal | No
 
 def plan_stimuli(study: Study, seed: int = 0) -> tuple[list[Stimulus], int]:
     """The rows of every (system, control) pair and mismatched clip, created where missing;
-    (rows, how many were new)."""
+    (rows, how many were new); StudyFixed where the seed would add a second set of clips to a
+    study whose plan is locked."""
     stimuli, created = [], 0
     with transaction.atomic():
+        require_seed_allowed(study, seed)
         for system, control, shown in _pairs(study):
             stimulus, new = Stimulus.objects.get_or_create(
                 study=study, content_key=content_key(study, system, control, seed, shown),

@@ -5,6 +5,7 @@ import time
 from django.core.management.base import BaseCommand
 
 from studyapp.models import Stimulus
+from studyapp.plan.fixed import StudyFixed
 from studyapp.stimuli.clips import progress
 from studyapp.stimuli.dispatch import BrokerUnavailable, generate_stimuli
 
@@ -26,7 +27,7 @@ class Command(BaseCommand):
             raise InputError(f"--seed {options['seed']}: a seed is a whole number from 0 to {Stimulus.MAX_SEED}")
         try:
             result = generate_stimuli(study, options["seed"])
-        except BrokerUnavailable as error:
+        except (BrokerUnavailable, StudyFixed) as error:
             raise InputError(str(error)) from None
         self.stdout.write(f"{result.total} stimuli ({result.created} new), {result.queued} queued")
         if not options["wait"]:

@@ -18,6 +18,7 @@ from measures.units import UNITS, parse_scale
 from studyapp.bounds import bound_of
 from studyapp.designs import registry as designs
 from studyapp.models import TEMPERATURE, ControlSignal, Question, Stimulus, Study, System, camera_setting_problem
+from studyapp.plan.fixed import INSTRUMENT, started
 
 
 CAMERA_PREFIX = "camera_"
@@ -58,8 +59,7 @@ class StudyForm(forms.ModelForm):
     is one field per ``Camera`` field, so a new camera setting appears here by itself.
     """
 
-    INSTRUMENT = ("design", "abx", "question", "scale_min", "scale_max", "label_min", "label_max", "preference_strengths",
-                  "bad_threshold", "natural_threshold", "video_width", "video_height", "sliders_must_move")
+    INSTRUMENT = INSTRUMENT  # plan.fixed's, which the admin and the commands hold to as well
     SECTIONS = (
         ("The study", ("title", "instructions", "consent_text")),
         ("Design", ("design", "pages_per_participant", "abx", "preference_strengths", "adaptive_pairing")),
@@ -94,7 +94,7 @@ class StudyForm(forms.ModelForm):
         for spec in dataclasses.fields(Camera):
             field = self.fields[CAMERA_PREFIX + spec.name] = _camera_field(spec)
             field.initial = camera.get(spec.name)
-        if self.instance.pk and self.instance.participants.exists():
+        if self.instance.pk and started(self.instance):
             for name in [*self.INSTRUMENT, *self.camera_fields()]:
                 self.fields[name].disabled = True  # posted values are ignored
                 self.fields[name].help_text = "fixed: participants have started this study"

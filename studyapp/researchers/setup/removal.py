@@ -16,19 +16,20 @@ import shutil
 from django.db import transaction
 
 from studyapp.models import ControlSignal, Rating, Stimulus, Study, System
+from studyapp.plan.fixed import STARTED, StudyFixed, started
 from studyapp.stimuli.sources import imported_sampled_folder, imported_sampled_path, sampled_folder
 
 SAMPLED_NAME = re.compile(r"[0-9a-f]{64}\.npz")  # a content key; anything else there is not ours to delete
 
 
-class SystemsFixed(Exception):
-    """Participants have started: the study's systems and controls are fixed."""
+class SystemsFixed(StudyFixed):
+    """Participants have started: the study's systems and controls are fixed (``plan.fixed``)."""
 
 
 def require_not_started(study: Study) -> None:
     """SystemsFixed once anyone has started the study (call inside the change's transaction)."""
-    if study.participants.exists():
-        raise SystemsFixed("participants have started this study: its systems and controls are fixed")
+    if started(study):
+        raise SystemsFixed(f"{STARTED}: its systems and controls are fixed")
 
 
 def delete_files(stimuli: list[Stimulus]) -> None:
