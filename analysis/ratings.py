@@ -36,12 +36,18 @@ structure described in `analysis.designs` (``page``, ``position``; ``side``, ``a
 appropriateness tables need no ``value`` or scale columns. Without a ``design`` column a
 table is ``single`` and reads as it always has.
 
+A GENEA leaderboard vote file (one row per vote: ``user, input_code, model_a, model_b,
+winner, is_strong``, ...) is recognised by its header and read as a pairwise or
+appropriateness table (`analysis.genea_files`).
+
 Any other column is carried through untouched. The web app's export is the minimal
 schema plus task, control_class, clip_duration_s, shown_at, answered_at and the two flags.
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import os
 from typing import IO
 
@@ -50,6 +56,7 @@ import pandas as pd
 
 from analysis.designs import design_of
 from analysis.errors import AnalysisInputError
+from analysis.genea_files import VOTE_COLUMNS, genea_ratings, is_genea_header
 
 REQUIRED_COLUMNS = ("participant", "system", "stimulus", "value", "scale_min", "scale_max")
 LABEL_COLUMNS = ("participant", "system", "stimulus", "task", "control_class")
@@ -68,20 +75,31 @@ def read_ratings(source: str | os.PathLike | IO[str]) -> pd.DataFrame:
     """Read a ratings CSV (UTF-8) and return it validated and normalised (see `validate_ratings`)."""
     if isinstance(source, (str, os.PathLike)) and os.path.isdir(source):
         raise AnalysisInputError(f"{source!s} is a folder; give the ratings CSV file itself")
+    text = _text(source)
+    if is_genea_header(next(csv.reader(io.StringIO(text, newline="")), [])):
+        return validate_ratings(genea_ratings(text, str(getattr(source, "name", source))))
     try:
-        # utf-8-sig: a byte-order mark (as spreadsheets write) is not part of the first column's name
-        raw = pd.read_csv(source, dtype=str, keep_default_na=False, encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise AnalysisInputError(
-            f"ratings table {source!s} is not UTF-8 text (byte {exc.start} is {exc.object[exc.start:exc.start + 1]!r}); "
-            "save it as UTF-8 CSV") from None
+        raw = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False)
     except pd.errors.ParserError as exc:
         raise AnalysisInputError(f"ratings table {source!s} is not a regular CSV table: {exc}".strip()) from None
     except pd.errors.EmptyDataError:
         raise AnalysisInputError(f"ratings table {source!s} is empty: not even a header row") from None
+    return validate_ratings(raw)
+
+
+def _text(source: str | os.PathLike | IO[str]) -> str:
+    try:
+        if isinstance(source, (str, os.PathLike)):
+            # utf-8-sig: a byte-order mark (as spreadsheets write) is not part of the first column's name
+            with open(source, encoding="utf-8-sig", newline="") as file:
+                return file.read()
+        return source.read()
+    except UnicodeDecodeError as exc:
+        raise AnalysisInputError(
+            f"ratings table {source!s} is not UTF-8 text (byte {exc.start} is {exc.object[exc.start:exc.start + 1]!r}); "
+            "save it as UTF-8 CSV") from None
     except OSError as exc:
         raise AnalysisInputError(f"cannot read ratings table {source!s}: {exc}") from exc
-    return validate_ratings(raw)
 
 
 def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
@@ -98,7 +116,7 @@ def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
     if missing:
         raise AnalysisInputError(
             f"ratings table lacks the required column(s) {', '.join(missing)}; {design.schema_title()} is "
-            f"{', '.join(required)} (see docs/ratings-schema.md)"
+            f"{', '.join(required)} (see docs/ratings-schema.md){_format_hint(ratings.columns)}"
         )
     if len(ratings) == 0:
         raise AnalysisInputError("ratings table has no rows")
@@ -126,6 +144,17 @@ def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
         if column in df.columns:
             df[column] = _booleans(df[column], column)
     return df.reset_index(drop=True)
+
+
+def _format_hint(columns: pd.Index) -> str:
+    """What a table that is missing columns seems to be meant as, when it says so."""
+    if "design" not in columns and {"side", "answer"} <= set(columns):
+        return ("; a table with 'side' and 'answer' columns needs a 'design' column (pairwise or "
+                "appropriateness) saying so")
+    partial = [c for c in VOTE_COLUMNS if c not in columns]
+    if "design" not in columns and len(partial) < len(VOTE_COLUMNS) - 1:
+        return f"; as a GENEA vote file it lacks {', '.join(partial)} ({', '.join(VOTE_COLUMNS)} are its columns)"
+    return ""
 
 
 def _check_scale(df: pd.DataFrame) -> None:
