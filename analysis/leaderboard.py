@@ -71,6 +71,9 @@ MODELS = (BRADLEY_TERRY, DAVIDSON)
 ELO_BASE = 1000.0
 ELO_PER_LOG_ODDS = 400.0 / np.log(10.0)
 RESAMPLES = 10_000
+# A bootstrap over fewer participants than this draws from so few distinct resamples that
+# its percentiles understate the uncertainty; such intervals are flagged, not hidden.
+INTERVAL_WARNING_PARTICIPANTS = 10
 
 _STEP_TOLERANCE = 1e-10
 _CHUNK = 2_000
@@ -377,9 +380,11 @@ def leaderboard(kept: pd.DataFrame, anchor: str | None = None, model: str = BRAD
     ``anchor`` names the system at Elo 1000 (default ``natural`` where it was compared,
     else the systems' mean). Columns: *groupby, rank (1 = best; equal Elo, equal rank),
     system, elo, ci_low, ci_high (bootstrap percentiles), pages (shown), wins, losses,
-    ties (pages won, lost, without preference), model, anchor, tie_parameter (Davidson's
-    nu, NaN otherwise), resamples, resamples_used. Cells without a fit are left out;
-    the notes say why.
+    ties (pages won, lost, without preference), model, anchor, origin (the Elo the anchor,
+    or the mean, sits at), tie_parameter (Davidson's nu, NaN otherwise), resamples,
+    resamples_used, participants (whose votes were fitted) and few_participants (the
+    intervals come from fewer than INTERVAL_WARNING_PARTICIPANTS; a note says so). Cells
+    without a fit are left out; the notes say why.
     """
     if anchor is not None and anchor not in set(kept["system"]):
         raise AnalysisInputError(f"anchor system {anchor!r} is not among the compared systems: "
@@ -407,13 +412,20 @@ def leaderboard(kept: pd.DataFrame, anchor: str | None = None, model: str = BRAD
             notes.append(f"Leaderboard for {where}: {resamples - len(fit.resampled)} of {resamples} "
                          "bootstrap resamples had a system that never lost or never won and were "
                          "left out of the intervals.")
+        participants = len(votes.won)
+        if participants < INTERVAL_WARNING_PARTICIPANTS and resamples:
+            notes.append(f"Leaderboard for {where}: its intervals come from {participants} participants, fewer "
+                         f"than {INTERVAL_WARNING_PARTICIPANTS}; a bootstrap over so few understates the "
+                         "uncertainty, so read them as rough (few_participants in the table).")
         rows.append(pd.DataFrame({**key, "system": votes.systems, "elo": scores, "ci_low": low,
                                   "ci_high": high, **_page_counts(frame, votes.systems),
-                                  "model": model, "anchor": chosen or "mean",
+                                  "model": model, "anchor": chosen or "mean", "origin": ELO_BASE,
                                   "tie_parameter": fit.tie_parameter, "resamples": resamples,
-                                  "resamples_used": len(fit.resampled)}))
+                                  "resamples_used": len(fit.resampled), "participants": participants,
+                                  "few_participants": participants < INTERVAL_WARNING_PARTICIPANTS}))
     columns = [*groupby, "rank", "system", "elo", "ci_low", "ci_high", "pages", "wins", "losses",
-               "ties", "model", "anchor", "tie_parameter", "resamples", "resamples_used"]
+               "ties", "model", "anchor", "origin", "tie_parameter", "resamples", "resamples_used",
+               "participants", "few_participants"]
     if not rows:
         return pd.DataFrame(columns=columns), notes
     table = pd.concat(rows, ignore_index=True).sort_values([*groupby, "elo"], ascending=[True] * len(groupby) + [False])

@@ -25,7 +25,7 @@ from analysis.errors import AnalysisInputError
 from analysis.exclusions import apply_exclusions, compared_ratings, exclusion_notes
 from analysis.genea_files import CARRIED, genea_csv, genea_layout
 from analysis.leaderboard import MODELS, RESAMPLES
-from analysis.leaderboard_report import build_leaderboard, leaderboard_text, write_leaderboard
+from analysis.leaderboard_report import build_leaderboard, leaderboard_text, origin_text, write_leaderboard
 from analysis.pairing import EXPLORATION
 from analysis.pairing_simulation import (DEFAULT_ELO, DEFAULT_VOTES, Scenario, compare_pairings,
                                          write_pairing_simulation)
@@ -190,8 +190,9 @@ def leaderboard_command(args: argparse.Namespace, out: Path) -> list[str]:
     notes += report.notes
     written = [_summary(out, "Leaderboard", leaderboard_text(report), notes),
                *write_leaderboard(report, out)]
-    shown = report.board[["task", "control_class", "rank", "system", "elo", "ci_low", "ci_high", "pages"]]
-    return [to_markdown(shown.round(1)), f"wrote {len(written)} files",
+    shown = report.board[["task", "control_class", "rank", "system", "elo", "ci_low", "ci_high", "pages",
+                          "few_participants"]]
+    return [f"Elo with {origin_text(report.board)}", to_markdown(shown.round(1)), f"wrote {len(written)} files",
             *(f"note: {n}" for n in notes)]
 
 

@@ -96,8 +96,8 @@ def _text(source: str | os.PathLike | IO[str]) -> str:
         return source.read()
     except UnicodeDecodeError as exc:
         raise AnalysisInputError(
-            f"ratings table {source!s} is not UTF-8 text (byte {exc.start} is {exc.object[exc.start:exc.start + 1]!r}); "
-            "save it as UTF-8 CSV") from None
+            f"ratings table {source!s} is not UTF-8 text (byte {exc.start} is "
+            f"{exc.object[exc.start:exc.start + 1]!r}); save it as UTF-8 CSV") from None
     except OSError as exc:
         raise AnalysisInputError(f"cannot read ratings table {source!s}: {exc}") from exc
 
