@@ -149,11 +149,10 @@ def genea_csv(table: pd.DataFrame, layout: GeneaLayout | None = None) -> str:
         "model_a": model(left), "model_b": model(right),
         "winner": left["answer"].map(WINNER_OF_ANSWER),
         "is_strong": strength.map(STRONG_OF_STRENGTH).where(left["answer"] != NO_PREFERENCE).fillna("")})
+    fields = pd.DataFrame({c: left[CARRIED + c] if CARRIED + c in left else derived[c] for c in layout.columns})
     out = io.StringIO(newline="")
     writer = csv.writer(out, lineterminator=layout.line_ending)
     writer.writerow(layout.columns)
-    for i in range(len(left)):
-        writer.writerow([left.at[i, CARRIED + c] if CARRIED + c in left else derived.at[i, c] if c in derived else ""
-                         for c in layout.columns])
+    writer.writerows(fields.itertuples(index=False, name=None))
     text = out.getvalue()
     return text if layout.ends_with_line_ending else text.removesuffix(layout.line_ending)

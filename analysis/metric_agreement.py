@@ -1,0 +1,166 @@
+"""Do the objective metrics agree with the raters? Each metric per clip, its rank
+correlation with the human scores over systems, and per clip with the clip's mean rating.
+
+GENEA 2022 found only one numerical measure (FGD) correlating with human-likeness; this is
+that check for a study whose motion is stored.
+
+Per clip (`clip_metrics`, a tidy table: system, stimulus, metric, value): foot sliding
+(the lowest foot's horizontal speed, `measures.feet.lower_foot_speed`), the mean joint
+acceleration (`analysis.smoothness`), the bone-length error (with offsets), the path
+adherence (clips that carry their control path: the root's mean distance from it and mean
+heading error) and the Fréchet distance of the clip's pose features to all of the natural
+system's frames (`analysis.frechet`). A clip's stimulus is its file's stem (``FILE[k]``
+for the k-th clip of a stack), which is how the ratings should name it for the per-clip
+correlation.
+
+Agreement (`metric_agreement`): a system's metric is the mean over its clips, its score
+the mean of its ratings; Kendall's tau-b between them over the systems having both, with a
+percentile interval from a bootstrap that draws participants with replacement and, within
+each system, clips with replacement (a clip drawn twice counts twice in both the metric's
+mean and, through its ratings, the score). Lower is better for every metric here, so a
+metric that agrees with the raters has a negative tau. Per clip: Kendall's tau between the
+clip's metric and its mean rating over every clip the ratings name.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy import stats as sps
+
+from analysis.adherence import path_errors
+from analysis.bones import bone_length_rmse
+from analysis.errors import AnalysisInputError
+from analysis.frechet import frechet_distance, pose_features
+from analysis.motion_io import SystemClips
+from analysis.smoothness import mean_joint_acceleration
+from measures.feet import choose_foot_joints, lower_foot_speed
+
+RESAMPLES = 2_000
+MIN_SYSTEMS = 3  # a rank correlation over fewer systems says nothing
+AGREEMENT_CAPTION = ("Kendall's tau of each objective metric's system means with the systems' mean ratings "
+                     "(95 % bootstrap interval over participants and clips; lower is better for every metric, "
+                     "so agreement is negative) and, per clip, with the clip's mean rating.")
+AGREEMENT_COLUMNS = ["metric", "tau", "ci_low", "ci_high", "n_systems", "resamples_used", "clip_tau",
+                     "clip_p", "n_clips"]
+
+
+def clip_stimulus(source: str) -> str:
+    """The stimulus id of a clip read from ``source`` (``DIR/x.npz`` or ``DIR/x.npz[k]``)."""
+    path, bracket, index = source.partition("[")
+    return Path(path).stem + (f"[{index}" if bracket else "")
+
+
+def clip_metrics(motion: dict[str, SystemClips], natural: str = "NAT", foot_joints: Sequence[str] | None = None,
+                 foot_kind: str = "heel") -> tuple[pd.DataFrame, list[str]]:
+    """Every clip's objective metrics as a tidy table (system, stimulus, metric, value) and
+    notes on what was not computed."""
+    rows, notes = [], []
+    reference = motion.get(natural)
+    if reference is None:
+        notes.append(f"No Fréchet distance: the motion has no {natural} clips to compare with.")
+    else:
+        natural_features = np.concatenate([pose_features(c, reference.parents) for c in reference.clips])
+    for system, clips in sorted(motion.items()):
+        try:
+            feet = choose_foot_joints(clips.names, clips.parents, clips.clips, foot_kind, foot_joints)
+        except ValueError as error:
+            raise AnalysisInputError(f"system {system!r}: {error}") from None
+        same_rig = reference is not None and clips.names == reference.names
+        if reference is not None and not same_rig:
+            notes.append(f"No Fréchet distance for {system}: its joints are not {natural}'s.")
+        for k, clip in enumerate(clips.clips):
+            values = {"foot_sliding": lower_foot_speed([clip], clips.fps, feet),
+                      "joint_acceleration": mean_joint_acceleration([clip], clips.fps)}
+            if clips.offsets is not None:
+                values["bone_length_rmse"] = bone_length_rmse([clip], clips.parents, clips.offsets)
+            followed = clips.followed[k] if k < len(clips.followed) else None
+            if followed is not None:
+                position, heading = path_errors(followed)
+                values["path_position_error"], values["path_heading_error"] = position.mean(), heading.mean()
+            if same_rig and len(clip) >= 2:
+                values["frechet_to_natural"] = frechet_distance(pose_features(clip, clips.parents), natural_features)
+            stimulus = clip_stimulus(clips.source(k))
+            rows += [{"system": system, "stimulus": stimulus, "metric": m, "value": float(v)}
+                     for m, v in values.items()]
+    return pd.DataFrame(rows, columns=["system", "stimulus", "metric", "value"]), notes
+
+
+def _kendall(x: np.ndarray, y: np.ndarray) -> float:
+    return float(sps.kendalltau(x, y).statistic)
+
+
+def metric_agreement(metrics: pd.DataFrame, ratings: pd.DataFrame, resamples: int = RESAMPLES, seed: int = 0,
+                     confidence: float = 0.95) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
+    """Each metric's Kendall tau with the systems' mean ratings (bootstrap interval over
+    participants and clips) and with the clips' mean ratings.
+
+    ``metrics``: system, stimulus, metric, value (`clip_metrics`); ``ratings``: the kept
+    ratings (participant, system, stimulus, value). Returns (agreement: ``AGREEMENT_COLUMNS``;
+    per system: system, metric, metric_mean, rating_mean; notes).
+    """
+    notes, rows, systems_rows = [], [], []
+    tail = (1 - confidence) / 2 * 100
+    clip_ratings = ratings.groupby(["system", "stimulus"])["value"].mean().rename("rating")
+    for metric, values in metrics[np.isfinite(metrics["value"])].groupby("metric", sort=True):
+        rated = ratings[ratings["system"].isin(set(values["system"]))]
+        systems = sorted(set(rated["system"]))
+        if len(systems) < MIN_SYSTEMS:
+            notes.append(f"No agreement for {metric}: {len(systems)} system(s) have both the metric and ratings "
+                         f"({MIN_SYSTEMS} or more needed).")
+            continue
+        values = values[values["system"].isin(systems)]
+        metric_mean = values.groupby("system")["value"].mean()[systems]
+        rating_mean = rated.groupby("system")["value"].mean()[systems]
+        draws = _bootstrap_taus(values, rated, systems, resamples, seed)
+        low, high = np.percentile(draws, [tail, 100 - tail]) if len(draws) else (np.nan, np.nan)
+        by_clip = values.join(clip_ratings, on=["system", "stimulus"], how="inner")
+        clip_tau, clip_p = (sps.kendalltau(by_clip["value"], by_clip["rating"]) if len(by_clip) >= MIN_SYSTEMS
+                            else (np.nan, np.nan))
+        if len(by_clip) < MIN_SYSTEMS:
+            notes.append(f"No per-clip correlation for {metric}: {len(by_clip)} clip(s) are named in both the "
+                         "motion and the ratings (a clip's stimulus is its file's stem).")
+        rows.append({"metric": metric, "tau": _kendall(metric_mean.to_numpy(), rating_mean.to_numpy()),
+                     "ci_low": low, "ci_high": high, "n_systems": len(systems), "resamples_used": len(draws),
+                     "clip_tau": float(clip_tau), "clip_p": float(clip_p), "n_clips": len(by_clip)})
+        systems_rows.append(pd.DataFrame({"system": systems, "metric": metric, "metric_mean": metric_mean.to_numpy(),
+                                          "rating_mean": rating_mean.to_numpy()}))
+    per_system = (pd.concat(systems_rows, ignore_index=True) if systems_rows
+                  else pd.DataFrame(columns=["system", "metric", "metric_mean", "rating_mean"]))
+    return pd.DataFrame(rows, columns=AGREEMENT_COLUMNS), per_system, notes
+
+
+def _bootstrap_taus(values: pd.DataFrame, rated: pd.DataFrame, systems: list[str], resamples: int,
+                    seed: int) -> np.ndarray:
+    """Kendall's tau of resampled system means: participants drawn with replacement and,
+    within each system, clips; a resample in which a system has no rating left is skipped."""
+    clips = pd.MultiIndex.from_frame(pd.concat([values[["system", "stimulus"]], rated[["system", "stimulus"]]])
+                                     ).unique()
+    clip_of_value = clips.get_indexer(pd.MultiIndex.from_frame(values[["system", "stimulus"]]))
+    clip_of_rating = clips.get_indexer(pd.MultiIndex.from_frame(rated[["system", "stimulus"]]))
+    system_of_clip = pd.Index(systems).get_indexer(clips.get_level_values(0))
+    clips_of_system = [np.flatnonzero(system_of_clip == s) for s in range(len(systems))]
+    participant, participants = pd.factorize(rated["participant"])
+    value_system = system_of_clip[clip_of_value]
+    rating_system = system_of_clip[clip_of_rating]
+    rng = np.random.default_rng(seed)
+    taus = []
+    for _ in range(resamples):
+        clip_weight = np.zeros(len(clips))
+        for members in clips_of_system:
+            clip_weight[members] = rng.multinomial(len(members), np.full(len(members), 1 / len(members)))
+        person_weight = rng.multinomial(len(participants), np.full(len(participants), 1 / len(participants)))
+        weight = person_weight[participant] * clip_weight[clip_of_rating]
+        rating_total = np.bincount(rating_system, weight, len(systems))
+        metric_total = np.bincount(value_system, clip_weight[clip_of_value], len(systems))
+        if (rating_total == 0).any() or (metric_total == 0).any():
+            continue
+        scores = np.bincount(rating_system, weight * rated["value"].to_numpy(dtype=np.float64), len(systems))
+        metric = np.bincount(value_system, clip_weight[clip_of_value] * values["value"].to_numpy(), len(systems))
+        tau = _kendall(metric / metric_total, scores / rating_total)
+        if np.isfinite(tau):
+            taus.append(tau)
+    return np.asarray(taus)
