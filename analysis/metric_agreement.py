@@ -19,7 +19,8 @@ percentile interval from a bootstrap that draws participants with replacement an
 each system, clips with replacement (a clip drawn twice counts twice in both the metric's
 mean and, through its ratings, the score). Lower is better for every metric here, so a
 metric that agrees with the raters has a negative tau. Per clip: Kendall's tau between the
-clip's metric and its mean rating over every clip the ratings name.
+clip's metric and its mean rating over every clip the ratings name. Intervals from fewer
+than `analysis.leaderboard.INTERVAL_WARNING_PARTICIPANTS` participants are flagged.
 """
 
 from __future__ import annotations
@@ -35,17 +36,19 @@ from analysis.adherence import path_errors
 from analysis.bones import bone_length_rmse
 from analysis.errors import AnalysisInputError
 from analysis.frechet import frechet_distance, pose_features
+from analysis.leaderboard import INTERVAL_WARNING_PARTICIPANTS
 from analysis.motion_io import SystemClips
 from analysis.smoothness import mean_joint_acceleration
 from measures.feet import choose_foot_joints, lower_foot_speed
 
 RESAMPLES = 2_000
 MIN_SYSTEMS = 3  # a rank correlation over fewer systems says nothing
+_CHUNK = 250  # resamples drawn at once: (chunk, participant-clip cells) weights stay small
 AGREEMENT_CAPTION = ("Kendall's tau of each objective metric's system means with the systems' mean ratings "
                      "(95 % bootstrap interval over participants and clips; lower is better for every metric, "
                      "so agreement is negative) and, per clip, with the clip's mean rating.")
-AGREEMENT_COLUMNS = ["metric", "tau", "ci_low", "ci_high", "n_systems", "resamples_used", "clip_tau",
-                     "clip_p", "n_clips"]
+AGREEMENT_COLUMNS = ["metric", "tau", "ci_low", "ci_high", "n_systems", "participants", "few_participants",
+                     "resamples_used", "clip_tau", "clip_p", "n_clips"]
 
 
 def clip_stimulus(source: str) -> str:
@@ -89,10 +92,6 @@ def clip_metrics(motion: dict[str, SystemClips], natural: str = "NAT", foot_join
     return pd.DataFrame(rows, columns=["system", "stimulus", "metric", "value"]), notes
 
 
-def _kendall(x: np.ndarray, y: np.ndarray) -> float:
-    return float(sps.kendalltau(x, y).statistic)
-
-
 def metric_agreement(metrics: pd.DataFrame, ratings: pd.DataFrame, resamples: int = RESAMPLES, seed: int = 0,
                      confidence: float = 0.95) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
     """Each metric's Kendall tau with the systems' mean ratings (bootstrap interval over
@@ -123,8 +122,13 @@ def metric_agreement(metrics: pd.DataFrame, ratings: pd.DataFrame, resamples: in
         if len(by_clip) < MIN_SYSTEMS:
             notes.append(f"No per-clip correlation for {metric}: {len(by_clip)} clip(s) are named in both the "
                          "motion and the ratings (a clip's stimulus is its file's stem).")
-        rows.append({"metric": metric, "tau": _kendall(metric_mean.to_numpy(), rating_mean.to_numpy()),
-                     "ci_low": low, "ci_high": high, "n_systems": len(systems), "resamples_used": len(draws),
+        participants = rated["participant"].nunique()
+        if participants < INTERVAL_WARNING_PARTICIPANTS:
+            notes.append(f"Agreement of {metric}: its interval comes from {participants} participants, fewer than "
+                         f"{INTERVAL_WARNING_PARTICIPANTS}; read it as rough (few_participants in the table).")
+        rows.append({"metric": metric, "tau": float(kendall_tau_rows(metric_mean.to_numpy()[None], rating_mean.to_numpy()[None])[0]),
+                     "ci_low": low, "ci_high": high, "n_systems": len(systems), "participants": participants,
+                     "few_participants": participants < INTERVAL_WARNING_PARTICIPANTS, "resamples_used": len(draws),
                      "clip_tau": float(clip_tau), "clip_p": float(clip_p), "n_clips": len(by_clip)})
         systems_rows.append(pd.DataFrame({"system": systems, "metric": metric, "metric_mean": metric_mean.to_numpy(),
                                           "rating_mean": rating_mean.to_numpy()}))
@@ -133,34 +137,60 @@ def metric_agreement(metrics: pd.DataFrame, ratings: pd.DataFrame, resamples: in
     return pd.DataFrame(rows, columns=AGREEMENT_COLUMNS), per_system, notes
 
 
+def agreement_text(agreement: pd.DataFrame) -> str:
+    """A paragraph: each metric's tau over systems with its interval, and per clip."""
+    listed = "; ".join(
+        f"{r.metric} {r.tau:.2f} [{r.ci_low:.2f}, {r.ci_high:.2f}] over {r.n_systems} systems"
+        + (f" (rough: {r.participants} participants)" if r.few_participants else "")
+        + (f", {r.clip_tau:.2f} over {r.n_clips} clips" if r.n_clips >= MIN_SYSTEMS else "")
+        for r in agreement.itertuples(index=False))
+    return ("**Objective metrics against the raters.** Kendall's tau of each metric's system means with the "
+            "systems' mean ratings, with 95 % bootstrap intervals over participants and clips, and of each clip's "
+            f"metric with its mean rating (lower is better for every metric, so agreement is negative): {listed}.")
+
+
+def kendall_tau_rows(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Kendall's tau-b of every row pair of two (rows, n) arrays at once (NaN where either
+    row is constant): the sum of sign(x_i - x_j) sign(y_i - y_j) over the pairs i < j over
+    the square root of the untied pairs' counts in x and in y."""
+    first, second = np.triu_indices(x.shape[1], 1)
+    sx, sy = np.sign(x[:, first] - x[:, second]), np.sign(y[:, first] - y[:, second])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (sx * sy).sum(axis=1) / np.sqrt((sx**2).sum(axis=1) * (sy**2).sum(axis=1))
+
+
 def _bootstrap_taus(values: pd.DataFrame, rated: pd.DataFrame, systems: list[str], resamples: int,
                     seed: int) -> np.ndarray:
     """Kendall's tau of resampled system means: participants drawn with replacement and,
-    within each system, clips; a resample in which a system has no rating left is skipped."""
+    within each system, clips; a resample in which a system has no rating left is skipped.
+    Resamples are drawn in chunks, each a few matrix products over the (participant, clip)
+    cells of the ratings."""
     clips = pd.MultiIndex.from_frame(pd.concat([values[["system", "stimulus"]], rated[["system", "stimulus"]]])
                                      ).unique()
-    clip_of_value = clips.get_indexer(pd.MultiIndex.from_frame(values[["system", "stimulus"]]))
-    clip_of_rating = clips.get_indexer(pd.MultiIndex.from_frame(rated[["system", "stimulus"]]))
     system_of_clip = pd.Index(systems).get_indexer(clips.get_level_values(0))
     clips_of_system = [np.flatnonzero(system_of_clip == s) for s in range(len(systems))]
+    in_system = np.eye(len(systems))
+    clip_of_value = clips.get_indexer(pd.MultiIndex.from_frame(values[["system", "stimulus"]]))
+    value_system, value = in_system[system_of_clip[clip_of_value]], values["value"].to_numpy(dtype=np.float64)
     participant, participants = pd.factorize(rated["participant"])
-    value_system = system_of_clip[clip_of_value]
-    rating_system = system_of_clip[clip_of_rating]
+    cells = pd.DataFrame({"participant": participant, "value": rated["value"].to_numpy(dtype=np.float64),
+                          "clip": clips.get_indexer(pd.MultiIndex.from_frame(rated[["system", "stimulus"]]))}
+                         ).groupby(["participant", "clip"])["value"].agg(["size", "sum"]).reset_index()
+    cell_system = in_system[system_of_clip[cells["clip"].to_numpy()]]
     rng = np.random.default_rng(seed)
     taus = []
-    for _ in range(resamples):
-        clip_weight = np.zeros(len(clips))
+    for start in range(0, resamples, _CHUNK):
+        size = min(_CHUNK, resamples - start)
+        person_weight = rng.multinomial(len(participants), np.full(len(participants), 1 / len(participants)), size)
+        clip_weight = np.zeros((size, len(clips)))
         for members in clips_of_system:
-            clip_weight[members] = rng.multinomial(len(members), np.full(len(members), 1 / len(members)))
-        person_weight = rng.multinomial(len(participants), np.full(len(participants), 1 / len(participants)))
-        weight = person_weight[participant] * clip_weight[clip_of_rating]
-        rating_total = np.bincount(rating_system, weight, len(systems))
-        metric_total = np.bincount(value_system, clip_weight[clip_of_value], len(systems))
-        if (rating_total == 0).any() or (metric_total == 0).any():
-            continue
-        scores = np.bincount(rating_system, weight * rated["value"].to_numpy(dtype=np.float64), len(systems))
-        metric = np.bincount(value_system, clip_weight[clip_of_value] * values["value"].to_numpy(), len(systems))
-        tau = _kendall(metric / metric_total, scores / rating_total)
-        if np.isfinite(tau):
-            taus.append(tau)
-    return np.asarray(taus)
+            clip_weight[:, members] = rng.multinomial(len(members), np.full(len(members), 1 / len(members)), size)
+        weight = person_weight[:, cells["participant"].to_numpy()] * clip_weight[:, cells["clip"].to_numpy()]
+        rating_total = (weight * cells["size"].to_numpy()) @ cell_system
+        metric_total = clip_weight[:, clip_of_value] @ value_system
+        usable = (rating_total > 0).all(axis=1) & (metric_total > 0).all(axis=1)
+        scores = ((weight * cells["sum"].to_numpy()) @ cell_system)[usable] / rating_total[usable]
+        metric = ((clip_weight[:, clip_of_value] * value) @ value_system)[usable] / metric_total[usable]
+        tau = kendall_tau_rows(metric, scores)
+        taus.append(tau[np.isfinite(tau)])
+    return np.concatenate(taus) if taus else np.empty(0)

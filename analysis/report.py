@@ -34,7 +34,7 @@ from analysis.exclusions import (ExclusionRules, apply_exclusions, compared_rati
                                  exclusion_summary, removed_by_reason)
 from analysis.levels import POWER
 from analysis.mixed import mixed_model_means
-from analysis.metric_agreement import AGREEMENT_CAPTION, clip_metrics, metric_agreement
+from analysis.metric_agreement import AGREEMENT_CAPTION, agreement_text, clip_metrics, metric_agreement
 from analysis.motion_io import SystemClips
 from analysis.objective import METRIC_COLUMNS, objective_metrics
 from analysis.power import more_ratings_for_power, power_summary
@@ -253,6 +253,8 @@ def summary_text(report: Report | DesignReport) -> str:
                    f"significant difference from {report.reference} at p < 0.01 and p < 0.05.")
     if report.rater_models is not None:
         out.append(rater_models_text(report.rater_models))
+    if report.metric_agreement is not None and len(report.metric_agreement):
+        out.append(agreement_text(report.metric_agreement))
     if report.power is not None and len(report.power):
         out.append(power_summary(report.power, power=POWER))
     return "\n\n".join(out) + "\n"

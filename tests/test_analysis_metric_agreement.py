@@ -12,7 +12,8 @@ from scipy import stats as sps
 
 from analysis.cli import main
 from analysis.frechet import frechet_distance, gaussian_frechet, pose_features
-from analysis.metric_agreement import clip_metrics, clip_stimulus, metric_agreement
+from analysis.leaderboard import INTERVAL_WARNING_PARTICIPANTS
+from analysis.metric_agreement import clip_metrics, clip_stimulus, kendall_tau_rows, metric_agreement
 from analysis.motion_io import load_motion_sets, save_clips
 
 
@@ -90,6 +91,13 @@ def test_the_tau_over_systems_and_clips_equals_scipy_on_the_means(study):
     pd.testing.assert_frame_equal(agreement, again)
 
 
+def test_the_bootstraps_tau_of_many_rows_at_once_equals_scipys_tau_b_with_ties():
+    rng = np.random.default_rng(5)
+    x, y = rng.integers(0, 4, size=(200, 6)).astype(float), rng.integers(0, 3, size=(200, 6)).astype(float)
+    expected = [sps.kendalltau(a, b).statistic for a, b in zip(x, y)]
+    np.testing.assert_allclose(kendall_tau_rows(x, y), expected, rtol=1e-12, equal_nan=True)
+
+
 def test_a_metric_of_fewer_than_three_rated_systems_is_noted_not_correlated(study):
     metrics, ratings = study
     few = metrics[metrics["system"].isin(["NAT", "A"]) | (metrics["metric"] == "jerk")]
@@ -156,3 +164,14 @@ def test_the_report_of_a_study_with_its_motion_writes_the_agreement_table_and_pl
     assert agreement.loc["joint_acceleration", "tau"] == -1.0  # the noisier, the jerkier and the worse rated
     assert (out / "figures" / "metric_agreement.png").stat().st_size > 0
     assert "Kendall's tau" in (out / "tables" / "metric_agreement.md").read_text()
+    assert "**Objective metrics against the raters.**" in (out / "summary.md").read_text()
+    assert not agreement["few_participants"].any()
+
+
+def test_an_interval_from_fewer_than_ten_participants_is_flagged(study):
+    metrics, ratings = study
+    few = ratings[ratings["participant"].isin([f"p{i}" for i in range(INTERVAL_WARNING_PARTICIPANTS - 1)])]
+    agreement, _, notes = metric_agreement(metrics, few, resamples=50)
+    assert agreement["few_participants"].all() and set(agreement["participants"]) == {9}
+    assert notes[0] == ("Agreement of foot_sliding: its interval comes from 9 participants, fewer than 10; read it "
+                        "as rough (few_participants in the table).")
