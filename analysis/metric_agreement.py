@@ -42,7 +42,7 @@ from analysis.smoothness import mean_joint_acceleration
 from measures.feet import choose_foot_joints, lower_foot_speed
 
 RESAMPLES = 2_000
-MIN_SYSTEMS = 3  # a rank correlation over fewer systems says nothing
+MIN_POINTS = 3  # a rank correlation over fewer systems or clips says nothing
 _CHUNK = 250  # resamples drawn at once: (chunk, participant-clip cells) weights stay small
 AGREEMENT_CAPTION = ("Kendall's tau of each objective metric's system means with the systems' mean ratings "
                      "(95 % bootstrap interval over participants and clips; lower is better for every metric, "
@@ -107,26 +107,30 @@ def metric_agreement(metrics: pd.DataFrame, ratings: pd.DataFrame, resamples: in
     for metric, values in metrics[np.isfinite(metrics["value"])].groupby("metric", sort=True):
         rated = ratings[ratings["system"].isin(set(values["system"]))]
         systems = sorted(set(rated["system"]))
-        if len(systems) < MIN_SYSTEMS:
+        if len(systems) < MIN_POINTS:
             notes.append(f"No agreement for {metric}: {len(systems)} system(s) have both the metric and ratings "
-                         f"({MIN_SYSTEMS} or more needed).")
+                         f"({MIN_POINTS} or more needed).")
             continue
         values = values[values["system"].isin(systems)]
         metric_mean = values.groupby("system")["value"].mean()[systems]
         rating_mean = rated.groupby("system")["value"].mean()[systems]
+        tau = float(kendall_tau_rows(metric_mean.to_numpy()[None], rating_mean.to_numpy()[None])[0])
+        if not np.isfinite(tau):
+            notes.append(f"No agreement for {metric}: the metric or the mean rating is the same for every system.")
+            continue
         draws = _bootstrap_taus(values, rated, systems, resamples, seed)
         low, high = np.percentile(draws, [tail, 100 - tail]) if len(draws) else (np.nan, np.nan)
         by_clip = values.join(clip_ratings, on=["system", "stimulus"], how="inner")
-        clip_tau, clip_p = (sps.kendalltau(by_clip["value"], by_clip["rating"]) if len(by_clip) >= MIN_SYSTEMS
+        clip_tau, clip_p = (sps.kendalltau(by_clip["value"], by_clip["rating"]) if len(by_clip) >= MIN_POINTS
                             else (np.nan, np.nan))
-        if len(by_clip) < MIN_SYSTEMS:
+        if len(by_clip) < MIN_POINTS:
             notes.append(f"No per-clip correlation for {metric}: {len(by_clip)} clip(s) are named in both the "
                          "motion and the ratings (a clip's stimulus is its file's stem).")
         participants = rated["participant"].nunique()
         if participants < INTERVAL_WARNING_PARTICIPANTS:
             notes.append(f"Agreement of {metric}: its interval comes from {participants} participants, fewer than "
                          f"{INTERVAL_WARNING_PARTICIPANTS}; read it as rough (few_participants in the table).")
-        rows.append({"metric": metric, "tau": float(kendall_tau_rows(metric_mean.to_numpy()[None], rating_mean.to_numpy()[None])[0]),
+        rows.append({"metric": metric, "tau": tau,
                      "ci_low": low, "ci_high": high, "n_systems": len(systems), "participants": participants,
                      "few_participants": participants < INTERVAL_WARNING_PARTICIPANTS, "resamples_used": len(draws),
                      "clip_tau": float(clip_tau), "clip_p": float(clip_p), "n_clips": len(by_clip)})
@@ -142,7 +146,7 @@ def agreement_text(agreement: pd.DataFrame) -> str:
     listed = "; ".join(
         f"{r.metric} {r.tau:.2f} [{r.ci_low:.2f}, {r.ci_high:.2f}] over {r.n_systems} systems"
         + (f" (rough: {r.participants} participants)" if r.few_participants else "")
-        + (f", {r.clip_tau:.2f} over {r.n_clips} clips" if r.n_clips >= MIN_SYSTEMS else "")
+        + (f", {r.clip_tau:.2f} over {r.n_clips} clips" if r.n_clips >= MIN_POINTS else "")
         for r in agreement.itertuples(index=False))
     return ("**Objective metrics against the raters.** Kendall's tau of each metric's system means with the "
             "systems' mean ratings, with 95 % bootstrap intervals over participants and clips, and of each clip's "

@@ -106,6 +106,14 @@ def test_a_metric_of_fewer_than_three_rated_systems_is_noted_not_correlated(stud
     assert notes == ["No agreement for foot_sliding: 2 system(s) have both the metric and ratings (3 or more needed)."]
 
 
+def test_a_metric_the_same_for_every_system_is_noted_not_correlated(study):
+    metrics, ratings = study
+    constant = metrics.assign(value=np.where(metrics["metric"] == "foot_sliding", 1.0, metrics["value"]))
+    agreement, _, notes = metric_agreement(constant, ratings, resamples=20)
+    assert list(agreement["metric"]) == ["jerk"]
+    assert notes == ["No agreement for foot_sliding: the metric or the mean rating is the same for every system."]
+
+
 def test_clips_are_named_by_their_file_stem():
     assert clip_stimulus("motion/MoGlow/walk_03.npz") == "walk_03"
     assert clip_stimulus("motion/MoGlow.npz[2]") == "MoGlow[2]"
