@@ -60,7 +60,7 @@ from analysis.blas import one_blas_thread
 from analysis.bradley_terry import never_compared_reason
 from analysis.designs import NO_PREFERENCE, PAGE
 from analysis.errors import AnalysisInputError
-from analysis.minimums import few_participants_warning, too_few_for_bootstrap
+from analysis.minimums import INTERVAL_FEW_PARTICIPANTS, few_participants_warning, too_few_for_bootstrap
 from analysis.pairwise import preference_pages
 from analysis.stats import CELL, iter_cells
 
@@ -73,6 +73,9 @@ MODELS = (BRADLEY_TERRY, DAVIDSON)
 ELO_BASE = 1000.0
 ELO_PER_LOG_ODDS = 400.0 / np.log(10.0)
 RESAMPLES = 10_000
+# A bootstrap over fewer participants than this draws from so few distinct resamples that
+# its percentiles understate the uncertainty; such intervals are flagged, not hidden.
+INTERVAL_WARNING_PARTICIPANTS = INTERVAL_FEW_PARTICIPANTS
 
 _STEP_TOLERANCE = 1e-10
 _CHUNK = 2_000
@@ -384,10 +387,13 @@ def leaderboard(kept: pd.DataFrame, anchor: str | None = None, model: str = BRAD
     ``anchor`` names the system at Elo 1000 (default ``natural`` where it was compared,
     else the systems' mean). Columns: *groupby, rank (1 = best; equal Elo, equal rank),
     system, elo, ci_low, ci_high (bootstrap percentiles), pages (shown), wins, losses,
-    ties (pages won, lost, without preference), model, anchor, tie_parameter (Davidson's
-    nu, NaN otherwise), resamples, resamples_used, warning (why a cell of too few
-    participants has no intervals, or what makes its intervals less certain than they
-    look, `analysis.minimums`). Cells without a fit are left out; the notes say why.
+    ties (pages won, lost, without preference), model, anchor, origin (the Elo the anchor,
+    or the mean, sits at), tie_parameter (Davidson's nu, NaN otherwise), resamples,
+    resamples_used, participants (whose votes were fitted), few_participants (the
+    intervals come from fewer than INTERVAL_WARNING_PARTICIPANTS; a note says so) and
+    warning (why a cell of too few participants has no intervals, or what makes its
+    intervals less certain than they look, `analysis.minimums`). Cells without a fit are
+    left out; the notes say why.
     """
     if anchor is not None and anchor not in set(kept["system"]):
         raise AnalysisInputError(f"anchor system {anchor!r} is not among the compared systems: "
@@ -418,14 +424,21 @@ def leaderboard(kept: pd.DataFrame, anchor: str | None = None, model: str = BRAD
             notes.append(f"Leaderboard for {where}: {resamples - len(fit.resampled)} of {resamples} "
                          "bootstrap resamples had a system that never lost or never won and were "
                          "left out of the intervals.")
+        participants = len(votes.won)
+        if participants < INTERVAL_WARNING_PARTICIPANTS and resamples:
+            notes.append(f"Leaderboard for {where}: its intervals come from {participants} participants, fewer "
+                         f"than {INTERVAL_WARNING_PARTICIPANTS}; a bootstrap over so few understates the "
+                         "uncertainty, so read them as rough (few_participants in the table).")
         rows.append(pd.DataFrame({**key, "system": votes.systems, "elo": scores, "ci_low": low,
                                   "ci_high": high, **_page_counts(frame, votes.systems),
-                                  "model": model, "anchor": chosen or "mean",
+                                  "model": model, "anchor": chosen or "mean", "origin": ELO_BASE,
                                   "tie_parameter": fit.tie_parameter, "resamples": resamples,
-                                  "resamples_used": len(fit.resampled),
-                                  "warning": warning or few_participants_warning(len(votes.won))}))
+                                  "resamples_used": len(fit.resampled), "participants": participants,
+                                  "few_participants": participants < INTERVAL_WARNING_PARTICIPANTS,
+                                  "warning": warning or few_participants_warning(participants)}))
     columns = [*groupby, "rank", "system", "elo", "ci_low", "ci_high", "pages", "wins", "losses",
-               "ties", "model", "anchor", "tie_parameter", "resamples", "resamples_used", "warning"]
+               "ties", "model", "anchor", "origin", "tie_parameter", "resamples", "resamples_used",
+               "participants", "few_participants", "warning"]
     if not rows:
         return pd.DataFrame(columns=columns), notes
     table = pd.concat(rows, ignore_index=True).sort_values([*groupby, "elo"], ascending=[True] * len(groupby) + [False])

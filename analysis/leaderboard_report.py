@@ -16,8 +16,9 @@ from pathlib import Path
 import pandas as pd
 
 from analysis import plots
-from analysis.leaderboard import (BRADLEY_TERRY, CLEAR, DAVIDSON, PLAIN_WIN_WEIGHT, RESAMPLES,
-                                  SLIGHT, TIE_WEIGHT, WINS_PER_DEGREE, battles, leaderboard)
+from analysis.leaderboard import (BRADLEY_TERRY, CLEAR, DAVIDSON, INTERVAL_WARNING_PARTICIPANTS,
+                                  PLAIN_WIN_WEIGHT, RESAMPLES, SLIGHT, TIE_WEIGHT, WINS_PER_DEGREE, battles,
+                                  leaderboard)
 from analysis.leaderboard_plots import heat_map_plot
 from analysis.pairwise import side_bias
 from analysis.stats import CELL
@@ -78,7 +79,7 @@ def leaderboard_text(report: LeaderboardReport) -> str:
         where = report.participants[(report.participants["task"] == task)
                                     & (report.participants["control_class"] == cc)]
         anchor = board["anchor"].iloc[0]
-        origin = f"{anchor} at 1000" if anchor != "mean" else "the systems' mean at 1000"
+        origin = origin_text(board)
         nu = (f" (tie parameter nu = {board['tie_parameter'].iloc[0]:.3f})"
               if report.model == DAVIDSON else "")
         systems = ", ".join(
@@ -91,6 +92,9 @@ def leaderboard_text(report: LeaderboardReport) -> str:
                 f"are odds of 10 to 1) with {origin} and {report.confidence * 100:g} % percentile "
                 f"intervals from {report.resamples:,} bootstrap resamples of the participants "
                 f"(seed {report.seed}): {systems}.")
+        if board["few_participants"].iloc[0]:
+            text += (f" With fewer than {INTERVAL_WARNING_PARTICIPANTS} participants these intervals "
+                     "understate the uncertainty: read them as rough.")
         bias = report.side_bias[(report.side_bias["task"] == task) & (report.side_bias["control_class"] == cc)]
         if len(bias) and bias["n_decided"].iloc[0]:
             b = bias.iloc[0]
@@ -101,10 +105,22 @@ def leaderboard_text(report: LeaderboardReport) -> str:
     return "\n\n".join(out)
 
 
+def origin_text(board: pd.DataFrame) -> str:
+    """Where a leaderboard's Elo scale is fixed: its anchor (or the systems' mean) and origin."""
+    fixed = sorted({f"{a} at {o:g}" if a != "mean" else f"the systems' mean at {o:g}"
+                    for a, o in zip(board["anchor"], board["origin"])})
+    if not fixed:
+        return "no anchor (no cell was fitted)"
+    return fixed[0] if len(fixed) == 1 else f"{'; '.join(fixed)} (per cell: its anchor column)"
+
+
 def leaderboard_tables(report: LeaderboardReport) -> dict[str, tuple[str, pd.DataFrame]]:
     """File name -> (title, table) of the leaderboard and its battles."""
-    return {"leaderboard": (f"Leaderboard ({report.model}): Elo with {report.confidence * 100:g} % "
-                            "bootstrap intervals over participants", report.board),
+    few = (f"; intervals from fewer than {INTERVAL_WARNING_PARTICIPANTS} participants are rough "
+           "(few_participants)" if report.board["few_participants"].any() else "")
+    return {"leaderboard": (f"Leaderboard ({report.model}): Elo with {origin_text(report.board)}, 400 points "
+                            f"odds of 10 to 1, and {report.confidence * 100:g} % bootstrap intervals over "
+                            f"participants{few}", report.board),
             "battles": ("Pages per ordered pair of systems: battles, wins of the row system, ties, "
                         "and its share of the decided pages", report.battles)}
 

@@ -149,6 +149,30 @@ def adherence_plot(curves: pd.DataFrame, natural: str = "NAT") -> Figure:
     return fig
 
 
+def metric_agreement_plot(agreement: pd.DataFrame, per_system: pd.DataFrame, natural: str = "NAT") -> Figure:
+    """Per metric, each system's mean metric against its mean rating, Kendall's tau (and its
+    bootstrap interval) in the title (`analysis.metric_agreement`)."""
+    metrics = list(agreement["metric"])
+    columns = min(3, len(metrics))
+    rows = -(-len(metrics) // columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(3.4 * columns, 3.0 * rows), squeeze=False)
+    for ax, row in zip(axes.ravel(), agreement.itertuples(index=False)):
+        points = per_system[per_system["metric"] == row.metric]
+        ax.scatter(points["metric_mean"], points["rating_mean"], s=18)
+        for point in points.itertuples(index=False):
+            ax.annotate(plain_text(point.system), (point.metric_mean, point.rating_mean), fontsize="x-small",
+                        fontweight="bold" if point.system == natural else "normal",
+                        xytext=(3, 3), textcoords="offset points")
+        ax.set_title(f"{plain_text(row.metric)}\nτ = {row.tau:.2f} [{row.ci_low:.2f}, {row.ci_high:.2f}]",
+                     fontsize="small")
+        ax.set_xlabel("mean over the system's clips", fontsize="small")
+        ax.set_ylabel("mean rating", fontsize="small")
+    for ax in axes.ravel()[len(metrics):]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    return fig
+
+
 def save_figure(fig: Figure, folder: str | Path, name: str) -> list[Path]:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

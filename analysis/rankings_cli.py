@@ -3,6 +3,7 @@
     python -m analysis leaderboard RATINGS.csv --out DIR [--anchor NAT] [--model davidson]
     python -m analysis simulate-pairing --out DIR [--studies 200] [--workers 4]
     python -m analysis rater-models RATINGS.csv --out DIR [--reference NAT]
+    python -m analysis genea-votes RATINGS.csv --out DIR
 
 Each command writes into a folder that `analysis.cli` stages (a failure leaves the
 folder as it was) and returns the lines to print.
@@ -22,8 +23,9 @@ from analysis.cli_options import add_exclusion_arguments, exclusion_rules
 from analysis.designs import design_of, designs_where
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import apply_exclusions, compared_ratings, exclusion_notes
+from analysis.genea_files import CARRIED, genea_csv, genea_layout
 from analysis.leaderboard import MODELS, RESAMPLES
-from analysis.leaderboard_report import build_leaderboard, leaderboard_text, write_leaderboard
+from analysis.leaderboard_report import build_leaderboard, leaderboard_text, origin_text, write_leaderboard
 from analysis.pairing import EXPLORATION
 from analysis.pairing_simulation import (DEFAULT_ELO, DEFAULT_VOTES, Scenario, compare_pairings,
                                          write_pairing_simulation)
@@ -33,6 +35,8 @@ from analysis.tables import to_markdown
 
 if TYPE_CHECKING:
     from analysis.designs.base import RatingDesign
+
+GENEA_VOTES = "votes_genea.csv"
 
 
 def _count(minimum: int):
@@ -71,6 +75,14 @@ def add_commands(commands) -> None:
     board.add_argument("--seed", type=int, default=0, help="the bootstrap's seed (default 0)")
     add_exclusion_arguments(board, thresholds=False)
     board.set_defaults(write=leaderboard_command)
+    genea = commands.add_parser(
+        "genea-votes", help="write a pairwise or appropriateness table as the GENEA leaderboard's vote file",
+        description="Read a pairwise or appropriateness ratings CSV, or a GENEA battles or mismatch file "
+                    "(analysis/genea_files.py), and write all its votes, exclusions not applied, as GENEA's "
+                    "one-row-per-vote file DIR/votes_genea.csv; a GENEA file comes back byte for byte.")
+    genea.add_argument("ratings", help="pairwise or appropriateness ratings CSV, or a GENEA vote file")
+    genea.add_argument("--out", required=True, help="folder to write votes_genea.csv into")
+    genea.set_defaults(write=genea_votes_command)
     simulate = commands.add_parser(
         "simulate-pairing", help="simulate pairwise studies with uniform and adaptive pairing",
         description="Simulate pairwise studies with five-level answers, pairs chosen uniformly "
@@ -178,9 +190,31 @@ def leaderboard_command(args: argparse.Namespace, out: Path) -> list[str]:
     notes += report.notes
     written = [_summary(out, "Leaderboard", leaderboard_text(report), notes),
                *write_leaderboard(report, out)]
-    shown = report.board[["task", "control_class", "rank", "system", "elo", "ci_low", "ci_high", "pages"]]
-    return [to_markdown(shown.round(1)), f"wrote {len(written)} files",
+    shown = report.board[["task", "control_class", "rank", "system", "elo", "ci_low", "ci_high", "pages",
+                          "few_participants"]]
+    return [f"Elo with {origin_text(report.board)}", to_markdown(shown.round(1)), f"wrote {len(written)} files",
             *(f"note: {n}" for n in notes)]
+
+
+def _write_genea_votes(ratings: pd.DataFrame, source: str, out: Path) -> Path:
+    """Every vote of ``ratings`` (read from ``source``) as out/votes_genea.csv, in the
+    source's own columns and line endings where it is a GENEA file."""
+    with open(source, encoding="utf-8-sig", newline="") as file:
+        text = file.read()
+    layout = genea_layout(text) if any(c.startswith(CARRIED) for c in ratings.columns) else None
+    path = out / GENEA_VOTES
+    path.write_bytes(genea_csv(ratings, layout).encode("utf-8"))
+    return path
+
+
+def genea_votes_command(args: argparse.Namespace, out: Path) -> list[str]:
+    ratings = read_ratings(args.ratings)
+    design = design_of(ratings)
+    if not (design.votes or design.judges_appropriateness):
+        raise AnalysisInputError(f"genea-votes writes pairwise and appropriateness tables; {args.ratings} is "
+                                 f"{design.name}")
+    path = _write_genea_votes(ratings, args.ratings, out)
+    return [f"wrote {path.name}"]
 
 
 def simulate_pairing_command(args: argparse.Namespace, out: Path) -> list[str]:

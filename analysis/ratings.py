@@ -36,12 +36,18 @@ structure described in `analysis.designs` (``page``, ``position``; ``side``, ``a
 appropriateness tables need no ``value`` or scale columns. Without a ``design`` column a
 table is ``single`` and reads as it always has.
 
+A GENEA leaderboard vote file (one row per vote: ``user, input_code, model_a, model_b,
+winner, is_strong``, ...) is recognised by its header and read as a pairwise or
+appropriateness table (`analysis.genea_files`).
+
 Any other column is carried through untouched. The web app's export is the minimal
 schema plus task, control_class, clip_duration_s, shown_at, answered_at and the two flags.
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import os
 from typing import IO, TYPE_CHECKING
 
@@ -50,6 +56,7 @@ import pandas as pd
 
 from analysis.designs import DEFAULT, DESIGNS, design_named, design_of
 from analysis.errors import AnalysisInputError
+from analysis.genea_files import VOTE_COLUMNS, genea_ratings, is_genea_header
 
 if TYPE_CHECKING:
     from analysis.designs.base import RatingDesign
@@ -71,20 +78,31 @@ def read_ratings(source: str | os.PathLike | IO[str]) -> pd.DataFrame:
     """Read a ratings CSV (UTF-8) and return it validated and normalised (see `validate_ratings`)."""
     if isinstance(source, (str, os.PathLike)) and os.path.isdir(source):
         raise AnalysisInputError(f"{source!s} is a folder; give the ratings CSV file itself")
+    text = _text(source)
+    if is_genea_header(next(csv.reader(io.StringIO(text, newline="")), [])):
+        return validate_ratings(genea_ratings(text, str(getattr(source, "name", source))))
     try:
-        # utf-8-sig: a byte-order mark (as spreadsheets write) is not part of the first column's name
-        raw = pd.read_csv(source, dtype=str, keep_default_na=False, encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise AnalysisInputError(
-            f"ratings table {source!s} is not UTF-8 text (byte {exc.start} is {exc.object[exc.start:exc.start + 1]!r}); "
-            "save it as UTF-8 CSV") from None
+        raw = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False)
     except pd.errors.ParserError as exc:
         raise AnalysisInputError(f"ratings table {source!s} is not a regular CSV table: {exc}".strip()) from None
     except pd.errors.EmptyDataError:
         raise AnalysisInputError(f"ratings table {source!s} is empty: not even a header row") from None
+    return validate_ratings(raw)
+
+
+def _text(source: str | os.PathLike | IO[str]) -> str:
+    try:
+        if isinstance(source, (str, os.PathLike)):
+            # utf-8-sig: a byte-order mark (as spreadsheets write) is not part of the first column's name
+            with open(source, encoding="utf-8-sig", newline="") as file:
+                return file.read()
+        return source.read()
+    except UnicodeDecodeError as exc:
+        raise AnalysisInputError(
+            f"ratings table {source!s} is not UTF-8 text (byte {exc.start} is "
+            f"{exc.object[exc.start:exc.start + 1]!r}); save it as UTF-8 CSV") from None
     except OSError as exc:
         raise AnalysisInputError(f"cannot read ratings table {source!s}: {exc}") from exc
-    return validate_ratings(raw)
 
 
 def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
@@ -131,7 +149,8 @@ def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
 def _missing_columns_reason(ratings: pd.DataFrame, design: RatingDesign, missing: list[str],
                             required: tuple[str, ...]) -> str:
     """What a table lacking ``missing`` lacks: where it has no ``design`` column but every
-    column of another design, the design column (it was read as single ratings)."""
+    column of another design, the design column (it was read as single ratings); where it
+    has some of a GENEA vote file's columns, the others."""
     if "design" not in ratings.columns:
         others = [design_named(name) for name in DESIGNS if name != DEFAULT]
         fitting = [other for other in others if set(other.required_columns(REQUIRED_COLUMNS)) <= set(ratings.columns)]
@@ -141,6 +160,10 @@ def _missing_columns_reason(ratings: pd.DataFrame, design: RatingDesign, missing
             return (f"ratings table has no 'design' column, so it was read as single ratings, which need "
                     f"{', '.join(missing)}; its columns {', '.join(own)} are those of the {likely.name} design: add a "
                     f"column 'design' holding {likely.name!r} on every row (see docs/ratings-schema.md)")
+        partial = [c for c in VOTE_COLUMNS if c not in ratings.columns]
+        if len(partial) < len(VOTE_COLUMNS) - 1:
+            return (f"ratings table lacks the required column(s) {', '.join(missing)}; as a GENEA vote file it lacks "
+                    f"{', '.join(partial)} ({', '.join(VOTE_COLUMNS)} are its columns)")
     return (f"ratings table lacks the required column(s) {', '.join(missing)}; {design.schema_title()} is "
             f"{', '.join(required)} (see docs/ratings-schema.md)")
 

@@ -36,6 +36,7 @@ from analysis.levels import POWER
 from analysis.minimums import (INTERVAL_FEW_PARTICIPANTS, cells_for_models, participant_warning_notes,
                                with_participant_warnings)
 from analysis.mixed import mixed_model_means
+from analysis.metric_agreement import AGREEMENT_CAPTION, agreement_text, clip_metrics, metric_agreement
 from analysis.motion_io import SystemClips
 from analysis.objective import METRIC_COLUMNS, objective_metrics
 from analysis.power import more_ratings_for_power, power_summary
@@ -69,6 +70,9 @@ class Report:
     objective_display: pd.DataFrame | None = None
     footstep_curves: pd.DataFrame | None = None
     correlation: pd.DataFrame | None = None
+    clip_metrics: pd.DataFrame | None = None  # per clip: system, stimulus, metric, value
+    metric_agreement: pd.DataFrame | None = None  # per metric: Kendall's tau with the ratings
+    metric_systems: pd.DataFrame | None = None  # per system and metric: its mean metric and mean rating
     power: pd.DataFrame | None = None  # more ratings for 80 % power per pair (analysis.power)
     rater_models: RaterModels | None = None  # crossed LMM, CLMM, agreement (analysis.rater_models)
     notes: list[str] = field(default_factory=list)
@@ -205,6 +209,10 @@ def _add_objective(report: Report, motion: dict[str, SystemClips],
     report.correlation, corr_notes = subjective_objective_correlation(
         subjective, metrics.set_index("system")[list(METRIC_COLUMNS)])
     report.notes += corr_notes
+    report.clip_metrics, clip_notes = clip_metrics(motion, report.rules.natural_system, foot_joints, foot_kind)
+    report.metric_agreement, report.metric_systems, agreement_notes = metric_agreement(
+        report.clip_metrics, report.analysed)
+    report.notes += clip_notes + agreement_notes
 
 
 def _comparison_text(report: Report, task: str, control_class: str) -> str:
@@ -251,6 +259,8 @@ def summary_text(report: Report | DesignReport) -> str:
                    f"significant difference from {report.reference} at p < 0.01 and p < 0.05.")
     if report.rater_models is not None:
         out.append(rater_models_text(report.rater_models))
+    if report.metric_agreement is not None and len(report.metric_agreement):
+        out.append(agreement_text(report.metric_agreement))
     if report.power is not None and len(report.power):
         out.append(power_summary(report.power, power=POWER))
     return "\n\n".join(out) + "\n"
@@ -298,6 +308,12 @@ def write_report(report: Report | DesignReport, folder: str | Path) -> list[Path
                                formats=("csv", "json"))
         if len(report.correlation):
             written += write_table(report.correlation, tables, "correlation")
+        written += write_table(report.clip_metrics, tables, "clip_metrics", formats=("csv", "json"))
+        if len(report.metric_agreement):
+            written += write_table(report.metric_agreement, tables, "metric_agreement", caption=AGREEMENT_CAPTION)
+            written += plots.save_figure(plots.metric_agreement_plot(report.metric_agreement, report.metric_systems,
+                                                                     report.rules.natural_system),
+                                         figures, "metric_agreement")
         written += plots.save_figure(plots.footstep_plot(report.footstep_curves,
                                                          report.rules.natural_system),
                                      figures, "footstep_curves")

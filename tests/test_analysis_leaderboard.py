@@ -21,8 +21,9 @@ from analysis.bradley_terry import fit_bradley_terry, win_matrix
 from analysis.cli import main
 from analysis.errors import AnalysisInputError
 from analysis.graded_votes import simulate_graded_pairwise
-from analysis.leaderboard import (ELO_PER_LOG_ODDS, battles, fit_votes, leaderboard,
-                                  pair_votes, participant_resamples, vote_pages)
+from analysis.leaderboard import (ELO_PER_LOG_ODDS, INTERVAL_WARNING_PARTICIPANTS, battles, fit_votes,
+                                  leaderboard, pair_votes, participant_resamples, vote_pages)
+from analysis.leaderboard_report import build_leaderboard, leaderboard_text
 from analysis.pairwise import preference_pages
 from analysis.ratings import read_ratings
 from analysis.simulate import simulate_pairwise
@@ -270,3 +271,29 @@ def test_the_pairwise_report_gains_the_leaderboard_heat_maps_and_paragraph(grade
     assert (board["resamples"] == 10_000).all() and set(board["anchor"]) == {"NAT"}
     summary = (out / "summary.md").read_text()
     assert "**Leaderboard, gesture · held-out.**" in summary and "weighted Bradley-Terry model" in summary
+
+
+def test_every_leaderboard_table_states_its_anchor_and_origin(graded, tmp_path):
+    path = tmp_path / "ratings.csv"
+    graded.to_csv(path, index=False)
+    out = tmp_path / "board"
+    assert main(["leaderboard", str(path), "--out", str(out), "--resamples", "50"]) == 0
+    written = pd.read_csv(out / "tables" / "leaderboard.csv")
+    assert set(written["anchor"]) == {"NAT"} and set(written["origin"]) == {1000}
+    for fmt in ("md", "tex"):
+        assert "Elo with NAT at 1000, 400 points odds of 10 to 1" in (out / "tables" / f"leaderboard.{fmt}").read_text()
+    no_nat = graded[~graded.groupby(["participant", "page"])["system"].transform(lambda s: (s == "NAT").any())]
+    no_nat.to_csv(path, index=False)
+    assert main(["leaderboard", str(path), "--out", str(tmp_path / "mean"), "--resamples", "50"]) == 0
+    assert "Elo with the systems' mean at 1000" in (tmp_path / "mean" / "tables" / "leaderboard.md").read_text()
+
+
+def test_intervals_from_fewer_than_ten_participants_are_flagged(graded):
+    few = graded[graded["participant"].isin([f"p{i}" for i in range(3, 3 + INTERVAL_WARNING_PARTICIPANTS - 1)])]
+    board, notes = leaderboard(few, resamples=50)
+    assert board["few_participants"].all() and set(board["participants"]) == {INTERVAL_WARNING_PARTICIPANTS - 1}
+    assert any(f"come from {INTERVAL_WARNING_PARTICIPANTS - 1} participants, fewer than 10" in n for n in notes)
+    enough, notes = leaderboard(graded[graded["participant"].isin([f"p{i}" for i in range(3, 13)])], resamples=50)
+    assert not enough["few_participants"].any() and not any("fewer than 10" in n for n in notes)
+    text = leaderboard_text(build_leaderboard(few, resamples=50))
+    assert "these intervals understate the uncertainty" in text
