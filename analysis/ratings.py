@@ -34,7 +34,10 @@ Side-by-side, pairwise and appropriateness tables carry a ``design`` column and 
 structure described in `analysis.designs` (``page``, ``position``; ``side``, ``answer``,
 ``strength``; ``matched``), which their design objects check; pairwise and
 appropriateness tables need no ``value`` or scale columns. Without a ``design`` column a
-table is ``single`` and reads as it always has.
+table is ``single`` and reads as it always has, unless its columns are another design's:
+one lacking ``value`` and the scale columns but with that design's columns, or one whose
+``page`` is shared by several rows (a single page shows one clip), is refused and told to
+add the ``design`` column.
 
 A GENEA leaderboard vote file (one row per vote: ``user, input_code, model_a, model_b,
 winner, is_strong``, ...) is recognised by its header and read as a pairwise or
@@ -54,7 +57,7 @@ from typing import IO, TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
-from analysis.designs import DEFAULT, DESIGNS, design_named, design_of
+from analysis.designs import DEFAULT, DESIGNS, PAGE, design_named, design_of
 from analysis.errors import AnalysisInputError
 from analysis.genea_files import VOTE_COLUMNS, genea_ratings, is_genea_header
 
@@ -87,7 +90,7 @@ def read_ratings(source: str | os.PathLike | IO[str]) -> pd.DataFrame:
         raise AnalysisInputError(f"ratings table {source!s} is not a regular CSV table: {exc}".strip()) from None
     except pd.errors.EmptyDataError:
         raise AnalysisInputError(f"ratings table {source!s} is empty: not even a header row") from None
-    return validate_ratings(raw)
+    return validate_ratings(raw, source=source)
 
 
 def _text(source: str | os.PathLike | IO[str]) -> str:
@@ -105,21 +108,24 @@ def _text(source: str | os.PathLike | IO[str]) -> str:
         raise AnalysisInputError(f"cannot read ratings table {source!s}: {exc}") from exc
 
 
-def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
+def validate_ratings(ratings: pd.DataFrame, source: str | os.PathLike | IO[str] | None = None) -> pd.DataFrame:
     """Check a ratings table against the schema and return a normalised copy.
 
     The copy has string labels (task and control_class filled with ``"all"`` when
     absent), integer value and scale columns, a boolean ``answered_before_end`` column
     when the timings allow it, and the app's own flags renamed with an ``app_`` prefix.
-    Raises AnalysisInputError naming the offending column and rows otherwise.
+    Raises AnalysisInputError naming the offending column and rows otherwise (and the
+    table's ``source`` where a message says the table is of another design).
     """
     design = design_of(ratings)
     required = design.required_columns(REQUIRED_COLUMNS)
     missing = [c for c in required if c not in ratings.columns]
     if missing:
-        raise AnalysisInputError(_missing_columns_reason(ratings, design, missing, required))
+        raise AnalysisInputError(_missing_columns_reason(ratings, design, missing, required, source))
     if len(ratings) == 0:
         raise AnalysisInputError("ratings table has no rows")
+    if "design" not in ratings.columns:
+        _refuse_shared_pages(ratings, source)
     df = ratings.rename(columns=APP_FLAG_COLUMNS).copy()
     for column in LABEL_COLUMNS:
         if column not in df.columns:
@@ -147,7 +153,7 @@ def validate_ratings(ratings: pd.DataFrame) -> pd.DataFrame:
 
 
 def _missing_columns_reason(ratings: pd.DataFrame, design: RatingDesign, missing: list[str],
-                            required: tuple[str, ...]) -> str:
+                            required: tuple[str, ...], source: str | os.PathLike | IO[str] | None) -> str:
     """What a table lacking ``missing`` lacks: where it has no ``design`` column but every
     column of another design, the design column (it was read as single ratings); where it
     has some of a GENEA vote file's columns, the others."""
@@ -157,7 +163,7 @@ def _missing_columns_reason(ratings: pd.DataFrame, design: RatingDesign, missing
         if fitting:
             likely = max(fitting, key=lambda named: len(named.required_columns(REQUIRED_COLUMNS)))  # the most specific
             own = [c for c in likely.required_columns(REQUIRED_COLUMNS) if c not in REQUIRED_COLUMNS]
-            return (f"ratings table has no 'design' column, so it was read as single ratings, which need "
+            return (f"{_table_name(source)} has no 'design' column, so it was read as single ratings, which need "
                     f"{', '.join(missing)}; its columns {', '.join(own)} are those of the {likely.name} design: add a "
                     f"column 'design' holding {likely.name!r} on every row (see docs/ratings-schema.md)")
         partial = [c for c in VOTE_COLUMNS if c not in ratings.columns]
@@ -166,6 +172,32 @@ def _missing_columns_reason(ratings: pd.DataFrame, design: RatingDesign, missing
                     f"{', '.join(partial)} ({', '.join(VOTE_COLUMNS)} are its columns)")
     return (f"ratings table lacks the required column(s) {', '.join(missing)}; {design.schema_title()} is "
             f"{', '.join(required)} (see docs/ratings-schema.md)")
+
+
+def _refuse_shared_pages(ratings: pd.DataFrame, source: str | os.PathLike | IO[str] | None) -> None:
+    """A table without a ``design`` column is single ratings, one clip per page; a ``page``
+    that several rows share is a screen of several clips, and analysing those ratings as
+    independent single ones would be silently wrong. A ``page`` column with one row per
+    page is carried through as any other column."""
+    if "page" not in ratings.columns:
+        return
+    keys = pd.MultiIndex.from_arrays([ratings[c].astype(str).str.strip() for c in PAGE if c in ratings.columns])
+    shared = pd.Series(keys.duplicated(keep=False), index=ratings.index)
+    if shared.any():
+        row = _row_number(ratings, shared)
+        rows = int((keys == keys[row - 1]).sum())
+        raise AnalysisInputError(
+            f"{_table_name(source)} has no 'design' column, so it would be read as single ratings, one clip per page; "
+            f"but its page {ratings['page'].iloc[row - 1]!r} of participant {ratings['participant'].iloc[row - 1]!r} "
+            f"has {rows} rows (first at row {row}), so it looks like a side-by-side table: add a column 'design' "
+            "holding 'side-by-side' on every row, or 'single' if they are single ratings all the same "
+            "(see docs/ratings-schema.md)")
+
+
+def _table_name(source: str | os.PathLike | IO[str] | None) -> str:
+    """How a message names the table: by its file where it was read from one."""
+    name = getattr(source, "name", source)  # an open file's path
+    return f"ratings table {name!s}" if isinstance(name, (str, os.PathLike)) else "ratings table"
 
 
 def _check_scale(df: pd.DataFrame) -> None:

@@ -1,6 +1,7 @@
 """Messages that name the real cause: a comparison graph of groups never compared is not
 one where a group always won, and a pairwise table without a design column is told to
-add that column, not value and scale columns."""
+add that column, not value and scale columns, as is a side-by-side one, whose pages hold
+several rows."""
 
 from __future__ import annotations
 
@@ -9,12 +10,18 @@ import pytest
 
 from analysis.bradley_terry import bradley_terry_scale, fit_bradley_terry
 from analysis.cli import main
+from analysis.designs import design_of
 from analysis.errors import AnalysisInputError
 from analysis.exclusions import ExclusionRules, apply_exclusions, compared_ratings
 from analysis.leaderboard import leaderboard
 from analysis.pairwise import preference_pages
 from analysis.ratings import validate_ratings
-from analysis.simulate import simulate_appropriateness, simulate_pairwise
+from analysis.simulate import (
+    simulate_appropriateness,
+    simulate_pairwise,
+    simulate_ratings,
+    simulate_side_by_side,
+)
 
 NEVER_COMPARED = "groups never compared with each other ({A, B}; {C, D})"
 
@@ -67,3 +74,30 @@ def test_a_table_of_another_design_without_its_design_column_is_told_to_add_that
             f"columns {own} are those of the {design} design: add a column 'design' holding '{design}' on every "
             "row") in error
     assert not (tmp_path / "report").exists()
+
+
+def test_a_side_by_side_table_without_its_design_column_is_refused_naming_the_file(tmp_path, capsys):
+    path = tmp_path / "ratings.csv"
+    simulate_side_by_side({"A": 40.0, "B": 60.0}, n_participants=6).drop(columns=["design"]).to_csv(path, index=False)
+    assert main(["report", str(path), "--out", str(tmp_path / "report")]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "Traceback" not in error
+    assert (f"ratings table {path} has no 'design' column, so it would be read as single ratings, one clip per page; "
+            "but its page 'c11' of participant 'p0' has 2 rows (first at row 1), so it looks like a side-by-side "
+            "table: add a column 'design' holding 'side-by-side' on every row") in error
+    assert not (tmp_path / "report").exists()
+
+
+def test_a_single_table_without_a_design_column_reads_as_single_ratings_with_a_page_per_row():
+    table = simulate_ratings({"A": 3.0, "B": 4.0}, n_ratings=60, ratings_per_participant=10)
+    table["page"] = table.groupby("participant").cumcount() + 1  # page ids repeat across participants, not within
+    ratings = validate_ratings(table)
+    assert design_of(table).name == "single"
+    assert len(ratings) == len(table) and ratings["page"].tolist() == table["page"].tolist()
+
+
+def test_a_table_declared_single_may_share_its_pages():
+    # The refusal's way out for a table whose page column means something else.
+    table = simulate_ratings({"A": 3.0, "B": 4.0}, n_ratings=60, ratings_per_participant=10).assign(
+        design="single", page="intro")
+    assert design_of(table).name == "single" and len(validate_ratings(table)) == len(table)
