@@ -3,8 +3,10 @@
     python scripts/docs_reference.py [--out docs/reference]
 
 Every command line's page comes from its argparse parser (``generation.cli.parser()``,
-``analysis.cli.parser()``, each ``manage.py`` command's ``create_parser``) and the
-environment page from ``studyapp.server.env.VARIABLES``, so the pages say what the code
+``analysis.cli.parser()``, each ``manage.py`` command's ``create_parser``), the
+environment page from ``studyapp.server.env.VARIABLES``, the ratings table's columns from
+``analysis.ratings.COLUMNS`` with the designs' required and exported columns, and the study
+definition file's keys from ``studyapp.definitions.layout``, so the pages say what the code
 does. tests/test_docs_reference.py writes them again into a temporary folder and fails
 when they differ from the committed ones.
 """
@@ -120,6 +122,158 @@ def figures_text(row: dict) -> str:
     return "see the run's file"
 
 
+def designs_text(names: list[str], every: list[str]) -> str:
+    return "every design" if names == every else ", ".join(f"`{name}`" for name in names) or "—"
+
+
+def undeclared_columns() -> list[str]:
+    """Columns a design requires or the study app writes that ``analysis.ratings.COLUMNS`` lacks."""
+    from analysis.ratings import COLUMNS
+
+    declared = {column.name for column in COLUMNS}
+    used = [*required_columns().values(), *exported_columns().values()]
+    return sorted({name for names in used for name in names} - declared)
+
+
+def required_columns() -> dict[str, tuple[str, ...]]:
+    """Each analysis design's required columns."""
+    from analysis.designs import DESIGNS, design_named
+    from analysis.ratings import REQUIRED_COLUMNS
+
+    return {name: design_named(name).required_columns(REQUIRED_COLUMNS) for name in DESIGNS}
+
+
+def exported_columns() -> dict[str, tuple[str, ...]]:
+    """The columns of the study app's ratings table of each of its designs."""
+    import django
+
+    django.setup()
+    from studyapp.designs.registry import DESIGNS, design_named
+    from studyapp.researchers.results.export import design_export_columns
+
+    return {name: design_export_columns(design_named(name)) for name in DESIGNS}
+
+
+def ratings_schema_page() -> str:
+    from analysis.ratings import COLUMNS
+
+    missing = undeclared_columns()
+    if missing:
+        raise SystemExit(f"declare the ratings column(s) {', '.join(missing)} in analysis/ratings.py's COLUMNS")
+    required, exported = required_columns(), exported_columns()
+    rows = [f"| `{column.name}` | {cell(column.type)} | "
+            f"{designs_text([d for d, names in required.items() if column.name in names], list(required))} | "
+            f"{designs_text([d for d, names in exported.items() if column.name in names], list(exported))} | "
+            f"{cell(column.meaning)} |" for column in COLUMNS]
+    return "\n\n".join([
+        GENERATED, "# Ratings table columns",
+        "`python -m analysis` reads a CSV file (UTF-8) with one row per rating: one participant's rating of one "
+        "clip, or for a pairwise or appropriateness page one row per clip shown. The study app exports this "
+        "table; any other tool can write it too. *Required in* names the designs whose tables must have the "
+        "column (the `design` column says a table's design; without it a table is `single`); *the app writes "
+        "it in* names the designs whose exported tables have it. Booleans are `true`/`false`, `1`/`0` or "
+        "`yes`/`no`. Any other column is carried through as it is. The columns are declared in "
+        "`analysis/ratings.py` (`COLUMNS`); [Ratings table schema](../ratings-schema.md) explains the designs, "
+        "the exclusion rules and what is refused, with examples.",
+        "| column | type | required in | the app writes it in | meaning |\n| --- | --- | --- | --- | --- |\n"
+        + "\n".join(rows)])
+
+
+def form_meaning(field) -> str:
+    """A page form field's label, help and choices: what the study page says of the setting."""
+    text = str(field.label or "")
+    if field.help_text:
+        text += f": {field.help_text}"
+    choices = [value for value, _ in getattr(field, "choices", []) if value != ""]
+    if choices:
+        text += " (" + ", ".join(f"`{value}`" for value in choices) + ")"
+    return text
+
+
+def bounded_type(kind, bound) -> str:
+    from studyapp.definitions.layout import type_words
+
+    return type_words(kind) + (f", {bound.low:g} to {bound.high:g}" if bound else "")
+
+
+def shown_default(default) -> str:
+    from django.db.models import NOT_PROVIDED
+
+    if default is NOT_PROVIDED or default == "":
+        return "—"
+    return cell(f"`{'null' if default is None else str(default).lower() if isinstance(default, bool) else default}`")
+
+
+def key_table(keys) -> str:
+    from studyapp.definitions.layout import type_words
+
+    rows = [f"| `{key.name}` | {type_words(key.type)} | {'yes' if key.required else ''} | {cell(key.meaning)} |"
+            for key in keys]
+    return "| key | value | required | meaning |\n| --- | --- | --- | --- |\n" + "\n".join(rows)
+
+
+def study_file_page() -> str:
+    import dataclasses
+
+    import django
+
+    django.setup()
+    from generation.render.camera import Camera
+    from studyapp.bounds import bound_of
+    from studyapp.definitions import layout
+    from studyapp.models import CAMERA_BOUNDS, Question, Study
+    from studyapp.researchers.setup.forms import CAMERA_PREFIX, QuestionForm, StudyForm
+
+    form = StudyForm()
+    header = "| key | value | default | meaning |\n| --- | --- | --- | --- |\n"
+    parts = [GENERATED, "# Study definition file",
+             "A study as one YAML file: `python manage.py describe_study STUDY` (or **Download definition** on the "
+             "study page) writes it, `python manage.py create_study USERNAME --from FILE` (or **New study from a "
+             "definition**) makes a new, closed study from it through the checks of the study's pages. "
+             "[Running a study, A study as a file](../running-a-study.md#a-study-as-a-file) explains it, with the "
+             "demo's definition as an example. The keys below are those `studyapp/definitions/layout.py` "
+             "declares, the settings' as the study page's form has them: a key not listed is refused, naming its "
+             "line; a setting left out takes the study page's default.",
+             f"The file's top level: `{layout.VERSION_KEY}: {layout.VERSION}`, a mapping per section of the study "
+             "page below, and the lists " + ", ".join(f"`{name}`" for name in layout.LISTS) + "."]
+    types = layout.study_types()
+    for key, names in layout.study_sections():
+        rows = [f"| `{name}` | {bounded_type(types[name], bound_of(Study, name))} | "
+                f"{shown_default(Study._meta.get_field(name).default)} | {cell(form_meaning(form.fields[name]))} |"
+                for name in names]
+        if key == layout.camera_section():
+            rows.append(f"| `{layout.CAMERA_KEY}` | a mapping | | the camera of every clip (its keys below) |")
+        parts += [f"## {key}", header + "\n".join(rows)]
+    camera_types, defaults = layout.camera_types(), {spec.name: spec.default for spec in dataclasses.fields(Camera)}
+    rows = [f"| `{name}` | {bounded_type(kind, CAMERA_BOUNDS.get(name))} | {shown_default(defaults[name])} | "
+            f"{cell(form_meaning(form.fields[CAMERA_PREFIX + name]))} |" for name, kind in camera_types.items()]
+    parts += [f"### {layout.camera_section()}.{layout.CAMERA_KEY}",
+              "A `null` distance or target height is derived from the character's size.", header + "\n".join(rows)]
+    question_form = QuestionForm()
+    rows = []
+    for name, kind in layout.question_types().items():
+        meaning = form_meaning(question_form.fields[name])
+        if name in layout.QUESTION_LISTS:
+            meaning += "; in the file, a list"
+        required = "yes" if name in layout.QUESTION_REQUIRED else ""
+        rows.append(f"| `{name}` | {bounded_type(kind, None)} | {required} | "
+                    f"{shown_default(Question._meta.get_field(name).default)} | {cell(meaning)} |")
+    parts += ["## questions", "Each entry one question, in its order within its part.",
+              "| key | value | required | default | meaning |\n| --- | --- | --- | --- | --- |\n" + "\n".join(rows)]
+    parts += ["## systems", "Each entry one system, with at most one of " + ", ".join(
+        f"`{name}`" for name in layout.SYSTEM_SOURCES) + " (none of them: the natural clips).",
+              key_table(layout.SYSTEM_KEYS),
+              "### systems[].checkpoint", key_table(layout.CHECKPOINT_KEYS),
+              "### systems[].submitted", key_table(layout.SUBMITTED_KEYS)]
+    parts += ["## controls", "Each entry one control, with exactly one of " + ", ".join(
+        f"`{name}`" for name in layout.CONTROL_SOURCES) + ": how it is made again.",
+              key_table(layout.CONTROL_KEYS),
+              "### controls[].path", key_table(layout.PATH_KEYS),
+              "### controls[].labels", key_table(layout.LABEL_KEYS),
+              "### controls[].held_out", key_table(layout.HELD_OUT_KEYS)]
+    return "\n\n".join(parts)
+
+
 def cell(text: str) -> str:
     return str(text).replace("|", "\\|").replace("\n", " ")
 
@@ -138,6 +292,8 @@ def pages() -> dict[str, str]:
         "manage.md": manage_page(),
         "environment.md": environment_page(),
         "benchmarks.md": benchmarks_page(),
+        "ratings-schema.md": ratings_schema_page(),
+        "study-file.md": study_file_page(),
     }
 
 

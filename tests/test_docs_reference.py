@@ -1,9 +1,12 @@
-"""The reference pages are the code's: regenerated, they equal the committed ones, and every
-environment variable the code reads is declared once in studyapp/server/env.py."""
+"""The reference pages are the code's: regenerated, they equal the committed ones; every
+environment variable the code reads is declared once in studyapp/server/env.py, every ratings
+column a design requires or the study app writes in analysis/ratings.py, and every key of a
+study definition file in studyapp/definitions/layout.py."""
 
 from __future__ import annotations
 
 import ast
+import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -13,6 +16,9 @@ import pytest
 from studyapp.server.env import DECLARED
 
 REPO = Path(__file__).resolve().parents[1]
+SPEC = importlib.util.spec_from_file_location("docs_reference", REPO / "scripts" / "docs_reference.py")
+docs_reference = importlib.util.module_from_spec(SPEC)
+SPEC.loader.exec_module(docs_reference)
 READERS = {"env_str", "env_bool", "env_list", "env_float"}
 PACKAGES = ("studyapp", "generation", "analysis", "measures")
 
@@ -112,3 +118,76 @@ def test_generation_help_lists_every_command():
                  and isinstance(action.choices, dict))
     missing = [name for name in names if name not in root.format_help()]
     assert missing == [], "generation/cli/__init__.py's docstring lists the commands; add " + ", ".join(missing)
+
+
+@pytest.mark.parametrize("page", ["ratings-schema.md", "study-file.md"])
+def test_the_ratings_and_study_file_pages_are_those_the_code_gives(page):
+    written = {"ratings-schema.md": docs_reference.ratings_schema_page,
+               "study-file.md": docs_reference.study_file_page}[page]().rstrip() + "\n"
+    assert (REPO / "docs" / "reference" / page).read_text(encoding="utf-8") == written, \
+        f"docs/reference/{page} differs from the code: run make docs-reference"
+
+
+def test_every_ratings_column_a_design_requires_or_the_app_writes_is_declared():
+    assert docs_reference.undeclared_columns() == [], "declare these in analysis/ratings.py's COLUMNS"
+
+
+def test_a_column_the_app_starts_writing_without_a_declaration_is_named(monkeypatch):
+    from studyapp.researchers.results import export
+
+    monkeypatch.setattr(export, "EXPORT_COLUMNS", (*export.EXPORT_COLUMNS, "client_volume"))
+    assert docs_reference.undeclared_columns() == ["client_volume"]
+    with pytest.raises(SystemExit, match="client_volume"):
+        docs_reference.ratings_schema_page()
+
+
+def test_a_column_declared_anew_changes_the_ratings_page(monkeypatch):
+    from analysis import ratings
+
+    before = docs_reference.ratings_schema_page()
+    monkeypatch.setattr(ratings, "COLUMNS", (*ratings.COLUMNS, ratings.Column("client_volume", "number", "loudness")))
+    assert "| `client_volume` | number |" in docs_reference.ratings_schema_page() != before
+
+
+def documented_keys(page: str) -> dict[str, set[str]]:
+    """Each section of the study file page (## or ###) and the keys its table lists."""
+    keys: dict[str, set[str]] = {}
+    section = ""
+    for line in page.splitlines():
+        if line.startswith("#"):
+            section = line.lstrip("#").strip()
+        elif line.startswith("| `"):
+            keys.setdefault(section, set()).add(line.split("`")[1])
+    return keys
+
+
+def definition_keys(definition: dict) -> set[tuple[str, str]]:
+    """(the page's section, key) of every key in a definition's values."""
+    found = set()
+    for top, value in definition.items():
+        if isinstance(value, dict):
+            for key, item in value.items():
+                found.add((top, key))
+                if isinstance(item, dict):
+                    found |= {(f"{top}.{key}", inner) for inner in item}
+        elif isinstance(value, list):
+            for entry in value:
+                for key, item in entry.items():
+                    found.add((top, key))
+                    if isinstance(item, dict):
+                        found |= {(f"{top}[].{key}", inner) for inner in item}
+    return found
+
+
+def test_every_key_of_the_demos_documented_definition_is_on_the_study_file_page():
+    """The definition in docs/running-a-study.md is the demo study's (test_study_definitions holds it to it)."""
+    import yaml
+
+    guide = (REPO / "docs" / "running-a-study.md").read_text(encoding="utf-8")
+    block = guide.split("# A study definition: python manage.py create_study", 1)[1].split("```", 1)[0].split("\n", 1)[1]
+    definition = yaml.safe_load(block)
+    keys = documented_keys((REPO / "docs" / "reference" / "study-file.md").read_text(encoding="utf-8"))
+    undocumented = sorted(f"{section}: {key}" for section, key in definition_keys(definition)
+                          if key not in keys.get(section, set()))
+    assert undocumented == [], "declare these in studyapp/definitions/layout.py, then run make docs-reference"
+    assert len(definition_keys(definition)) > 50  # the sections, the camera, questions, systems and controls
