@@ -1,0 +1,118 @@
+"""The tutorials' commands run as the pages write them, and give what the pages show.
+
+Each test reads its tutorial's ``sh`` blocks and runs their commands (``python`` is this
+interpreter, the repository on its path), so a page and its test cannot disagree: a
+command that changes, or an output the page names that is no longer written, fails here.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+TUTORIALS = REPO / "docs" / "tutorials"
+
+
+def blocks(page: str, language: str) -> list[str]:
+    """The fenced blocks of ``language`` in a page, in order."""
+    return re.findall(rf"^```{language}\n(.*?)^```", page, flags=re.MULTILINE | re.DOTALL)
+
+
+def commands(block: str) -> list[str]:
+    """A shell block's commands, comments and blank lines left out."""
+    lines = [line.split("   #")[0].strip() for line in block.splitlines()]
+    return [line for line in lines if line and not line.startswith("#")]
+
+
+def run(command: str, cwd: Path, timeout: float = 60) -> subprocess.CompletedProcess:
+    """One of a page's commands, ``python`` being this interpreter."""
+    words = shlex.split(command)
+    if words[0] == "python":
+        words[0] = sys.executable
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    result = subprocess.run(words, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+    assert result.returncode == 0, f"{command!r} exited with {result.returncode}:\n{result.stderr[-2000:]}"
+    return result
+
+
+def excerpts(page: str) -> dict[str, str]:
+    """Each "`FILE`:" or "`FILE` (start):" paragraph's file and the block after it."""
+    found = re.findall(r"^`([^`]+)`(?: \(start\))?:\n\n```\w*\n(.*?)^```", page, flags=re.MULTILINE | re.DOTALL)
+    return dict(found)
+
+
+def same_cells(shown: str, written: str) -> bool:
+    """One CSV row as the page shows it and as the file has it: text equal, numbers to 1e-6."""
+    pairs = list(zip(shown.split(","), written.split(",")))
+    if len(shown.split(",")) != len(written.split(",")):
+        return False
+    for a, b in pairs:
+        try:
+            if not math.isclose(float(a), float(b), rel_tol=1e-6):
+                return False
+        except ValueError:
+            if a != b:
+                return False
+    return True
+
+
+def named_files(page: str) -> list[str]:
+    """The report files the table of "What the report folder holds" names, as globs; a name
+    without a folder is in the folder of the name before it, and TASK_CLASS stands for any."""
+    section = page.split("## What the report folder holds", 1)[1]
+    names = []
+    for row in re.findall(r"^\| (`.*?) \| ", section, flags=re.MULTILINE):
+        if "--motion" in row:  # the objective metrics need motion files: not part of this run
+            continue
+        folder = ""
+        for name in re.findall(r"`([^`]+)`", row):
+            folder = name.rpartition("/")[0] + "/" if "/" in name else folder
+            names.append(re.sub(r"[A-Z]+(_[A-Z]+)*", "*", folder + name.rpartition("/")[2]))
+    return names
+
+
+@pytest.mark.slow
+def test_the_ratings_to_tables_tutorial_writes_every_file_and_excerpt_it_shows(tmp_path):
+    page = (TUTORIALS / "ratings-to-tables.md").read_text(encoding="utf-8")
+    shell = blocks(page, "sh")
+    assert len(shell) == 1
+    for command in commands(shell[0]):
+        run(command, tmp_path)
+
+    ratings_lines = (tmp_path / "ratings.csv").read_text(encoding="utf-8").splitlines()
+    assert blocks(page, "text")[0].splitlines() == ratings_lines[:2], "the ratings table's excerpt"
+
+    names = named_files(page)
+    assert "tables/table2_significance.*" in names and "figures/rating_distributions.*" in names
+    missing = [name for name in names if not list((tmp_path / "report").glob(name))]
+    assert missing == [], "the page names report files the report does not write"
+    tables = {path.stem for name in names if name.startswith("tables/")
+              for path in (tmp_path / "report").glob(name)}
+    not_four_times = sorted(stem for stem in tables if {p.suffix for p in (tmp_path / "report" / "tables").glob(
+        f"{stem}.*")} != {".csv", ".md", ".tex", ".json"})
+    assert not_four_times == [], "every table is written as .csv, .md, .tex and .json"
+
+    shown = excerpts(page)
+    assert set(shown) == {"tables/table2_significance.tex", "tables/exclusions.csv", "tables/anova.csv",
+                          "summary.md"}
+    for name, excerpt in shown.items():
+        written = (tmp_path / "report" / name).read_text(encoding="utf-8")
+        if name.endswith(".csv"):
+            header, *rows = excerpt.splitlines()
+            lines = written.splitlines()
+            assert header == lines[0], f"{name}'s header"
+            assert all(same_cells(row, line) for row, line in zip(rows, lines[1:])), f"{name}'s rows"
+        elif name.endswith(".tex"):
+            assert written.startswith(excerpt), f"{name}'s start"
+        else:  # sentences wrapped to the page, "..." where the page leaves some out
+            flowing = " ".join(written.split())
+            pieces = [" ".join(piece.split()) for piece in excerpt.split("...")]
+            assert all(piece in flowing for piece in pieces), f"{name}'s sentences"
