@@ -7,10 +7,12 @@ command that changes, or an output the page names that is no longer written, fai
 
 from __future__ import annotations
 
+import io
 import math
 import os
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -28,7 +30,7 @@ def blocks(page: str, language: str) -> list[str]:
 
 def commands(block: str) -> list[str]:
     """A shell block's commands, comments and blank lines left out."""
-    lines = [line.split("   #")[0].strip() for line in block.splitlines()]
+    lines = [re.split(r"\s{2,}#", line)[0].strip() for line in block.splitlines()]
     return [line for line in lines if line and not line.startswith("#")]
 
 
@@ -116,3 +118,46 @@ def test_the_ratings_to_tables_tutorial_writes_every_file_and_excerpt_it_shows(t
             flowing = " ".join(written.split())
             pieces = [" ".join(piece.split()) for piece in excerpt.split("...")]
             assert all(piece in flowing for piece in pieces), f"{name}'s sentences"
+
+
+@pytest.mark.slow
+@pytest.mark.django_db
+def test_the_own_motion_tutorial_makes_a_study_of_the_submitted_motion(settings, tmp_path, monkeypatch, motion_data,
+                                                                       motion_data_2):
+    """Its commands in one process, as the page gives them (manage.py's through call_command,
+    generation's through its main), YOU and STUDY_ID as the page says to fill them in. The
+    last, generate_stimuli --wait, needs a worker: tests/test_study_worker.py runs that."""
+    from django.core.management import call_command
+
+    from generation.cli import main as generation_main
+    from studyapp.models import Study, System
+
+    settings.MEDIA_ROOT, settings.CHECKPOINT_ROOT = tmp_path / "media", tmp_path / "checkpoints"
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("DJANGO_SUPERUSER_PASSWORD", "a password of the test")
+    page = (TUTORIALS / "your-model.md").read_text(encoding="utf-8")
+    steps = commands(blocks(page, "sh")[0])
+    assert steps[-1] == "python manage.py generate_stimuli STUDY_ID --wait"
+    study_id = None
+    for step in steps[:-1]:
+        words = [{"YOU": "you", "STUDY_ID": study_id}.get(word, word) for word in shlex.split(step)]
+        if words[:2] == ["python", "manage.py"]:
+            if words[2] == "createsuperuser":
+                words.append("--noinput")  # the page's account asks for its password
+            out = io.StringIO()
+            call_command(*words[2:], stdout=out)
+            if words[2] == "create_study":
+                study_id = out.getvalue().strip()
+        elif words[:3] == ["python", "-m", "generation"]:
+            assert generation_main(words[3:]) == 0, step
+        elif words[:2] == ["cp", "-r"]:
+            shutil.copytree(words[2], words[3])
+        else:
+            pytest.fail(f"the test does not know how to run {step!r}")
+
+    study = Study.objects.get(pk=study_id)
+    assert study.owner.username == "you"
+    assert sorted(study.systems.values_list("name", "source_kind")) == [("MyLab", System.SourceKind.SUBMITTED),
+                                                                         ("NAT", System.SourceKind.NATURAL)]
+    assert study.controls.count() == 6
+    assert len(list((tmp_path / "controls" / "paths").glob("*.npz"))) == 6
