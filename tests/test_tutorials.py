@@ -161,3 +161,32 @@ def test_the_own_motion_tutorial_makes_a_study_of_the_submitted_motion(settings,
                                                                          ("NAT", System.SourceKind.NATURAL)]
     assert study.controls.count() == 6
     assert len(list((tmp_path / "controls" / "paths").glob("*.npz"))) == 6
+
+
+def test_every_variable_the_prolific_tutorial_exports_reaches_the_containers():
+    """compose.yaml hands a container only the variables it names: one the page exports
+    but compose.yaml leaves out (HTTPS once) would do nothing on the server."""
+    page = (TUTORIALS / "prolific.md").read_text(encoding="utf-8")
+    compose = (REPO / "compose.yaml").read_text(encoding="utf-8")
+    exported = [name for block in blocks(page, "sh") for command in commands(block) if command.startswith("export ")
+                for name in re.findall(r"(?:^export |\s)([A-Z][A-Z0-9_]*)=", command)]
+    assert {"SECRET_KEY", "MOTION_DATA_DIR", "ALLOWED_HOSTS", "CSRF_TRUSTED_ORIGINS", "HTTPS"} <= set(exported)
+    assert [name for name in exported if "${" + name not in compose] == []
+
+
+@pytest.mark.django_db
+def test_the_prolific_tutorials_server_commands_exist_offline(client):
+    """What can be followed without a server, Docker or a Prolific account: the secret key's
+    command, every manage.py command the page names, and the health page its curl asks."""
+    from django.core.management import get_commands
+
+    page = (TUTORIALS / "prolific.md").read_text(encoding="utf-8")
+    secret = re.search(r"\$\((python3 -c \"[^\"]*\")\)", page).group(1)
+    key = subprocess.run(shlex.split(secret.replace("python3", sys.executable, 1)), capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert len(key) >= 50
+    named = set(re.findall(r"manage\.py (\w+)", page))
+    assert {"createsuperuser", "create_study"} <= named and named - set(get_commands()) == set()
+    health = re.search(r"curl -s http://127\.0\.0\.1:8000(/\S+)", page).group(1)
+    response = client.get(health)
+    assert response.status_code == 200 and response.json()["status"] in ("ok", "degraded")
