@@ -190,3 +190,44 @@ def test_the_prolific_tutorials_server_commands_exist_offline(client):
     health = re.search(r"curl -s http://127\.0\.0\.1:8000(/\S+)", page).group(1)
     response = client.get(health)
     assert response.status_code == 200 and response.json()["status"] in ("ok", "degraded")
+
+
+@pytest.mark.slow
+@pytest.mark.django_db
+def test_the_own_bvh_tutorial_trains_samples_renders_and_adds_a_model(settings, tmp_path, monkeypatch, motion_data_2):
+    """Its commands on three walking takes without labels, as the page gives them, but for
+    training one step instead of 4,000 and sampling one clip instead of four (a later
+    option wins in argparse)."""
+    from django.contrib.auth.models import User
+    from django.core.management import call_command
+
+    from generation.cli import main as generation_main
+    from studyapp.models import System
+
+    takes = tmp_path / "my-bvh"
+    takes.mkdir()
+    for take in sorted((motion_data_2 / "data").glob("dataset-2_walk_normal_*.bvh"))[:3]:
+        shutil.copy(take, takes)
+    settings.MEDIA_ROOT, settings.CHECKPOINT_ROOT = tmp_path / "media", tmp_path / "checkpoints"
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MOTION_CACHE_DIR", str(tmp_path / "cache"))
+    User.objects.create_user("you")
+    out = io.StringIO()
+    call_command("create_study", "you", "My BVH", stdout=out)
+    study_id = out.getvalue().strip()
+
+    page = (TUTORIALS / "your-model.md").read_text(encoding="utf-8")
+    block = blocks(page, "sh")[1]
+    assert "check-data /path/to/my-bvh          # what it holds; status 1: no committed model applies" in block
+    status = {"check-data": 1}
+    shorter = {"train": ["--steps", "1", "--eval-every", "1"], "sample": ["--n", "1"]}
+    for step in commands(block):
+        words = [{"/path/to/my-bvh": str(takes), "STUDY_ID": study_id}.get(word, word) for word in shlex.split(step)]
+        if words[:3] == ["python", "-m", "generation"]:
+            assert generation_main(words[3:] + shorter.get(words[3], [])) == status.get(words[3], 0), step
+        else:
+            assert words[:2] == ["python", "manage.py"], step
+            call_command(*words[2:], stdout=io.StringIO())
+
+    assert list((tmp_path / "var" / "samples" / "mine").glob("walk-circle_00.mp4"))
+    assert System.objects.get(study_id=study_id, name="Mine").kind == "moglow"
