@@ -127,11 +127,12 @@ def designs_text(names: list[str], every: list[str]) -> str:
 
 
 def undeclared_columns() -> list[str]:
-    """Columns a design requires or the study app writes that ``analysis.ratings.COLUMNS`` lacks."""
-    from analysis.ratings import COLUMNS
+    """Columns the analysis reads, a design requires or the study app writes that
+    ``analysis.ratings.COLUMNS`` lacks."""
+    from analysis.ratings import APP_FLAG_COLUMNS, COLUMNS, LABEL_COLUMNS
 
     declared = {column.name for column in COLUMNS}
-    used = [*required_columns().values(), *exported_columns().values()]
+    used = [LABEL_COLUMNS, tuple(APP_FLAG_COLUMNS), *required_columns().values(), *exported_columns().values()]
     return sorted({name for names in used for name in names} - declared)
 
 
