@@ -157,8 +157,8 @@ def test_the_own_motion_tutorial_makes_a_study_of_the_submitted_motion(settings,
 
     study = Study.objects.get(pk=study_id)
     assert study.owner.username == "you"
-    assert sorted(study.systems.values_list("name", "source_kind")) == [("MyLab", System.SourceKind.SUBMITTED),
-                                                                         ("NAT", System.SourceKind.NATURAL)]
+    assert [(system.name, system.source_kind) for system in study.systems.order_by("name")] == [
+        ("MyLab", System.SourceKind.SUBMITTED), ("NAT", System.SourceKind.NATURAL)]
     assert study.controls.count() == 6
     assert len(list((tmp_path / "controls" / "paths").glob("*.npz"))) == 6
 
