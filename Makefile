@@ -8,7 +8,7 @@ INSTALLED := $(VENV)/.installed
 # The motion capture: the demo and the study app read $MOTION_DATA (by default both
 # Bandai-Namco folders, studyapp/server/settings.py), the tests ../shared/data (tests/conftest.py).
 
-.PHONY: demo demo-models test bench tour install clean
+.PHONY: demo demo-models test bench tour docs docs-reference install clean
 
 install: $(INSTALLED)
 
@@ -36,6 +36,16 @@ test: $(INSTALLED)
 	scripts/ensure-chromium.sh
 	DATABASE_URL= $(BIN)/python -m pytest $(PYTEST_PARALLEL)
 	$(BIN)/python -m tests.postgres_pass $(PYTEST_PARALLEL)
+	$(BIN)/python -m mkdocs build --strict --quiet
+
+# The documentation site (mkdocs.yml, docs/) at http://127.0.0.1:8001; make test builds it strictly.
+docs: $(INSTALLED)
+	$(BIN)/python -m mkdocs serve --dev-addr 127.0.0.1:8001
+
+# docs/reference/*.md written again from the code: the command lines' parsers, the environment
+# variables declared in studyapp/server/env.py, and benchmarks/results/*.json.
+docs-reference: $(INSTALLED)
+	$(BIN)/python scripts/docs_reference.py
 
 demo: $(INSTALLED)
 	$(BIN)/python -m studyapp.server.demo

@@ -40,7 +40,7 @@ from analysis.units import to_centimetres_y_up
 from measures.units import parse_scale
 
 
-def _parser() -> argparse.ArgumentParser:
+def parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="motion-analysis",
         description="Significance tables and objective metrics for motion rating studies "
@@ -246,10 +246,10 @@ def _split(text: str | None) -> list[str] | None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = _parser()
-    args = parser.parse_args(argv)
+    command_line = parser()
+    args = command_line.parse_args(argv)
     if getattr(args, "previous_rules", None) and not args.previous:
-        parser.error("--previous-rules needs --previous (the previous run's ratings)")
+        command_line.error("--previous-rules needs --previous (the previous run's ratings)")
     try:
         return _run(args)
     except AnalysisInputError as exc:

@@ -1,50 +1,27 @@
 """Reading and validating a ratings table: one row per rating given by one participant.
 
-The schema is documented for users in ``docs/ratings-schema.md``; this is the contract.
+This is the contract: ``COLUMNS`` below declares every column the analysis reads or the app writes, its
+type and what it means, and ``docs/reference/ratings-schema.md`` is written from it
+(``make docs-reference``), with the designs that require each column
+(``analysis.designs``) and those whose tables the study app writes it in
+(``studyapp.researchers.results.export``). ``docs/ratings-schema.md`` explains the designs,
+the exclusion rules and what is refused.
 
-Minimal schema (what any tool must write; one row per rating):
-
-=================  ======  ==========================================================
-column             type    meaning
-=================  ======  ==========================================================
-participant        str     anonymous participant id
-system             str     the system (model) that produced the stimulus; NAT is
-                           natural motion, BAD the attention-check clips
-stimulus           str     clip id (unique within a task)
-value              int     the rating, ``scale_min <= value <= scale_max``
-scale_min          int     lowest point of the rating scale (e.g. 1)
-scale_max          int     highest point of the rating scale (e.g. 5)
-=================  ======  ==========================================================
-
-Optional columns:
-
-- ``task`` (str, default ``"all"``) and ``control_class`` (str, e.g. ``held-out`` or
-  ``synthetic``; default ``"all"``): the columns of the significance table.
-- Whether the rating was given before its clip finished playing, by the first of these
-  that is present: ``answered_before_end`` (bool); ``played_until_s`` and
-  ``clip_duration_s`` (early if played_until_s < clip_duration_s); ``shown_at``,
-  ``answered_at`` and ``clip_duration_s`` (ISO 8601 timestamps or seconds; early if
-  answered_at - shown_at < clip_duration_s). With none of them the early-answer rule
-  cannot be applied and the report says so.
-- ``excluded_participant`` and ``discarded_early`` (bool): the exclusion flags the web
-  app wrote. Analysis recomputes them from the rules and reports any disagreement; they
-  are kept as ``app_excluded_participant`` and ``app_discarded_early``.
-
-Side-by-side, pairwise and appropriateness tables carry a ``design`` column and the page
-structure described in `analysis.designs` (``page``, ``position``; ``side``, ``answer``,
-``strength``; ``matched``), which their design objects check; pairwise and
-appropriateness tables need no ``value`` or scale columns. Without a ``design`` column a
-table is ``single`` and reads as it always has, unless its columns are another design's:
-one lacking ``value`` and the scale columns but with that design's columns, or one whose
-``page`` is shared by several rows (a single page shows one clip), is refused and told to
-add the ``design`` column.
+A table of the single design needs ``REQUIRED_COLUMNS``; side-by-side, pairwise and
+appropriateness tables carry a ``design`` column and the page structure their design
+objects check (`analysis.designs`), and pairwise and appropriateness tables need no
+``value`` or scale columns. Without a ``design`` column a table is ``single``, unless its
+columns are another design's: one lacking ``value`` and the scale columns but with that
+design's columns, or one whose ``page`` is shared by several rows (a single page shows one
+clip), is refused and told to add the ``design`` column. Whether a rating was given before
+its clip finished playing is read from the first of ``answered_before_end``;
+``played_until_s`` with ``clip_duration_s``; ``shown_at`` and ``answered_at`` with
+``clip_duration_s`` that the table has; with none of them the early-answer rule cannot be
+applied and the report says so. Any other column is carried through untouched.
 
 A GENEA leaderboard vote file (one row per vote: ``user, input_code, model_a, model_b,
 winner, is_strong``, ...) is recognised by its header and read as a pairwise or
 appropriateness table (`analysis.genea_files`).
-
-Any other column is carried through untouched. The web app's export is the minimal
-schema plus task, control_class, clip_duration_s, shown_at, answered_at and the two flags.
 """
 
 from __future__ import annotations
@@ -52,7 +29,7 @@ from __future__ import annotations
 import csv
 import io
 import os
-from typing import IO, TYPE_CHECKING
+from typing import IO, TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -63,6 +40,66 @@ from analysis.genea_files import VOTE_COLUMNS, genea_ratings, is_genea_header
 
 if TYPE_CHECKING:
     from analysis.designs.base import RatingDesign
+
+
+class Column(NamedTuple):
+    """One column of a ratings table as the reference states it."""
+
+    name: str
+    type: str
+    meaning: str
+
+
+COLUMNS: tuple[Column, ...] = (
+    Column("design", "text", "how the ratings were collected: `side-by-side`, `pairwise` or `appropriateness` "
+                             "(a table of those designs says so here), or `single`, the design of a table "
+                             "without the column; one table holds one design"),
+    Column("participant", "text", "anonymous participant id"),
+    Column("page", "text", "one screen of one participant: rows with the same task, participant and page were "
+                           "answered together (page ids may repeat across participants)"),
+    Column("position", "whole number from 1", "side-by-side: where on the page the clip was (1..K)"),
+    Column("system", "text", "the system that produced the clip; `NAT` is natural motion (a compared system), "
+                             "`BAD` an attention-check clip (not compared); both names are options "
+                             "(`--natural`, `--attention`)"),
+    Column("stimulus", "text", "clip id, unique within a task"),
+    Column("task", "text", "one block of columns in Table 2 (e.g. `human`, `dog`); each task uses one scale. "
+                           "Default `all`"),
+    Column("control_class", "text", "e.g. `held-out` or `synthetic` control: the second level of Table 2's "
+                                    "columns. Default `all`"),
+    Column("side", "`left` or `right`", "pairwise and appropriateness: the side of the page the clip was on"),
+    Column("matched", "true/false", "appropriateness: `true` on the clip made for the control the page shows, "
+                                    "`false` on the other"),
+    Column("answer", "`left`, `right` or `none`", "pairwise and appropriateness: the preferred side, `none` for "
+                                                  "no preference; the same on both rows of a page"),
+    Column("strength", "whole number from 1, or empty", "how much better the preferred clip is, from 1 (slightly) "
+                                                        "to the study's number of degrees (GENEA's five levels: 1 "
+                                                        "slightly, 2 clearly); empty for `none` and a plain answer"),
+    Column("shown_control", "text", "appropriateness: the control the page shows"),
+    Column("made_for", "text", "appropriateness: the control the clip was made for"),
+    Column("value", "integer", "the rating, `scale_min <= value <= scale_max`"),
+    Column("scale_min", "integer", "lowest point of the scale (MoGlow: 1)"),
+    Column("scale_max", "integer", "highest point of the scale (MoGlow: 5)"),
+    Column("clip_duration_s", "seconds", "the clip's length"),
+    Column("shown_at", "ISO 8601 time or seconds", "when the clip was shown, by the server's clock (in a "
+                                                   "single-clip study: when the server answered the rating "
+                                                   "before, whose redirect leads to the clip, or sent the clip's "
+                                                   "page where nothing led there)"),
+    Column("answered_at", "ISO 8601 time or seconds", "when the rating arrived, by the server's clock"),
+    Column("client_started_s", "seconds, or empty", "by the browser: seconds after the clip's page was shown "
+                                                    "when the video started (empty where it did not report it)"),
+    Column("client_ended_s", "seconds, or empty", "by the browser: when the video ended"),
+    Column("client_answered_s", "seconds, or empty", "by the browser: when the answer was given"),
+    Column("played_until_s", "seconds, or empty", "the video's position at the answer, by the browser; early if "
+                                                  "below `clip_duration_s` (used without `answered_before_end`)"),
+    Column("answered_before_end", "true/false", "the rating was given before the clip had finished playing"),
+    Column("excluded_participant", "true/false", "the app's exclusion of the participant as it was when their "
+                                                 "answers arrived; analysis recomputes it from the rules, reports "
+                                                 "a disagreement and keeps the app's as "
+                                                 "`app_excluded_participant`"),
+    Column("discarded_early", "true/false", "the app's early-answer discard; analysis recomputes it and keeps the "
+                                            "app's as `app_discarded_early`"),
+    Column("exclusion_reason", "text", "why the participant was excluded or the rating discarded (empty: kept)"),
+)
 
 REQUIRED_COLUMNS = ("participant", "system", "stimulus", "value", "scale_min", "scale_max")
 LABEL_COLUMNS = ("participant", "system", "stimulus", "task", "control_class")

@@ -10,11 +10,19 @@ import numpy as np
 
 def describe_machine() -> dict:
     cpu = platform.processor() or platform.machine()
+    fields: dict[str, str] = {}
     try:
         with open("/proc/cpuinfo") as f:
-            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
-    except (OSError, StopIteration):
+            for line in f:
+                name, _, value = line.partition(":")
+                fields.setdefault(name.strip(), value.strip())
+    except OSError:
         pass
+    cpu = fields.get("model name", cpu)
+    # Machines sold under one name differ in generation: the family, model and vector units tell them apart.
+    if "cpu family" in fields:
+        units = [unit for unit in ("avx2", "avx512f", "avx512_bf16", "amx_bf16") if unit in fields.get("flags", "").split()]
+        cpu += f" (family {fields['cpu family']} model {fields.get('model', '?')}; {', '.join(units) or 'no AVX2'})"
     try:
         import torch
 

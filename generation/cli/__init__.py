@@ -1,6 +1,8 @@
 """Command line of the generation package: ``python -m generation COMMAND --help``.
 
   info PATH             describe a BVH file or a dataset (.npz)
+  check-data [FOLDER...]
+                        which motion folders and takes are expected, what is found, which committed models apply
   build-dataset FOLDER  encode a folder of BVH files into a cached training set
   render BVH...         draw clips as MP4 stick figures (and contact sheets)
   gallery FOLDER        render a few natural clips per content, with an index.json
@@ -13,8 +15,8 @@
                         another lab's BVH files as a submission for a study's exported controls
   import-stylegestures CHECKPOINT
                         a checkpoint of the authors' MoGlow code as a project checkpoint
-  hvrnn-classifiers, hvrnn-denoiser, hvrnn-eval FOLDER
-                        HVRNN's classifiers, denoiser and evaluation (generation/cli/hvrnn.py)
+  hvrnn-classifiers, hvrnn-denoiser, hvrnn-eval FOLDER, hvrnn-label FOLDER
+                        HVRNN's classifiers, denoiser, evaluation and labelling (generation/cli/hvrnn.py)
 """
 
 from __future__ import annotations
@@ -23,10 +25,10 @@ import argparse
 import sys
 
 from ..motion.bvh import BVHError
-from . import data, hvrnn, models, render, stylegestures, submission
+from . import check_data, data, hvrnn, models, render, stylegestures, submission
 
 # The command groups, in the order --help lists their commands.
-GROUPS = (data, render, models, submission, stylegestures, hvrnn)
+GROUPS = (data, check_data, render, models, submission, stylegestures, hvrnn)
 
 
 def parser() -> argparse.ArgumentParser:

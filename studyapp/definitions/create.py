@@ -50,21 +50,9 @@ def _where(path: Path) -> str:
     return "".join(f"[{part}]" if isinstance(part, int) else f".{part}" for part in path).lstrip(".") or "the file"
 
 
-def _kind(value: object) -> str:
-    return {dict: "a mapping", list: "a list", str: "text", bool: "true/false", type(None): "empty",
-            int: "a whole number", float: "a number"}.get(type(value), type(value).__name__)
-
-
 def _is(value: object, expected: type | tuple[type, ...]) -> bool:
     kinds = expected if isinstance(expected, tuple) else (expected,)
     return any(type(value) is kind or (kind is float and type(value) is int) for kind in kinds)
-
-
-def _words(expected: type | tuple[type, ...]) -> str:
-    kinds = expected if isinstance(expected, tuple) else (expected,)
-    if int in kinds and float in kinds:
-        kinds = tuple(k for k in kinds if k is not int)
-    return " or ".join("a number" if k is float else _kind(k()) if k is not type(None) else "empty" for k in kinds)
 
 
 class _Builder:
@@ -90,7 +78,7 @@ class _Builder:
     def mapping(self, path: Path, value: object, types: dict, required: tuple[str, ...] = ()) -> dict:
         """The entries of ``value`` that are known and of their type (a problem for every other)."""
         if not isinstance(value, dict):
-            self.problem(path, f"{_where(path)} must be a mapping of settings, not {_kind(value)}")
+            self.problem(path, f"{_where(path)} must be a mapping of settings, not {layout.value_words(value)}")
             return {}
         for key in value:
             if key not in types:
@@ -101,7 +89,8 @@ class _Builder:
         checked = {}
         for key, item in value.items():
             if key in types and not _is(item, types[key]):
-                self.problem((*path, key), f"{_where((*path, key))} must be {_words(types[key])}, not {_kind(item)}")
+                self.problem((*path, key), f"{_where((*path, key))} must be {layout.type_words(types[key])}, "
+                                           f"not {layout.value_words(item)}")
             elif key in types:
                 checked[key] = item
         return checked
@@ -110,14 +99,14 @@ class _Builder:
         value = self.located.value.get(key)
         value = [] if value is None else value  # "questions:" with none under it
         if not isinstance(value, list):
-            self.problem((key,), f"{key} must be a list, not {_kind(value)}")
+            self.problem((key,), f"{key} must be a list, not {layout.value_words(value)}")
             return []
         return value
 
     def texts(self, path: Path, value: list) -> list[str]:
         for i, item in enumerate(value):
             if not isinstance(item, str):
-                self.problem((*path, i), f"{_where((*path, i))} must be text, not {_kind(item)}")
+                self.problem((*path, i), f"{_where((*path, i))} must be text, not {layout.value_words(item)}")
         return [item for item in value if isinstance(item, str)]
 
     def form_problems(self, form: forms.Form, path: Path, keys: dict[str, str]) -> None:
@@ -191,7 +180,7 @@ class _Builder:
         types, places = layout.question_types(), {}
         for i, entry in enumerate(self.items("questions")):
             path = ("questions", i)
-            given = self.mapping(path, entry, types, required=("part", "name", "text"))
+            given = self.mapping(path, entry, types, layout.QUESTION_REQUIRED)
             for name in layout.QUESTION_LISTS:  # one choice a line, as the questions page takes them
                 items = self.texts((*path, name), given.get(name, []))
                 for j, item in enumerate(items):
@@ -215,12 +204,11 @@ class _Builder:
 
     def systems(self) -> list[tuple[Path, dict, str | None]]:
         """Each system's path, settings and source (None: the natural clips), checked."""
-        types = {"name": str, "role": str, "checkpoint": dict, "submitted": dict, "videos": list,
-                 "temperature": layout.Number}
+        types, required = layout.types(layout.SYSTEM_KEYS), layout.required(layout.SYSTEM_KEYS)
         found = []
         for i, entry in enumerate(self.items("systems")):
             path = ("systems", i)
-            given = self.mapping(path, entry, types, required=("name", "role"))
+            given = self.mapping(path, entry, types, required)
             sources = [key for key in layout.SYSTEM_SOURCES if key in given]
             if "name" in given and (problem := check_field(System, "name", given["name"])):
                 self.problem((*path, "name"), f"{_where(path)}: {problem}")
@@ -235,7 +223,8 @@ class _Builder:
 
     def checkpoint_system(self, study: Study, path: Path, given: dict) -> None:
         where = (*path, "checkpoint")
-        spec = self.mapping(where, given["checkpoint"], layout.CHECKPOINT_KEYS, required=("digest", "file"))
+        spec = self.mapping(where, given["checkpoint"], layout.types(layout.CHECKPOINT_KEYS),
+                            layout.required(layout.CHECKPOINT_KEYS))
         self.stop()
         digest = self.digest((*where, "digest"), spec["digest"])
         stored = self.owned((*where, "digest"), ownership.CHECKPOINT, digest)
@@ -251,7 +240,8 @@ class _Builder:
             raise self.fail((*where, "kind"), f"the checkpoint {digest[:12]} is a {system.kind} model, not {spec['kind']}")
 
     def submitted_spec(self, path: Path, given: dict) -> dict:
-        spec = self.mapping((*path, "submitted"), given["submitted"], layout.SUBMITTED_KEYS, required=("digest",))
+        spec = self.mapping((*path, "submitted"), given["submitted"], layout.types(layout.SUBMITTED_KEYS),
+                            layout.required(layout.SUBMITTED_KEYS))
         spec["controls"] = self.texts((*path, "submitted", "controls"), spec.get("controls", []))
         return spec
 
@@ -271,11 +261,11 @@ class _Builder:
 
     def control_entries(self) -> list[tuple[Path, dict, str]]:
         """Each control's path, settings and what it is made from, checked."""
-        types = {"name": str, "export_id": str, **layout.CONTROL_SOURCES}
+        types, required = layout.types(layout.CONTROL_KEYS), layout.required(layout.CONTROL_KEYS)
         found = []
         for i, entry in enumerate(self.items("controls")):
             path = ("controls", i)
-            given = self.mapping(path, entry, types, required=("name",))
+            given = self.mapping(path, entry, types, required)
             sources = [key for key in layout.CONTROL_SOURCES if key in given]
             if "name" in given and (problem := check_field(ControlSignal, "name", given["name"])):
                 self.problem((*path, "name"), f"{_where(path)}: {problem}")
@@ -329,14 +319,14 @@ class _Builder:
         if source == "preset":
             return add_preset_controls(study, [value])[0]
         if source == "labels":  # checked as the controls page checks its label pairs
-            spec = self.mapping(where, value, layout.LABEL_KEYS, required=tuple(layout.LABEL_KEYS))
+            spec = self.mapping(where, value, layout.types(layout.LABEL_KEYS), layout.required(layout.LABEL_KEYS))
             self.stop()
             form = LabelControlsForm({"actions": [spec["action"]], "styles": [spec["style"]],
                                       "seconds": spec["seconds"]}, labels=study_labels(study))
             self.form_problems(form, where, {"actions": "action", "styles": "style"})
             return add_label_controls(study, [spec["action"]], [spec["style"]], form.cleaned_data["seconds"])[0]
         if source == "path":
-            spec = self.mapping(where, value, layout.PATH_KEYS, required=tuple(layout.PATH_KEYS))
+            spec = self.mapping(where, value, layout.types(layout.PATH_KEYS), layout.required(layout.PATH_KEYS))
             self.stop()
             try:
                 velocities = np.asarray(spec["velocities"], dtype=np.float64)
@@ -344,7 +334,7 @@ class _Builder:
             except (ValueError, TypeError) as error:
                 raise self.fail((*where, "velocities"), f"{_where(where)}: not a path ({error})") from None
             return add_path_control(study, signal)
-        spec = self.mapping(where, value, layout.HELD_OUT_KEYS, required=("take", "seconds"))
+        spec = self.mapping(where, value, layout.types(layout.HELD_OUT_KEYS), layout.required(layout.HELD_OUT_KEYS))
         folders = self.texts((*where, "folders"), spec.get("folders", []))
         self.stop()
         for i, folder in enumerate(folders):  # before anything reads them: a folder not theirs is not looked into

@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from typing import NamedTuple
 
 from django.db import models
 
 from generation.render.camera import Camera
-from studyapp.models import Question, Study
+from studyapp.models import Question, Study, System
 from studyapp.researchers.setup.forms import QuestionForm, StudyForm
 
 VERSION_KEY, VERSION = "version", 1
@@ -24,6 +25,20 @@ CAMERA_KEY = "camera"
 LISTS = ("questions", "systems", "controls")
 NOT_DEFINED = ("is_open",)  # the researcher opens a study; a definition never does
 Number = (int, float)
+
+
+def value_words(value: object) -> str:
+    """What a YAML value is, in words ("a mapping", "a whole number")."""
+    return {dict: "a mapping", list: "a list", str: "text", bool: "true/false", type(None): "empty",
+            int: "a whole number", float: "a number"}.get(type(value), type(value).__name__)
+
+
+def type_words(expected: type | tuple[type, ...]) -> str:
+    """The values of a key's type, in words ("a number or empty")."""
+    kinds = expected if isinstance(expected, tuple) else (expected,)
+    if int in kinds and float in kinds:
+        kinds = tuple(k for k in kinds if k is not int)
+    return " or ".join("a number" if k is float else value_words(k()) if k is not type(None) else "empty" for k in kinds)
 
 
 def section_key(title: str) -> str:
@@ -73,25 +88,82 @@ def camera_types() -> dict[str, type | tuple[type, ...]]:
 
 # A question's settings: QuestionForm's fields, choices and accepted answers as lists.
 QUESTION_LISTS = ("choices", "accepted")
+QUESTION_REQUIRED = ("part", "name", "text")
 
 
 def question_types() -> dict[str, type | tuple[type, ...]]:
     return {name: list if name in QUESTION_LISTS else field_type(Question, name) for name in QuestionForm.Meta.fields}
 
 
+class Key(NamedTuple):
+    """One key of a system's or control's mapping in a definition: the YAML type of its value,
+    what it says (docs/reference/study-file.md is written from these) and whether it must be given."""
+
+    name: str
+    type: type | tuple[type, ...]
+    meaning: str
+    required: bool = False
+
+
+def types(keys: tuple[Key, ...]) -> dict[str, type | tuple[type, ...]]:
+    return {key.name: key.type for key in keys}
+
+
+def required(keys: tuple[Key, ...]) -> tuple[str, ...]:
+    return tuple(key.name for key in keys if key.required)
+
+
 # What each kind of system and control is written as, besides its name (and a system's role).
 SYSTEM_SOURCES = ("checkpoint", "submitted", "videos")  # none of them: the natural clips
-CHECKPOINT_KEYS = {"digest": str, "file": str, "kind": str}
-SUBMITTED_KEYS = {"digest": str, "file": str, "controls": list}  # the controls it has clips of
-CONTROL_SOURCES = {
-    "preset": str,
-    "path": dict,  # fps and the velocities, frame by frame
-    "labels": dict,  # action, style, seconds
-    "held_out": dict,  # take, seconds, lead_in and where the take was found and how it was read
-}
-PATH_KEYS = {"fps": Number, "velocities": list}
-LABEL_KEYS = {"action": str, "style": str, "seconds": Number}
-HELD_OUT_KEYS = {"take": str, "seconds": Number, "lead_in": Number, "folders": list, "unit": Number, "up": str}
+SYSTEM_KEYS = (
+    Key("name", str, "the system's name, as the study's pages and its ratings table's `system` column name it", True),
+    Key("role", str, "what the system is: " + ", ".join(f"`{role}` ({label})" for role, label in System.Role.choices),
+        True),
+    Key("checkpoint", dict, "a model checkpoint the study samples (its keys below)"),
+    Key("submitted", dict, "motion generated elsewhere for the study's controls, already uploaded (its keys below)"),
+    Key("videos", list, "a system of uploaded videos: their file names, for the record only (a definition cannot "
+                        "make it; add its videos on the systems page)"),
+    Key("temperature", Number, "a checkpoint's sampling temperature (default 1)"),
+)
+CHECKPOINT_KEYS = (
+    Key("digest", str, "the SHA-256 digest of the checkpoint file, which must be in the checkpoint store "
+                       "(`CHECKPOINT_ROOT`)", True),
+    Key("file", str, "the file name it was uploaded as", True),
+    Key("kind", str, "its model kind (`moglow`, `rnn`, ...), as the checkpoint says"),
+)
+SUBMITTED_KEYS = (
+    Key("digest", str, "the SHA-256 digest of its stored clips, which must be in the checkpoint store", True),
+    Key("file", str, "the file name it was uploaded as"),
+    Key("controls", list, "the names of the controls it has clips of"),
+)
+CONTROL_SOURCES = ("preset", "path", "labels", "held_out")
+CONTROL_KEYS = (
+    Key("name", str, "the control's name in the study", True),
+    Key("export_id", str, "the name of its files for other labs (kept when the control was renamed)"),
+    Key("preset", str, "a preset path by its name (the controls page lists them)"),
+    Key("path", dict, "any other path, frame by frame (its keys below)"),
+    Key("labels", dict, "a label control for label-controlled models (its keys below)"),
+    Key("held_out", dict, "a clip of a held-out take of the motion data (its keys below)"),
+)
+PATH_KEYS = (
+    Key("fps", Number, "frames per second", True),
+    Key("velocities", list, "one frame a line: forward and sideways velocity in cm/s, turning in rad/s", True),
+)
+LABEL_KEYS = (
+    Key("action", str, "the action label", True),
+    Key("style", str, "the style label", True),
+    Key("seconds", Number, "the clip's length", True),
+)
+HELD_OUT_KEYS = (
+    Key("take", str, "the take's file name, read from `MOTION_DATA` or the folders named", True),
+    Key("seconds", Number, "the clip's length (the take is cut to it)", True),
+    Key("lead_in", Number, "seconds of the take before the clip, which path-controlled models warm up on and NAT "
+                           "leaves out (default 0)"),
+    Key("folders", list, "the folders to read the take from (default `MOTION_DATA`'s)"),
+    Key("unit", Number, "a study without checkpoints: the take's unit, in centimetres per unit of the file "
+                        "(checkpoints fix it)"),
+    Key("up", str, "a study without checkpoints: the take's up axis (checkpoints fix it)"),
+)
 
 
 def study_types() -> dict[str, type | tuple[type, ...]]:

@@ -37,6 +37,9 @@ import time
 from pathlib import Path
 
 import django
+from django.core.exceptions import ImproperlyConfigured
+
+from studyapp.server.env import env_bool, env_str
 
 REPO = Path(__file__).resolve().parents[2]
 # The data the committed MoGlow learnt from, prepared as it was (README, "Trained on the
@@ -389,14 +392,18 @@ def main() -> int:
             "BVH files, then run:  MOTION_DATA=/path/to/folder make demo  (several folders joined with ':')")
         return 2
     try:
-        port = int(os.environ.get("DEMO_PORT", "8000"))
+        port = int(env_str("DEMO_PORT", "8000"))
+        train = env_bool("DEMO_TRAIN", False)
     except ValueError:
-        say(f"DEMO_PORT must be a port number, got {os.environ['DEMO_PORT']!r}")
+        say(f"DEMO_PORT must be a port number, got {env_str('DEMO_PORT', '8000')!r}")
+        return 2
+    except ImproperlyConfigured as error:
+        say(str(error))
         return 2
     if not port_is_free(port):
         say(f"port {port} is in use; choose another with DEMO_PORT=8001 make demo")
         return 2
-    host = os.environ.get("DEMO_HOST", "0.0.0.0")
+    host = env_str("DEMO_HOST", "0.0.0.0")
     address = network_address() if host == "0.0.0.0" else host
 
     say(f"database: {settings.DATABASES['default']['NAME']}")
@@ -409,8 +416,7 @@ def main() -> int:
         dataset = build_dataset(data, DatasetOptions(**DATASET))
         say(f"dataset {dataset.fingerprint[:12]}: {len(dataset.select('train', augmented=False))} training takes, "
             f"{len(dataset.select('test'))} held out, {len(dataset.windows('train')['pose'])} training windows")
-        checkpoints = ensure_models(dataset, Path(settings.VAR_DIR) / "models",
-                                    os.environ.get("DEMO_TRAIN") == "1")
+        checkpoints = ensure_models(dataset, Path(settings.VAR_DIR) / "models", train)
     except DemoStop as stop_reason:
         say(str(stop_reason))
         return 2
@@ -429,7 +435,7 @@ def main() -> int:
         side_by_side = ensure_side_by_side_study(study)
         appropriateness = ensure_appropriateness_study(study)
         # The server answers to the address the links carry (and to this machine's own names).
-        hosts = os.environ.get("ALLOWED_HOSTS") or ",".join(dict.fromkeys(["localhost", "127.0.0.1", "[::1]", address]))
+        hosts = env_str("ALLOWED_HOSTS", "") or ",".join(dict.fromkeys(["localhost", "127.0.0.1", "[::1]", address]))
         server = subprocess.Popen(
             [sys.executable, "manage.py", "serve", "--noreload", f"{host}:{port}"],
             cwd=REPO, start_new_session=True, env={**os.environ, "ALLOWED_HOSTS": hosts},

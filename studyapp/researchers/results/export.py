@@ -1,4 +1,4 @@
-"""The study's ratings table (docs/ratings-schema.md) and the rules it was collected under.
+"""The study's ratings table (docs/reference/ratings-schema.md) and the rules it was collected under.
 
 One row per rating, with the columns every design shares and, in front, the page
 structure its design adds (``Design.export_columns``); designs whose answers are not on
@@ -19,6 +19,7 @@ import pandas as pd
 
 from analysis.exclusions import early_discards
 from analysis.tables import spreadsheet_safe
+from studyapp.designs.base import Design
 from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Rating, Study
@@ -32,15 +33,19 @@ EXPORT_COLUMNS = (
 SCALE_COLUMNS = ("value", "scale_min", "scale_max")
 
 
-def export_columns(study: Study) -> tuple[str, ...]:
-    """The columns of the study's ratings table, by its design."""
-    design = design_of(study)
+def design_export_columns(design: Design) -> tuple[str, ...]:
+    """The columns of a ratings table of ``design`` (each declared in ``analysis.ratings.COLUMNS``)."""
     shared = EXPORT_COLUMNS if design.on_scale else tuple(c for c in EXPORT_COLUMNS if c not in SCALE_COLUMNS)
     return (*design.export_columns, *shared)
 
 
+def export_columns(study: Study) -> tuple[str, ...]:
+    """The columns of the study's ratings table, by its design."""
+    return design_export_columns(design_of(study))
+
+
 def ratings_rows(study: Study) -> list[dict]:
-    """The study's ratings in the schema of docs/ratings-schema.md, one dict per rating."""
+    """The study's ratings in the schema of docs/reference/ratings-schema.md, one dict per rating."""
     design = design_of(study)
     ratings = (Rating.objects.filter(assignment__participant__study=study, assignment__expected="")
                .select_related("assignment__participant", "assignment__stimulus__system",
