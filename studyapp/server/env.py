@@ -70,6 +70,9 @@ VARIABLES: tuple[Variable, ...] = (
     Variable("STUDY_LOST_AFTER_S", "45",
              "seconds after which an untouched task whose message is gone is sent again (over three heartbeats)",
              _STUDY),
+    Variable("SHARED_CHECKPOINTS", "models/ in the repository",
+             "the checkpoints every researcher may name in a study definition, read-only (the committed demo "
+             "models); any other checkpoint must be the researcher's own", _STUDY),
     Variable("CHECKPOINT_ROOT", "$STUDYAPP_VAR_DIR/checkpoints",
              "uploaded checkpoints, named by digest; never under MEDIA_ROOT, which is public", _STUDY),
     Variable("HEALTH_TIMEOUT_S", "1", "the bound on each probe of the health page (/health/)", _STUDY),
@@ -77,6 +80,8 @@ VARIABLES: tuple[Variable, ...] = (
     Variable("MAX_VIDEO_UPLOAD_MB", "50", "the largest pre-rendered video a system may upload", _UPLOADS),
     Variable("MAX_MOTION_UPLOAD_MB", "200", "the largest zip of motion files (and what it unpacks to)", _UPLOADS),
     Variable("MAX_BUNDLE_UPLOAD_MB", "1000", "the largest study bundle (and what it unpacks to)", _UPLOADS),
+    Variable("MAX_RECORD_UPLOAD_MB", "50", "the largest JSON record file inside a study bundle (participants.json, "
+             "...), checked before it is read", _UPLOADS),
     Variable("MAX_RATINGS_UPLOAD_MB", "50", "the largest ratings table for analysis, and any other form", _UPLOADS),
     Variable("PROLIFIC_API_URL", "https://api.prolific.com", "Prolific's API", _PLATFORMS),
     Variable("MTURK_API_URL", "https://mturk-requester.us-east-1.amazonaws.com", "MTurk's requester API", _PLATFORMS),
