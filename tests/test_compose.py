@@ -48,7 +48,25 @@ def test_web_and_worker_share_media_checkpoints_and_the_motion_data() -> None:
     environment = services["web"]["environment"]
     assert environment["MEDIA_ROOT"] == "/data/media"
     assert environment["STUDYAPP_VAR_DIR"] == "/data/var"  # where uploaded checkpoints are stored
-    assert environment["MOTION_DATA"] == "/data/motion"
+    assert environment["MOTION_DATA"] == "${MOTION_FOLDERS:-/data/motion}"  # one folder or several, ":"-joined
+
+
+def test_redis_keeps_the_queue_on_disk_in_its_volume() -> None:
+    compose = load_compose()
+    redis = compose["services"]["redis"]
+
+    command = redis["command"]
+    assert command[0] == "redis-server" and command[command.index("--appendonly") + 1] == "yes"
+    assert "redis-data:/data" in redis["volumes"] and "redis-data" in compose["volumes"]
+
+
+def test_backups_have_a_folder_and_the_image_has_the_dump_programs() -> None:
+    compose = load_compose()
+
+    assert "${BACKUP_DIR:-backups}:/data/backups" in compose["services"]["web"]["volumes"]
+    assert "backups" in compose["volumes"]
+    dockerfile = (REPO_ROOT / "Dockerfile").read_text()
+    assert "postgresql-client" in dockerfile and "/data/backups" in dockerfile
 
 
 def test_app_services_wait_for_healthy_dependencies() -> None:
