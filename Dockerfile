@@ -29,7 +29,7 @@ RUN DEBUG=1 STUDYAPP_VAR_DIR=/tmp/build-var python manage.py collectstatic --noi
 # /data/media is where compose mounts the shared media volume; a new named
 # volume takes this folder's owner, so the app user can write to it.
 RUN useradd --create-home --uid 1000 app \
-    && mkdir -p /data/media /data/var /data/backups \
+    && mkdir -p /data/media /data/var /data/static /data/backups \
     && chown -R app:app /data
 USER app
 ENV MEDIA_ROOT=/data/media \

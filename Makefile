@@ -33,6 +33,7 @@ PYTEST_PARALLEL = -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 test: $(INSTALLED)
 	scripts/ensure-redis.sh
 	scripts/ensure-chromium.sh
+	scripts/ensure-caddy.sh
 	DATABASE_URL= $(BIN)/python -m pytest $(PYTEST_PARALLEL)
 	$(BIN)/python -m tests.postgres_pass $(PYTEST_PARALLEL)
 

@@ -147,6 +147,15 @@ MEDIA_ROOT = Path(env_str("MEDIA_ROOT", str(VAR_DIR / "media")))
 # media and collected static files itself, with range support so videos seek.
 # Turn it off when a proxy serves /media/ and /static/ from the same folders.
 SERVE_FILES = env_bool("SERVE_FILES", True)
+# Behind the proxy of compose.yaml (deploy/Caddyfile): the app decides who may see a media
+# file and answers with an X-Accel-Redirect header, the proxy sends the bytes (ranges,
+# caching); a clip's address is signed and stops working CLIP_URL_LIFETIME_S after its
+# page (studyapp.server.clip_urls).
+MEDIA_ACCEL = env_bool("MEDIA_ACCEL", False)
+CLIP_URL_LIFETIME_S = env_float("CLIP_URL_LIFETIME_S", 3600.0)
+if CLIP_URL_LIFETIME_S < 60:
+    raise ImproperlyConfigured(f"CLIP_URL_LIFETIME_S={CLIP_URL_LIFETIME_S:g} is under a minute: "
+                               "clips would stop playing on the pages that show them")
 
 CELERY_BROKER_URL = env_str("CELERY_BROKER_URL", FILESYSTEM_BROKER_URL)
 if is_filesystem_broker(CELERY_BROKER_URL):
