@@ -12,9 +12,13 @@ ARG TORCH_INDEX_URL=""
 RUN pip install torch==2.13.0 ${TORCH_INDEX_URL:+--index-url "$TORCH_INDEX_URL"}
 
 # imageio-ffmpeg ships its own ffmpeg binary, so no system ffmpeg is needed. pg_dump and
-# pg_restore are for `manage.py backup` and `restore`: the distribution's client, which must
-# be of compose's PostgreSQL major version or newer.
-RUN apt-get update && apt-get install -y --no-install-recommends postgresql-client \
+# pg_restore are for `manage.py backup` and `restore`, of compose's PostgreSQL major version
+# (PostgreSQL's own packages: a newer client writes dumps that an older server cannot load,
+# an older one refuses to dump a newer server).
+ARG POSTGRES_MAJOR=16
+RUN apt-get update && apt-get install -y --no-install-recommends ca-certificates postgresql-common \
+    && /usr/share/postgresql-common/pgdg/apt.postgresql.org.sh -y \
+    && apt-get install -y --no-install-recommends "postgresql-client-${POSTGRES_MAJOR}" \
     && rm -rf /var/lib/apt/lists/*
 WORKDIR /app
 COPY . .

@@ -21,7 +21,8 @@ from pathlib import Path
 from urllib.parse import quote
 
 import pytest
-from django.core.management import call_command
+from django.conf import settings
+from django.core.management import CommandError, call_command
 from django.db import connection
 
 from generation.store import keep
@@ -64,7 +65,6 @@ def rated_study(clip_video: Path) -> Study:
     """MoGlow, RNN (with a real checkpoint in the store), NAT and BAD on two controls, every clip
     rendered and rated, and the study's report made."""
     study = make_study(controls=2, video=clip_video, bad_checks=0)
-    from django.conf import settings
     stored, digest = keep(REPO / "models" / "rnn-cpu.safetensors", settings.CHECKPOINT_ROOT)
     System.objects.filter(study=study, name="RNN").update(checkpoint=stored.name, checkpoint_digest=digest)
     means = {"MoGlow": 3, "RNN": 2, "NAT": 4, "BAD": 1}
@@ -198,9 +198,9 @@ def test_a_backup_that_only_lists_its_files_restores_when_the_folders_are_back(d
 
 def test_a_backup_names_a_folder_that_is_not_there_yet(deployment):
     (deployment / "taken").mkdir()
-    with pytest.raises(Exception) as error:
+    with pytest.raises(CommandError) as error:
         backup(deployment / "taken")
-    assert getattr(error.value, "returncode", None) == 2 and "does not exist yet" in str(error.value)
+    assert error.value.returncode == 2 and "does not exist yet" in str(error.value)
 
 
 @pytest.mark.parametrize(("change", "message"), [

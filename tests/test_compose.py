@@ -67,7 +67,10 @@ def test_backups_have_a_folder_and_the_image_has_the_dump_programs() -> None:
     assert "${BACKUP_DIR:-backups}:/data/backups" in compose["services"]["web"]["volumes"]
     assert "backups" in compose["volumes"]
     dockerfile = (REPO_ROOT / "Dockerfile").read_text()
-    assert "postgresql-client" in dockerfile and "/data/backups" in dockerfile
+    assert '"postgresql-client-${POSTGRES_MAJOR}"' in dockerfile and "/data/backups" in dockerfile
+    # pg_dump and pg_restore of the server's own major version (compose's postgres image).
+    server_major = compose["services"]["postgres"]["image"].split(":")[1].split("-")[0].split(".")[0]
+    assert f"ARG POSTGRES_MAJOR={server_major}\n" in dockerfile
 
 
 def test_app_services_wait_for_healthy_dependencies() -> None:
