@@ -196,11 +196,15 @@ def test_a_backup_that_only_lists_its_files_restores_when_the_folders_are_back(d
     assert Study.objects.filter(pk=study.pk).exists()
 
 
-def test_a_backup_names_a_folder_that_is_not_there_yet(deployment):
+def test_a_backup_names_a_folder_that_is_not_there_yet_outside_the_folders_it_copies(deployment):
     (deployment / "taken").mkdir()
-    with pytest.raises(CommandError) as error:
-        backup(deployment / "taken")
-    assert error.value.returncode == 2 and "does not exist yet" in str(error.value)
+    (deployment / "var" / "media").mkdir(parents=True)
+    for folder, message in ((deployment / "taken", "give a folder that does not exist yet"),
+                            (deployment / "var" / "media" / "backup", "inside the media folder")):
+        with pytest.raises(CommandError) as error:
+            backup(folder)
+        assert error.value.returncode == 2 and message in str(error.value)
+    assert not (deployment / "var" / "media" / "backup").exists()
 
 
 @pytest.mark.parametrize(("change", "message"), [

@@ -7,6 +7,7 @@ from django.core.management.base import BaseCommand
 
 from studyapp.backups.backup import write_backup
 from studyapp.backups.database import DatabaseError
+from studyapp.backups.files import backed_up_folders
 
 from ._study import InputError
 
@@ -26,6 +27,10 @@ class Command(BaseCommand):
         out: Path = options["folder"]
         if out.exists() or not out.parent.is_dir():
             raise InputError(f"{out}: give a folder that does not exist yet, in an existing folder")
+        for name, root in backed_up_folders().items():
+            if out.resolve().is_relative_to(root.resolve()):
+                raise InputError(f"{out}: inside the {name} folder ({root}), which the backup copies; "
+                                 "write it elsewhere")
         try:
             manifest = write_backup(out, copy_files=not options["list_files_only"])
         except DatabaseError as error:
