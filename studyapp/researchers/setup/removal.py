@@ -14,6 +14,7 @@ import re
 from django.db import transaction
 
 from studyapp.models import ControlSignal, Rating, Stimulus, Study, System
+from studyapp.server.media_bucket import delete_clip
 from studyapp.stimuli.sources import sampled_folder
 
 SAMPLED_NAME = re.compile(r"[0-9a-f]{64}\.npz")  # a content key; anything else there is not ours to delete
@@ -33,7 +34,7 @@ def delete_files(stimuli: list[Stimulus]) -> None:
     """Delete the stimuli's video files and the sampled motion no stimulus refers to any
     more; call after the rows' deletion commits, so a failed delete leaves the files in place."""
     for stimulus in stimuli:
-        stimulus.video_path().unlink(missing_ok=True)
+        delete_clip(stimulus.relative_path)
     delete_unreferenced_samples()
 
 
