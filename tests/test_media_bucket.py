@@ -13,6 +13,7 @@ from urllib.parse import urlsplit
 
 import pytest
 from django.core.exceptions import ImproperlyConfigured
+from django.core.management import CommandError, call_command
 from django.test import Client
 
 from studyapp.models import Study
@@ -104,3 +105,9 @@ def test_the_bucket_address_must_be_an_s3_url_naming_a_bucket():
             bucket_storage(url, "", 3600)
     with pytest.raises(ImproperlyConfigured, match="MEDIA_BUCKET_ENDPOINT_URL="):
         bucket_storage("s3://media", "127.0.0.1:9000", 3600)
+
+
+def test_a_backup_is_refused_while_the_clips_are_in_the_bucket_rather_than_written_without_them(bucket, tmp_path):
+    with pytest.raises(CommandError, match="no backup written: the clips are in the bucket") as refused:
+        call_command("backup", str(tmp_path / "backup"))
+    assert refused.value.returncode == 2 and not (tmp_path / "backup").exists()

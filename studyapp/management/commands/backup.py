@@ -8,6 +8,7 @@ from django.core.management.base import BaseCommand
 from studyapp.backups.backup import write_backup
 from studyapp.backups.database import DatabaseError
 from studyapp.backups.files import backed_up_folders
+from studyapp.server.media_bucket import in_bucket
 
 from ._study import InputError
 
@@ -25,6 +26,9 @@ class Command(BaseCommand):
 
     def handle(self, *args, **options):
         out: Path = options["folder"]
+        if in_bucket():  # a backup without the clips would restore a study that cannot be shown
+            raise InputError("no backup written: the clips are in the bucket of MEDIA_BUCKET_URL, which a backup "
+                             "does not copy yet; back the bucket up with its provider's tools (docs/deploying.md)")
         if out.exists() or not out.parent.is_dir():
             raise InputError(f"{out}: give a folder that does not exist yet, in an existing folder")
         for name, root in backed_up_folders().items():
