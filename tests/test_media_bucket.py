@@ -18,6 +18,7 @@ from django.test import Client
 
 from studyapp.models import Study
 from studyapp.researchers.results.reports import create_study_report, report_folder
+from studyapp.researchers.setup.duplication import duplicate_study
 from studyapp.researchers.setup.removal import delete_files
 from studyapp.server.media_bucket import bucket_storage
 from studyapp.stimuli.clips import claim
@@ -62,7 +63,7 @@ def test_a_study_generated_rated_and_reported_keeps_its_clips_only_in_the_bucket
     clips = list(study.stimuli.all())
     assert len(clips) >= 3 and all(clip.status == "done" for clip in clips)
     assert files_under(settings.MEDIA_ROOT) == []
-    assert s3.keys() == sorted(f"{bucket}/{clip.relative_path}" for clip in clips)
+    assert s3.keys(f"{bucket}/") == sorted(f"{bucket}/{clip.relative_path}" for clip in clips)
     assert claim(clips[0].pk, clips[0].task_id) is None  # a worker finds the clip done, in the bucket
 
     for clip in clips:
@@ -70,7 +71,9 @@ def test_a_study_generated_rated_and_reported_keeps_its_clips_only_in_the_bucket
         assert answer.status_code == 302 and "private" in answer["Cache-Control"]
         target = answer["Location"]
         assert target.startswith(f"{s3.endpoint_url}/{s3.bucket}/{bucket}/{clip.relative_path}?")
-        stored = s3.client().get_object(Bucket=s3.bucket, Key=f"{bucket}/{clip.relative_path}")["Body"].read()
+        found = s3.client().get_object(Bucket=s3.bucket, Key=f"{bucket}/{clip.relative_path}")
+        stored = found["Body"].read()
+        assert found["ContentType"] == "video/mp4"  # what Safari needs to play it
         assert stored[4:8] == b"ftyp" and fetch(target) == (200, stored)
         assert fetch(target, {"Range": "bytes=0-99"}) == (206, stored[:100])  # the video seeks
     with pytest.raises(urllib.error.HTTPError) as refused:  # the bucket itself is private
@@ -90,13 +93,18 @@ def test_a_clip_request_names_a_clip_file_or_is_refused_without_asking_the_bucke
     assert client.post("/media/stimuli/clip.mp4").status_code == 405
 
 
-def test_deleting_a_studys_clips_deletes_them_from_the_bucket(researcher, files, bucket, s3):
+def test_a_duplicated_study_has_copies_of_its_clips_in_the_bucket_and_deleting_them_deletes_them(researcher, files,
+                                                                                                  bucket, s3):
     study = small_study(researcher, files)
+    copy = duplicate_study(study)
+    key = lambda clip: f"{bucket}/{clip.relative_path}"  # noqa: E731
+    read = lambda clip: s3.client().get_object(Bucket=s3.bucket, Key=key(clip))["Body"].read()  # noqa: E731
+    originals = {clip.content_key: read(clip) for clip in study.stimuli.all()}
+    assert {clip.content_key: read(clip) for clip in copy.stimuli.all()} == originals
     clips = list(study.stimuli.all())
     study.delete()
-    assert len([key for key in s3.keys() if key.startswith(f"{bucket}/")]) == len(clips)
     delete_files(clips)
-    assert [key for key in s3.keys() if key.startswith(f"{bucket}/")] == []
+    assert s3.keys(f"{bucket}/") == sorted(key(clip) for clip in copy.stimuli.all())
 
 
 def test_the_bucket_address_must_be_an_s3_url_naming_a_bucket():
