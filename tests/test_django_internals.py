@@ -61,7 +61,8 @@ def test_a_compiled_select_runs_with_other_parameters_without_compiling_again(pe
     assert list(params) == ["ada"] and "%s" in sql
     compiler.as_sql = lambda *args, **kwargs: pytest.fail("compiled again")
     [found] = run_compiled(template, compiler, DEFAULT_DB_ALIAS, sql, ["bob"])
-    assert (type(found), found.pk, found.shown) == (User, people[1].pk, "Bob")  # an object, annotated as the ORM reads it
+    # An object, annotated as the ORM reads it.
+    assert (type(found), found.pk, found.shown) == (User, people[1].pk, "Bob")
     assert run_compiled(template, compiler, DEFAULT_DB_ALIAS, sql, ["nobody"]) == []
     assert list(template) == [people[0]]  # the template itself is left as it was
 

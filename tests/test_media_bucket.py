@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import urllib.error
 import urllib.request
-from urllib.parse import urlsplit
 
 import pytest
 from django.core.exceptions import ImproperlyConfigured
