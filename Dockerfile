@@ -11,7 +11,15 @@ ENV PYTHONDONTWRITEBYTECODE=1 \
 ARG TORCH_INDEX_URL=""
 RUN pip install torch==2.13.0 ${TORCH_INDEX_URL:+--index-url "$TORCH_INDEX_URL"}
 
-# imageio-ffmpeg ships its own ffmpeg binary, so no system ffmpeg is needed.
+# imageio-ffmpeg ships its own ffmpeg binary, so no system ffmpeg is needed. pg_dump and
+# pg_restore are for `manage.py backup` and `restore`, of compose's PostgreSQL major version
+# (PostgreSQL's own packages: a newer client writes dumps that an older server cannot load,
+# an older one refuses to dump a newer server).
+ARG POSTGRES_MAJOR=16
+RUN apt-get update && apt-get install -y --no-install-recommends ca-certificates postgresql-common \
+    && /usr/share/postgresql-common/pgdg/apt.postgresql.org.sh -y \
+    && apt-get install -y --no-install-recommends "postgresql-client-${POSTGRES_MAJOR}" \
+    && rm -rf /var/lib/apt/lists/*
 WORKDIR /app
 COPY . .
 RUN pip install .
@@ -25,7 +33,7 @@ RUN DEBUG=1 STUDYAPP_VAR_DIR=/tmp/build-var python manage.py collectstatic --noi
 # /data/media is where compose mounts the shared media volume; a new named
 # volume takes this folder's owner, so the app user can write to it.
 RUN useradd --create-home --uid 1000 app \
-    && mkdir -p /data/media /data/var \
+    && mkdir -p /data/media /data/var /data/static /data/backups \
     && chown -R app:app /data
 USER app
 ENV MEDIA_ROOT=/data/media \

@@ -34,6 +34,7 @@ test: $(INSTALLED)
 	scripts/ensure-redis.sh
 	scripts/ensure-r.sh
 	scripts/ensure-chromium.sh
+	scripts/ensure-caddy.sh
 	DATABASE_URL= $(BIN)/python -m pytest $(PYTEST_PARALLEL)
 	$(BIN)/python -m tests.postgres_pass $(PYTEST_PARALLEL)
 	$(BIN)/python -m mkdocs build --strict --quiet

@@ -24,6 +24,7 @@ from generation.motion.dataset import DatasetOptions
 from generation.render.camera import Camera
 from studyapp.bounds import Within, storable_json
 from studyapp.designs import registry as designs
+from studyapp.server.clip_urls import signed_clip_url
 
 NATURAL_NAME, ATTENTION_NAME = "NAT", "BAD"  # the names the analysis expects for these roles
 # A name that is a plain file name on every system: a control's export id where its name is one.
@@ -510,6 +511,8 @@ class Stimulus(models.Model):
 
     @property
     def video_url(self) -> str:
+        if settings.MEDIA_ACCEL:  # behind the proxy: an address that expires (studyapp.server.clip_urls)
+            return signed_clip_url(self.relative_path)
         return f"/{settings.MEDIA_URL.strip('/')}/{self.relative_path}"
 
     @property

@@ -73,6 +73,7 @@ DATABASE_TESTS = (
     "tests/test_hostile_bundles.py",
     "tests/test_study_bundle_pages.py",
     "tests/test_server_queries.py",
+    "tests/test_backups.py",
 )
 
 

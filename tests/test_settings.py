@@ -92,7 +92,8 @@ def test_a_setting_that_cannot_be_used_stops_manage_py_with_one_line_and_status_
     environment = {k: v for k, v in os.environ.items() if k not in DEPLOYMENT_VARIABLES}
     for variable, value, said in (("STUDY_LOST_AFTER_S", "5", "STUDY_LOST_AFTER_S=5 must exceed three heartbeats"),
                                   ("STUDY_HEARTBEAT_S", "0", "STUDY_HEARTBEAT_S=0, which must be positive"),
-                                  ("STUDY_SAMPLE_BATCH", "0", "STUDY_SAMPLE_BATCH=0 is not a whole number")):
+                                  ("STUDY_SAMPLE_BATCH", "0", "STUDY_SAMPLE_BATCH=0 is not a whole number"),
+                                  ("CLIP_URL_LIFETIME_S", "30", "CLIP_URL_LIFETIME_S=30 is under a minute")):
         completed = subprocess.run([sys.executable, "manage.py", "check"], cwd=REPO_ROOT, capture_output=True,
                                    text=True, timeout=60, env={**environment, "STUDYAPP_VAR_DIR": str(tmp_path),
                                                                variable: value})

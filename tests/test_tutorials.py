@@ -170,7 +170,7 @@ def test_every_variable_the_prolific_tutorial_exports_reaches_the_containers():
     compose = (REPO / "compose.yaml").read_text(encoding="utf-8")
     exported = [name for block in blocks(page, "sh") for command in commands(block) if command.startswith("export ")
                 for name in re.findall(r"(?:^export |\s)([A-Z][A-Z0-9_]*)=", command)]
-    assert {"SECRET_KEY", "MOTION_DATA_DIR", "ALLOWED_HOSTS", "CSRF_TRUSTED_ORIGINS", "HTTPS"} <= set(exported)
+    assert {"SECRET_KEY", "MOTION_DATA_DIR", "STUDY_DOMAIN", "ALLOWED_HOSTS", "CSRF_TRUSTED_ORIGINS"} <= set(exported)
     assert [name for name in exported if "${" + name not in compose] == []
 
 

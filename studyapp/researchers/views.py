@@ -44,7 +44,7 @@ from studyapp.researchers.crowd.participant_list import participant_rows, partic
 from studyapp.researchers.setup.preview import preview_pages
 from studyapp.researchers.setup.readiness import open_problems, open_warnings
 from studyapp.researchers.setup.removal import SystemsFixed, removal_summary, remove, remove_study, require_not_started
-from studyapp.researchers.results.reports import AnalysisInputError, create_report, html_table
+from studyapp.researchers.results.reports import AnalysisInputError, create_study_report, html_table
 from studyapp.server.celery import app as celery_app
 from studyapp.server.health import collect_health
 from studyapp.stimuli.clips import progress
@@ -607,12 +607,7 @@ def study_report(request: HttpRequest, pk: int) -> HttpResponse:
     """The analysis report of the ratings so far (the analysis pages' report)."""
     study = _study(request, pk)
     try:
-        # As `python -m analysis report ratings.csv --rules rules.json` makes it: the study's
-        # rules, and NAT as the reference where it was rated.
-        previous = study.previous_runs.last()  # a rerun's: its ratings are shown beside the previous run's
-        digest = create_report(settings.MEDIA_ROOT, ratings_csv(study), None, request.user.pk,
-                               StudyRules.of(study).exclusion, preregistration(study),
-                               (previous.ratings_csv, previous.rules_json) if previous else None)
+        digest = create_study_report(study, request.user.pk)
     except AnalysisInputError as error:
         messages.error(request, f"No report yet: {error}")
         return redirect("study-monitor", pk=study.pk)

@@ -19,12 +19,13 @@ first: a value the ORM changed on its way into the SQL is an error when it compi
 
 from __future__ import annotations
 
-import copy
 import itertools
 from collections.abc import Callable
 
-from django.db import DEFAULT_DB_ALIAS, connections
+from django.db import DEFAULT_DB_ALIAS
 from django.db.models import QuerySet
+
+from studyapp.server.django_internals import compile_select, run_compiled
 
 _stand_in_numbers = itertools.count(1)
 
@@ -50,14 +51,13 @@ class CompiledQuery:
     def _compile(self) -> tuple:
         stand_ins = [_stand_in(kind) for kind in self._kinds]
         queryset = self._build(*stand_ins)
-        compiler = queryset.query.get_compiler(using=DEFAULT_DB_ALIAS)
-        sql, params = compiler.as_sql()  # also sets up what reading the rows needs (select, klass_info)
+        compiler, sql, params = compile_select(queryset, DEFAULT_DB_ALIAS)
         slots = [[i for i, param in enumerate(params) if type(param) is type(value) and param == value]
                  for value in stand_ins]
         if missing := [n for n, positions in enumerate(slots) if not positions]:
             raise TypeError(f"value {missing[0] + 1} of {self._build.__qualname__} does not reach the SQL as "
                             f"it is given, so it cannot be compiled once")
-        self._compiled = (queryset, compiler, sql, tuple(params), slots)
+        self._compiled = (queryset, compiler, sql, params, slots)
         return self._compiled
 
     def __call__(self, *values: int | str) -> list:
@@ -70,11 +70,4 @@ class CompiledQuery:
         for value, positions in zip(values, slots):
             for position in positions:
                 params[position] = value
-        # This thread's connection (a compiler holds the connection it was made with),
-        # and the compiled SQL instead of compiling again.
-        run = copy.copy(compiler)
-        run.connection = connections[DEFAULT_DB_ALIAS]
-        run.as_sql = lambda *args, **kwargs: (sql, params)
-        queryset = template._chain()
-        queryset.query.get_compiler = lambda *args, **kwargs: run
-        return list(queryset)
+        return run_compiled(template, compiler, DEFAULT_DB_ALIAS, sql, params)

@@ -314,7 +314,9 @@ def reuse_sampled_motion(study, single) -> int:
 
 def ensure_researcher(var_dir: Path):
     """The demo's researcher login; the password is made once and kept under var/."""
-    from django.contrib.auth.models import Permission, User
+    from django.contrib.auth.models import User
+
+    from studyapp.researchers.accounts import grant_researcher_rights
 
     name = "researcher"
     secret = var_dir / "demo-researcher-password.txt"
@@ -323,12 +325,10 @@ def ensure_researcher(var_dir: Path):
         secret.chmod(0o600)
     password = secret.read_text().strip()
     user, _ = User.objects.get_or_create(username=name, defaults={"is_staff": True})
-    if not user.check_password(password) or not user.is_staff:
+    if not user.check_password(password):
         user.set_password(password)
-        user.is_staff = True  # the admin is one of the researcher's pages
-        user.save()
-    # The admin shows a researcher the rows of their own studies only (studyapp.admin).
-    user.user_permissions.set(Permission.objects.filter(content_type__app_label="studyapp"))
+        user.save(update_fields=["password"])
+    grant_researcher_rights(user)
     return user, password
 
 

@@ -24,8 +24,8 @@ from collections.abc import Iterator
 
 from django.db import connection
 from django.db.models import Model, QuerySet
-from django.db.models.sql import UpdateQuery
-from django.db.models.sql.constants import CURSOR, NO_RESULTS
+
+from studyapp.server.django_internals import CURSOR, NO_RESULTS, insert_rows, select_sql, update_compiler
 
 
 def _pipelines() -> bool:
@@ -54,7 +54,7 @@ def lock_rows(queryset: QuerySet) -> None:
     ``pipeline`` the statements after it go out at once and run once the locks are held.
     Inside a transaction; SQLite has no row locks (its IMMEDIATE transaction already
     holds the database's write lock) and only runs the query."""
-    sql, params = queryset.select_for_update().query.sql_with_params()
+    sql, params = select_sql(queryset.select_for_update())
     with connection.cursor() as cursor:
         cursor.execute(sql, params)
 
@@ -88,22 +88,13 @@ def insert(objects: list[Model]) -> None:
     if any((obj.pk is not None) != with_ids for obj in objects):
         raise ValueError(f"insert(): some {model.__name__} objects have ids and some have none")
     fields = [field for field in model._meta.concrete_fields if with_ids or not field.primary_key]
-    model._base_manager._insert(objects, fields=fields, using=connection.alias)
-    for obj in objects:  # saved, as bulk_create leaves them
-        obj._state.adding, obj._state.db = False, connection.alias
-
-
-def _update_compiler(queryset: QuerySet, values: dict):
-    """The compiler of ``queryset.update(**values)``, as ``QuerySet.update`` makes it."""
-    query = queryset.query.chain(UpdateQuery)
-    query.add_update_values(values)
-    return query.get_compiler(queryset.db)
+    insert_rows(model, objects, fields, connection.alias)
 
 
 def update(queryset: QuerySet, **values: object) -> None:
     """``queryset.update(**values)`` without reading how many rows changed, so that a
     ``pipeline`` need not wait for it."""
-    _update_compiler(queryset, values).execute_sql(NO_RESULTS)
+    update_compiler(queryset, values).execute_sql(NO_RESULTS)
 
 
 def updated_count(queryset: QuerySet, **values: object) -> int:
@@ -112,6 +103,6 @@ def updated_count(queryset: QuerySet, **values: object) -> int:
     if not _pipelines():
         return queryset.update(**values)
     with pipeline():  # entered again: leaving it waits for the answers, this UPDATE's count among them
-        cursor = _update_compiler(queryset, values).execute_sql(CURSOR)
+        cursor = update_compiler(queryset, values).execute_sql(CURSOR)
     with cursor:
         return cursor.rowcount

@@ -19,6 +19,7 @@ from studyapp.server.embedded import (
     stored_secret_key,
 )
 from studyapp.server.env import env_bool, env_float, env_list, env_str
+from studyapp.server.media_bucket import bucket_storage
 
 BASE_DIR = Path(__file__).resolve().parents[2]
 VAR_DIR = Path(env_str("STUDYAPP_VAR_DIR", str(BASE_DIR / "var"))).resolve()
@@ -147,6 +148,26 @@ MEDIA_ROOT = Path(env_str("MEDIA_ROOT", str(VAR_DIR / "media")))
 # media and collected static files itself, with range support so videos seek.
 # Turn it off when a proxy serves /media/ and /static/ from the same folders.
 SERVE_FILES = env_bool("SERVE_FILES", True)
+# Behind the proxy of compose.yaml (deploy/Caddyfile): the app decides who may see a media
+# file and answers with an X-Accel-Redirect header, the proxy sends the bytes (ranges,
+# caching); a clip's address is signed and stops working CLIP_URL_LIFETIME_S after its
+# page (studyapp.server.clip_urls).
+MEDIA_ACCEL = env_bool("MEDIA_ACCEL", False)
+CLIP_URL_LIFETIME_S = env_float("CLIP_URL_LIFETIME_S", 3600.0)
+if CLIP_URL_LIFETIME_S < 60:
+    raise ImproperlyConfigured(f"CLIP_URL_LIFETIME_S={CLIP_URL_LIFETIME_S:g} is under a minute: "
+                               "clips would stop playing on the pages that show them")
+# The clips in an S3-compatible bucket (s3://BUCKET or s3://BUCKET/PREFIX) instead of MEDIA_ROOT:
+# workers upload them, and a participant's clip request is redirected to an expiring presigned
+# address of the bucket (studyapp.server.media_bucket). MEDIA_BUCKET_ENDPOINT_URL names a server
+# other than AWS's; the key is AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY as boto3 reads them.
+MEDIA_BUCKET_URL = env_str("MEDIA_BUCKET_URL", "")
+MEDIA_BUCKET_ENDPOINT_URL = env_str("MEDIA_BUCKET_ENDPOINT_URL", "")
+STORAGES = {
+    "default": (bucket_storage(MEDIA_BUCKET_URL, MEDIA_BUCKET_ENDPOINT_URL, CLIP_URL_LIFETIME_S) if MEDIA_BUCKET_URL
+                else {"BACKEND": "django.core.files.storage.FileSystemStorage"}),
+    "staticfiles": {"BACKEND": "django.contrib.staticfiles.storage.StaticFilesStorage"},
+}
 
 CELERY_BROKER_URL = env_str("CELERY_BROKER_URL", FILESYSTEM_BROKER_URL)
 if is_filesystem_broker(CELERY_BROKER_URL):

@@ -12,9 +12,15 @@ from django.views.decorators.http import require_safe
 
 from studyapp.researchers.results.reports import REPORTS_FOLDER, report_owner
 from studyapp.server.celery import app as celery_app
-from studyapp.server.files import serve_with_ranges
+from studyapp.server.clip_urls import is_signed_and_current
+from studyapp.server.files import accel_redirect, serve_with_ranges
 from studyapp.server.health import HealthReport, collect_health
+from studyapp.server.media_bucket import clip_redirect, in_bucket
 from studyapp.stimuli.gallery import GALLERY_FOLDER
+
+# Where the proxy (deploy/Caddyfile) finds MEDIA_ROOT for the files this app tells it to send;
+# no client can ask for it: the proxy sends every request to the app, which answers 404 here.
+ACCEL_MEDIA_PREFIX = "/_accel/media/"
 
 
 def current_health() -> HealthReport:
@@ -61,7 +67,9 @@ def media_file(request: HttpRequest, path: str) -> HttpResponseBase:
     Stimuli are for anyone with their random token (participants); the gallery is a
     researcher's (its natural clips could be recognised among a study's NAT stimuli);
     an analysis report holds a researcher's ratings and is for its owner alone.
-    Anything else under MEDIA_ROOT is not served.
+    Anything else under MEDIA_ROOT is not served. With MEDIA_ACCEL the proxy in front sends
+    the file once this view has allowed it; with MEDIA_BUCKET_URL a stimulus is answered with
+    a redirect to the bucket's expiring address of it.
     """
     folder, _, rest = path.partition("/")
     if folder in (GALLERY_FOLDER, REPORTS_FOLDER) and not request.user.is_authenticated:
@@ -72,6 +80,13 @@ def media_file(request: HttpRequest, path: str) -> HttpResponseBase:
             raise Http404("No such file")
     elif folder not in ("stimuli", GALLERY_FOLDER):
         raise Http404("No such file")
+    # Behind the proxy a clip's address is signed and expires (``clip_urls``).
+    if settings.MEDIA_ACCEL and folder == "stimuli" and not is_signed_and_current(path, request.GET):
+        raise Http404("No such file")
+    if folder == "stimuli" and in_bucket():
+        return clip_redirect(request, rest)  # the bucket sends the bytes
+    if settings.MEDIA_ACCEL:  # the proxy sends the bytes
+        return accel_redirect(request, path, settings.MEDIA_ROOT, ACCEL_MEDIA_PREFIX)
     return serve_with_ranges(request, path, settings.MEDIA_ROOT, reveal_mtime=folder != "stimuli")
 
 

@@ -14,7 +14,8 @@ control its page shows, with the camera following that path (``over_shown_contro
 ``render_stimulus`` is the work a task does: ask the system's source for the motion and
 render it, whatever the source, with the study's camera and write ``MEDIA_ROOT/stimuli/<token>.mp4`` atomically. A
 killed attempt leaves only a hidden ``.<token>.mp4.*.part`` temporary, which the next
-attempt removes and the media view never serves.
+attempt removes and the media view never serves. With a bucket (``MEDIA_BUCKET_URL``) the
+checked video is uploaded there instead (``studyapp.server.media_bucket``).
 
 This module knows nothing of the task queue: ``dispatch`` sends the rows to the
 workers, and ``tasks`` calls ``claim``, ``render_stimulus`` and ``finish``.
@@ -41,6 +42,7 @@ from generation.render.video_check import VideoError, check_rendered_video
 from studyapp.designs.registry import design_of
 from studyapp.models import ControlSignal, Stimulus, Study, System
 from studyapp.plan.fixed import require_seed_allowed
+from studyapp.server.media_bucket import clip_destination, clip_exists
 from studyapp.stimuli.controls import study_options
 from studyapp.stimuli.mismatched import mismatched_clips
 from studyapp.stimuli.sources import Clip, source_of
@@ -171,13 +173,14 @@ def render_stimulus(stimulus: Stimulus) -> float:
     motion, floor, drawn = clip.motion, clip.floor, None
     if design_of(study).mismatched_clips:
         motion, floor, drawn = over_shown_control(stimulus, clip)
-    path = render_video(motion, stimulus.video_path(), camera=Camera.from_dict(study.camera),
-                        size=(study.video_width, study.video_height), root_path=floor, control_path=drawn)
-    try:
-        return check_rendered_video(path, motion).seconds
-    except VideoError:
-        path.unlink(missing_ok=True)
-        raise
+    with clip_destination(stimulus.relative_path) as target:
+        path = render_video(motion, target, camera=Camera.from_dict(study.camera),
+                            size=(study.video_width, study.video_height), root_path=floor, control_path=drawn)
+        try:
+            return check_rendered_video(path, motion).seconds
+        except VideoError:
+            path.unlink(missing_ok=True)
+            raise
 
 
 def over_shown_control(stimulus: Stimulus, clip: Clip) -> tuple[Motion, np.ndarray, np.ndarray | None]:
@@ -203,7 +206,7 @@ def claim(stimulus_id: int, task_id: str) -> Stimulus | None:
                     .filter(pk=stimulus_id).first())
         if stimulus is None or stimulus.task_id != task_id:
             return None
-        if stimulus.status == Stimulus.Status.DONE and stimulus.video_path().is_file():
+        if stimulus.status == Stimulus.Status.DONE and clip_exists(stimulus.relative_path):
             return None
         Stimulus.objects.filter(pk=stimulus.pk).update(status=Stimulus.Status.RUNNING, attempts=F("attempts") + 1,
                                                        error="", updated=timezone.now())

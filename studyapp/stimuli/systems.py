@@ -36,6 +36,7 @@ from generation.render.video_check import VideoError, read_stream
 from generation.store import SUFFIX as CHECKPOINT_SUFFIX
 from studyapp.bounds import check_field
 from studyapp.models import Stimulus, Study, System, new_token
+from studyapp.server.media_bucket import CLIPS_FOLDER, clip_destination
 from studyapp.server.null_characters import null_character_in
 from studyapp.stimuli.data_match import data_mismatch
 
@@ -237,7 +238,8 @@ def add_video_system(study: Study, name: str, uploads: list[File], role: str = S
         scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="video-upload-")))
         for upload in uploads:
             token = new_token()
-            tmp = stack.enter_context(atomic_output(Path(settings.MEDIA_ROOT) / "stimuli" / f"{token}{VIDEO_SUFFIX}"))
+            tmp = stack.enter_context(atomic_output(stack.enter_context(
+                clip_destination(f"{CLIPS_FOLDER}/{token}{VIDEO_SUFFIX}"))))
             original = scratch / f"{token}{VIDEO_SUFFIX}"
             digest = _copy(upload, original)
             try:

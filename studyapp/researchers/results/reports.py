@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
+from django.conf import settings
 from django.utils.html import escape
 from django.utils.safestring import SafeString, mark_safe
 
@@ -41,7 +42,11 @@ from analysis.tables import write_table
 from generation.files import atomic_folder
 from studyapp.researchers.results.table_format import readable_table
 from studyapp.designs.registry import design_named
+from studyapp.designs.rules import StudyRules
+from studyapp.models import Study
+from studyapp.plan.lock import preregistration
 from studyapp.plan.words import PlanInWords, in_words, plan_markdown
+from studyapp.researchers.results.export import ratings_csv
 
 REPORTS_FOLDER = "reports"
 RATINGS_NAME = "ratings.csv"
@@ -118,6 +123,15 @@ def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, o
         if comparison is not None:
             write_table(comparison, work / "tables", "previous_run", caption=PREVIOUS_TITLE)
     return digest
+
+
+def create_study_report(study: Study, owner_id: int) -> str:
+    """The report of a study's ratings so far, as ``python -m analysis report ratings.csv --rules rules.json``
+    makes it: the study's rules, and NAT as the reference where it was rated; returns its digest.
+    A rerun's report shows its ratings beside the previous run's. Raises AnalysisInputError."""
+    previous = study.previous_runs.last()
+    return create_report(settings.MEDIA_ROOT, ratings_csv(study), None, owner_id, StudyRules.of(study).exclusion,
+                         preregistration(study), (previous.ratings_csv, previous.rules_json) if previous else None)
 
 
 def _rules(folder: Path) -> ExclusionRules:

@@ -10,23 +10,13 @@ another's and may be repeated (the demo's side-by-side study follows its single 
 
 from __future__ import annotations
 
-import os
-import shutil
-
 from django.db import transaction
 
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
+from studyapp.server.media_bucket import copy_clip, delete_clip
 
 # What a copy starts without: who owns it and whether it is open are set anew, the rest is made anew.
 NOT_COPIED = {"id", "owner", "key", "title", "is_open", "previewed_at", "created", "updated"}
-
-
-def _link(source: Stimulus, target: Stimulus) -> None:
-    target.video_path().parent.mkdir(parents=True, exist_ok=True)
-    try:
-        os.link(source.video_path(), target.video_path())
-    except OSError:  # another file system, or one without links
-        shutil.copyfile(source.video_path(), target.video_path())
 
 
 def copy_contents(source: Study, target: Study) -> int:
@@ -38,7 +28,7 @@ def copy_contents(source: Study, target: Study) -> int:
             _copy_rows(source, target, linked)
     except BaseException:  # no video is left behind for a row that was not kept
         for clip in linked:
-            clip.video_path().unlink(missing_ok=True)
+            delete_clip(clip.relative_path)
         raise
     return len(linked)
 
@@ -63,7 +53,7 @@ def _copy_rows(source: Study, target: Study, linked: list[Stimulus]) -> None:
         twin = Stimulus.objects.create(
             study=target, system=systems[clip.system_id], control=controls.get(clip.control_id), seed=clip.seed,
             content_key=clip.content_key, status=Stimulus.Status.DONE, duration_s=clip.duration_s)
-        _link(clip, twin)
+        copy_clip(clip.relative_path, twin.relative_path)
         linked.append(twin)
 
 

@@ -17,6 +17,7 @@ from django.db import transaction
 
 from studyapp.models import ControlSignal, Rating, Stimulus, Study, System
 from studyapp.plan.fixed import STARTED, StudyFixed, started
+from studyapp.server.media_bucket import delete_clip
 from studyapp.stimuli.sources import imported_sampled_folder, imported_sampled_path, sampled_folder
 
 SAMPLED_NAME = re.compile(r"[0-9a-f]{64}\.npz")  # a content key; anything else there is not ours to delete
@@ -36,7 +37,7 @@ def delete_files(stimuli: list[Stimulus]) -> None:
     """Delete the stimuli's video files and the sampled motion no stimulus refers to any
     more; call after the rows' deletion commits, so a failed delete leaves the files in place."""
     for stimulus in stimuli:
-        stimulus.video_path().unlink(missing_ok=True)
+        delete_clip(stimulus.relative_path)
         imported_sampled_path(stimulus).unlink(missing_ok=True)  # its study's own: no other stimulus refers to it
     delete_unreferenced_samples()
 

