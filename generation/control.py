@@ -33,15 +33,14 @@ MAX_TURN_RATE_DEG_S = 3600.0
 
 
 def _number(spec: dict, key: str, default: float, bound: float) -> float:
-    """``spec[key]`` as a finite float within ``[-bound, bound]``; the message names the field."""
+    """``spec[key]`` as a finite float within ``[-bound, bound]``; the message names the field.
+    Only a number is one: text such as "1_0" or "+3" (which float() would read) is refused."""
     raw = spec.get(key, default)
-    try:
-        value = float(raw)
-    except (TypeError, ValueError):
-        raise ValueError(f"{key!r} must be a number, got {raw!r}") from None
-    if not math.isfinite(value) or abs(value) > bound:
-        raise ValueError(f"{key!r} must be a finite number within ±{bound:g}, got {raw!r}")
-    return value
+    if isinstance(raw, bool) or not isinstance(raw, int | float):
+        raise ValueError(f"{key!r} must be a number, got {repr(raw)[:40]}")
+    if abs(raw) > bound or not math.isfinite(raw):  # bound first: float() of a huge int overflows
+        raise ValueError(f"{key!r} must be a finite number within ±{bound:g}, got {repr(raw)[:40]}")
+    return float(raw)
 
 
 @dataclass(frozen=True)
@@ -254,13 +253,19 @@ def load_control_file(path: str | Path, fps: float = 20.0) -> list[PathControl]:
                 raise ValueError(f"{path}:{error.lineno}: invalid JSON ({error.msg})") from None
     except RecursionError:
         raise ValueError(f"{path}: nested too deeply to be a path description") from None
+    return described_paths(data, str(path), path.stem, fps)
+
+
+def described_paths(data: object, source: str, stem: str, fps: float = 20.0) -> list[PathControl]:
+    """Synthetic paths from a read control file's value (one description, or a list of them),
+    named ``stem-0``, ``stem-1``, ...; a ValueError naming ``source`` and the path for a wrong one."""
     descriptions = data if isinstance(data, list) else [data]
     controls = []
     for i, description in enumerate(descriptions):
         try:
-            controls.append(synthetic_path({"name": f"{path.stem}-{i}", **description}, fps))
+            controls.append(synthetic_path({"name": f"{stem}-{i}", **description}, fps))
         except (ValueError, TypeError, AttributeError) as error:
-            raise ValueError(f"{path}: path {i}: {error}") from None
+            raise ValueError(f"{source}: path {i}: {error}") from None
     return controls
 
 

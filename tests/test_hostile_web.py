@@ -193,23 +193,23 @@ def test_a_hostile_camera_field_is_a_400_naming_the_field(field, value, client, 
 
 HOSTILE_CONTROL_FILES = {
     "seconds Infinity (JSON)": ("path.json", b'{"segments": [{"type": "straight", "seconds": Infinity}]}',
-                                "segment 0: &#x27;seconds&#x27; must be a finite number within ±600"),
+                                "path.json: not JSON a study holds (Infinity is no number JSON has)"),
     "seconds .inf (YAML)": ("path.yaml", b"segments:\n  - type: straight\n    seconds: .inf\n",
-                            "segment 0: &#x27;seconds&#x27; must be a finite number within ±600"),
+                            "path.yaml: not YAML a study holds (the number inf is not finite)"),
     "seconds 1e12": ("path.json", b'{"segments": [{"type": "straight", "seconds": 1e12}]}',
                      "&#x27;seconds&#x27; must be a finite number within ±600"),
     "speed 1e308": ("path.json", b'{"segments": [{"type": "straight", "seconds": 2, "speed": 1e308}]}',
                     "&#x27;speed&#x27; must be a finite number within ±2000"),
     "turn rate NaN": ("path.json", b'{"segments": [{"type": "curve", "seconds": 2, "turn_rate": NaN}]}',
-                      "&#x27;turn_rate&#x27; must be a finite number"),
+                      "path.json: not JSON a study holds (NaN is no number JSON has)"),
     "hours in many segments": ("path.json", json.dumps({"segments": [{"type": "stand", "seconds": 500}] * 3}).encode(),
                                "segment 1: the path&#x27;s segments last over 600 s in all"),
     "a segment that is no object": ("path.json", b'{"segments": [5]}', "segment 0 must be an object"),
     "not UTF-8": ("path.json", b'{"name": "\xe9t\xe9"}', "path.json: not UTF-8 text"),
     "100,000 nested brackets (JSON)": ("path.json", b"[" * 100_000 + b"]" * 100_000,
-                                       "path.json: nested too deeply to be a path description"),
+                                       "path.json: nested more than 20 levels deep"),
     "100,000 nested brackets (YAML)": ("path.yaml", b"segments: " + b"[" * 100_000,
-                                       "path.yaml: nested too deeply to be a path description"),
+                                       "path.yaml: nested too deeply to read"),
 }
 
 

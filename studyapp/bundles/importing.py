@@ -47,6 +47,8 @@ from django.conf import settings
 from django.core.exceptions import ValidationError
 from django.db import transaction
 
+from analysis.errors import AnalysisInputError
+from analysis.exclusions import ExclusionRules
 from generation.files import atomic_folder, atomic_output
 from generation.motion.npz import MotionFileError, load_motion_npz
 from generation.store import SHA256_HEX, SUFFIX, CheckpointError, content_digest, read_header
@@ -319,8 +321,15 @@ class _Import:
 
 
 def _previous_run(bundle: ReadBundle, study: Study) -> None:
-    """The bundle's ratings table and rules, kept as the rerun's previous run."""
+    """The bundle's ratings table and rules, kept as the rerun's previous run. The rules are
+    read within bounds and checked as the analysis reads them now, so that a hostile or wrong
+    rules.json is refused here, naming it, not on the study's report page later."""
     ratings, rules = _text(bundle, records.RATINGS_FILE), _text(bundle, records.RULES_FILE)
+    _json(bundle, records.RULES_FILE)
+    try:
+        ExclusionRules.from_json(rules, records.RULES_FILE)
+    except AnalysisInputError as error:
+        raise records.RecordError(str(error)) from None
     _saved(PreviousRun(study=study, ratings_csv=ratings, rules_json=rules,
                        code_version=bundle.manifest.code_version), "the previous run")
 

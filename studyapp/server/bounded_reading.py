@@ -11,6 +11,8 @@ within all three is parsed. Numbers must be finite, and an integer of more than
 YAML is read with ``PlainLoader``: the safe loader, whose numbers are only what JSON
 writes. YAML 1.1 reads ``0x10`` as 16, ``010`` as 8, ``1_0`` as 10, ``1:30`` as 90 and
 ``+3`` as 3; here they stay text, which the field's own check then refuses by name.
+``yaml_value`` reads a YAML text within the same bounds: its node tree (which builds no
+object) is measured, counting a value each time an alias repeats it, before any value is built.
 """
 
 from __future__ import annotations
@@ -127,4 +129,56 @@ PlainLoader.add_implicit_resolver(
     list("-+0123456789."))
 
 
-__all__ = ["MAX_DEPTH", "MAX_ITEMS", "PlainLoader", "ReadRefused", "json_value", "read_bytes", "utf8_text"]
+def _measured_nodes(root: yaml.Node, name: str) -> None:
+    """Refuse a YAML node tree nested past ``MAX_DEPTH`` or holding more than ``MAX_ITEMS``
+    values, an alias counting as many values as it repeats (a "billion laughs"), without recursion."""
+    items, pending = 0, [(root, 0)]
+    while pending:
+        node, depth = pending.pop()
+        items += 1
+        if items > MAX_ITEMS:
+            raise ReadRefused(f"{name}: holds more than {MAX_ITEMS:,} values (aliases repeating values?)")
+        if depth > MAX_DEPTH:
+            raise ReadRefused(f"{name}: nested more than {MAX_DEPTH} levels deep, deeper than a study's records")
+        if isinstance(node, yaml.SequenceNode):
+            pending.extend((item, depth + 1) for item in node.value)
+        elif isinstance(node, yaml.MappingNode):
+            pending.extend((part, depth + 1) for pair in node.value for part in pair)
+
+
+def yaml_value(data: bytes, name: str, limit: int) -> object:
+    """The value of the YAML text ``data`` read with ``PlainLoader`` (ReadRefused naming ``name``
+    and what is wrong: over ``limit`` bytes, not UTF-8, nested or holding too much, not YAML,
+    a value of no safe type, a number that is not finite)."""
+    if len(data) > limit:
+        raise ReadRefused(f"{name}: {len(data) / 1e6:.3g} MB, over the {limit / 1e6:g} MB such a file may be")
+    text = utf8_text(data, name)
+    loader = PlainLoader(text)
+    try:
+        root = loader.get_single_node()
+        if root is None:
+            return None
+        _measured_nodes(root, name)
+        value = loader.construct_document(root)
+    except yaml.YAMLError as error:  # no YAML, or a tag of no safe type (!!python/object)
+        raise ReadRefused(f"{name}: not YAML a study holds ({' '.join(str(error).split())})") from None
+    except ValueError as error:  # the form of a date, but no date (February 30th)
+        raise ReadRefused(f"{name}: not YAML a study holds ({error})") from None
+    except RecursionError:  # the composer recurses per level, before the tree can be measured
+        raise ReadRefused(f"{name}: nested too deeply to read") from None
+    finally:
+        loader.dispose()
+    _finite_numbers(value, name)
+    return value
+
+
+def _finite_numbers(value: object, name: str) -> None:
+    """Refuse YAML's ``.inf`` and ``.nan`` anywhere in ``value`` (already measured: no deeper than ``MAX_DEPTH``)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ReadRefused(f"{name}: not YAML a study holds (the number {value} is not finite)")
+    for item in value.values() if isinstance(value, dict) else value if isinstance(value, list) else ():
+        _finite_numbers(item, name)
+
+
+__all__ = ["MAX_DEPTH", "MAX_ITEMS", "PlainLoader", "ReadRefused", "json_value", "read_bytes", "utf8_text",
+           "yaml_value"]

@@ -372,7 +372,7 @@ class LabelControlsForm(forms.Form):
 
 class ControlFileForm(forms.Form):
     description = forms.FileField(help_text="a JSON or YAML path description (one path or a list), "
-                                            "as generation.control.load_control_file reads")
+                                            "its numbers as JSON writes them (docs/running-a-study.md)")
 
 
 class GenerateForm(forms.Form):
