@@ -70,6 +70,19 @@ VARIABLES: tuple[Variable, ...] = (
     Variable("STUDY_LOST_AFTER_S", "45",
              "seconds after which an untouched task whose message is gone is sent again (over three heartbeats)",
              _STUDY),
+    Variable("MEDIA_ACCEL", "off",
+             "behind compose's proxy: the app decides who may see a media file and answers with an X-Accel-Redirect "
+             "header, the proxy sends the bytes; clip addresses are signed and expire", _STUDY),
+    Variable("CLIP_URL_LIFETIME_S", "3600",
+             "seconds a signed clip address (MEDIA_ACCEL, or the bucket's presigned one) keeps working; at least 60",
+             _STUDY),
+    Variable("MEDIA_BUCKET_URL", "unset: clips under MEDIA_ROOT",
+             "s3://BUCKET or s3://BUCKET/PREFIX: clips in an S3-compatible bucket, participants redirected to "
+             "presigned addresses (the key: AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY, as boto3 reads them)", _STUDY),
+    Variable("MEDIA_BUCKET_ENDPOINT_URL", "unset: AWS", "the S3 server's address when it is not AWS's", _STUDY),
+    Variable("STUDY_RESEARCHER_PASSWORD", "unset: asked at the prompt",
+             "the password `manage.py create_researcher` gives the new login when --password-file is not given",
+             _STUDY),
     Variable("SHARED_CHECKPOINTS", "models/ in the repository",
              "the checkpoints every researcher may name in a study definition, read-only (the committed demo "
              "models); any other checkpoint must be the researcher's own", _STUDY),

@@ -7,7 +7,6 @@ never from the command line, where other users of the machine and the shell's hi
 """
 
 import getpass
-import os
 import sys
 from pathlib import Path
 
@@ -17,6 +16,7 @@ from django.core.management.base import BaseCommand
 from django.core.validators import validate_email
 
 from studyapp.researchers.accounts import check_researcher_password, create_researcher
+from studyapp.server.env import env_str
 
 from ._study import InputError
 
@@ -68,7 +68,7 @@ class Command(BaseCommand):
         if options["password_file"] is not None:
             password = _password_from_file(options["password_file"])
         else:
-            password = os.environ.get(PASSWORD_VARIABLE) or _password_from_prompt()
+            password = env_str("STUDY_RESEARCHER_PASSWORD", "") or _password_from_prompt()
         try:
             check_researcher_password(password, username, email)
         except ValidationError as error:
