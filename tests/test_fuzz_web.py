@@ -508,7 +508,7 @@ def crowd(client, settings) -> Crowd:
         plan = client.post(reverse("study-platform-dry-run", args=[study.pk]), {"kind": "decisions"}).content.decode()
         calls = re.findall(r'name="call" value="([0-9a-f]{64})" checked', plan)
         assert len(calls) == 2
-        yield Crowd(client, study, {"<calls>": calls}, stand_in)
+        yield Crowd(client, study, {"<calls>": calls}, prolific=stand_in)
 
 
 PLATFORM_FORMS: dict[str, tuple[str, Callable[[Lab], dict]]] = {
