@@ -289,10 +289,12 @@ def write_report(report: Report | DesignReport, folder: str | Path) -> list[Path
     for name, table in tidy.items():
         if table is not None and len(table):
             written += write_table(table, tables, name)
-    written += write_table(report.significance_display, tables, "table2_significance",
-                           caption="Mean ratings ± 95 % CI per system (MoGlow Table 2 layout); "
-                                   f"{FEW_PARTICIPANTS_MARK.strip()}: an interval from fewer than "
-                                   f"{INTERVAL_FEW_PARTICIPANTS} participants.")
+    caption = "Mean ratings ± 95 % CI per system (MoGlow Table 2 layout)"
+    cells = report.significance_display.astype(str)
+    if cells.apply(lambda column: column.str.endswith(FEW_PARTICIPANTS_MARK)).to_numpy().any():
+        caption += (f"; {FEW_PARTICIPANTS_MARK.strip()}: an interval from fewer than "
+                    f"{INTERVAL_FEW_PARTICIPANTS} participants")
+    written += write_table(report.significance_display, tables, "table2_significance", caption=caption + ".")
     for (task, cc), matrix in report.pvalues_display.items():
         written += write_table(matrix, tables, f"pvalues_{slug(task, cc)}",
                                caption=f"Tukey HSD adjusted p-values, {task} · {cc}.")
