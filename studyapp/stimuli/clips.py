@@ -12,7 +12,8 @@ over the shown control's path; every clip of such a study is drawn over the path
 control its page shows, with the camera following that path (``over_shown_control``).
 
 ``render_stimulus`` is the work a task does: ask the system's source for the motion and
-render it, whatever the source, with the study's camera and write ``MEDIA_ROOT/stimuli/<token>.mp4`` atomically. A
+render it, whatever the source, on the study's display figure (``figure``) with the
+study's camera and write ``MEDIA_ROOT/stimuli/<token>.mp4`` atomically. A
 killed attempt leaves only a hidden ``.<token>.mp4.*.part`` temporary, which the next
 attempt removes and the media view never serves.
 
@@ -25,6 +26,7 @@ from __future__ import annotations
 import hashlib
 import json
 from collections import Counter
+from contextlib import suppress
 from importlib import metadata
 
 from django.db import transaction
@@ -41,6 +43,7 @@ from generation.render.video_check import VideoError, check_rendered_video
 from studyapp.designs.registry import design_of
 from studyapp.models import ControlSignal, Stimulus, Study, System
 from studyapp.stimuli.controls import study_options
+from studyapp.stimuli.figure import on_display_figure, work_out_figure
 from studyapp.stimuli.mismatched import mismatched_clips
 from studyapp.stimuli.sources import Clip, source_of
 
@@ -64,6 +67,8 @@ def content_key(study: Study, system: System, control: ControlSignal, seed: int,
         "seconds": control.seconds,
         "camera": study.camera,
         "size": [study.video_width, study.video_height],
+        "figure": study.display_figure,  # every clip is drawn on the study's one figure
+        "figure_mapping": system.figure_mapping,
         "code": CODE_VERSION,
     }
     if design_of(study).mismatched_clips:  # drawn over the path of the control its page shows
@@ -84,6 +89,10 @@ def plan_stimuli(study: Study, seed: int = 0) -> tuple[list[Stimulus], int]:
     """The rows of every (system, control) pair and mismatched clip, created where missing;
     (rows, how many were new)."""
     stimuli, created = [], 0
+    # The clips' content keys digest the figure they are drawn on. A rig that cannot be read
+    # or mapped fails its clips with the reason when they are rendered (and the readiness check lists it).
+    with suppress(OSError, ValueError):
+        work_out_figure(study)
     with transaction.atomic():
         for system, control, shown in _pairs(study):
             stimulus, new = Stimulus.objects.get_or_create(
@@ -168,6 +177,7 @@ def render_stimulus(stimulus: Stimulus) -> float:
     motion, floor, drawn = clip.motion, clip.floor, None
     if design_of(study).mismatched_clips:
         motion, floor, drawn = over_shown_control(stimulus, clip)
+    motion = on_display_figure(stimulus.system, motion, study)  # the motion as it came stays stored
     path = render_video(motion, stimulus.video_path(), camera=Camera.from_dict(study.camera),
                         size=(study.video_width, study.video_height), root_path=floor, control_path=drawn)
     try:
