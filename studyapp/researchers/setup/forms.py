@@ -65,7 +65,7 @@ class StudyForm(forms.ModelForm):
         ("Design", ("design", "pages_per_participant", "abx", "preference_strengths", "adaptive_pairing")),
         ("Question and scale", ("question", "scale_min", "scale_max", "label_min", "label_max")),
         ("Clips and targets", ("clips_per_participant", "ratings_per_stimulus", "training_clips",
-                               "reservation_minutes")),
+                               "reservation_minutes", "path_tolerance_cm")),
         ("Attention checks and early answers", ("bad_checks", "natural_checks", "bad_threshold", "natural_threshold",
                                                 "instructed_checks", "stop_after_failed_checks",
                                                 "require_full_play", "sliders_must_move", "discard_early")),
@@ -156,7 +156,7 @@ class StudyForm(forms.ModelForm):
 
     class Meta:
         model = Study
-        exclude = ["owner", "camera", "previewed_at"]
+        exclude = ["owner", "camera", "previewed_at", "display_figure"]  # the figure comes from the systems' rigs
         labels = {
             "pages_per_participant": "Pages per participant",
             "abx": "Natural clip shown as a reference (ABX)",
