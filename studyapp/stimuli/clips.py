@@ -170,14 +170,8 @@ def render_stimulus(stimulus: Stimulus) -> float:
     frame decodes, as many frames lasting as long as the motion); its duration in seconds.
     A video that fails the check is removed, so no finished row points at it."""
     remove_partial_files(stimulus)
-    if stimulus.control is None:
-        raise ValueError("an uploaded video has nothing to generate")
-    clip = source_of(stimulus.system).clip(motion_row(stimulus))
+    motion, floor, drawn = drawn_clip(stimulus)
     study = stimulus.study
-    motion, floor, drawn = clip.motion, clip.floor, None
-    if design_of(study).mismatched_clips:
-        motion, floor, drawn = over_shown_control(stimulus, clip)
-    motion = on_display_figure(stimulus.system, motion, study)  # the motion as it came stays stored
     path = render_video(motion, stimulus.video_path(), camera=Camera.from_dict(study.camera),
                         size=(study.video_width, study.video_height), root_path=floor, control_path=drawn)
     try:
@@ -185,6 +179,19 @@ def render_stimulus(stimulus: Stimulus) -> float:
     except VideoError:
         path.unlink(missing_ok=True)
         raise
+
+
+def drawn_clip(stimulus: Stimulus) -> tuple[Motion, np.ndarray, np.ndarray | None]:
+    """What the stimulus's video draws: (its system's motion on the study's display figure,
+    the floor path under it, the shown control's path where its page shows one). The
+    motion as it came stays stored, for the motion export."""
+    if stimulus.control is None:
+        raise ValueError("an uploaded video has nothing to generate")
+    clip = source_of(stimulus.system).clip(motion_row(stimulus))
+    motion, floor, drawn = clip.motion, clip.floor, None
+    if design_of(stimulus.study).mismatched_clips:
+        motion, floor, drawn = over_shown_control(stimulus, clip)
+    return on_display_figure(stimulus.system, motion, stimulus.study), floor, drawn
 
 
 def over_shown_control(stimulus: Stimulus, clip: Clip) -> tuple[Motion, np.ndarray, np.ndarray | None]:
@@ -225,5 +232,5 @@ def finish(stimulus: Stimulus, duration_s: float | None = None, error: str = "")
         status=status, duration_s=duration_s, error=error, updated=timezone.now())
 
 
-__all__ = ["claim", "content_key", "finish", "motion_row", "over_shown_control", "plan_stimuli", "progress", "remove_partial_files", "render_stimulus",
+__all__ = ["claim", "content_key", "drawn_clip", "finish", "motion_row", "over_shown_control", "plan_stimuli", "progress", "remove_partial_files", "render_stimulus",
            "sample_ahead"]
