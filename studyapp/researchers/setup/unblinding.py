@@ -71,9 +71,9 @@ def _rigs(systems: list[System]) -> tuple[list[str], list[str]]:
         warnings.append(f"the systems' skeletons differ ({listed}): every clip is drawn on the study's one display "
                         "figure, each rig's joints mapped to its points (see each system's figure page)")
     if any(hands.values()) and not all(hands.values()):
-        some = ", ".join(name for name, has in hands.items() if has)
-        warnings.append(f"only {some} of the systems have hands: the display figure draws none, so that no system "
-                        "shows by them")
+        some = [name for name, has in hands.items() if has]
+        warnings.append(f"only {', '.join(some)} {'has' if len(some) == 1 else 'have'} hands: the display figure draws "
+                        "none, so that no system shows by them")
     return problems, warnings
 
 
