@@ -9,14 +9,19 @@ from __future__ import annotations
 import io
 import json
 import zipfile
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from django.contrib.auth.models import User
 from django.core.management import call_command
+from django.core.management.base import CommandError
 from django.urls import reverse
 
+from generation.motion.bvh import load_motion, motion_to_bvh, write_bvh
 from generation.motion.npz import load_motion_npz
+from generation.motion.rotations import yaw_matrix
+from generation.motion.types import Motion
 from generation.render import Camera
 from generation.render.display_figure import REQUIRED_POINTS
 from generation.render.draw import FrameDrawer
@@ -153,3 +158,43 @@ def test_a_corrected_mapping_is_kept_from_the_page_written_in_the_definition_and
     manage("import_study", path, "--owner", "researcher")
     copy = Study.objects.exclude(pk=mixed_study.pk).get()
     assert copy.systems.get(name="CMU").figure_mapping == {"left_wrist": "lhand"}
+
+
+@pytest.mark.django_db
+def test_submitted_motion_on_a_rig_that_lacks_a_point_is_refused_naming_it(mixed_study, tmp_path):
+    (natural,) = sorted((tmp_path / "controls" / "natural").glob("*.bvh"))
+    headless = [(name, "thorax" if name == "head" else parent, source)  # the head hung from the chest: no neck
+                for name, parent, source in LAB_RIGS["accad"].joints if name != "neck"]
+    folder = tmp_path / "no-neck"
+    folder.mkdir()
+    write_lab_take(natural, replace(LAB_RIGS["accad"], joints=headless), folder / natural.name)
+    with pytest.raises(CommandError, match=r"its rig cannot be drawn on the study's display figure: the rig's joints "
+                                           r"map to no neck: name the joint of each"):
+        manage("add_system", mixed_study.pk, "No neck", "--motion", folder)
+    assert not mixed_study.systems.filter(name="No neck").exists()
+
+
+@pytest.mark.django_db
+def test_a_system_whose_mapping_names_a_joint_its_rig_lacks_stops_the_study_opening(mixed_study):
+    mixed_study.systems.filter(name="ACCAD").update(figure_mapping={"neck": "lowerneck"})
+    assert open_problems(mixed_study)[1:] == [  # after: no finished clip to rate
+        "ACCAD: the mapping names joints the rig does not have (neck: 'lowerneck'): correct its mapping on its figure "
+        "page (systems), or its clips cannot be drawn on the study's display figure"]
+
+
+@pytest.mark.django_db
+def test_a_path_tolerance_set_on_the_study_lets_motion_that_strays_from_its_path_in(mixed_study, tmp_path):
+    """Another lab's own natural motion: the NAT clip turned 40 degrees, so that it strays
+    from its control's path by a metre and more (refused at 100 cm, taken at 400)."""
+    (natural,) = sorted((tmp_path / "controls" / "natural").glob("*.bvh"))
+    folder = tmp_path / "turned"
+    folder.mkdir()
+    motion = load_motion(natural)
+    turn = yaw_matrix(np.radians(40.0))
+    turned = Motion(motion.positions @ turn.T, motion.fps, motion.skeleton)
+    write_bvh(motion_to_bvh(turned), folder / natural.name)
+    with pytest.raises(CommandError, match=r"from the control's path \(at frame \d+\); the tolerance is 100 cm"):
+        manage("add_system", mixed_study.pk, "Their NAT", "--motion", folder, "--keep-root")
+    Study.objects.filter(pk=mixed_study.pk).update(path_tolerance_cm=400.0)
+    said = manage("add_system", mixed_study.pk, "Their NAT", "--motion", folder, "--keep-root")
+    assert "from the path (the tolerance is 400 cm)" in said
