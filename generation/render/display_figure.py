@@ -342,5 +342,5 @@ def leg_length(length) -> float:
     return sum(length(f"{side}_{part}") for side in ("left", "right") for part in ("knee", "ankle")) / 2
 
 
-__all__ = ["DisplayFigure", "FEET", "MappingError", "OPTIONAL_POINTS", "POINTS", "REQUIRED_POINTS", "check_mapping",
-           "complete_mapping", "find_mapping", "mapping_pose"]
+__all__ = ["DisplayFigure", "FEET", "MappingError", "OPTIONAL_POINTS", "PARENT", "POINTS", "REQUIRED_POINTS",
+           "base_name", "check_mapping", "complete_mapping", "find_mapping", "leg_length", "mapping_pose", "rest_positions"]

@@ -67,10 +67,14 @@ def content_key(study: Study, system: System, control: ControlSignal, seed: int,
         "seconds": control.seconds,
         "camera": study.camera,
         "size": [study.video_width, study.video_height],
-        "figure": study.display_figure,  # every clip is drawn on the study's one figure
-        "figure_mapping": system.figure_mapping,
         "code": CODE_VERSION,
     }
+    # The figure every clip is drawn on, and the system's corrections of its mapping to it; left out
+    # where empty, so that a clip planned before studies had a figure (an older bundle's) keeps its key.
+    if study.display_figure:
+        parts["figure"] = study.display_figure
+    if system.figure_mapping:
+        parts["figure_mapping"] = system.figure_mapping
     if design_of(study).mismatched_clips:  # drawn over the path of the control its page shows
         parts["drawn_over"] = (shown or control).control
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()

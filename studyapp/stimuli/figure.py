@@ -128,9 +128,12 @@ def figure_table(system: System) -> dict:
         motion = rig_motion(system)
     except (OSError, ValueError) as error:
         return {"joints": [], "rows": [], "problem": f"its motion could not be read: {error}"}
+    if system.source_kind == System.SourceKind.VIDEO:
+        return {"joints": [], "rows": [], "problem": "uploaded videos are shown as they are: they are not drawn on "
+                                                     "the study's display figure"}
     if motion is None:
-        return {"joints": [], "rows": [], "problem": "no clip of its motion yet (a checkpoint's is found when its "
-                                                     "first clip is sampled)"}
+        return {"joints": [], "rows": [], "problem": "no clip of its motion yet (a checkpoint's rig is read when "
+                                                     "its first clip is sampled)"}
     found = find_mapping(motion.skeleton, mapping_pose(motion))
     used = {**found, **corrections(system)}
     rows = [{"point": point, "found": found.get(point, ""), "used": used.get(point, ""),
