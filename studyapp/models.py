@@ -271,6 +271,15 @@ class Study(models.Model):
             kwargs["update_fields"] = {*kwargs["update_fields"], "updated"}
         super().save(*args, **kwargs)
 
+    def save(self, *args, **kwargs) -> None:
+        # Planning works the display figure out and stores it by an update, so an instance
+        # loaded before (a settings page, a script) still holds none: saving it must not wipe
+        # the figure that every planned clip's content key digests.
+        if not self.display_figure and self.pk is not None and "update_fields" not in kwargs:
+            stored = Study.objects.filter(pk=self.pk).values_list("display_figure", flat=True).first()
+            self.display_figure = stored or self.display_figure
+        super().save(*args, **kwargs)
+
     def clean(self) -> None:
         if self.scale_min >= self.scale_max:
             raise ValidationError({"scale_max": f"the scale must rise: {self.scale_min} to {self.scale_max} does not"})

@@ -39,7 +39,12 @@ def _source_rates(system: System) -> list[float]:
 
 
 def _rates(study: Study, systems: list[System]) -> str | None:
-    rates = {system.name: _source_rates(system) for system in systems}
+    rates = {}
+    for system in systems:
+        try:
+            rates[system.name] = _source_rates(system)
+        except (OSError, ValueError):  # a row the study cannot read: its own page says why
+            rates[system.name] = []
     if len({fps for found in rates.values() for fps in found}) < 2:
         return None
     fps = study_options(study).fps
