@@ -343,4 +343,5 @@ def leg_length(length) -> float:
 
 
 __all__ = ["DisplayFigure", "FEET", "MappingError", "OPTIONAL_POINTS", "PARENT", "POINTS", "REQUIRED_POINTS",
-           "base_name", "check_mapping", "complete_mapping", "find_mapping", "leg_length", "mapping_pose", "rest_positions"]
+           "base_name", "check_mapping", "complete_mapping", "find_mapping", "leg_length", "mapping_pose",
+           "rest_positions"]

@@ -80,10 +80,11 @@ class StudyForm(forms.ModelForm):
                                   help_text=Study._meta.get_field("redirect_url").help_text)
 
     OPTIONAL_SIZES = ("min_screen_width", "min_screen_height")  # left empty: any size
+    KEPT_WHEN_EMPTY = ("path_tolerance_cm",)  # left empty (a form from before the setting): as it is
 
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
-        for name in self.OPTIONAL_SIZES:
+        for name in (*self.OPTIONAL_SIZES, *self.KEPT_WHEN_EMPTY):
             self.fields[name].required = False
         model_fields = {field.name for field in Study._meta.concrete_fields}
         for name in model_fields & set(self.fields):  # the browser holds to the bounds of Study's validators too
@@ -136,6 +137,9 @@ class StudyForm(forms.ModelForm):
         for name in self.OPTIONAL_SIZES:
             if self.cleaned_data.get(name) is None and name not in self.errors:
                 self.cleaned_data[name] = 0
+        for name in self.KEPT_WHEN_EMPTY:
+            if self.cleaned_data.get(name) is None and name not in self.errors:
+                self.cleaned_data[name] = getattr(self.instance, name)
         camera = {name[len(CAMERA_PREFIX):]: self.cleaned_data.get(name) for name in self.camera_fields()}
         for setting, value in camera.items():
             if CAMERA_PREFIX + setting not in self.errors and (problem := camera_setting_problem(setting, value)):
