@@ -138,9 +138,17 @@ def find_mapping(skeleton: Skeleton, pose: np.ndarray | None = None) -> dict[str
     branches = [chain for chain in branches if len(chain) > 1]
     if not branches:
         return {"hips": names[hips]}
-    # The spine climbs highest; the legs are the two branches that reach lowest.
-    spine_chain = max(branches, key=lambda chain: pose[chain[-1], 1])
-    legs = sorted((chain for chain in branches if chain is not spine_chain), key=lambda chain: pose[chain[-1], 1])[:2]
+    # Where the names say which joints are sided, the legs are the two sided branches and the
+    # spine the other; else (or where they do not tell) the spine climbs highest and the legs
+    # are the two branches that reach lowest.
+    sided = [chain for chain in branches if chain[1] in sides]
+    unsided = [chain for chain in branches if chain not in sided]
+    if len(sided) == 2 and unsided:
+        legs, spine_chain = sided, max(unsided, key=lambda chain: pose[chain[-1], 1])
+    else:
+        spine_chain = max(branches, key=lambda chain: pose[chain[-1], 1])
+        legs = sorted((chain for chain in branches if chain is not spine_chain),
+                      key=lambda chain: pose[chain[-1], 1])[:2]
     for chain, side in zip(legs, _sides(tree, legs, sides, "hip")):
         found.update(_limb(tree, chain, side, ("hip", "knee", "ankle", "toes"), _KNEE_NAMES, sides))
     found.update(_upper_body(tree, spine_chain, sides))
@@ -159,11 +167,14 @@ def _upper_body(tree: _Tree, spine_chain: list[int], sides: dict[int, str]) -> d
     """The spine, chest, neck, head and arms: the arms are the two branches off the spine
     that reach farthest; the chest is where they leave it."""
     skeleton, top = tree.skeleton, spine_chain[0]
-    column = tree.path(top, max((leaf for leaf in tree.leaves(top) if leaf in _descendants(tree, spine_chain[1])),
-                                key=lambda leaf: tree.pose[leaf, 1]))
+    # The head ends the spine's one unsided chain where the names tell, else its highest leaf.
+    leaves = [leaf for leaf in tree.leaves(top) if leaf in _descendants(tree, spine_chain[1])]
+    unsided = [leaf for leaf in leaves if not any(j in sides for j in tree.path(top, leaf))]
+    column = tree.path(top, max(unsided or leaves, key=lambda leaf: tree.pose[leaf, 1]))
     off = [(j, c) for j in column[1:] for c in tree.children[j] if c not in column]  # not the legs
+    named = [(j, c) for j, c in off if any(d in sides for d in _descendants(tree, c))]
     reach = {c: max(tree.distance(j, leaf) for leaf in tree.leaves(c)) for j, c in off}
-    arms = sorted(off, key=lambda jc: -reach[jc[1]])[:2]
+    arms = named if len(named) == 2 else sorted(off, key=lambda jc: -reach[jc[1]])[:2]
     found: dict[str, int] = {}
     named_head = [j for j in column if base_name(skeleton.names[j], False) in _HEAD_NAMES]
     head = named_head[0] if named_head else column[-1]
