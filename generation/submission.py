@@ -75,6 +75,7 @@ class ControlResult:
     converted: tuple[str, ...] = ()
     refused: str = ""
     left_out: tuple[Path, ...] = ()  # other files that matched the control
+    source_fps: float | None = None  # the frame rate the file has (the motion is at its control's)
 
     def line(self) -> str:
         name = self.file.name if self.file else "no file"
@@ -201,7 +202,7 @@ def prepare_submission(files: Sequence[str | os.PathLike], controls: Mapping[str
         skeletons[ident] = (motion.skeleton.names, tuple(motion.skeleton.parents))
         clip, steps, refused = _convert(motion, controls[ident], root, align, path_tolerance_cm)
         results[ident] = ControlResult(ident, chosen[ident], clip, (read_as, *steps), refused,
-                                       tuple(matched[ident][1:]))
+                                       tuple(matched[ident][1:]), motion.fps)
     for ident in controls:
         if ident not in results:
             results[ident] = ControlResult(ident, None, None, refused=f"no file named {ident}.bvh or {ident}_NN.bvh")
@@ -247,7 +248,7 @@ def _convert(motion: Motion, control: Control, root: RootOptions, align: bool,
         if distance[worst] > tolerance:
             return None, steps, (f"the root strays {distance[worst]:.0f} cm from the control's path (at frame "
                                  f"{worst}); the tolerance is {tolerance:g} cm")
-        steps.append(f"its root at most {distance[worst]:.0f} cm from the path")
+        steps.append(f"its root at most {distance[worst]:.0f} cm from the path (the tolerance is {tolerance:g} cm)")
     return clip, steps, ""
 
 

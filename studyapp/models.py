@@ -22,6 +22,8 @@ from analysis.designs import design_named as analysed_design
 from generation.control import Control, control_from_dict
 from generation.motion.dataset import DatasetOptions
 from generation.render.camera import Camera
+from generation.submission import PATH_TOLERANCE_CM
+from generation.render.display_figure import PARENT, DisplayFigure, MappingError
 from studyapp.bounds import Within, storable_json
 from studyapp.designs import registry as designs
 from studyapp.server.clip_urls import signed_clip_url
@@ -53,6 +55,23 @@ def json_object(row: models.Model, field: str) -> dict:
     if not isinstance(value, dict):
         raise StoredDataError(row, field, f"is {type(value).__name__}, not a JSON object")
     return value
+
+
+def figure_mapping_problem(value: object) -> None:
+    """A system's mapping corrections must be a table of body points to joint names."""
+    if not isinstance(value, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in value.items()):
+        raise ValidationError("a mapping is a table of body points to joint names")
+    if unknown := sorted(set(value) - set(PARENT)):
+        raise ValidationError(f"no body point is called {', '.join(unknown)} (points: {', '.join(PARENT)})")
+
+
+def display_figure_problem(value: object) -> None:
+    """A study's display figure is empty (not planned yet) or a figure's description."""
+    if value != {}:
+        try:
+            DisplayFigure.from_dict(value)
+        except (MappingError, TypeError) as error:
+            raise ValidationError(f"not a display figure: {error}") from None
 
 
 def new_token() -> str:
@@ -219,8 +238,15 @@ class Study(models.Model):
                                               "they are asked to return the study)")
     redirect_url = models.URLField(blank=True, help_text="where finished participants are sent (Prolific: its completion URL)")
     camera = models.JSONField(default=default_camera, validators=[storable_json])
+    # The display figure every clip is drawn on: the reference skeleton's bone lengths
+    # (``generation.render.display_figure``), set when the stimuli are planned.
+    display_figure = models.JSONField(default=dict, blank=True, validators=[storable_json, display_figure_problem])
     video_width = models.PositiveSmallIntegerField(default=640, validators=[VIDEO_SIDE])
     video_height = models.PositiveSmallIntegerField(default=480, validators=[VIDEO_SIDE])
+    path_tolerance_cm = models.FloatField(
+        default=PATH_TOLERANCE_CM, validators=[Within(1, 100_000, "cm")],
+        help_text="submitted motion: how far (cm) a clip's root may stray from its path control's path; raise it for "
+                  "motion that need not follow the controls (another lab's natural motion, a model whose path differs)")
     expected_effect = models.FloatField(
         null=True, blank=True, validators=[Within(0, 5, "a standardised difference or a share")],
         help_text="the smallest effect the study should detect (the design says in what terms: a standardised "
@@ -244,6 +270,15 @@ class Study(models.Model):
         """Save, stamping ``updated`` even when only some fields are saved (``update_fields``)."""
         if kwargs.get("update_fields") is not None:
             kwargs["update_fields"] = {*kwargs["update_fields"], "updated"}
+        super().save(*args, **kwargs)
+
+    def save(self, *args, **kwargs) -> None:
+        # Planning works the display figure out and stores it by an update, so an instance
+        # loaded before (a settings page, a script) still holds none: saving it must not wipe
+        # the figure that every planned clip's content key digests.
+        if not self.display_figure and self.pk is not None and "update_fields" not in kwargs:
+            stored = Study.objects.filter(pk=self.pk).values_list("display_figure", flat=True).first()
+            self.display_figure = stored or self.display_figure
         super().save(*args, **kwargs)
 
     def clean(self) -> None:
@@ -315,6 +350,9 @@ class System(models.Model):
     checkpoint_digest = models.CharField(max_length=64, blank=True)
     kind = models.CharField(max_length=30, blank=True)
     metadata = models.JSONField(default=dict, blank=True, validators=[storable_json])
+    # The researcher's corrections of how the rig's joints map to the display figure's
+    # points (point -> joint name), over the mapping found from the rig (``stimuli.figure``).
+    figure_mapping = models.JSONField(default=dict, blank=True, validators=[storable_json, figure_mapping_problem])
     temperature = models.FloatField(default=1.0, validators=[TEMPERATURE])
     created = models.DateTimeField(auto_now_add=True)
 

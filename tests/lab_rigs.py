@@ -69,6 +69,28 @@ for _s in ("R", "L"):
     ACCAD += [(f"{_s.lower()}femur", "root", f"UpperLeg_{_s}"), (f"{_s.lower()}tibia", f"{_s.lower()}femur", f"LowerLeg_{_s}"),
               (f"{_s.lower()}foot", f"{_s.lower()}tibia", f"Foot_{_s}"), (f"{_s.lower()}toes", f"{_s.lower()}foot", f"Toes_{_s}")]
 
+# A Mixamo character's rig (its "mixamorig:" names, three spine joints, finger and toe ends).
+MIXAMO: list[Joint] = [("mixamorig:Hips", None, "Hips"), ("mixamorig:Spine", "mixamorig:Hips", "Spine"),
+                       ("mixamorig:Spine1", "mixamorig:Spine", None), ("mixamorig:Spine2", "mixamorig:Spine1", "Chest"),
+                       ("mixamorig:Neck", "mixamorig:Spine2", "Neck"), ("mixamorig:Head", "mixamorig:Neck", "Head"),
+                       ("mixamorig:HeadTop_End", "mixamorig:Head", 10.0)]
+for _side, _s in (("Left", "L"), ("Right", "R")):
+    MIXAMO += [(f"mixamorig:{_side}Shoulder", "mixamorig:Spine2", f"Shoulder_{_s}"),
+               (f"mixamorig:{_side}Arm", f"mixamorig:{_side}Shoulder", f"UpperArm_{_s}"),
+               (f"mixamorig:{_side}ForeArm", f"mixamorig:{_side}Arm", f"LowerArm_{_s}"),
+               (f"mixamorig:{_side}Hand", f"mixamorig:{_side}ForeArm", f"Hand_{_s}"),
+               (f"mixamorig:{_side}HandMiddle1", f"mixamorig:{_side}Hand", 8.0)]
+for _side, _s in (("Left", "L"), ("Right", "R")):
+    MIXAMO += [(f"mixamorig:{_side}UpLeg", "mixamorig:Hips", f"UpperLeg_{_s}"),
+               (f"mixamorig:{_side}Leg", f"mixamorig:{_side}UpLeg", f"LowerLeg_{_s}"),
+               (f"mixamorig:{_side}Foot", f"mixamorig:{_side}Leg", f"Foot_{_s}"),
+               (f"mixamorig:{_side}ToeBase", f"mixamorig:{_side}Foot", f"Toes_{_s}"),
+               (f"mixamorig:{_side}Toe_End", f"mixamorig:{_side}ToeBase", 4.0)]
+
+# CMU's rig with names that say nothing (J00, J01, ...): only its shape tells its parts.
+_NAMELESS = {name: f"J{j:02d}" for j, (name, _, _) in enumerate(CMU_3DSMAX)}
+NAMELESS: list[Joint] = [(_NAMELESS[name], parent and _NAMELESS[parent], source) for name, parent, source in CMU_3DSMAX]
+
 END_SITE_CM = 5.0  # each leaf's End Site continues its bone by this much
 
 
@@ -190,6 +212,10 @@ LAB_RIGS = {"cmu": _CMU,
             "cmu-metres": LabRig(CMU_3DSMAX, "ZYX", "m", METRES_FORMAT, 510, _WALKS, rescaled_from=_CMU),
             "accad": LabRig(ACCAD, "ZXY", "cm", ACCAD_FORMAT, 581, ("feminine_001", "feminine_002", "feminine_003"))}
 LAB_FPS = 120.0
+# Rigs the display figure is tried on besides those above, one take each (not folders).
+MIXAMO_FORMAT = Formatting("\t", "\n", "\n", 6, 6, 6, " ", "0.008333")
+FIGURE_RIGS = {"mixamo": LabRig(MIXAMO, "ZXY", "cm", MIXAMO_FORMAT, 510, _WALKS),
+               "nameless": LabRig(NAMELESS, "ZYX", "cmu", CMU_FORMAT, 510, _WALKS)}
 
 
 def write_lab_take(source: Path, rig: LabRig, path: Path) -> Path:

@@ -111,7 +111,7 @@ def test_every_refusal_is_listed_per_control_and_nothing_is_written(cmu, cmu_con
     assert said[0].startswith("motion units: CMU units (x5.64444 to cm), y up (unit detected")
     assert said[1].startswith("walk: walk.bvh: read as CMU units (x5.64444 to cm), y up; resampled from 120 to 20 "
                               "fps; its first 60 of 85 frames (3 s); moved 4.68 m and turned +2 degrees to start at "
-                              "the origin facing +z; its root at most 5 cm from the path")
+                              "the origin facing +z; its root at most 5 cm from the path (the tolerance is 100 cm)")
     assert said[2] == ("short: short.bvh: refused: 34 frames (1.70 s) at 20 fps, shorter than its control's 60 "
                        "frames (3.00 s)")
     assert said[3].startswith(f"broken: broken.bvh: refused: unreadable ({folder / 'broken.bvh'}:")

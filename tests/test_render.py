@@ -284,10 +284,19 @@ def test_a_control_path_is_drawn_where_the_camera_projects_it():
         assert (np.abs(colours - np.array(style.control_future)).sum(axis=1) < 30).any()
 
 
+def along_the_control(motion: Motion) -> Motion:
+    """``motion`` moved to start at the origin and turned to set off along +z, as
+    ``straight_control``'s path does (the synthetic walker sets off along +x)."""
+    start = motion.positions[0, body_root_index(motion.skeleton)] * np.array([1.0, 0.0, 1.0])
+    x, y, z = np.moveaxis(motion.positions - start, -1, 0)
+    return Motion(np.stack([-z, y, x], axis=-1), motion.fps, motion.skeleton)
+
+
 def test_two_systems_clips_of_one_control_draw_the_same_control_path_from_the_same_camera():
     control = straight_control(40, 20.0)
-    circling = walking_in_a_circle(seconds=2.0, fps=20.0, radius=200.0)
-    tighter = walking_in_a_circle(seconds=2.0, fps=20.0, radius=90.0, speed=70.0)
+    # Two figures that keep near the path, each its own way.
+    circling = along_the_control(walking_in_a_circle(seconds=2.0, fps=20.0, radius=600.0))
+    tighter = along_the_control(walking_in_a_circle(seconds=2.0, fps=20.0, radius=300.0, speed=70.0))
     style = Style()
     hidden = Style(control_past=style.background, control_future=style.background)  # same camera, no control drawn
     drawers = [FrameDrawer(m, Camera(), SIZE, style=s, control_path=control)
@@ -307,3 +316,22 @@ def test_two_systems_clips_of_one_control_draw_the_same_control_path_from_the_sa
 def test_a_control_path_of_another_length_than_the_motion_is_refused(walker):
     with pytest.raises(ValueError, match=r"control_path must have shape \(30, 2\).*got \(29, 2\)"):
         FrameDrawer(walker, size=SIZE, control_path=np.zeros((29, 2)))
+
+
+def test_a_figure_that_strays_far_from_the_control_path_stays_in_frame_to_the_end():
+    """A mismatched clip: the figure walks a small circle while the page's control goes
+    straight on across the view, 5 m apart at the end. The camera follows the path while
+    the figure is near it, and the figure once it strays farther than the frame holds."""
+    frames = 120
+    across = Camera().rotation[0, [0, 2]] / np.linalg.norm(Camera().rotation[0, [0, 2]])  # the camera's right
+    control = np.outer(100.0 * np.arange(frames) / 20.0, across)
+    stray = walking_in_a_circle(seconds=frames / 20.0, fps=20.0, radius=100.0, speed=80.0)
+    assert np.linalg.norm(stray.positions[-1, body_root_index(stray.skeleton), [0, 2]] - control[-1]) > 500
+    drawer = FrameDrawer(stray, Camera(), SIZE, control_path=control)
+    pixels = drawer.camera.to_pixels(drawer.joints_cam[:, drawer.shown_joints], drawer.size)
+    inside = (pixels >= 0).all(axis=-1) & (pixels < np.array(SIZE)).all(axis=-1)
+    assert inside.all(), f"joints leave the frame from frame {int(np.argwhere(~inside.all(axis=1))[0, 0])}"
+    near = FrameDrawer(along_the_control(walking_in_a_circle(seconds=2.0, fps=20.0, radius=600.0)), Camera(), SIZE,
+                       control_path=straight_control(40, 20.0))
+    path_only = Camera().framing(150.0).targets(straight_control(40, 20.0), 20.0)
+    np.testing.assert_allclose(near.targets[:, [0, 2]], path_only[:, [0, 2]])  # near its path: the path alone

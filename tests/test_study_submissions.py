@@ -163,7 +163,8 @@ def test_every_control_of_a_refused_submission_is_reported_at_once_and_nothing_i
         f"{held_out[0]}: {held_out[0]}.bvh: refused: its skeleton (20 joints) differs from the one of "
         f"{held_out[1]}.bvh (21 joints)",
         f"{held_out[1]}: {held_out[1]}.bvh: read as centimetres, y up; its first 40 of 40 frames (2 s); moved 0.00 m "
-        "and turned +0 degrees to start at the origin facing +z; its root at most 2 cm from the path",
+        "and turned +0 degrees to start at the origin facing +z; its root at most 2 cm from the path (the tolerance "
+        "is 100 cm)",
         "1 of 8 controls ready, 7 refused: nothing written",
     ]:
         assert expected in report, report

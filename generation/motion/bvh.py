@@ -69,8 +69,7 @@ class BVH:
     @property
     def fps(self) -> float:
         """Frames per second; snapped to an integer when the file rounds its frame time."""
-        fps = 1.0 / self.frame_time
-        return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else fps
+        return frame_rate(self.frame_time)
 
     def channel_columns(self) -> list[range]:
         """The columns of ``values`` that belong to each joint."""
@@ -179,6 +178,20 @@ def bvh_duration(path: str | os.PathLike) -> float:
     _, _, motion_line = _parse_hierarchy(path, lines)
     n_frames, frame_time, _ = _motion_header(path, lines, motion_line)
     return n_frames * frame_time
+
+
+def frame_rate(frame_time: float) -> float:
+    """Frames per second of a frame time; snapped to an integer when a file rounds its frame time."""
+    fps = 1.0 / frame_time
+    return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else fps
+
+
+def bvh_frame_rate(path: str | os.PathLike) -> float:
+    """Frames per second a BVH file declares, read from its header only (as ``bvh_duration``)."""
+    path = _bvh_path(path)
+    lines = _header_lines(path)
+    _, _, motion_line = _parse_hierarchy(path, lines)
+    return frame_rate(_motion_header(path, lines, motion_line)[1])
 
 
 def load_motion(path: str | os.PathLike, scale: float = 1.0, up: str = "y") -> Motion:

@@ -24,6 +24,11 @@ REFERENCE_HEIGHT = 480  # Style widths are pixels at this frame height and scale
 # A stimulus lasts seconds and a gallery clip a minute or two; a motion longer than this
 # (a wrong frame time, say) would have the renderer plan gigabytes of frames.
 MAX_VIDEO_SECONDS = 3600.0
+# How far (a share of the frame's half-height at the camera's target) a figure may stray from
+# the control path the camera follows before the camera follows the figure instead: far
+# enough that every clip of a control that keeps near its path is filmed from the same
+# places, near enough that one that strays (a mismatched clip) stays in frame to its end.
+IN_VIEW_SHARE = 1.0
 
 
 def frame_indices(n_frames: int, fps: float, out_fps: float) -> np.ndarray:
@@ -53,6 +58,16 @@ def floor_points(points: np.ndarray, n_frames: int, name: str) -> np.ndarray:
     return points if points.shape[1] == 2 else points[:, [0, 2]]
 
 
+def kept_in_view(path: np.ndarray, figure: np.ndarray, reach: float) -> np.ndarray:
+    """The floor points (T, 2) a camera following ``path`` aims at so that ``figure`` (T, 2)
+    is never farther than ``reach`` from them: the path itself while the figure is that
+    near, else moved towards the figure by as much as it strays beyond."""
+    offset = figure - path
+    distance = np.linalg.norm(offset, axis=-1, keepdims=True)
+    beyond = np.clip(1.0 - reach / np.maximum(distance, 1e-9), 0.0, None)
+    return path + offset * beyond
+
+
 def on_floor(xz: np.ndarray) -> np.ndarray:
     """Floor points (..., 2) as x, z -> world points (..., 3) at y = 0."""
     return np.stack([xz[..., 0], np.zeros(xz.shape[:-1]), xz[..., 1]], axis=-1)
@@ -65,7 +80,9 @@ class FrameDrawer:
     asks for (``PathControl.path().xz``), drawn under the root path. With it the camera
     tracks the control's path instead of the figure, so every system's clip of one
     control is filmed from the same places and draws the control identically: only
-    the figure differs, and a figure that strays from its path is seen to stray.
+    the figure differs, and a figure that strays from its path is seen to stray. A
+    figure that strays farther than the frame holds pulls the camera after it
+    (``kept_in_view``), so that it is in frame for the whole clip.
     """
 
     def __init__(
@@ -94,12 +111,15 @@ class FrameDrawer:
         self.source = frame_indices(motion.n_frames, motion.fps, self.fps)
         path = floor_path(motion, root_path)
         self.path = on_floor(path)  # every source frame, so the drawn path stays smooth
+        figure_path = motion.positions[:, body_root_index(motion.skeleton)][:, [0, 2]]
         if control_path is None:
             self.control = None
-            tracked = motion.positions[:, body_root_index(motion.skeleton)][:, [0, 2]]
+            tracked = figure_path
         else:
-            tracked = floor_points(control_path, motion.n_frames, "control_path")
-            self.control = on_floor(tracked)
+            control = floor_points(control_path, motion.n_frames, "control_path")
+            self.control = on_floor(control)
+            tracked = kept_in_view(control, figure_path, IN_VIEW_SHARE * camera.distance * np.tan(
+                np.radians(camera.fov) / 2))
         self.targets = camera.targets(tracked, motion.fps)[self.source]
 
         skeleton = motion.skeleton

@@ -212,6 +212,8 @@ class _Builder:
             sources = [key for key in layout.SYSTEM_SOURCES if key in given]
             if "name" in given and (problem := check_field(System, "name", given["name"])):
                 self.problem((*path, "name"), f"{_where(path)}: {problem}")
+            if "figure" in given and (problem := check_field(System, "figure_mapping", given["figure"])):
+                self.problem((*path, "figure"), f"{_where(path)}: {problem}")
             if len(sources) > 1:
                 self.problem(path, f"{_where(path)}: give one of {', '.join(layout.SYSTEM_SOURCES)}, not "
                                    f"{' and '.join(sources)}")
@@ -251,7 +253,7 @@ class _Builder:
         folder = self.owned((*where, "digest"), ownership.SUBMITTED_MOTION, digest)
         try:  # the stored clips are already the body, on the control's path: read again, as they are
             system = add_submitted_system(study, given["name"], read_folder(folder), given["role"], spec.get("file", ""),
-                                          Reading(keep_root=True))
+                                          Reading(keep_root=True), given.get("figure"))
         except (UploadRefused, ControlError) as error:  # a submission's report: one control a line
             said = "; ".join(getattr(error, "lines", None) or [str(error)])
             raise self.fail(path, f"{_where(path)}: the submitted motion was not registered: {said}") from None
@@ -381,6 +383,8 @@ class _Builder:
                     add_natural_system(study, given["name"])
                 except UploadRefused as error:
                     raise self.fail(path, f"{_where(path)}: {error}") from None
+            if source in (None, "checkpoint"):  # the display figure's mapping, as corrected (submitted: when added)
+                study.systems.filter(name=given["name"]).update(figure_mapping=given.get("figure", {}))
         # Submitted motion is matched to the controls there are when it is added: each after
         # the controls it has clips of (fewest first), the other controls after them all.
         entries = self.control_entries()

@@ -55,6 +55,8 @@ def _system(system: System) -> dict:
                               "controls": list(metadata.get("controls", []))}
     elif kind == System.SourceKind.VIDEO:
         entry["videos"] = list(metadata.get("videos", []))
+    if system.figure_mapping:  # the researcher's corrections of its rig's mapping to the display figure
+        entry["figure"] = dict(system.figure_mapping)
     return entry
 
 

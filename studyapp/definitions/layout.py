@@ -124,6 +124,8 @@ SYSTEM_KEYS = (
     Key("videos", list, "a system of uploaded videos: their file names, for the record only (a definition cannot "
                         "make it; add its videos on the systems page)"),
     Key("temperature", Number, "a checkpoint's sampling temperature (default 1)"),
+    Key("figure", dict, "corrections of the mapping of the system's rig to the display figure's body points: "
+                        "`point: joint name` (the system's figure page shows the mapping)"),
 )
 CHECKPOINT_KEYS = (
     Key("digest", str, "the SHA-256 digest of the checkpoint file, which must be in the checkpoint store "

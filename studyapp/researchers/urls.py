@@ -2,7 +2,7 @@
 
 from django.urls import path
 
-from studyapp.researchers import bundle_views, definition_views, views
+from studyapp.researchers import bundle_views, definition_views, figure_views, views
 from studyapp.researchers.crowd import platform_views
 
 urlpatterns = [
@@ -15,6 +15,7 @@ urlpatterns = [
     path("<int:pk>/delete/", views.study_delete, name="study-delete"),
     path("<int:pk>/duplicate/", views.study_duplicate, name="study-duplicate"),
     path("<int:pk>/systems/", views.study_systems, name="study-systems"),
+    path("<int:pk>/systems/<int:system>/figure/", figure_views.system_figure, name="study-system-figure"),
     path("<int:pk>/questions/<int:question>/edit/", views.study_question_edit, name="study-question-edit"),
     path("<int:pk>/questions/<int:question>/move/", views.study_question_move, name="study-question-move"),
     path("<int:pk>/<str:kind>/<int:item>/remove/", views.study_remove, name="study-remove"),

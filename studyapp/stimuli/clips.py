@@ -12,7 +12,8 @@ over the shown control's path; every clip of such a study is drawn over the path
 control its page shows, with the camera following that path (``over_shown_control``).
 
 ``render_stimulus`` is the work a task does: ask the system's source for the motion and
-render it, whatever the source, with the study's camera and write ``MEDIA_ROOT/stimuli/<token>.mp4`` atomically. A
+render it, whatever the source, on the study's display figure (``figure``) with the
+study's camera and write ``MEDIA_ROOT/stimuli/<token>.mp4`` atomically. A
 killed attempt leaves only a hidden ``.<token>.mp4.*.part`` temporary, which the next
 attempt removes and the media view never serves. With a bucket (``MEDIA_BUCKET_URL``) the
 checked video is uploaded there instead (``studyapp.server.media_bucket``).
@@ -26,6 +27,7 @@ from __future__ import annotations
 import hashlib
 import json
 from collections import Counter
+from contextlib import suppress
 from importlib import metadata
 
 from django.db import transaction
@@ -44,6 +46,7 @@ from studyapp.models import ControlSignal, Stimulus, Study, System
 from studyapp.plan.fixed import require_seed_allowed
 from studyapp.server.media_bucket import clip_destination, clip_exists
 from studyapp.stimuli.controls import study_options
+from studyapp.stimuli.figure import on_display_figure, work_out_figure
 from studyapp.stimuli.mismatched import mismatched_clips
 from studyapp.stimuli.sources import Clip, source_of
 
@@ -69,6 +72,12 @@ def content_key(study: Study, system: System, control: ControlSignal, seed: int,
         "size": [study.video_width, study.video_height],
         "code": CODE_VERSION,
     }
+    # The figure every clip is drawn on, and the system's corrections of its mapping to it; left out
+    # where empty, so that a clip planned before studies had a figure (an older bundle's) keeps its key.
+    if study.display_figure:
+        parts["figure"] = study.display_figure
+    if system.figure_mapping:
+        parts["figure_mapping"] = system.figure_mapping
     if design_of(study).mismatched_clips:  # drawn over the path of the control its page shows
         parts["drawn_over"] = (shown or control).control
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
@@ -88,6 +97,10 @@ def plan_stimuli(study: Study, seed: int = 0) -> tuple[list[Stimulus], int]:
     (rows, how many were new); StudyFixed where the seed would add a second set of clips to a
     study whose plan is locked."""
     stimuli, created = [], 0
+    # The clips' content keys digest the figure they are drawn on. A rig that cannot be read
+    # or mapped fails its clips with the reason when they are rendered (and the readiness check lists it).
+    with suppress(OSError, ValueError):
+        work_out_figure(study)
     with transaction.atomic():
         require_seed_allowed(study, seed)
         for system, control, shown in _pairs(study):
@@ -166,13 +179,8 @@ def render_stimulus(stimulus: Stimulus) -> float:
     frame decodes, as many frames lasting as long as the motion); its duration in seconds.
     A video that fails the check is removed, so no finished row points at it."""
     remove_partial_files(stimulus)
-    if stimulus.control is None:
-        raise ValueError("an uploaded video has nothing to generate")
-    clip = source_of(stimulus.system).clip(motion_row(stimulus))
+    motion, floor, drawn = drawn_clip(stimulus)
     study = stimulus.study
-    motion, floor, drawn = clip.motion, clip.floor, None
-    if design_of(study).mismatched_clips:
-        motion, floor, drawn = over_shown_control(stimulus, clip)
     with clip_destination(stimulus.relative_path) as target:
         path = render_video(motion, target, camera=Camera.from_dict(study.camera),
                             size=(study.video_width, study.video_height), root_path=floor, control_path=drawn)
@@ -181,6 +189,19 @@ def render_stimulus(stimulus: Stimulus) -> float:
         except VideoError:
             path.unlink(missing_ok=True)
             raise
+
+
+def drawn_clip(stimulus: Stimulus) -> tuple[Motion, np.ndarray, np.ndarray | None]:
+    """What the stimulus's video draws: (its system's motion on the study's display figure,
+    the floor path under it, the shown control's path where its page shows one). The
+    motion as it came stays stored, for the motion export."""
+    if stimulus.control is None:
+        raise ValueError("an uploaded video has nothing to generate")
+    clip = source_of(stimulus.system).clip(motion_row(stimulus))
+    motion, floor, drawn = clip.motion, clip.floor, None
+    if design_of(stimulus.study).mismatched_clips:
+        motion, floor, drawn = over_shown_control(stimulus, clip)
+    return on_display_figure(stimulus.system, motion, stimulus.study), floor, drawn
 
 
 def over_shown_control(stimulus: Stimulus, clip: Clip) -> tuple[Motion, np.ndarray, np.ndarray | None]:
@@ -221,5 +242,5 @@ def finish(stimulus: Stimulus, duration_s: float | None = None, error: str = "")
         status=status, duration_s=duration_s, error=error, updated=timezone.now())
 
 
-__all__ = ["claim", "content_key", "finish", "motion_row", "over_shown_control", "plan_stimuli", "progress", "remove_partial_files", "render_stimulus",
+__all__ = ["claim", "content_key", "drawn_clip", "finish", "motion_row", "over_shown_control", "plan_stimuli", "progress", "remove_partial_files", "render_stimulus",
            "sample_ahead"]

@@ -29,7 +29,7 @@ from generation.control import PathControl
 from generation.motion.bvh import bvh_text, motion_to_bvh
 from generation.motion.root import root_trajectory, to_root_frame
 from generation.motion.types import Motion
-from generation.submission import MAX_HEIGHT_CM, MIN_HEIGHT_CM, PATH_TOLERANCE_CM
+from generation.submission import MAX_HEIGHT_CM, MIN_HEIGHT_CM
 from studyapp.models import SAFE_ID, ControlSignal, Study
 from studyapp.stimuli.controls import natural_options, study_options
 from studyapp.stimuli.natural import natural_motion
@@ -131,7 +131,7 @@ def _readme(study: Study, kind: str) -> str:
             "frame and at its frame rate: an example of a valid submission file. Its lengths (OFFSET, End\n"
             "Site and position channels) are in centimetres with y up: BVH has no field to say so.\n\n"
             + SUBMISSION_RULES.format(min_height=MIN_HEIGHT_CM, max_height=MAX_HEIGHT_CM, sigma=sigma,
-                                      tolerance=PATH_TOLERANCE_CM))
+                                      tolerance=study.path_tolerance_cm))
 
 
 def bundle_files(study: Study, natural: bool = False) -> dict[str, bytes]:

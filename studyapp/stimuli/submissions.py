@@ -36,6 +36,7 @@ from generation.motion.kinematics import subtree_motion
 from generation.motion.npz import load_motion_npz, save_motion_npz
 from generation.motion.root import RootOptions, hips_index
 from generation.motion.types import Motion
+from generation.render.display_figure import MappingError, complete_mapping, mapping_pose
 from generation.submission import MOTION_SUFFIXES, prepare_submission
 from studyapp.models import ControlSignal, Study, System
 from studyapp.server.zips import ZipRefused, checked_members, copy_member, opened_zip
@@ -102,6 +103,7 @@ def read_folder(folder: Path) -> dict[str, bytes]:
 class Accepted:
     control: ControlSignal
     motion: Motion
+    source_fps: float  # the rate of the file it came from
 
 
 def _motion_files(files: dict[str, bytes]) -> dict[str, str]:
@@ -140,13 +142,15 @@ def check_submission(study: Study, files: dict[str, bytes], reading: Reading = R
             except OSError as error:  # a name this file system does not take
                 raise SubmissionRefused([f"{named[path.name]}: not a usable file name ({error.strerror})"]) from None
         try:
-            report = prepare_submission(paths, controls, reading.scale, reading.up, root, not reading.keep_root)
+            report = prepare_submission(paths, controls, reading.scale, reading.up, root, not reading.keep_root,
+                                        study.path_tolerance_cm)
         except ValueError as error:  # BVH files that mix units
             raise SubmissionRefused([str(error).replace(f"{scratch}{os.sep}", "")]) from None
         lines = [line.replace(f"{scratch}{os.sep}", "") for line in report.lines()]
     if not report.accepted:
         raise SubmissionRefused(lines)
-    return [Accepted(by_id[result.control], _body(result.motion, root)) for result in report.results], lines
+    return [Accepted(by_id[result.control], _body(result.motion, root), result.source_fps)
+            for result in report.results], lines
 
 
 def _body(motion: Motion, root: RootOptions) -> Motion:
@@ -181,13 +185,21 @@ def _store(accepted: list[Accepted]) -> tuple[str, str]:
 
 
 def add_submitted_system(study: Study, name: str, files: dict[str, bytes], role: str = System.Role.MODEL,
-                         source: str = "", reading: Reading = Reading()) -> System:
+                         source: str = "", reading: Reading = Reading(),
+                         figure_mapping: dict[str, str] | None = None) -> System:
     """A system of submitted motion (``files`` by name, from ``read_zip`` or ``read_folder``);
-    its metadata keeps the report of what became of each file."""
+    its metadata keeps the report of what became of each file. Its rig must map to every
+    point of the display figure (``figure_mapping`` corrects what is found): refused
+    naming the points it lacks."""
     if role not in (System.Role.MODEL, System.Role.BAD):
         raise UploadRefused(f"submitted motion makes a model or a BAD system, not {role!r}")
     check_name(study, name)
     accepted, report = check_submission(study, files, reading)
+    first = accepted[0].motion
+    try:
+        complete_mapping(first.skeleton, mapping_pose(first), figure_mapping)
+    except MappingError as error:
+        raise UploadRefused(f"its rig cannot be drawn on the study's display figure: {error}") from None
     folder, digest = _store(accepted)
     twin = study.systems.filter(kind=System.SourceKind.SUBMITTED, checkpoint_digest=digest).first()
     if twin is not None:
@@ -195,8 +207,10 @@ def add_submitted_system(study: Study, name: str, files: dict[str, bytes], role:
     skeleton = accepted[0].motion.skeleton
     return System.objects.create(
         study=study, name=name, role=role, kind=System.SourceKind.SUBMITTED, checkpoint_digest=digest,
+        figure_mapping=figure_mapping or {},
         metadata={"folder": folder, "controls": sorted(a.control.name for a in accepted), "file": source,
-                  "joints": skeleton.n_joints, "report": report})
+                  "joints": skeleton.n_joints, "report": report,
+                  "fps": sorted({item.source_fps for item in accepted})})  # as submitted, for the readiness check
 
 
 def add_submitted_upload(study: Study, name: str, upload: File, role: str = System.Role.MODEL,

@@ -65,7 +65,7 @@ class StudyForm(forms.ModelForm):
         ("Design", ("design", "pages_per_participant", "abx", "preference_strengths", "adaptive_pairing")),
         ("Question and scale", ("question", "scale_min", "scale_max", "label_min", "label_max")),
         ("Clips and targets", ("clips_per_participant", "ratings_per_stimulus", "training_clips",
-                               "reservation_minutes")),
+                               "reservation_minutes", "path_tolerance_cm")),
         ("Attention checks and early answers", ("bad_checks", "natural_checks", "bad_threshold", "natural_threshold",
                                                 "instructed_checks", "stop_after_failed_checks",
                                                 "require_full_play", "sliders_must_move", "discard_early")),
@@ -80,10 +80,11 @@ class StudyForm(forms.ModelForm):
                                   help_text=Study._meta.get_field("redirect_url").help_text)
 
     OPTIONAL_SIZES = ("min_screen_width", "min_screen_height")  # left empty: any size
+    KEPT_WHEN_EMPTY = ("path_tolerance_cm",)  # left empty (a form from before the setting): as it is
 
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
-        for name in self.OPTIONAL_SIZES:
+        for name in (*self.OPTIONAL_SIZES, *self.KEPT_WHEN_EMPTY):
             self.fields[name].required = False
         model_fields = {field.name for field in Study._meta.concrete_fields}
         for name in model_fields & set(self.fields):  # the browser holds to the bounds of Study's validators too
@@ -136,6 +137,9 @@ class StudyForm(forms.ModelForm):
         for name in self.OPTIONAL_SIZES:
             if self.cleaned_data.get(name) is None and name not in self.errors:
                 self.cleaned_data[name] = 0
+        for name in self.KEPT_WHEN_EMPTY:
+            if self.cleaned_data.get(name) is None and name not in self.errors:
+                self.cleaned_data[name] = getattr(self.instance, name)
         camera = {name[len(CAMERA_PREFIX):]: self.cleaned_data.get(name) for name in self.camera_fields()}
         for setting, value in camera.items():
             if CAMERA_PREFIX + setting not in self.errors and (problem := camera_setting_problem(setting, value)):
@@ -156,7 +160,7 @@ class StudyForm(forms.ModelForm):
 
     class Meta:
         model = Study
-        exclude = ["owner", "camera", "previewed_at"]
+        exclude = ["owner", "camera", "previewed_at", "display_figure"]  # the figure comes from the systems' rigs
         labels = {
             "pages_per_participant": "Pages per participant",
             "abx": "Natural clip shown as a reference (ABX)",

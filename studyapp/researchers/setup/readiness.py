@@ -6,8 +6,9 @@ screening questions can turn participants away (Prolific allows in-study screeni
 with its fixed screen-out payment); MTurk its frame over HTTPS (the participant's link
 brings the submit target, which ``participants.views`` checks on entry). The monitor's
 open button lists the reasons; the open view refuses on them. Warnings (attention checks
-without the system that makes them) do not stop it, once the researcher has seen them:
-the monitor shows them beside the button.
+without the system that makes them, what could tell the systems apart besides their
+motion: ``unblinding``) do not stop it, once the researcher has seen them: the monitor
+shows them beside the button. A rig the display figure cannot be placed on stops it.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from django.conf import settings
 
 from studyapp.designs.registry import design_of
 from studyapp.models import Question, Stimulus, Study, System
+from studyapp.researchers.setup.unblinding import unblinding
 
 
 def open_problems(study: Study) -> list[str]:
@@ -35,7 +37,7 @@ def open_problems(study: Study) -> list[str]:
     if study.platform == Study.Platform.MTURK and not settings.HTTPS:
         problems.append("MTurk shows the study in a frame of its HTTPS site, which needs this server "
                         "behind HTTPS with HTTPS=1 set")
-    return problems
+    return problems + unblinding(study)[0]
 
 
 def open_warnings(study: Study) -> list[str]:
@@ -60,7 +62,7 @@ def open_warnings(study: Study) -> list[str]:
             and not finished.filter(system__role=System.Role.NATURAL).exists():
         warnings.append(f"the settings ask for {study.natural_checks} NAT check(s) per participant, but the study "
                         "has no NAT system with a finished clip: add NAT on the systems page, or set NAT checks to 0")
-    return warnings
+    return warnings + unblinding(study)[1]
 
 
 __all__ = ["open_problems", "open_warnings"]
