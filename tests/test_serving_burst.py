@@ -166,7 +166,7 @@ def test_the_tested_commands_are_the_documented_ones():
                                              "127.0.0.1:8000"]
     assert dockerfile_command(8000)[2:] == ["gunicorn", "studyapp.server.wsgi", "--access-logfile", "-", "--bind",
                                             "127.0.0.1:8000"]
-    assert "manage.py serve" in (REPO / "README.md").read_text()
+    assert "manage.py serve" in (REPO / "docs" / "deploying.md").read_text()
     assert '"manage.py", "serve"' in Path(REPO / "studyapp" / "server" / "demo.py").read_text()
 
 
