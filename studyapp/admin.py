@@ -125,7 +125,7 @@ class StudyAdmin(OwnStudiesOnly):
             remove_study(study)
 
 
-class SystemForm(forms.ModelForm):
+class SystemForm(PlanLockedForm):
     """Submitted motion is read from the folder named by the system's digest, which the admin
     does not change: another folder would be another researcher's motion."""
 
@@ -147,7 +147,7 @@ class SystemAdmin(OwnStudiesOnly):
     readonly_fields = ["checkpoint", "checkpoint_digest", "created"]
 
 
-class ControlSignalForm(forms.ModelForm):
+class ControlSignalForm(PlanLockedForm):
     """A held-out take and its folders are names: of the study owner's own, or shared."""
 
     def clean(self):
