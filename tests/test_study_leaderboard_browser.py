@@ -79,7 +79,8 @@ def test_a_graded_pairwise_study_answered_in_a_browser_reports_its_leaderboard_a
     page = context.new_page()
     page.goto(f"{live_server.url}{response['Location']}")
     text = page.inner_text("body")
-    assert "Leaderboard (bradley-terry): Elo with 95 % bootstrap intervals over participants" in text
+    assert "Leaderboard (bradley-terry): Elo with NAT at 1000, 400 points odds of 10 to 1" in text  # anchor, origin
+    assert "95 % bootstrap intervals over participants" in text
     assert "a preference of strength k counts 2k wins of the preferred system" in text  # the summary's method
     table = page.locator("h2", has_text="Leaderboard (bradley-terry)").locator("xpath=following-sibling::div[1]")
     headers = table.locator("th").all_inner_texts()
