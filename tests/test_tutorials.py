@@ -186,8 +186,8 @@ def test_the_prolific_tutorials_server_commands_exist_offline(client):
                          check=True).stdout.strip()
     assert len(key) >= 50
     named = set(re.findall(r"manage\.py (\w+)", page))
-    assert {"createsuperuser", "create_study"} <= named and named - set(get_commands()) == set()
-    health = re.search(r"curl -s http://127\.0\.0\.1:8000(/\S+)", page).group(1)
+    assert {"create_researcher", "create_study"} <= named and named - set(get_commands()) == set()
+    health = re.search(r"curl -s https://study\.example\.org(/\S+)", page).group(1)
     response = client.get(health)
     assert response.status_code == 200 and response.json()["status"] in ("ok", "degraded")
 
