@@ -270,13 +270,10 @@ class Study(models.Model):
         """Save, stamping ``updated`` even when only some fields are saved (``update_fields``)."""
         if kwargs.get("update_fields") is not None:
             kwargs["update_fields"] = {*kwargs["update_fields"], "updated"}
-        super().save(*args, **kwargs)
-
-    def save(self, *args, **kwargs) -> None:
-        # Planning works the display figure out and stores it by an update, so an instance
-        # loaded before (a settings page, a script) still holds none: saving it must not wipe
-        # the figure that every planned clip's content key digests.
-        if not self.display_figure and self.pk is not None and "update_fields" not in kwargs:
+        elif not self.display_figure and self.pk is not None:
+            # Planning works the display figure out and stores it by an update, so an instance
+            # loaded before (a settings page, a script) still holds none: saving it must not wipe
+            # the figure that every planned clip's content key digests.
             stored = Study.objects.filter(pk=self.pk).values_list("display_figure", flat=True).first()
             self.display_figure = stored or self.display_figure
         super().save(*args, **kwargs)
