@@ -207,6 +207,13 @@ def test_a_backup_names_a_folder_that_is_not_there_yet_outside_the_folders_it_co
     assert not (deployment / "var" / "media" / "backup").exists()
 
 
+def test_a_backup_into_a_folder_that_cannot_be_written_is_refused_leaving_nothing(deployment):
+    with pytest.raises(CommandError) as error:
+        backup(Path("/proc/backup"))  # a system folder nobody may write in, even as root
+    assert error.value.returncode == 2 and "no backup written in /proc/backup" in str(error.value)
+    assert not any(path.name.startswith(".backup") for path in Path("/proc").iterdir())
+
+
 @pytest.mark.parametrize(("change", "message"), [
     (lambda record: record.update(engine="oracle"), "unknown engine 'oracle'"),
     (lambda record: record["files"][0].update(path="../../etc/passwd"), "is not a plain path inside its folder"),

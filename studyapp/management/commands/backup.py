@@ -39,6 +39,8 @@ class Command(BaseCommand):
             manifest = write_backup(out, copy_files=not options["list_files_only"])
         except DatabaseError as error:
             raise InputError(f"no backup written: {error}") from None
+        except OSError as error:  # a folder that cannot be written (read-only, full, a system folder)
+            raise InputError(f"no backup written in {out}: {error.strerror or error}") from None
         size = sum(entry.size for entry in manifest.files)
         kept = "listed" if options["list_files_only"] else "copied"
         self.stdout.write(f"the {manifest.engine} database and {len(manifest.files)} files ({size / 1e6:.1f} MB, "
