@@ -17,7 +17,7 @@ from django.core.management import call_command
 from django.core.management.base import CommandError
 from django.test import RequestFactory
 
-from studyapp.models import PlanDeviation, Rating, Stimulus, Study, StudyPlan, System
+from studyapp.models import Participant, PlanDeviation, Rating, Stimulus, Study, StudyPlan, System
 from tests.test_stored_data import study_with_a_participant
 
 pytestmark = pytest.mark.django_db
@@ -103,6 +103,15 @@ def test_the_admin_refuses_to_edit_or_delete_a_rating(client, staff, study):
     selected = {"action": "delete_selected", "_selected_action": [rating.pk], "post": "yes"}
     client.post("/admin/studyapp/rating/", selected)
     assert Rating.objects.filter(pk=rating.pk).exists()
+
+
+def test_the_admin_refuses_to_change_a_participants_exclusion_or_delete_their_ratings_with_them(client, staff, study):
+    participant = Participant.objects.filter(study=study).first()
+    response = posted(client, participant, staff, excluded=not participant.excluded)
+    assert response.status_code == 200 and "cannot change" in response.content.decode()
+    assert Participant.objects.get(pk=participant.pk).excluded == participant.excluded
+    assert client.post(f"/admin/studyapp/participant/{participant.pk}/delete/", {"post": "yes"}).status_code == 403
+    assert Participant.objects.filter(pk=participant.pk).exists()
 
 
 def test_the_admin_refuses_to_change_or_delete_a_system_as_the_systems_page_does(client, staff, study):

@@ -21,7 +21,8 @@ from collections.abc import Iterable
 
 from django.db import models
 
-from studyapp.models import Assignment, ControlSignal, Question, Rating, Stimulus, Study, StudyPlan, System
+from studyapp.models import (Assignment, ControlSignal, Participant, Question, Rating, Stimulus, Study, StudyPlan,
+                             System)
 
 # The study's settings that participants are shown and judged by (and the camera).
 INSTRUMENT = ("design", "abx", "question", "scale_min", "scale_max", "label_min", "label_max", "preference_strengths",
@@ -31,6 +32,9 @@ FIXED_FIELDS: dict[type[models.Model], tuple[str, ...] | None] = {
     Study: (*INSTRUMENT, "camera"),
     System: None, ControlSignal: None, Question: None, Assignment: None, Rating: None,
     Stimulus: ("system", "control", "shown_control", "seed", "content_key"),
+    # What the exclusions and the report read of a participant: the app records it as they answer.
+    Participant: ("training", "training_done", "finished_at", "failed_checks", "stopped_at", "screened_at",
+                  "screened_out_at", "answers", "excluded", "exclusion_reason", "refused_early"),
 }
 # Rows of these kinds may be added to a started study (and are recorded as deviations).
 ADDED_LATER = (System, ControlSignal, Stimulus)
