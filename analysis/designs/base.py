@@ -110,7 +110,7 @@ class RatingDesign:
     def build_report(self, ratings: pd.DataFrame, rules: ExclusionRules, reference: str | None,
                      continuity_correction: bool, motion: dict[str, SystemClips] | None,
                      foot_joints: list[str] | None, foot_kind: str) -> Report | DesignReport:
-        """The report of a validated table of this design (`analysis.reports.single_report.build_report`
+        """The report of a validated table of this design (`analysis.ratings.report.build_report`
         has checked the arguments and applied ``compare_attention_checks`` to ``rules``)."""
         return build_design_report(ratings, self, reference, rules, continuity_correction=continuity_correction)
 
