@@ -62,7 +62,7 @@ from studyapp.models import (Assignment, ControlSignal, Participant, PreviousRun
                              StoredDataError, Study, System, new_token)
 from studyapp.plan.lock import preregistration, restore_preregistration
 from studyapp.plan.words import plan_markdown
-from studyapp.server.bounded_reading import ReadRefused, json_value, read_bytes, utf8_text
+from studyapp.server.uploads.bounded_reading import ReadRefused, json_value, read_bytes, utf8_text
 from studyapp.stimuli.clips import CODE_VERSION, content_key
 from studyapp.stimuli.sources import imported_sampled_path
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER, stored_motion_digest

@@ -36,7 +36,7 @@ from generation.motion.dataset import (LOCOMOTION, DatasetOptions, build_dataset
                                        motion_folders)
 from generation.motion.takes import natural_takes
 from studyapp.models import ControlSignal, Study
-from studyapp.server.bounded_reading import json_value, yaml_value
+from studyapp.server.uploads.bounded_reading import json_value, yaml_value
 from studyapp.stimuli.natural import data_folders, natural_source, source_name
 
 CONTROL_FILE_SUFFIXES = (".json", ".yaml", ".yml")

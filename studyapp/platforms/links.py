@@ -1,0 +1,30 @@
+"""The platforms' link vocabulary: the query parameters each platform adds to a study's
+entry link (the first one the participant's id, one the platform's session), and where
+a finished participant is sent back to (Prolific's completion URL, MTurk's submit form)."""
+
+from __future__ import annotations
+
+from urllib.parse import urlparse
+
+from studyapp.models import Study
+
+# The query parameters each platform adds to the entry link; the first one is the id.
+PLATFORM_PARAMETERS = {
+    Study.Platform.PROLIFIC: ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID"),
+    Study.Platform.MTURK: ("workerId", "assignmentId", "hitId", "turkSubmitTo"),
+    Study.Platform.LINK: ("pid",),
+}
+# The parameter naming the platform's session: a platform id continues in another browser
+# only with the session it started in (elsewhere, only the browser's cookie continues it).
+SESSION_PARAMETERS = {Study.Platform.PROLIFIC: "SESSION_ID", Study.Platform.MTURK: "assignmentId"}
+PROLIFIC_COMPLETION_URL = "https://app.prolific.com/submissions/complete"
+MTURK_SUBMIT_HOSTS = {"www.mturk.com", "workersandbox.mturk.com"}
+
+
+def mturk_submit_url(platform_data: dict) -> str | None:
+    """MTurk's external-submit URL from the link's turkSubmitTo, if that is MTurk's own site."""
+    submit_to = platform_data.get("turkSubmitTo", "")
+    parsed = urlparse(submit_to)
+    if parsed.scheme == "https" and parsed.hostname in MTURK_SUBMIT_HOSTS:
+        return f"{submit_to.rstrip('/')}/mturk/externalSubmit"
+    return None
