@@ -48,7 +48,7 @@ def demo_dataset_cache(pytestconfig, motion_data, motion_data_2) -> Path:
     folder, which the test processes share, the first to need it building it while the
     others wait (it takes 40 s here; reading it back 3 s)."""
     from generation.motion.dataset import DatasetOptions, build_dataset
-    from studyapp.server import demo
+    from studyapp import demo
 
     cache = pytestconfig.cache.mkdir("motion-dataset")
     with (cache / "demo-dataset.lock").open("w") as lock:

@@ -12,7 +12,7 @@ import pytest
 
 from generation.checkpoint import read_meta
 from generation.motion.dataset import DatasetOptions, build_dataset, motion_folders
-from studyapp.server import demo
+from studyapp import demo
 from tests.study_fixtures import make_study
 from tests.test_checkpoint import clips_folder, dataset  # noqa: F401
 

@@ -15,7 +15,7 @@ from django.db.models import F, QuerySet
 from django.db.models.sql.compiler import SQLCompiler
 from django.db.models.sql.query import Query
 
-from studyapp.server import django_internals
+from studyapp.server.db import django_internals
 from studyapp.server.db.django_internals import (
     CURSOR, NO_RESULTS, UpdateQuery, compile_select, insert_rows, run_compiled, select_sql, update_compiler,
 )
