@@ -379,7 +379,8 @@ def main() -> int:
     from django.core.management import call_command
     from django.urls import reverse
 
-    from generation.motion.dataset import DatasetOptions, build_dataset
+    from generation.motion.dataset import build_dataset
+    from generation.motion.dataset_options import DatasetOptions
     from studyapp.server.celery import app
     from studyapp.stimuli.natural import data_folders
     from studyapp.platforms.links import PLATFORM_PARAMETERS

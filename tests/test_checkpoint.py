@@ -14,7 +14,8 @@ from generation import registry
 from generation.checkpoint import CheckpointError, load_checkpoint, read_meta, save_checkpoint
 from generation.control import load_control_file, preset_path
 from generation.generator import Generator
-from generation.motion.dataset import DatasetOptions, build_dataset
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from generation.train import TrainOptions, train
 
 pytestmark = pytest.mark.slow

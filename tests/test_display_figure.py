@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from generation.motion.dataset import load_body_motion
+from generation.motion.clip_files import load_body_motion
 from generation.motion.types import Motion, Skeleton
 from generation.render import Camera
 from generation.render.display_figure import (DisplayFigure, MappingError, base_name, check_mapping,
