@@ -39,7 +39,7 @@ def make_study(owner_name: str = "researcher", controls: int = 3, video: Path | 
                 "training_clips": 2, "completion_code": "C0MPL3TE", "is_open": True,
                 "platform": Study.Platform.PROLIFIC}
     fields = {**defaults, **fields}
-    # Opened once its systems and clips exist, as a researcher opens one: opening locks its plan (studyapp.plan).
+    # Opened once its systems and clips exist, as a researcher opens one: opening locks its plan (studyapp.preregistration).
     is_open = fields.pop("is_open")
     study = Study.objects.create(owner=owner, **fields)
     signals = [ControlSignal.objects.create(study=study, name=f"control-{i}", origin=ControlSignal.Origin.HELD_OUT,

@@ -19,7 +19,7 @@ from generation.motion.features import angle_feature_spec, encode_positions
 from generation.motion.root import RootOptions, limb_root_pairs
 from generation.motion.symmetry import left_right_pairs
 from generation.motion.unit_detection import choose_units
-from generation.motion.units import Units, skeleton_size
+from generation.motion.skeleton_units import Units, skeleton_size
 from generation.render import Camera
 from generation.render.draw import FrameDrawer
 from measures.feet import choose_foot_joints

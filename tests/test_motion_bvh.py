@@ -179,7 +179,7 @@ def test_motion_written_in_another_unit_reads_back_as_the_same_centimetres_with_
     from generation.motion import Motion
     from generation.motion.clip_files import load_body_motion
     from generation.motion.unit_detection import choose_units
-    from generation.motion.units import Units
+    from generation.motion.skeleton_units import Units
     from measures.units import UNITS
 
     motion = load_body_motion(clip_path("walk_normal_001"), 30.0)

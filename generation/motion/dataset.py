@@ -36,7 +36,7 @@ from .features import AngleFeatureSpec, angle_feature_spec, encode_angles, encod
 from .root import limb_root_pairs
 from .splits import SPLITS, take_of, take_splits
 from .types import Motion, Skeleton
-from .units import detect_up
+from .skeleton_units import detect_up
 
 FORMAT_VERSION = 1  # bump when the cached arrays change meaning
 

@@ -27,7 +27,7 @@ from django.db.models import F
 from django.http import QueryDict
 from django.utils import timezone
 
-from studyapp.designs.base import Answer, ClientTimes, OnPage, TIME_FIELDS
+from studyapp.designs.design import Answer, ClientTimes, OnPage, TIME_FIELDS
 from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Assignment, Participant, Rating, Study, export_name

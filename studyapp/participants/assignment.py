@@ -22,7 +22,7 @@ from datetime import datetime, timedelta
 from django.db import transaction
 from django.utils import timezone
 
-from studyapp.designs.base import Design, PlannedPage
+from studyapp.designs.design import Design, PlannedPage
 from studyapp.designs.registry import design_of
 from studyapp.models import Assignment, Participant, Stimulus, Study, System
 from studyapp.participants.study_cache import rendered_clips

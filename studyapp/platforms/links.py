@@ -6,6 +6,9 @@ from __future__ import annotations
 
 from urllib.parse import urlparse
 
+from django.http import HttpRequest
+from django.urls import reverse
+
 from studyapp.models import Study
 
 # The query parameters each platform adds to the entry link; the first one is the id.
@@ -18,6 +21,8 @@ PLATFORM_PARAMETERS = {
 # only with the session it started in (elsewhere, only the browser's cookie continues it).
 SESSION_PARAMETERS = {Study.Platform.PROLIFIC: "SESSION_ID", Study.Platform.MTURK: "assignmentId"}
 PROLIFIC_COMPLETION_URL = "https://app.prolific.com/submissions/complete"
+# Prolific fills these placeholders in a study URL; MTurk appends its own ids.
+PROLIFIC_PLACEHOLDERS = "PROLIFIC_PID={{%PROLIFIC_PID%}}&STUDY_ID={{%STUDY_ID%}}&SESSION_ID={{%SESSION_ID%}}"
 MTURK_SUBMIT_HOSTS = {"www.mturk.com", "workersandbox.mturk.com"}
 
 
@@ -28,3 +33,17 @@ def mturk_submit_url(platform_data: dict) -> str | None:
     if parsed.scheme == "https" and parsed.hostname in MTURK_SUBMIT_HOSTS:
         return f"{submit_to.rstrip('/')}/mturk/externalSubmit"
     return None
+
+
+def entry_link(request: HttpRequest, study: Study) -> str:
+    """The participants' entry link as the platform needs it."""
+    base = request.build_absolute_uri(reverse("participant-enter", args=[study.key]))
+    if study.platform == Study.Platform.PROLIFIC:
+        return f"{base}?{PROLIFIC_PLACEHOLDERS}"
+    if study.platform == Study.Platform.LINK:
+        return f"{base}?{PLATFORM_PARAMETERS[Study.Platform.LINK][0]}=PARTICIPANT_ID"
+    return base
+
+
+__all__ = ["MTURK_SUBMIT_HOSTS", "PLATFORM_PARAMETERS", "PROLIFIC_COMPLETION_URL", "PROLIFIC_PLACEHOLDERS",
+           "SESSION_PARAMETERS", "entry_link", "mturk_submit_url"]

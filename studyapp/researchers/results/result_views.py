@@ -13,8 +13,8 @@ from django.views.decorators.http import require_POST, require_safe
 
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Study
-from studyapp.plan.lock import preregistration
-from studyapp.plan.words import in_words
+from studyapp.preregistration.lock import preregistration
+from studyapp.preregistration.words import in_words
 from studyapp.platforms.links import PLATFORM_PARAMETERS, entry_link
 from studyapp.researchers.access import researcher_study
 from studyapp.researchers.downloads import download, zip_download

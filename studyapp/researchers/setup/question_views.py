@@ -8,7 +8,7 @@ from django.shortcuts import get_object_or_404, redirect, render
 from django.views.decorators.http import require_POST
 
 from studyapp.models import Question, Study
-from studyapp.plan.fixed import started
+from studyapp.preregistration.fixed import started
 from studyapp.researchers.access import researcher_study
 from studyapp.researchers.setup import question_order
 from studyapp.researchers.setup.forms import QuestionForm, QuestionRemovalForm

@@ -14,7 +14,7 @@ from django.views.decorators.http import require_POST, require_safe
 
 from studyapp.designs.registry import design_of
 from studyapp.models import Stimulus, Study
-from studyapp.plan.fixed import StudyFixed
+from studyapp.preregistration.fixed import StudyFixed
 from studyapp.researchers.access import researcher_study
 from studyapp.researchers.downloads import zip_download
 from studyapp.researchers.setup.forms import GenerateForm

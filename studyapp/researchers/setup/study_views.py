@@ -20,7 +20,7 @@ from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_http_methods, require_POST, require_safe
 
 from studyapp.models import ControlSignal, Stimulus, Study, System
-from studyapp.plan.fixed import started
+from studyapp.preregistration.fixed import started
 from studyapp.researchers.access import owned_study, researcher_study
 from studyapp.researchers.setup.duplication import duplicate_study
 from studyapp.researchers.setup.editing import EditRefused, edit_system, rename_control
