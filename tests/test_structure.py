@@ -163,17 +163,7 @@ def test_the_rule_checker_sees_a_forbidden_import_inside_a_function_or_a_type_ch
     ]
 
 
-# Circles that counting type-checking and lazy imports found in a package whose rooms are
-# split by another change of issue 54; each names its circle.
-KNOWN_CIRCLES = {
-    "studyapp": "studyapp.models -> studyapp.designs.registry (lazy) -> studyapp.designs.appropriateness -> "
-                "studyapp.designs.base -> studyapp.models: broken by the studyapp change",
-}
-
-
-@pytest.mark.parametrize("package", [
-    pytest.param(package, marks=pytest.mark.xfail(reason=KNOWN_CIRCLES[package], strict=True))
-    if package in KNOWN_CIRCLES else package for package in PACKAGES])
+@pytest.mark.parametrize("package", PACKAGES)
 def test_no_module_of_a_package_takes_part_in_an_import_cycle(package):
     """Type-checking and lazy imports (``import_module``, registries' "module:Class")
     count; packages import one way (their rules above), so a circle lies inside one."""

@@ -129,7 +129,7 @@ def clip_label(slot: int) -> str:
 
 class Design:
     """One rating design. Subclasses set the class attributes and implement what they
-    lack; ``registry.DESIGNS`` names each with its class."""
+    lack; ``registry.DESIGNS`` names each with its class (registered by studyapp/apps.py)."""
 
     template: str  # the rating page, under templates/studyapp/participant/
     page_word = "Page"  # the heading's "Page 3 of 8"

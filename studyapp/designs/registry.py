@@ -1,40 +1,40 @@
 """The rating designs a study can have: a table of their names, labels and classes.
 
 The name is what ``Study.design`` stores and the ratings table's ``design`` column says
-(``analysis.designs`` reads the same names). A class is named as "module:Class" and
-imported when first asked for, so this table imports nothing of the app: the models read
-it for the design field's choices, and each design's module imports the models. Adding a
-design is one entry here, its module and its templates (docs/architecture.md).
+(``analysis.designs`` reads the same names). The table imports nothing of the app: the
+models read it for the design field's choices and ask it for a study's design, and each
+design's module imports the models, so the designs enter it when the app starts
+(``StudyappConfig.ready`` in studyapp/apps.py registers them, in the order the researcher
+sees them). Adding a design is its module, its templates and one registration there
+(docs/architecture.md).
 """
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass
 from functools import cache
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
-if TYPE_CHECKING:
-    from studyapp.designs.design import Design
-    from studyapp.models import Study
+
+class HasDesign(Protocol):
+    design: str  # a registered design's name (a Study)
 
 
 @dataclass(frozen=True)
 class DesignEntry:
     label: str  # what the researcher chooses by
-    implementation: str  # "module:Class", a subclass of designs.design.Design
+    # A subclass of designs.design.Design, typed loosely here: naming it would import the
+    # designs, and through them the models, into the table the models read.
+    implementation: type
 
 
-DESIGNS: dict[str, DesignEntry] = {
-    "single": DesignEntry("single clip per page, rated on the scale", "studyapp.designs.single_pages:SingleClip"),
-    "side-by-side": DesignEntry("side by side: every system's clip of one control on a page, each on a slider",
-                                "studyapp.designs.side_by_side_pages:SideBySide"),
-    "pairwise": DesignEntry("pairwise: two systems' clips of one control, which is better",
-                            "studyapp.designs.pairwise_pages:Pairwise"),
-    "appropriateness": DesignEntry("appropriateness: a system's clip for the shown control beside its clip for "
-                                   "another control, which fits better", "studyapp.designs.appropriateness_pages:Appropriateness"),
-}
+DESIGNS: dict[str, DesignEntry] = {}
 DEFAULT = "single"
+
+
+def register(name: str, label: str, implementation: type) -> None:
+    """Enter design ``name``, chosen by ``label``, made by ``implementation``."""
+    DESIGNS[name] = DesignEntry(label, implementation)
 
 
 def choices() -> list[tuple[str, str]]:
@@ -42,8 +42,8 @@ def choices() -> list[tuple[str, str]]:
     return [(name, entry.label) for name, entry in DESIGNS.items()]
 
 
-def design_named(name: str) -> Design:
-    """The design called ``name``; KeyError naming the known ones for any other."""
+def design_named(name: str) -> Any:
+    """The design called ``name`` (a designs.design.Design); KeyError naming the known ones for any other."""
     entry = DESIGNS.get(name)
     if entry is None:
         raise KeyError(f"unknown rating design {name!r}; known: {', '.join(DESIGNS)}")
@@ -51,12 +51,11 @@ def design_named(name: str) -> Design:
 
 
 @cache
-def _instance(name: str, implementation: str) -> Design:
-    module, _, cls = implementation.partition(":")
-    return getattr(importlib.import_module(module), cls)(name)
+def _instance(name: str, implementation: type) -> Any:
+    return implementation(name)
 
 
-def design_of(study: Study) -> Design:
+def design_of(study: HasDesign) -> Any:
     """The design object of ``study``: what its pages show, how they are planned and answered."""
     return design_named(study.design)
 
