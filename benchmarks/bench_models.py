@@ -3,7 +3,7 @@
 Sampling frames/s at batch 1 and batch 64, and training steps/s, for the ``paper`` and
 ``cpu`` presets (63-D poses, 3-D control, 80-frame windows of the real data for ActNorm's
 initialisation and the training steps). MoGlow samples in every precision this CPU
-multiplies natively (``generation.models.precision``: float32; bfloat16 with AVX512-BF16
+multiplies natively (``generation.models.parts.precision``: float32; bfloat16 with AVX512-BF16
 or AMX; int8 with fbgemm), and "auto" (the default of ``sample`` and of the study's
 workers) names one of them.
 
@@ -44,11 +44,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.machine import describe_machine  # noqa: E402
 from benchmarks.moglow_reference import ENVIRONMENT_VARIABLE, ReferenceSampler, reference_code  # noqa: E402
 from generation.registry import model_class, preset, training_knobs  # noqa: E402
-from generation.models.flows import AffineCoupling  # noqa: E402
-from generation.models.precision import (PRECISIONS, auto_precision, cpu_has_bfloat16_units,  # noqa: E402
+from generation.models.parts.flows import AffineCoupling  # noqa: E402
+from generation.models.parts.precision import (PRECISIONS, auto_precision, cpu_has_bfloat16_units,  # noqa: E402
                                          cpu_has_int8_products, input_dtype, matrix_product)
-from generation.motion.dataset import build_dataset  # noqa: E402
-from generation.motion.dataset_options import DatasetOptions  # noqa: E402
+from generation.motion.data.dataset import build_dataset  # noqa: E402
+from generation.motion.data.dataset_options import DatasetOptions  # noqa: E402
 
 REFERENCE_CONSTANTS = {1: 17.9, 64: 570.0}  # the authors' MoGlow, paper-sized, an earlier 2-core machine
 BATCHES = (1, 64)

@@ -17,10 +17,10 @@ import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .checkpoint import read_meta
-from .motion.clip_files import choose_files, find_bvh_files, motion_folders
-from .motion.dataset import fingerprint
-from .motion.dataset_options import DatasetOptions
+from .checkpoints.checkpoint import read_meta
+from .motion.data.clip_files import choose_files, find_bvh_files, motion_folders
+from .motion.data.dataset import fingerprint
+from .motion.data.dataset_options import DatasetOptions
 
 REPO = Path(__file__).resolve().parents[1]
 MODELS = REPO / "models"

@@ -23,9 +23,9 @@ from tqdm import tqdm
 
 from .files import write_atomic
 from .motion.bvh import bvh_duration
-from .motion.clip_files import content_matches, find_bvh_files, load_body_motion, read_labels
+from .motion.data.clip_files import content_matches, find_bvh_files, load_body_motion, read_labels
 from .motion.root import RootOptions, root_trajectory
-from .motion.unit_detection import choose_units
+from .motion.data.unit_detection import choose_units
 from .motion.types import Motion
 from .render import Camera, contact_sheet, render_video
 from .render.display_figure import DisplayFigure, complete_mapping, mapping_pose

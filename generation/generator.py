@@ -25,17 +25,17 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import torch
 
-from .checkpoint import CheckpointMeta, load_checkpoint
+from .checkpoints.checkpoint import CheckpointMeta, load_checkpoint
 from .control import AttributeControl, Control, PathControl
-from .motion.dataset import Standardizer
+from .motion.data.dataset import Standardizer
 from .motion.features import AngleFeatureSpec, decode_angles, decode_positions
 from .motion.types import Motion, Skeleton
 from .stylegestures import CONTROL_LAYOUT, stylegestures_control
 from .models.attribute import AttributeModel
 from .models.motion_model import MotionModel
-from .models.noise import RowGenerators
+from .models.parts.noise import RowGenerators
 from .models.path import PathModel
-from .models.precision import auto_precision
+from .models.parts.precision import auto_precision
 
 
 # Bounds on a request, checked before anything is allocated: a warm-up is a second or
@@ -91,7 +91,7 @@ class Generator:
 
     def resolve_precision(self, precision: str = "auto") -> str:
         """The precision sampling multiplies in: ``precision`` itself, or for "auto" the
-        one ``generation.models.precision.auto_precision`` picks for this model and device
+        one ``generation.models.parts.precision.auto_precision`` picks for this model and device
         (bfloat16 on CPUs with bfloat16 units, float32 elsewhere)."""
         if precision == "auto":
             return auto_precision(self.device, self.model.precisions)

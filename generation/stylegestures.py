@@ -41,10 +41,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .checkpoint import CheckpointMeta, code_version, save_checkpoint
+from .checkpoints.checkpoint import CheckpointMeta, code_version, save_checkpoint
 from .models.moglow import MoGlow, MoGlowConfig
-from .motion.dataset import Standardizer
-from .motion.dataset_options import DatasetOptions
+from .motion.data.dataset import Standardizer
+from .motion.data.dataset_options import DatasetOptions
 from .motion.root import integrate, to_root_frame
 from .motion.types import Skeleton
 

@@ -47,13 +47,13 @@ import numpy as np
 
 from .control import Control, PathControl, control_from_dict
 from .motion.bvh import BVH, BVHError, bvh_text, motion_to_bvh, read_bvh
+from .motion.data.unit_detection import choose_units
 from .motion.kinematics import subtree_motion
 from .motion.npz import load_motion_npz
 from .motion.resample import resample
 from .motion.root import RootOptions, hips_index, root_trajectory
 from .motion.rotations import matrix_to_quat, quat_to_matrix, yaw_matrix
 from .motion.types import Motion
-from .motion.unit_detection import choose_units
 
 # Sampled models follow a commanded path loosely; a root farther than this has not followed it.
 PATH_TOLERANCE_CM = 100.0

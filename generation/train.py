@@ -27,14 +27,14 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from .checkpoint import CheckpointMeta, code_version, load_checkpoint, load_optimizer_state, read_meta, save_checkpoint
+from .checkpoints.checkpoint import CheckpointMeta, code_version, load_checkpoint, load_optimizer_state, read_meta, save_checkpoint
 from .hvrnn.classifiers import AttributeClassifiers
 from .models.attribute import AttributeModel
 from .models.motion_model import MotionModel
 from .models.hvrnn import HVRNN
-from .motion.dataset import MotionDataset
+from .motion.data.dataset import MotionDataset
 from .registry import model_class, resolve_preset, training_knobs
-from .store import CheckpointError
+from .checkpoints.store import CheckpointError
 
 KEYS = ("pose", "control")
 # The training part of an attribute dataset: every training take (the classifiers of

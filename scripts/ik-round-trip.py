@@ -23,11 +23,15 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from generation.motion.bvh import load_motion, motion_to_bvh, read_bvh, write_bvh  # noqa: E402
-from generation.motion.clip_files import find_bvh_files, load_body_motion, read_labels  # noqa: E402
-from generation.motion.dataset_options import DatasetOptions  # noqa: E402
-from generation.motion.splits import split_takes, take_of  # noqa: E402
+from generation.motion.data.clip_files import (  # noqa: E402
+    find_bvh_files,
+    load_body_motion,
+    read_labels,
+)
+from generation.motion.data.dataset_options import DatasetOptions  # noqa: E402
+from generation.motion.data.splits import split_takes, take_of  # noqa: E402
+from generation.motion.data.unit_detection import choose_units  # noqa: E402
 from generation.motion.types import Motion  # noqa: E402
-from generation.motion.unit_detection import choose_units  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 FOLDERS = [DATA / "bandai-namco-1", DATA / "bandai-namco-2-locomotion"]

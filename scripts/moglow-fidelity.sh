@@ -93,7 +93,7 @@ branch_mg_d() {  # MG-D starts as MoGlow's state at step MGD_BRANCH (kept as MoG
     if [ ! -e "$kept.safetensors" ]; then
         train MoGlow moglow cpu "$MGD_BRANCH" 500
         local step
-        step=$($PY -c "import sys; from generation.checkpoint import read_meta; print(read_meta(sys.argv[1]).step)" "$MODELS/MoGlow.safetensors")
+        step=$($PY -c "import sys; from generation.checkpoints.checkpoint import read_meta; print(read_meta(sys.argv[1]).step)" "$MODELS/MoGlow.safetensors")
         if [ "$step" != "$MGD_BRANCH" ]; then
             echo "MoGlow is at step $step, past MGD_BRANCH=$MGD_BRANCH, and its state there was not kept;" \
                  "set MGD_BRANCH to 0 (MG-D from scratch) or remove $MODELS/MoGlow.safetensors" >&2

@@ -134,7 +134,7 @@ def committed_model(file: str, fingerprint: str) -> tuple[Path | None, str]:
     """The committed checkpoint ``file`` where it is whole (its recorded digest) and learnt
     from the data of this ``fingerprint`` (held-out controls of other data could be its
     training clips); else None and why not."""
-    from generation.checkpoint import read_meta
+    from generation.checkpoints.checkpoint import read_meta
 
     path = COMMITTED_MODELS / file
     shown = path.relative_to(REPO)
@@ -157,7 +157,7 @@ def ensure_models(dataset, models: Path, train_if_needed: bool = False) -> dict[
     """Each demo system's checkpoint: the committed one, or, where that does not fit and
     ``train_if_needed``, one trained on the demo's data (minutes each on 2 cores, MoGlow about
     an hour); DemoStop naming what does not fit otherwise."""
-    from generation.checkpoint import read_meta
+    from generation.checkpoints.checkpoint import read_meta
     from generation.train import TrainOptions, train
 
     checkpoints, unfit = {}, []
@@ -380,8 +380,8 @@ def main() -> int:
     from django.core.management import call_command
     from django.urls import reverse
 
-    from generation.motion.dataset import build_dataset
-    from generation.motion.dataset_options import DatasetOptions
+    from generation.motion.data.dataset import build_dataset
+    from generation.motion.data.dataset_options import DatasetOptions
     from studyapp.server.celery import app
     from studyapp.stimuli.natural import data_folders
     from studyapp.platforms.links import PLATFORM_PARAMETERS

@@ -20,7 +20,7 @@ from django.db import models
 from analysis.levels import ALPHA, POWER
 from analysis.designs import design_named as analysed_design
 from generation.control import Control, control_from_dict
-from generation.motion.dataset_options import DatasetOptions
+from generation.motion.data.dataset_options import DatasetOptions
 from generation.render.camera import Camera
 from generation.submission import PATH_TOLERANCE_CM
 from generation.render.display_figure import PARENT, DisplayFigure, MappingError

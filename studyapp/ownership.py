@@ -28,8 +28,8 @@ from pathlib import Path
 from django.conf import settings
 from django.contrib.auth.base_user import AbstractBaseUser
 
-from generation.motion.clip_files import motion_folders
-from generation.store import SUFFIX as CHECKPOINT_SUFFIX, CheckpointError, content_digest, read_header
+from generation.motion.data.clip_files import motion_folders
+from generation.checkpoints.store import SUFFIX as CHECKPOINT_SUFFIX, CheckpointError, content_digest, read_header
 from studyapp.models import ControlSignal, System
 from studyapp.stimuli.natural import is_take_name
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER

@@ -20,7 +20,7 @@ SYSTEMS = (("MoGlow", System.Role.MODEL), ("RNN", System.Role.MODEL), ("NAT", Sy
 
 def render_clip_video(bvh: Path, out: Path, seconds: float) -> Path:
     """A short H.264 clip of real motion (small, so a browser test plays it quickly)."""
-    from generation.motion.clip_files import load_body_motion
+    from generation.motion.data.clip_files import load_body_motion
     from generation.render import render_video
 
     motion = load_body_motion(bvh, fps=20.0, seconds=seconds)

@@ -25,7 +25,7 @@ from django.conf import settings
 from django.core.management import CommandError, call_command
 from django.db import connection
 
-from generation.store import keep
+from generation.checkpoints.store import keep
 from studyapp.backups.database import DUMP_NAMES
 from studyapp.models import Study, System
 from studyapp.researchers.results.reports import create_study_report, report_folder

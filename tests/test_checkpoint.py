@@ -11,11 +11,11 @@ import pytest
 import torch
 
 from generation import registry
-from generation.checkpoint import CheckpointError, load_checkpoint, read_meta, save_checkpoint
+from generation.checkpoints.checkpoint import CheckpointError, load_checkpoint, read_meta, save_checkpoint
 from generation.control import load_control_file, preset_path
 from generation.generator import Generator
-from generation.motion.dataset import build_dataset
-from generation.motion.dataset_options import DatasetOptions
+from generation.motion.data.dataset import build_dataset
+from generation.motion.data.dataset_options import DatasetOptions
 from generation.train import TrainOptions, train
 
 pytestmark = pytest.mark.slow
@@ -244,8 +244,8 @@ def test_tampered_checkpoints_fail_with_a_message_naming_the_problem(checkpoint,
 def test_a_checkpoint_with_a_missing_tensor_is_refused(checkpoint, tmp_path):
     from safetensors.torch import load_file, save_file
 
-    from generation.checkpoint import FORMAT_KEY
-    from generation.store import tensor_digest
+    from generation.checkpoints.checkpoint import FORMAT_KEY
+    from generation.checkpoints.store import tensor_digest
 
     tensors = load_file(str(checkpoint))
     tensors.pop(sorted(tensors)[0])
@@ -356,7 +356,7 @@ def test_sample_command_writes_rotation_bvh_for_the_path_baselines_too(kind, dat
 
 def test_sample_command_writes_bvh_in_the_unit_asked_for_and_says_which(checkpoint, tmp_path, capsys):
     from generation.cli import main
-    from generation.motion.unit_detection import choose_units
+    from generation.motion.data.unit_detection import choose_units
     from generation.motion.skeleton_units import Units
 
     out = tmp_path / "in-metres"
@@ -388,7 +388,7 @@ def test_sample_command_warmup_seconds_changes_what_precedes_the_kept_clip(check
 def test_sample_command_samples_in_the_precision_auto_chose_and_says_which(checkpoint, tmp_path, capsys, monkeypatch,
                                                                              bfloat16_units, chosen):
     from generation.cli import main
-    from generation.models import precision
+    from generation.models.parts import precision
 
     if bfloat16_units and not precision.cpu_has_bfloat16_units():  # the choice is faked, the products are not
         pytest.skip("this CPU has no bfloat16 units for oneDNN's products (no AVX-512 BF16 or AVX-NE-CONVERT)")

@@ -6,7 +6,12 @@ from __future__ import annotations
 import pytest
 import torch
 
-from generation.store import CheckpointError, keep, read_header, write_tensors
+from generation.checkpoints.store import (
+    CheckpointError,
+    keep,
+    read_header,
+    write_tensors,
+)
 
 
 def test_a_file_is_kept_once_under_its_content_digest_and_a_damaged_one_not_at_all(tmp_path):

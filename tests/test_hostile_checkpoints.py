@@ -21,10 +21,10 @@ from django.contrib.auth.models import User
 from django.core.files.uploadedfile import SimpleUploadedFile
 from safetensors.torch import load_file, save_file
 
-from generation.checkpoint import FORMAT_KEY, read_meta, save_checkpoint
+from generation.checkpoints.checkpoint import FORMAT_KEY, read_meta, save_checkpoint
+from generation.checkpoints.store import tensor_digest
 from generation.cli import main
 from generation.registry import model_class
-from generation.store import tensor_digest
 from studyapp.models import Study, System
 
 REPO = Path(__file__).resolve().parents[1]

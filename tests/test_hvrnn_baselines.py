@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import torch
 
-from generation.checkpoint import load_checkpoint
+from generation.checkpoints.checkpoint import load_checkpoint
 from generation.control import AttributeControl
 from generation.generator import Generator
-from generation.models.kinematics import forward_kinematics
+from generation.models.parts.kinematics import forward_kinematics
 from generation.motion.kinematics import forward_kinematics as numpy_forward_kinematics
 from generation.motion.rotations import quat_to_matrix
 from generation.registry import model_class

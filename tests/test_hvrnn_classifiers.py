@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from generation.checkpoint import CheckpointError
+from generation.checkpoints.checkpoint import CheckpointError
 from generation.hvrnn.classifiers import AttributeClassifiers, accuracy, random_crops, train_classifiers
 from generation.hvrnn.data import ROOT_DIMS
 from generation.hvrnn.networks import save_network

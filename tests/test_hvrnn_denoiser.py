@@ -72,7 +72,7 @@ def test_denoised_training_data_changes_training_clips_only(data, trained):
 
 
 def test_train_cleans_the_training_takes_with_a_denoiser_file(data, trained, motion_data, pytestconfig, tmp_path, capsys):
-    from generation.checkpoint import read_meta
+    from generation.checkpoints.checkpoint import read_meta
     from generation.cli import main
 
     denoiser, _ = trained

@@ -8,11 +8,11 @@ import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
-from generation.models.losses import (
+from generation.models.parts.losses import (
     hierarchical_distance, joint_weights, kl_diagonal_gaussians, matrix_validity, quaternion_distance, quaternion_validity,
     rotation_matrix_distance,
 )
-from generation.models.rotations import expmap_to_quat, gram_schmidt, matrix_to_quat, normalize_quaternion, quat_to_matrix
+from generation.models.parts.rotations import expmap_to_quat, gram_schmidt, matrix_to_quat, normalize_quaternion, quat_to_matrix
 
 
 def random_rotations(n: int, seed: int) -> Rotation:

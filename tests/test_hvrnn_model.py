@@ -11,13 +11,13 @@ import pytest
 import torch
 
 from generation import registry
-from generation.checkpoint import load_checkpoint
+from generation.checkpoints.checkpoint import load_checkpoint
 from generation.control import AttributeControl, preset_path
 from generation.generator import Generator
 from generation.hvrnn.classifiers import AttributeClassifier, ClassifierConfig
 from generation.hvrnn.data import load_attribute_data
 from generation.models.hvrnn import HVRNN
-from generation.models.layers import random_crop
+from generation.models.parts.layers import random_crop
 from generation.registry import preset
 from generation.train import TrainOptions, load_loss_classifiers, train
 
@@ -216,7 +216,7 @@ def test_unknown_labels_and_path_control_are_refused_by_name(checkpoint, data):
 
 
 def test_train_command_chooses_the_rotation_output(motion_data, pytestconfig, tmp_path, capsys):
-    from generation.checkpoint import read_meta
+    from generation.checkpoints.checkpoint import read_meta
     from generation.cli import main
 
     cache = str(pytestconfig.cache.mkdir("motion-dataset"))

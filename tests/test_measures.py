@@ -18,7 +18,7 @@ from analysis.motion.centimetres import to_centimetres_y_up
 from generation.cli import main as generation_main
 from generation.motion.bvh import load_motion, motion_to_bvh, write_bvh
 from generation.motion.types import Motion, Skeleton
-from generation.motion.unit_detection import choose_units
+from generation.motion.data.unit_detection import choose_units
 from generation.motion.skeleton_units import detect_up
 from measures.units import HUMAN_HEIGHT_CM, UNITS, Z_UP_TO_Y_UP, parse_scale, unit_for_height, up_axis
 from tests.lab_rigs import LAB_RIGS

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 import torch
 
-from generation.models.flows import ActNorm, AffineCoupling, Flow, InvertibleLinearLU, glow_step
+from generation.models.parts.flows import ActNorm, AffineCoupling, Flow, InvertibleLinearLU, glow_step
 from generation.models.moglow import MoGlow, MoGlowConfig
 from generation.registry import preset
-from generation.motion.dataset import build_dataset
-from generation.motion.dataset_options import DatasetOptions
+from generation.motion.data.dataset import build_dataset
+from generation.motion.data.dataset_options import DatasetOptions
 
 pytestmark = pytest.mark.slow
 
@@ -361,7 +361,7 @@ def test_bfloat16_samples_stay_close_to_float32_samples_of_the_same_seed(trained
     must move it by less than 1 cm on average, and by under a twentieth of what a
     change of seed does. (Single joints can drift further late in a clip: sampling is
     autoregressive, so a small difference can grow.)"""
-    from generation.checkpoint import CheckpointMeta
+    from generation.checkpoints.checkpoint import CheckpointMeta
     from generation.control import preset_path
     from generation.generator import Generator
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from generation.motion import load_motion
-from generation.motion.augment import mirror, reverse, windows
+from generation.motion.data.augment import mirror, reverse, windows
 from generation.motion.features import (
     angle_feature_spec,
     decode_angles,

@@ -11,11 +11,11 @@ import pytest
 
 from generation.cli import main
 from generation.control import held_out_paths, take_paths
-from generation.motion.clip_files import load_body_motion
-from generation.motion.dataset import build_dataset
-from generation.motion.dataset_options import DatasetOptions
+from generation.motion.data.clip_files import load_body_motion
+from generation.motion.data.dataset import build_dataset
+from generation.motion.data.dataset_options import DatasetOptions
+from generation.motion.data.takes import natural_takes
 from generation.motion.npz import load_motion_npz
-from generation.motion.takes import natural_takes
 from tests.study_setup import link_clips
 
 NAMES = ["walk_normal_001", "walk_normal_002", "walk_happy_001", "walk_happy_002", "walk_old_001", "walk_tired_001",

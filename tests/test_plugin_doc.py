@@ -15,7 +15,7 @@ import pytest
 from generation.cli import parser
 from generation.cli.common import dataset_units
 from generation.cli.models import _contents
-from generation.motion.dataset_options import DatasetOptions
+from generation.motion.data.dataset_options import DatasetOptions
 from studyapp import demo
 
 REPO = Path(__file__).resolve().parents[1]

@@ -6,9 +6,9 @@ from __future__ import annotations
 import pytest
 import torch
 
-from generation.models import precision as precision_module
+from generation.models.parts import precision as precision_module
 from generation.models.moglow import MoGlow, MoGlowConfig
-from generation.models.precision import PRECISIONS, auto_precision, available_precisions, input_dtype, matrix_product
+from generation.models.parts.precision import PRECISIONS, auto_precision, available_precisions, input_dtype, matrix_product
 
 
 @pytest.mark.parametrize(("bfloat16_units", "expected"), [(True, "bfloat16"), (False, "float32")])

@@ -18,7 +18,7 @@ from generation.cli import main
 from generation.control import preset_path, take_paths
 from generation.motion.bvh import load_motion, motion_to_bvh, write_bvh
 from generation.motion.rotations import matrix_to_quat, quat_to_matrix, yaw_matrix
-from generation.motion.takes import natural_takes
+from generation.motion.data.takes import natural_takes
 from generation.motion.types import Motion
 from generation.submission import match_files, prepare_submission
 from studyapp.stimuli.control_export import bundle_zip, control_id, natural_in_control_frame

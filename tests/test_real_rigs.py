@@ -13,13 +13,13 @@ import torch
 
 from generation.cli import main
 from generation.motion.bvh import load_motion, read_bvh, write_bvh
-from generation.motion.clip_files import load_body_motion
-from generation.motion.dataset import build_dataset
-from generation.motion.dataset_options import DatasetOptions
+from generation.motion.data.clip_files import load_body_motion
+from generation.motion.data.dataset import build_dataset
+from generation.motion.data.dataset_options import DatasetOptions
 from generation.motion.features import angle_feature_spec, encode_angles
 from generation.motion.npz import load_motion_npz
 from generation.motion.resample import resample
-from generation.motion.takes import natural_takes
+from generation.motion.data.takes import natural_takes
 from generation.motion.skeleton_units import skeleton_size
 from measures.units import UNITS
 from tests.lab_rigs import LAB_FPS, LAB_RIGS

@@ -169,7 +169,7 @@ def test_no_module_of_a_package_takes_part_in_an_import_cycle(package):
     count; packages import one way (their rules above), so a circle lies inside one."""
     modules = project_modules()
     graph = {name: imported_modules(name, path, modules) for name, path in modules.items()}
-    assert "generation.checkpoint" in graph["generation.train"]  # the parser sees the imports
+    assert "generation.checkpoints.checkpoint" in graph["generation.train"]  # the parser sees the imports
     inside = {name: {m for m in graph[name] if m.split(".")[0] == package} for name in graph
               if name.split(".")[0] == package}
     cycle = find_cycle(inside)
@@ -270,11 +270,6 @@ def test_the_room_checker_sees_an_upward_import_in_a_type_checking_block(tmp_pat
 # one module per migration or command by Django's rule.
 MOST_MODULES = 15
 DJANGO_FOLDERS = ("studyapp/migrations", "studyapp/management/commands")
-NOT_SPLIT_YET = {  # folders over the limit today, split by their own change (issue 54)
-    "generation/motion": "generation/motion/ gained the dataset's four modules; its rooms are still to be drawn",
-    "generation/models": "generation/models/ holds one module per model kind; its split is still to be planned",
-    "generation": "generation/'s top floor is still to be split into rooms",
-}
 
 
 def module_folders() -> dict[str, int]:
@@ -286,9 +281,7 @@ def module_folders() -> dict[str, int]:
     return {folder: count for folder, count in sorted(folders.items()) if folder not in DJANGO_FOLDERS}
 
 
-@pytest.mark.parametrize("folder", [
-    pytest.param(folder, marks=pytest.mark.xfail(reason=NOT_SPLIT_YET[folder], strict=True))
-    if folder in NOT_SPLIT_YET else folder for folder in module_folders()])
+@pytest.mark.parametrize("folder", module_folders())
 def test_no_module_folder_holds_more_than_fifteen_modules(folder):
     assert module_folders()[folder] <= MOST_MODULES, f"{folder}/ holds {module_folders()[folder]} modules"
 
@@ -302,7 +295,7 @@ def test_every_generation_module_imports_in_a_fresh_interpreter():
 
 @pytest.mark.parametrize("code", [
     "import generation.registry",
-    "from generation.checkpoint import read_meta; read_meta('models/moglow-cpu.safetensors')",
+    "from generation.checkpoints.checkpoint import read_meta; read_meta('models/moglow-cpu.safetensors')",
 ])
 def test_the_registry_and_checkpoint_headers_load_no_torch(code):
     check = f"{code}\nimport sys\nassert 'torch' not in sys.modules, 'torch was imported'"

@@ -245,7 +245,7 @@ def test_takes_outside_motion_data_are_named_with_their_folder_and_unit(site):
 def test_the_documented_definition_is_the_demos_study_and_makes_it_again(settings, tmp_path, motion_data, motion_data_2,
                                                                         demo_dataset_cache):
     """docs/running-a-study.md's example, made on the demo's data with its committed models."""
-    from generation.store import keep
+    from generation.checkpoints.store import keep
     from studyapp import demo
 
     guide = (Path(__file__).resolve().parents[1] / "docs" / "running-a-study.md").read_text()

@@ -27,9 +27,9 @@ from django.utils import timezone
 from safetensors.torch import load_file, save_file
 
 from generation import registry
-from generation.checkpoint import FORMAT_KEY, load_checkpoint, read_meta
+from generation.checkpoints.checkpoint import FORMAT_KEY, load_checkpoint, read_meta
+from generation.checkpoints.store import tensor_digest
 from generation.render.camera import Camera
-from generation.store import tensor_digest
 from studyapp.models import ControlSignal, Participant, Stimulus, Study, System
 from studyapp.server.celery import app as celery_app
 from studyapp.server.embedded import FILESYSTEM_BROKER_URL, filesystem_broker_options

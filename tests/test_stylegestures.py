@@ -22,7 +22,7 @@ import pytest
 import torch
 from safetensors.torch import load_file
 
-from generation.checkpoint import load_checkpoint, read_meta
+from generation.checkpoints.checkpoint import load_checkpoint, read_meta
 from generation.cli import main
 from generation.control import preset_path
 from generation.generator import Generator

@@ -12,13 +12,13 @@ from tqdm import tqdm
 
 from ..control import following_arrays, lead_in_frames
 from ..motion.bvh import read_bvh
-from ..motion.dataset import MotionDataset, build_dataset, default_cache_dir
-from ..motion.dataset_options import DatasetOptions
+from ..motion.data.dataset import MotionDataset, build_dataset, default_cache_dir
+from ..motion.data.dataset_options import DatasetOptions
 from ..motion.npz import save_motion_npz
 from ..motion.root import integrate, root_trajectory
-from ..motion.splits import SPLITS
-from ..motion.takes import natural_takes
-from ..motion.unit_detection import choose_units
+from ..motion.data.splits import SPLITS
+from ..motion.data.takes import natural_takes
+from ..motion.data.unit_detection import choose_units
 from ..render import render_video
 from .common import (add_camera_arguments, add_unit_arguments, camera_from, chosen_contents, dataset_units, take_names,
                      up_axis, warn)

@@ -152,7 +152,7 @@ def label_command(args: argparse.Namespace) -> int:
     from ..hvrnn.classifiers import AttributeClassifiers
     from ..hvrnn.data import dataset_options
     from ..hvrnn.labelling import label_clips
-    from ..motion.dataset import build_dataset
+    from ..motion.data.dataset import build_dataset
 
     if args.threads:
         torch.set_num_threads(args.threads)

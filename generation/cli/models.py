@@ -22,12 +22,12 @@ from measures.units import UNIT_NAMES, UNITS
 from ..control import (PRESETS, following_arrays, length_warning, load_control_file, preset_path, shorter_than_asked,
                        take_paths)
 from ..motion.bvh import motion_to_bvh, write_bvh
-from ..motion.clip_files import LOCOMOTION, contents_or_all
-from ..motion.dataset import build_dataset
-from ..motion.dataset_options import DatasetOptions
+from ..motion.data.clip_files import LOCOMOTION, contents_or_all
+from ..motion.data.dataset import build_dataset
+from ..motion.data.dataset_options import DatasetOptions
 from ..motion.npz import save_motion_npz
 from ..motion.root import RootOptions, root_trajectory
-from ..motion.takes import natural_takes
+from ..motion.data.takes import natural_takes
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
 from .common import (add_camera_arguments, add_unit_arguments, camera_from, dataset_units, shown_control, take_names,
@@ -191,7 +191,7 @@ def _thread_count(text: str) -> int:
 
 def sample_command(args: argparse.Namespace) -> int:
     from ..generator import Generator
-    from ..models.precision import cpu_has_bfloat16_units
+    from ..models.parts.precision import cpu_has_bfloat16_units
 
     _use_threads(args)
     generator = Generator.load(args.checkpoint, args.device)
@@ -293,7 +293,7 @@ def add_sample_parser(commands: argparse._SubParsersAction) -> None:
     p.add_argument("--warmup-seconds", type=float,
                    help="path models: motion generated before the kept clip and discarded, holding the first "
                         "control frame (default: 1 s for MoGlow, as in its paper; 0 for the baselines)")
-    # generation.models.precision.PRECISIONS, spelt out so that building the parser imports no torch
+    # generation.models.parts.precision.PRECISIONS, spelt out so that building the parser imports no torch
     p.add_argument("--precision", choices=("auto", "float32", "bfloat16", "int8"), default="auto",
                    help="how MoGlow's coupling networks multiply: auto is bfloat16 on CPUs with bfloat16 units "
                         "(AVX512-BF16 or AMX), float32 elsewhere; int8 (x86 CPUs) is faster still but further "
@@ -325,7 +325,7 @@ def add_sample_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def evaluate_command(args: argparse.Namespace) -> int:
-    from ..checkpoint import load_checkpoint
+    from ..checkpoints.checkpoint import load_checkpoint
     from ..models.attribute import AttributeModel
     from ..train import attribute_tensors, evaluate_loss, tensors
 

@@ -9,9 +9,9 @@ from tqdm import tqdm
 
 from ..control import in_control_frame
 from ..gallery import GalleryOptions, build_gallery
-from ..motion.clip_files import load_body_motion
+from ..motion.data.clip_files import load_body_motion
 from ..motion.root import RootOptions, root_trajectory
-from ..motion.unit_detection import choose_units
+from ..motion.data.unit_detection import choose_units
 from ..render import contact_sheet, render_video
 from .common import add_camera_arguments, add_unit_arguments, camera_from, shown_control, up_axis
 

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..store import CheckpointError
+from ..checkpoints.store import CheckpointError
 from .data import AttributeData, SequenceSet, Vocabulary
 from .fitting import fit
 from .inputs import InputNormalizer

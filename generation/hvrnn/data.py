@@ -3,7 +3,7 @@
 Choices, following Sec. 3.1 of Ghorbani et al.:
 
 * 30 fps, angle features (six root values, then each joint's local quaternion), as
-  ``generation.motion.dataset`` encodes them.
+  ``generation.motion.data.dataset`` encodes them.
 * Each clip is cut into the fewest sequences of at most 200 frames, of equal length
   (a 210-frame clip gives two of 105, not 200 + 10), padded with zeros to 200 frames
   and a boolean mask that is True on real frames.
@@ -31,8 +31,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..motion.dataset import Clip, MotionDataset, Standardizer, build_dataset
-from ..motion.dataset_options import DatasetOptions
+from ..motion.data.dataset import Clip, MotionDataset, Standardizer, build_dataset
+from ..motion.data.dataset_options import DatasetOptions
 from ..motion.features import ROOT_DIMS
 
 FPS = 30.0

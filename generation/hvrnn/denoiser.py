@@ -22,7 +22,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..store import CheckpointError, tensor_digest
+from ..checkpoints.store import CheckpointError, tensor_digest
 from .data import ROOT_DIMS, AttributeData, SequenceSet
 from .fitting import fit
 from .inputs import InputNormalizer

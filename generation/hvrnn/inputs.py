@@ -13,7 +13,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from ..models.rotations import align_quaternions
+from ..models.parts.rotations import align_quaternions
 from .data import ROOT_DIMS, SequenceSet
 
 # Some quaternion components barely move in the data; dividing by their tiny spread

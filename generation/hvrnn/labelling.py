@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..motion.dataset import MotionDataset
+from ..motion.data.dataset import MotionDataset
 from .classifiers import KINDS, AttributeClassifiers, predict
 from .data import FPS, MAX_FRAMES, SequenceSet, chunk_bounds
 

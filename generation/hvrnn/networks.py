@@ -1,6 +1,6 @@
 """Files of the networks that are not motion models (classifiers, denoiser).
 
-Stored as ``generation.store`` stores checkpoints: the tensors, a JSON description under
+Stored as ``generation.checkpoints.store`` stores checkpoints: the tensors, a JSON description under
 the header's ``motion_study_network`` key (what the network is, its configuration, what
 it was trained on) and a digest of the tensors; written atomically, read without
 pickles, refused with a message naming the file and the problem.
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import torch
 
-from ..store import CheckpointError, read_tensors, write_tensors
+from ..checkpoints.store import CheckpointError, read_tensors, write_tensors
 
 NETWORK_KEY = "motion_study_network"
 

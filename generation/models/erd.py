@@ -13,7 +13,7 @@ from typing import Any
 import torch
 from torch import nn
 
-from .layers import mlp
+from .parts.layers import mlp
 from .recurrent import RecurrentBaseline, RecurrentConfig
 
 

@@ -45,14 +45,14 @@ from torch.nn import functional as F
 
 from ..motion.features import ROOT_DIMS
 from .attribute import AttributeModel
-from .initial_state import LabelledInitialState
-from .layers import mlp, random_crop
-from .noise import RowGenerators, normal
-from .losses import (
+from .parts.initial_state import LabelledInitialState
+from .parts.layers import mlp, random_crop
+from .parts.noise import RowGenerators, normal
+from .parts.losses import (
     QUATERNION_DISTANCES, hierarchical_distance, joint_weights, kl_diagonal_gaussians, masked_mean, matrix_validity,
     quaternion_distance, quaternion_validity,
 )
-from .rotations import align_quaternions, expmap_to_quat, gram_schmidt, matrix_to_quat, normalize_quaternion, quat_to_matrix
+from .parts.rotations import align_quaternions, expmap_to_quat, gram_schmidt, matrix_to_quat, normalize_quaternion, quat_to_matrix
 
 # Numbers a decoded frame carries per joint for each rotation output.
 ROTATION_OUTPUT_SIZES = {"quaternion": 4, "matrix": 6, "axis_angle": 3}

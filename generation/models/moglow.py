@@ -26,9 +26,9 @@ from dataclasses import dataclass
 import torch
 
 from .path import PathModel
-from .flows import Flow, glow_step
-from .noise import RowGenerators, normal
-from .precision import PRECISIONS, available_precisions
+from .parts.flows import Flow, glow_step
+from .parts.noise import RowGenerators, normal
+from .parts.precision import PRECISIONS, available_precisions
 
 
 @dataclass
@@ -109,7 +109,7 @@ class MoGlow(PathModel):
         z (batch, T-τ, pose_dim) ~ N(0, θ²) is one draw from ``generator``, so frame t
         depends only on z_τ..z_t, the context and control up to t. With ``precision``
         "bfloat16" or "int8" (CPU only) the LSTMs and linear layers of the couplings
-        multiply in that precision (``generation.models.precision``); the flow's
+        multiply in that precision (``generation.models.parts.precision``); the flow's
         arithmetic stays in float32, and the result stays close to the float32 sample of
         the same seed.
 

@@ -16,9 +16,9 @@ import torch
 from torch import nn
 
 from ..motion.features import ROOT_DIMS
-from .kinematics import forward_kinematics
+from .parts.kinematics import forward_kinematics
+from .parts.rotations import quat_to_matrix
 from .recurrent import RecurrentBaseline, RecurrentConfig
-from .rotations import quat_to_matrix
 
 
 @dataclass

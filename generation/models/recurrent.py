@@ -22,11 +22,11 @@ from torch import nn
 
 from ..motion.features import ROOT_DIMS
 from .attribute import AttributeModel
-from .initial_state import LabelledInitialState
-from .layers import random_crop
-from .losses import masked_mean
-from .noise import RowGenerators
-from .rotations import align_quaternions, normalize_quaternion
+from .parts.initial_state import LabelledInitialState
+from .parts.layers import random_crop
+from .parts.losses import masked_mean
+from .parts.noise import RowGenerators
+from .parts.rotations import align_quaternions, normalize_quaternion
 
 
 class RecurrentBaseline(AttributeModel):

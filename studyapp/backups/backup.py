@@ -7,7 +7,7 @@ from __future__ import annotations
 from datetime import datetime, timezone
 from pathlib import Path
 
-from generation.checkpoint import code_version
+from generation.checkpoints.checkpoint import code_version
 from generation.files import atomic_folder
 from studyapp.backups.database import DUMP_NAMES, dump, engine
 from studyapp.backups.files import list_files, size_and_sha256

@@ -51,7 +51,7 @@ from analysis.errors import AnalysisInputError
 from analysis.ratings.exclusions import ExclusionRules
 from generation.files import atomic_folder, atomic_output
 from generation.motion.npz import MotionFileError, load_motion_npz
-from generation.store import SHA256_HEX, SUFFIX, CheckpointError, content_digest, read_header
+from generation.checkpoints.store import SHA256_HEX, SUFFIX, CheckpointError, content_digest, read_header
 from studyapp import ownership
 from studyapp.bundles import records
 from studyapp.bundles.manifest import BundleRefused

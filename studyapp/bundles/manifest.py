@@ -1,7 +1,7 @@
 """The manifest of a study bundle: what each file is, so nothing in it can be changed unseen.
 
 ``manifest.json`` lists every other file of the bundle with its SHA-256 and size, the
-bundle's format and version, and the code that wrote it (``generation.checkpoint``'s
+bundle's format and version, and the code that wrote it (``generation.checkpoints.checkpoint``'s
 ``code_version``, the version checkpoints record, and the stimuli's ``CODE_VERSION``,
 which their content keys hold). A reader refuses a version it does not know, and any
 file that is not listed, listed but absent, or whose bytes differ from the listing.
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
-from generation.store import SHA256_HEX
+from generation.checkpoints.store import SHA256_HEX
 from studyapp.server.uploads.bounded_reading import ReadRefused, json_value
 
 FORMAT = "motion-study bundle"

@@ -24,9 +24,9 @@ from pathlib import Path
 
 from django.conf import settings
 
-from generation.checkpoint import code_version
+from generation.checkpoints.checkpoint import code_version
 from generation.files import atomic_output
-from generation.store import SUFFIX
+from generation.checkpoints.store import SUFFIX
 from studyapp.bundles import records
 from studyapp.bundles.manifest import MANIFEST_NAME, VERSION, Entry, Manifest, entry_of, file_entry
 from studyapp.definitions import definition_yaml

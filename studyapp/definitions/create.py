@@ -29,7 +29,7 @@ from django.db import transaction
 from generation import registry
 from generation.control import PathControl
 from generation.render.camera import Camera
-from generation.store import SHA256_HEX
+from generation.checkpoints.store import SHA256_HEX
 from studyapp import ownership
 from studyapp.bounds import check_field
 from studyapp.definitions import layout

@@ -10,7 +10,7 @@ checkpoints they are the test split of the very dataset the checkpoints were tra
 (same files, same options, so the same split; the data's fingerprint is checked): the
 models never saw these clips. A study without checkpoints takes them from any folder,
 no model trained on it: the takes that the seeded split ``train`` makes of the folder
-holds out (``generation.motion.takes``), read in the unit and up axis detected from the
+holds out (``generation.motion.data.takes``), read in the unit and up axis detected from the
 files or given. In either, the researcher may name the takes instead (with checkpoints,
 only takes they held out). A held-out path is the clip's own path; a held-out label
 control is the clip's action and style. Synthetic controls are ``generation.control``'s
@@ -32,10 +32,10 @@ from django.core.files import File
 from generation.control import (AttributeControl, Control, PathControl, described_paths, held_out_attributes,
                                 held_out_paths, lead_in_frames, preset_path, shorter_than_asked, take_paths)
 from generation import registry
-from generation.motion.clip_files import LOCOMOTION, contents_or_all, find_bvh_files, motion_folders
-from generation.motion.dataset import build_dataset
-from generation.motion.dataset_options import DatasetOptions
-from generation.motion.takes import natural_takes
+from generation.motion.data.clip_files import LOCOMOTION, contents_or_all, find_bvh_files, motion_folders
+from generation.motion.data.dataset import build_dataset
+from generation.motion.data.dataset_options import DatasetOptions
+from generation.motion.data.takes import natural_takes
 from studyapp.models import ControlSignal, Study
 from studyapp.server.uploads.bounded_reading import json_value, yaml_value
 from studyapp.stimuli.natural import data_folders, natural_source, source_name

@@ -6,7 +6,7 @@ and learnt from the data the study's other checkpoints learnt from, prepared the
 way (``data_match``); a video must be an MP4 whose every frame decodes, as long as it
 says it lasts (a file cut short still decodes its first frames). Nothing is unpickled or
 executed, and a refused upload leaves nothing on disk. Accepted checkpoints are kept by
-the project's one checkpoint store (``generation.store.keep``) under ``CHECKPOINT_ROOT``,
+the project's one checkpoint store (``generation.checkpoints.store.keep``) under ``CHECKPOINT_ROOT``,
 named by their content digest, so the same checkpoint uploaded twice is stored once; what
 a kind is controlled by and its named presets come from the model registry
 (``generation.registry``). Accepted videos become finished stimuli under
@@ -31,9 +31,9 @@ from django.core.files import File
 from django.db import transaction
 
 from generation import registry
+from generation.checkpoints.store import SUFFIX as CHECKPOINT_SUFFIX
 from generation.files import atomic_output
 from generation.render.video_check import VideoError, read_stream
-from generation.store import SUFFIX as CHECKPOINT_SUFFIX
 from studyapp.bounds import check_field
 from studyapp.models import Stimulus, Study, System, new_token
 from studyapp.server.media_bucket import CLIPS_FOLDER, clip_destination
@@ -41,7 +41,7 @@ from studyapp.server.uploads.null_characters import null_character_in
 from studyapp.stimuli.data_match import data_mismatch
 
 if TYPE_CHECKING:  # torch-backed modules load only when a checkpoint is handled
-    from generation.checkpoint import CheckpointMeta
+    from generation.checkpoints.checkpoint import CheckpointMeta
 
 VIDEO_SUFFIX = ".mp4"
 
@@ -53,7 +53,7 @@ class UploadRefused(ValueError):
 @dataclass(frozen=True)
 class StoredCheckpoint:
     relative_path: str  # under CHECKPOINT_ROOT
-    digest: str  # its content digest (generation.store.content_digest)
+    digest: str  # its content digest (generation.checkpoints.store.content_digest)
     meta: CheckpointMeta
     parameters: int
 
@@ -89,7 +89,7 @@ def preset_name(meta: CheckpointMeta) -> str:
 def checked_checkpoint(path: Path, name: str) -> tuple[CheckpointMeta, int]:
     """The description and parameter count of the checkpoint at ``path`` if it loads
     completely and can drive sampling (UploadRefused naming the file ``name`` if not)."""
-    from generation.checkpoint import CheckpointError, load_checkpoint
+    from generation.checkpoints.checkpoint import CheckpointError, load_checkpoint
     from generation.generator import Generator
 
     try:
@@ -109,7 +109,7 @@ def store_checkpoint(upload: File, fits: Callable[[CheckpointMeta], str | None] 
     """Validate an uploaded checkpoint completely and keep it in the checkpoint store
     (UploadRefused if not); ``fits`` says why a valid checkpoint does not fit where it goes
     (None: it fits), before anything is kept."""
-    from generation.store import keep
+    from generation.checkpoints.store import keep
 
     _check_upload(upload, CHECKPOINT_SUFFIX, settings.MAX_CHECKPOINT_UPLOAD_BYTES, "checkpoint")
     name = Path(upload.name).name

@@ -14,7 +14,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from generation.models.noise import RowGenerators, normal
+from generation.models.parts.noise import RowGenerators, normal
 from generation.models.path import PathModel
 
 

@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .root import RootOptions
+from ..root import RootOptions
 from .unit_detection import choose_units
 
 MAX_FPS = 1000.0  # motion capture runs at hundreds of frames per second at most

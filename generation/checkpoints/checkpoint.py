@@ -20,14 +20,20 @@ from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ..registry import PATH, model_class, model_kind
 from .checkpoint_checks import check_description
-from .registry import PATH, model_class, model_kind
-from .store import CheckpointError, read_header, read_tensors, stored_layout, write_tensors
+from .store import (
+    CheckpointError,
+    read_header,
+    read_tensors,
+    stored_layout,
+    write_tensors,
+)
 
 if TYPE_CHECKING:
     import torch
 
-    from .models.motion_model import MotionModel
+    from ..models.motion_model import MotionModel
 
 FORMAT_KEY = "motion_study"
 FORMAT_VERSION = 1

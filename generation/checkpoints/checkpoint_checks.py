@@ -4,8 +4,8 @@ Researchers upload checkpoints to the study app, so a checkpoint is input like a
 and may describe anything. ``check_description`` reads the JSON half only (no torch): a
 positive, finite frame rate, standardisation statistics that are finite, positive where
 they divide and as long as the model's features, a skeleton with joints. The model is
-checked against the file's tensors as it is built (``generation.build_budget``), and the
-tensors' values as they are read (``generation.store``).
+checked against the file's tensors as it is built (``generation.checkpoints.build_budget``), and the
+tensors' values as they are read (``generation.checkpoints.store``).
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .motion.dataset_options import DatasetOptions
-from .motion.types import Skeleton
+from ..motion.data.dataset_options import DatasetOptions
+from ..motion.types import Skeleton
 from .store import CheckpointError
 
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .symmetry import left_right_pairs, mirror_permutation
-from .types import Motion
+from ..symmetry import left_right_pairs, mirror_permutation
+from ..types import Motion
 
 MIRROR = np.array([-1.0, 1.0, 1.0])  # reflect through the world's x = 0 plane
 

@@ -15,11 +15,11 @@ import os
 from pathlib import Path
 from typing import Sequence
 
-from .bvh import load_motion
-from .kinematics import subtree_motion
-from .resample import resample
-from .root import RootOptions, hips_index
-from .types import Motion
+from ..bvh import load_motion
+from ..kinematics import subtree_motion
+from ..resample import resample
+from ..root import RootOptions, hips_index
+from ..types import Motion
 
 # The contents path-controlled models are trained on unless told otherwise (train --contents).
 LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right")

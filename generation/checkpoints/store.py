@@ -1,6 +1,6 @@
 """Safetensors files of this project: tensors, a JSON description in the header, a digest.
 
-Model checkpoints (``generation.checkpoint``) and HVRNN's auxiliary networks
+Model checkpoints (``generation.checkpoints.checkpoint``) and HVRNN's auxiliary networks
 (classifiers, denoiser) are both stored this way: the tensors, string metadata in the
 header and, under ``digest``, a SHA-256 of the tensors' names and bytes. Files are
 written atomically and read without pickles; a file that is missing, unreadable, whose
@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 from safetensors import SafetensorError, safe_open
 
-from .files import atomic_output
+from ..files import atomic_output
 
 if TYPE_CHECKING:
     import torch

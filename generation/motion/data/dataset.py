@@ -27,16 +27,21 @@ from typing import Sequence
 import numpy as np
 from tqdm import tqdm
 
-from ..files import write_atomic
+from ...files import write_atomic
+from ..bvh import BVHError
+from ..features import (
+    AngleFeatureSpec,
+    angle_feature_spec,
+    encode_angles,
+    encode_positions,
+)
+from ..root import limb_root_pairs
+from ..skeleton_units import detect_up
+from ..types import Motion, Skeleton
 from .augment import mirror, reverse, window_count, windows
-from .bvh import BVHError
 from .clip_files import choose_files, label_name_file, load_body_motion
 from .dataset_options import DatasetOptions, with_units
-from .features import AngleFeatureSpec, angle_feature_spec, encode_angles, encode_positions
-from .root import limb_root_pairs
 from .splits import SPLITS, take_of, take_splits
-from .types import Motion, Skeleton
-from .skeleton_units import detect_up
 
 FORMAT_VERSION = 1  # bump when the cached arrays change meaning
 
