@@ -191,7 +191,7 @@ def leaderboard_command(args: argparse.Namespace, out: Path) -> list[str]:
     written = [_summary(out, "Leaderboard", leaderboard_text(report), notes),
                *write_leaderboard(report, out)]
     shown = report.board[["task", "control_class", "rank", "system", "elo", "ci_low", "ci_high", "pages",
-                          "few_participants"]]
+                          "warning"]]
     return [f"Elo with {origin_text(report.board)}", to_markdown(shown.round(1)), f"wrote {len(written)} files",
             *(f"note: {n}" for n in notes)]
 
