@@ -62,6 +62,10 @@ COLUMNS: tuple[Column, ...] = (
                              "`BAD` an attention-check clip (not compared); both names are options "
                              "(`--natural`, `--attention`)"),
     Column("stimulus", "text", "clip id, unique within a task"),
+    Column("clip", "text, or empty", "the clip's motion file stem, as the study app's motion export names it "
+                                     "(`<control id>`, in its system's folder; `stimulus` is the opaque token "
+                                     "of its video): `report --motion` matches a rated clip to its metrics by it "
+                                     "for the per-clip correlation, by `stimulus` where it is absent or empty"),
     Column("task", "text", "one block of columns in Table 2 (e.g. `human`, `dog`); each task uses one scale. "
                            "Default `all`"),
     Column("control_class", "text", "e.g. `held-out` or `synthetic` control: the second level of Table 2's "

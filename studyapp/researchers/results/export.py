@@ -2,7 +2,12 @@
 
 One row per rating, with the columns every design shares and, in front, the page
 structure its design adds (``Design.export_columns``); designs whose answers are not on
-a scale (pairwise) carry no value or scale columns. Instructed checks are left out: their
+a scale (pairwise) carry no value or scale columns. A clip is named twice: ``stimulus``
+is the opaque token its video is served under, ``clip`` its motion files' name in the
+study's motion export (``stimuli.motion_export.clip_name``; empty for an uploaded video),
+by which ``python -m analysis report --motion`` matches each rated clip to its metrics.
+The table is the researcher's (behind login and the owner check); no participant page
+shows either name beside a system. Instructed checks are left out: their
 answers were dictated, not given. Each row carries the live flags: the participant's
 exclusion as it was set when their answers arrived, and the early-answer discard, the
 analysis's own rule (``analysis.exclusions.early_discards``) with the study's rules.
@@ -23,9 +28,10 @@ from studyapp.designs.base import Design
 from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Rating, Study
+from studyapp.stimuli.motion_export import clip_name
 
 EXPORT_COLUMNS = (
-    "participant", "system", "stimulus", "task", "control_class", "value", "scale_min", "scale_max",
+    "participant", "system", "stimulus", "clip", "task", "control_class", "value", "scale_min", "scale_max",
     "clip_duration_s", "shown_at", "answered_at", "client_started_s", "client_ended_s", "client_answered_s",
     "played_until_s", "answered_before_end",
     "excluded_participant", "discarded_early", "exclusion_reason",
@@ -60,6 +66,7 @@ def ratings_rows(study: Study) -> list[dict]:
             "participant": participant.code,
             "system": stimulus.system.export_name,
             "stimulus": stimulus.token,
+            "clip": clip_name(stimulus) if stimulus.control_id is not None else "",
             "task": "all",
             "control_class": stimulus.control_class,
             "value": rating.value,
