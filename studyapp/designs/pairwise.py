@@ -43,6 +43,7 @@ from analysis.pairwise import preference_pairs
 from studyapp.designs.answers import whole_number
 from studyapp.designs.base import Answer, OnPage, Page, PlannedPage, clip_label
 from studyapp.designs.multi_clip import MultiClip, bad_for, by_control, key_of, page_orders
+from studyapp.designs.reasons import check_reasons, read_reasons, reasons_context
 from studyapp.models import Assignment, Rating, Stimulus, Study, System
 from studyapp.participants.refusal import AnswerRefused
 
@@ -84,7 +85,8 @@ def stored_pages(study: Study) -> pd.DataFrame:
 
 class Pairwise(MultiClip):
     template = "pairwise.html"
-    settings = ("pages_per_participant", "abx", "preference_strengths", "adaptive_pairing")
+    settings = ("pages_per_participant", "abx", "preference_strengths", "adaptive_pairing", "reasons",
+                "reasons_required")
     export_columns = ("design", "page", "side", "answer", "strength")
     on_scale = False
 
@@ -210,7 +212,7 @@ class Pairwise(MultiClip):
 
     def page_context(self, study: Study, page: Page) -> dict:
         return {**super().page_context(study, page), "strengths": list(self.strengths(study)),
-                "reference": self._reference(study, page)}
+                "reference": self._reference(study, page), **reasons_context(study)}
 
     def _reference(self, study: Study, page: Page) -> dict | None:
         """ABX: the page's reference X, the natural clip of its control (played like the others, not rated)."""
@@ -221,9 +223,11 @@ class Pairwise(MultiClip):
         return {"video_url": natural.video_url} if natural else None
 
     def read_answer(self, study: Study, form: QueryDict) -> Answer:
+        reasons, other = read_reasons(study, form)
         return Answer(form.get(self.form_field, ""), self.slot_times(form, list(SIDES)),
                       choice=form.get("answer", "").strip(),
-                      strength=whole_number(form, "strength", "the strength of the preference"))
+                      strength=whole_number(form, "strength", "the strength of the preference"),
+                      reasons=reasons, other_reason=other)
 
     def check_answer(self, study: Study, answer: Answer, slots: list[int]) -> None:
         if answer.choice not in Rating.Answer.values:
@@ -235,6 +239,7 @@ class Pairwise(MultiClip):
                 raise AnswerRefused("a strength goes with a preference for one clip, and only where the study asks it")
         elif answer.strength not in strengths:
             raise AnswerRefused(f"the strength of the preference must be a whole number from 1 to {len(strengths)}")
+        check_reasons(study, answer.reasons, answer.other_reason)
 
     def exclusion_reason(self, rules: ExclusionRules, study: Study, page: list[OnPage], answer: Answer) -> str:
         preferred = any(rules.preferred_attention(clip.system, answer.choice, SIDES.get(clip.assignment.slot))

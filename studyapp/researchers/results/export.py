@@ -7,7 +7,8 @@ is the opaque token its video is served under, ``clip`` its motion files' name i
 study's motion export (``stimuli.motion_export.clip_name``; empty for an uploaded video),
 by which ``python -m analysis report --motion`` matches each rated clip to its metrics.
 The table is the researcher's (behind login and the owner check); no participant page
-shows either name beside a system. Instructed checks are left out: their
+shows either name beside a system. A study whose pages ask for reasons adds GENEA's
+columns ``juiceOptions`` and ``juiceOtherReason`` (``analysis.reasons``). Instructed checks are left out: their
 answers were dictated, not given. Each row carries the live flags: the participant's
 exclusion as it was set when their answers arrived, and the early-answer discard, the
 analysis's own rule (``analysis.exclusions.early_discards``) with the study's rules.
@@ -23,6 +24,7 @@ import io
 import pandas as pd
 
 from analysis.exclusions import early_discards
+from analysis.reasons import OTHER, REASON_COLUMNS, options_text
 from analysis.tables import spreadsheet_safe
 from studyapp.designs.base import Design
 from studyapp.designs.registry import design_of
@@ -46,8 +48,16 @@ def design_export_columns(design: Design) -> tuple[str, ...]:
 
 
 def export_columns(study: Study) -> tuple[str, ...]:
-    """The columns of the study's ratings table, by its design."""
-    return design_export_columns(design_of(study))
+    """The columns of the study's ratings table, by its design (and GENEA's reason columns
+    where its pages ask for reasons)."""
+    return design_export_columns(design_of(study)) + (REASON_COLUMNS if study.reason_list else ())
+
+
+def reason_fields(rating: Rating) -> dict[str, str]:
+    """A rating's reasons in GENEA's columns: the options ticked ("Other" among them where
+    the participant wrote something) and the words under "Other"."""
+    ticked = [*rating.reasons, *([OTHER] if rating.other_reason else [])]
+    return dict(zip(REASON_COLUMNS, (options_text(ticked), rating.other_reason)))
 
 
 def ratings_rows(study: Study) -> list[dict]:
@@ -83,6 +93,7 @@ def ratings_rows(study: Study) -> list[dict]:
             "excluded_participant": participant.excluded,
             "exclusion_reason": participant.exclusion_reason,
             **design.export_fields(assignment, rating),
+            **reason_fields(rating),
         }
         rows.append({column: row.get(column) for column in columns})
     if rows:
