@@ -156,7 +156,7 @@ def write_design_report(report: DesignReport, folder: str | Path) -> list[Path]:
         if len(table):
             written += write_table(table, tables, name, caption=f"{title}.")
     written += report.design.write_figures(report, figures)
-    if "reasons" in report.tables and len(report.table("reasons")):
+    if "reasons" in report.tables and len(report.table("reasons")):  # its table is written with the others
         written += plots.save_figure(reasons_plot(report.table("reasons")), figures, "reasons")
     notes = "".join(f"- {n}\n" for n in report.notes) or "- None: everything was computed.\n"
     summary = folder / "summary.md"

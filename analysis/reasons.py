@@ -18,13 +18,16 @@ from __future__ import annotations
 
 import ast
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from analysis import plots
 from analysis.designs.pages import NO_PREFERENCE
 from analysis.stats import CELL
+from analysis.tables import write_table
 
 OPTIONS, OTHER_WORDS = "juiceOptions", "juiceOtherReason"
 REASON_COLUMNS = (OPTIONS, OTHER_WORDS)
@@ -144,3 +147,11 @@ def reasons_plot(counts: pd.DataFrame) -> Figure:
         ax.set_title(f"Reasons per system, {task} · {cc}")
         ax.legend(fontsize="small", ncols=min(len(reasons), 3))
     return figure
+
+
+def write_reasons(counts: pd.DataFrame, folder: Path) -> list[Path]:
+    """The counts as tables/reasons.{csv,md,tex,json} and their chart as figures/reasons.{png,svg}."""
+    if counts.empty:
+        return []
+    return [*write_table(counts, folder / "tables", "reasons", caption=f"{CAPTION}."),
+            *plots.save_figure(reasons_plot(counts), folder / "figures", "reasons")]

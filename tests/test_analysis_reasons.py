@@ -98,3 +98,14 @@ def test_the_report_has_the_reason_table_and_its_plot_and_the_genea_file_carries
     assert read_options(votes["juiceOptions"].iloc[1]) == [SMOOTH, GESTURES]
     (tmp_path / "votes.csv").write_text(genea_csv(table))  # GENEA's file read back: the same counts
     assert reason_counts(read_ratings(tmp_path / "votes.csv"))[0].equals(reason_counts(table)[0])
+
+
+def test_the_leaderboard_of_a_genea_battles_file_counts_its_reasons_per_system(tmp_path):
+    table = pairwise(PAGES * 4)
+    (tmp_path / "battles.csv").write_text(genea_csv(table))
+    assert main(["leaderboard", str(tmp_path / "battles.csv"), "--out", str(tmp_path / "out"),
+                 "--resamples", "20"]) == 0
+    written = pd.read_csv(tmp_path / "out" / "tables" / "reasons.csv").set_index(["system", "reason"])
+    assert (written.loc[("A", SMOOTH), "count"], written.loc[("B", OTHER), "count"]) == (8, 4)
+    assert written.loc[("A", UNREAL), "ties"] == written.loc[("B", UNREAL), "ties"] == 4
+    assert (tmp_path / "out" / "figures" / "reasons.svg").stat().st_size > 0
