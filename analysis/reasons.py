@@ -141,10 +141,10 @@ def reasons_plot(counts: pd.DataFrame) -> Figure:
         table = cell.pivot(index="system", columns="reason", values="count").reindex(index=systems, columns=reasons)
         for k, reason in enumerate(reasons):
             ax.bar(np.arange(len(systems)) + (k - (len(reasons) - 1) / 2) * width, table[reason].to_numpy(),
-                   width, label=reason)
-        ax.set_xticks(np.arange(len(systems)), systems)
+                   width, label=plots.plain_text(reason))
+        ax.set_xticks(np.arange(len(systems)), [plots.plain_text(system) for system in systems])
         ax.set_ylabel("pages choosing the system")
-        ax.set_title(f"Reasons per system, {task} · {cc}")
+        ax.set_title(plots.plain_text(f"Reasons per system, {task} · {cc}"))
         ax.legend(fontsize="small", ncols=min(len(reasons), 3))
     return figure
 
