@@ -10,9 +10,9 @@ import pandas as pd
 import pytest
 
 from analysis.cli import main
-from analysis.genea_files import genea_csv
-from analysis.ratings import read_ratings
-from analysis.reasons import OTHER, options_text, read_options, reason_counts
+from analysis.ratings.genea_files import genea_csv
+from analysis.ratings.reading import read_ratings
+from analysis.reports.reasons import OTHER, options_text, read_options, reason_counts
 
 SMOOTH, GESTURES, UNREAL = "Motion smoothness", "Recognisable gestures", "Unrealistic motion"
 

@@ -15,7 +15,7 @@ from django.test import Client
 from scipy import stats as sps
 
 from analysis.cli import main
-from analysis.motion_io import save_clips
+from analysis.motion.motion_io import save_clips
 from studyapp.models import Stimulus, System
 from studyapp.researchers.results.export import ratings_csv
 from studyapp.stimuli.motion_export import clip_name, folder_name

@@ -14,7 +14,7 @@ import pytest
 from django.core.exceptions import ValidationError
 from django.test import Client
 
-from analysis.reasons import read_options
+from analysis.reports.reasons import read_options
 from studyapp.bundles.records import record, row_values
 from studyapp.bundles.writing import study_record
 from studyapp.definitions import definition_yaml

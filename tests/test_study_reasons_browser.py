@@ -17,7 +17,7 @@ from django.test import Client
 from django.urls import reverse
 
 from analysis.cli import main
-from analysis.reasons import read_options
+from analysis.reports.reasons import read_options
 from studyapp.models import Participant, Rating
 from studyapp.researchers.results.reports import report_folder
 from tests.study_fixtures import current_page, make_study

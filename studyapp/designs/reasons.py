@@ -10,7 +10,7 @@ at most ``Rating.other_reason``'s length. A reason the list lacks, "Other" ticke
 no words, or words longer than allowed is refused (400) with what is wrong; a study
 without reasons refuses them. Every rating of the page stores them (``Rating.reasons``,
 ``other_reason``), and the export writes them in GENEA's columns
-(``analysis.reasons``).
+(``analysis.reports.reasons``).
 """
 
 from __future__ import annotations

@@ -8,10 +8,10 @@ study's motion export (``stimuli.motion_export.clip_name``; empty for an uploade
 by which ``python -m analysis report --motion`` matches each rated clip to its metrics.
 The table is the researcher's (behind login and the owner check); no participant page
 shows either name beside a system. A study whose pages ask for reasons adds GENEA's
-columns ``juiceOptions`` and ``juiceOtherReason`` (``analysis.reasons``). Instructed checks are left out: their
-answers were dictated, not given. Each row carries the live flags: the participant's
+columns ``juiceOptions`` and ``juiceOtherReason`` (``analysis.reports.reasons``).
+Instructed checks are left out: their answers were dictated, not given. Each row carries the live flags: the participant's
 exclusion as it was set when their answers arrived, and the early-answer discard, the
-analysis's own rule (``analysis.exclusions.early_discards``) with the study's rules.
+analysis's own rule (``analysis.ratings.exclusions.early_discards``) with the study's rules.
 
 ``rules_json`` is those rules as ``python -m analysis report --rules`` reads them.
 """
@@ -23,9 +23,9 @@ import io
 
 import pandas as pd
 
-from analysis.exclusions import early_discards
-from analysis.reasons import OTHER, REASON_COLUMNS, options_text
-from analysis.tables import spreadsheet_safe
+from analysis.ratings.exclusions import early_discards
+from analysis.reports.reasons import OTHER, REASON_COLUMNS, options_text
+from analysis.reports.tables import spreadsheet_safe
 from studyapp.designs.base import Design
 from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
@@ -42,7 +42,7 @@ SCALE_COLUMNS = ("value", "scale_min", "scale_max")
 
 
 def design_export_columns(design: Design) -> tuple[str, ...]:
-    """The columns of a ratings table of ``design`` (each declared in ``analysis.ratings.COLUMNS``)."""
+    """The columns of a ratings table of ``design`` (each declared in ``analysis.ratings.reading.COLUMNS``)."""
     shared = EXPORT_COLUMNS if design.on_scale else tuple(c for c in EXPORT_COLUMNS if c not in SCALE_COLUMNS)
     return (*design.export_columns, *shared)
 
