@@ -20,7 +20,7 @@ from studyapp.bundles.writing import study_record
 from studyapp.definitions import definition_yaml
 from studyapp.definitions.create import create_study_from_definition
 from studyapp.models import Participant, Rating, Study
-from studyapp.plan.fixed import change_refusal
+from studyapp.preregistration.fixed import change_refusal
 from studyapp.researchers.results.export import export_columns, ratings_csv
 from studyapp.researchers.setup.forms import StudyForm
 from tests.study_fixtures import current_page, make_study
