@@ -1,0 +1,131 @@
+"""The board pages: the researcher's (behind login and owner checks, every form with its
+CSRF token) and the public one (no login, read-only, only while the board is public, at its
+unguessable address)."""
+
+from __future__ import annotations
+
+from django.contrib import messages
+from django.contrib.auth.decorators import login_required
+from django.http import Http404, HttpRequest, HttpResponse
+from django.shortcuts import get_object_or_404, redirect, render
+from django.urls import reverse
+from django.views.decorators.http import require_http_methods, require_POST, require_safe
+
+from studyapp.leaderboards.fit import fit_board
+from studyapp.leaderboards.forms import LeaderboardForm, RoundFitForm, RoundForm
+from studyapp.leaderboards.models import Leaderboard, Round
+from studyapp.leaderboards.public import board_context, board_csv
+
+CSV = "text/csv; charset=utf-8"
+
+
+def _board(request: HttpRequest, pk: int) -> Leaderboard:
+    return get_object_or_404(Leaderboard, pk=pk, owner=request.user)
+
+
+def _public_board(key: str) -> Leaderboard:
+    board = Leaderboard.objects.filter(public_key=key, public=True).first()
+    if board is None:
+        raise Http404("no public leaderboard at this address")
+    return board
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def leaderboard_list(request: HttpRequest) -> HttpResponse:
+    """The researcher's boards, and a new one."""
+    form = LeaderboardForm(request.POST or None)
+    if request.method == "POST":
+        if form.is_valid():
+            form.instance.owner = request.user
+            board = form.save()
+            messages.success(request, f"Created {board.title}.")
+            return redirect("leaderboard", pk=board.pk)
+        status = 400
+    else:
+        status = 200
+    boards = Leaderboard.objects.filter(owner=request.user).prefetch_related("rounds")
+    return render(request, "studyapp/leaderboard/list.html", {"boards": boards, "form": form}, status=status)
+
+
+def _page(request: HttpRequest, board: Leaderboard, status: int = 200, **forms) -> HttpResponse:
+    fit = fit_board(board)
+    rounds = {summary.round.pk: summary for summary in fit.rounds}
+    context = {
+        **board_context(fit),
+        "settings_form": forms.get("settings_form") or LeaderboardForm(instance=board),
+        "round_form": forms.get("round_form") or RoundForm(owner=request.user),
+        "round_forms": [(rounds[r.pk], forms.get(f"fit_{r.pk}") or RoundFitForm(instance=r, prefix=f"round-{r.pk}"))
+                        for r in board.rounds.order_by("added", "pk")],
+        "public_url": request.build_absolute_uri(reverse("leaderboard-public", args=[board.public_key])),
+    }
+    return render(request, "studyapp/leaderboard/board.html", context, status=status)
+
+
+@login_required
+@require_safe
+def leaderboard_page(request: HttpRequest, pk: int) -> HttpResponse:
+    """The board: its fit, rounds and settings, and the preview of its public page."""
+    return _page(request, _board(request, pk))
+
+
+@login_required
+@require_POST
+def leaderboard_settings(request: HttpRequest, pk: int) -> HttpResponse:
+    board = _board(request, pk)
+    form = LeaderboardForm(request.POST, instance=board)
+    if not form.is_valid():
+        return _page(request, Leaderboard.objects.get(pk=board.pk), 400, settings_form=form)
+    form.save()
+    messages.success(request, "Saved the board's settings" + (": its public page is on." if board.public else "."))
+    return redirect("leaderboard", pk=board.pk)
+
+
+@login_required
+@require_POST
+def leaderboard_add_round(request: HttpRequest, pk: int) -> HttpResponse:
+    board = _board(request, pk)
+    form = RoundForm(request.POST, owner=request.user)
+    if not form.is_valid():
+        return _page(request, board, 400, round_form=form)
+    round_ = Round.objects.create(leaderboard=board, study=form.cleaned_data["study"])
+    messages.success(request, f"Added {round_.study.title} as round {board.rounds.count()}.")
+    return redirect("leaderboard", pk=board.pk)
+
+
+@login_required
+@require_POST
+def leaderboard_round_fit(request: HttpRequest, pk: int, round_pk: int) -> HttpResponse:
+    board = _board(request, pk)
+    round_ = get_object_or_404(Round, pk=round_pk, leaderboard=board)
+    form = RoundFitForm(request.POST, instance=round_, prefix=f"round-{round_.pk}")
+    if not form.is_valid():
+        return _page(request, board, 400, **{f"fit_{round_.pk}": form})
+    form.save()
+    messages.success(request, f"{round_.study.title} is {'in' if round_.in_fit else 'left out of'} the fit.")
+    return redirect("leaderboard", pk=board.pk)
+
+
+def _csv(board: Leaderboard) -> HttpResponse:
+    response = HttpResponse(board_csv(fit_board(board)), content_type=CSV)
+    response["Content-Disposition"] = f'attachment; filename="leaderboard-{board.pk}.csv"'
+    return response
+
+
+@login_required
+@require_safe
+def leaderboard_csv(request: HttpRequest, pk: int) -> HttpResponse:
+    """The board's table, the public page's CSV."""
+    return _csv(_board(request, pk))
+
+
+@require_safe
+def public_page(request: HttpRequest, key: str) -> HttpResponse:
+    """The public board: read-only, no login (404 unless the researcher made it public)."""
+    board = _public_board(key)
+    return render(request, "studyapp/leaderboard/public.html", board_context(fit_board(board)))
+
+
+@require_safe
+def public_csv(request: HttpRequest, key: str) -> HttpResponse:
+    return _csv(_public_board(key))
