@@ -41,7 +41,7 @@ PARTICIPANTS, PAGES = 6, 8
 def round_study(number: int, systems, **fields):
     return make_study(title=f"Round {number} of locomotion", design="pairwise", controls=4, systems=systems,
                       pages_per_participant=PAGES, preference_strengths=2, bad_checks=0, training_clips=0,
-                      ratings_per_stimulus=100, **fields)
+                      ratings_per_stimulus=10, **fields)
 
 
 def store_round_votes(study, seed: int, participants: int = PARTICIPANTS) -> None:
@@ -305,3 +305,22 @@ def test_the_public_page_shows_the_board_and_no_participant_data_and_the_researc
     researcher_page = owner.get(reverse("leaderboard", args=[board.pk])).content.decode()
     assert _section(researcher_page) == _section(html)  # the preview is the public page's board
     assert board.public_key in researcher_page and "The public page is <strong>on</strong>" in researcher_page
+
+
+def test_the_public_page_is_fitted_once_a_while_and_again_when_a_round_leaves_the_fit(monkeypatch):
+    from studyapp.leaderboards import views
+
+    board = three_round_board()
+    board.public = True
+    board.save()
+    fits = []
+    monkeypatch.setattr(views, "fit_board", lambda b: fits.append(b.pk) or fit_board(b, resamples=100))
+    url = reverse("leaderboard-public", args=[board.public_key])
+    for _ in range(3):
+        assert Client().get(url).status_code == 200
+    assert Client().get(reverse("leaderboard-public-csv", args=[board.public_key])).status_code == 200
+    assert fits == [board.pk]  # visitors do not make the server refit the bootstrap at will
+    round_ = board.rounds.last()
+    round_.in_fit, round_.left_out_because = False, "a pilot"
+    round_.save()
+    assert "left out: a pilot" in Client().get(url).content.decode() and fits == [board.pk] * 2

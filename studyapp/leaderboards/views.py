@@ -1,33 +1,48 @@
 """The board pages: the researcher's (behind login and owner checks, every form with its
 CSRF token) and the public one (no login, read-only, only while the board is public, at its
-unguessable address)."""
+unguessable address). The public page's fit is kept for ``PUBLIC_FIT_SECONDS`` (per board and
+state of its rounds), so that visitors cannot make the server refit the bootstrap at will."""
 
 from __future__ import annotations
 
+import hashlib
+
 from django.contrib import messages
+from django.core.cache import cache
 from django.contrib.auth.decorators import login_required
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.urls import reverse
 from django.views.decorators.http import require_http_methods, require_POST, require_safe
 
-from studyapp.leaderboards.fit import fit_board
+from studyapp.leaderboards.fit import BoardFit, fit_board
 from studyapp.leaderboards.forms import LeaderboardForm, RoundFitForm, RoundForm
 from studyapp.leaderboards.models import Leaderboard, Round
 from studyapp.leaderboards.public import board_context, board_csv
 
 CSV = "text/csv; charset=utf-8"
+PUBLIC_FIT_SECONDS = 60
 
 
 def _board(request: HttpRequest, pk: int) -> Leaderboard:
     return get_object_or_404(Leaderboard, pk=pk, owner=request.user)
 
 
-def _public_board(key: str) -> Leaderboard:
+def _public_fit(key: str) -> tuple[BoardFit, dict]:
+    """The fit of the public board at ``key`` and its page's context, kept a while (404 unless
+    the board is public); new votes show within ``PUBLIC_FIT_SECONDS``."""
     board = Leaderboard.objects.filter(public_key=key, public=True).first()
     if board is None:
         raise Http404("no public leaderboard at this address")
-    return board
+    state = [board.public_key, board.title, board.description, board.anchor,
+             *board.rounds.order_by("pk").values_list("pk", "study__key", "in_fit", "left_out_because")]
+    name = f"leaderboard-fit:{board.pk}:{hashlib.sha256(repr(state).encode()).hexdigest()}"
+    kept = cache.get(name)
+    if kept is None:
+        fit = fit_board(board)
+        kept = (fit, board_context(fit))
+        cache.set(name, kept, PUBLIC_FIT_SECONDS)
+    return kept
 
 
 @login_required
@@ -106,9 +121,9 @@ def leaderboard_round_fit(request: HttpRequest, pk: int, round_pk: int) -> HttpR
     return redirect("leaderboard", pk=board.pk)
 
 
-def _csv(board: Leaderboard) -> HttpResponse:
-    response = HttpResponse(board_csv(fit_board(board)), content_type=CSV)
-    response["Content-Disposition"] = f'attachment; filename="leaderboard-{board.pk}.csv"'
+def _csv(fit: BoardFit) -> HttpResponse:
+    response = HttpResponse(board_csv(fit), content_type=CSV)
+    response["Content-Disposition"] = f'attachment; filename="leaderboard-{fit.board.pk}.csv"'
     return response
 
 
@@ -116,16 +131,15 @@ def _csv(board: Leaderboard) -> HttpResponse:
 @require_safe
 def leaderboard_csv(request: HttpRequest, pk: int) -> HttpResponse:
     """The board's table, the public page's CSV."""
-    return _csv(_board(request, pk))
+    return _csv(fit_board(_board(request, pk)))
 
 
 @require_safe
 def public_page(request: HttpRequest, key: str) -> HttpResponse:
     """The public board: read-only, no login (404 unless the researcher made it public)."""
-    board = _public_board(key)
-    return render(request, "studyapp/leaderboard/public.html", board_context(fit_board(board)))
+    return render(request, "studyapp/leaderboard/public.html", _public_fit(key)[1])
 
 
 @require_safe
 def public_csv(request: HttpRequest, key: str) -> HttpResponse:
-    return _csv(_public_board(key))
+    return _csv(_public_fit(key)[0])
