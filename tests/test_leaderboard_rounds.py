@@ -324,3 +324,20 @@ def test_the_public_page_is_fitted_once_a_while_and_again_when_a_round_leaves_th
     round_.in_fit, round_.left_out_because = False, "a pilot"
     round_.save()
     assert "left out: a pilot" in Client().get(url).content.decode() and fits == [board.pk] * 2
+
+
+def test_the_admin_shows_a_researcher_their_own_boards_only_and_offers_their_own_pairwise_studies():
+    from studyapp.researchers.accounts import grant_researcher_rights
+
+    board = three_round_board()
+    stranger_study = round_study(9, OLD, owner_name="stranger")
+    stranger = User.objects.get(username="stranger")
+    for user in (board.owner, stranger):
+        grant_researcher_rights(user)
+    client = Client()
+    client.force_login(stranger)
+    assert "Locomotion leaderboard" not in client.get("/admin/studyapp/leaderboard/").content.decode()
+    assert client.get(f"/admin/studyapp/leaderboard/{board.pk}/change/").status_code == 302  # not theirs: away
+    client.force_login(board.owner)
+    page = client.get(f"/admin/studyapp/leaderboard/{board.pk}/change/").content.decode()
+    assert "Round 1 of locomotion" in page and stranger_study.title not in page
