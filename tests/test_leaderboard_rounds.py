@@ -19,7 +19,7 @@ from django.test import Client
 from django.urls import reverse
 from django.utils import timezone
 
-from analysis.leaderboard import ELO_PER_LOG_ODDS
+from analysis.rankings.leaderboard import ELO_PER_LOG_ODDS
 from studyapp.designs.pairwise import board_votes
 from studyapp.leaderboards.fit import fit_board
 from studyapp.leaderboards.models import Leaderboard, Round

@@ -2,11 +2,11 @@
 
 Each round's study's ratings table is read as its report reads it (`studyapp.researchers.
 results.monitor.flagged_ratings`: the study's exclusion rules applied, attention-check pages
-left out by `analysis.exclusions.compared_ratings`), and never written. The rounds in the fit
+left out by `analysis.ratings.exclusions.compared_ratings`), and never written. The rounds in the fit
 are concatenated into one vote table with a ``round`` column (the round's number on the
 board), each participant named by round and code (a participant of two rounds is two
 participants of the bootstrap), and every page in one cell: the board pools the rounds'
-tasks and control classes. `analysis.leaderboard_report.build_leaderboard` fits it: the
+tasks and control classes. `analysis.reports.leaderboard_report.build_leaderboard` fits it: the
 weighted Bradley-Terry model on the Elo scale, the board's anchor (NAT by default) at 1000
 where it was compared, else the systems' mean, and bootstrap intervals over participants.
 
@@ -22,9 +22,9 @@ from datetime import date
 import pandas as pd
 
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import compared_ratings
-from analysis.leaderboard import RESAMPLES
-from analysis.leaderboard_report import LeaderboardReport, build_leaderboard
+from analysis.ratings.exclusions import compared_ratings
+from analysis.rankings.leaderboard import RESAMPLES
+from analysis.reports.leaderboard_report import LeaderboardReport, build_leaderboard
 from studyapp.designs.rules import StudyRules
 from studyapp.leaderboards.models import Leaderboard, Round
 from studyapp.researchers.results.monitor import flagged_ratings

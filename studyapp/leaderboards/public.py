@@ -15,10 +15,10 @@ import io
 
 import pandas as pd
 
-from analysis.leaderboard_plots import heat_map_plot
-from analysis.leaderboard_report import method_text, origin_text
-from analysis.plots import plt
-from analysis.tables import spreadsheet_safe
+from analysis.reports.leaderboard_plots import heat_map_plot
+from analysis.reports.leaderboard_report import method_text, origin_text
+from analysis.reports.plots import plt
+from analysis.reports.tables import spreadsheet_safe
 from studyapp.leaderboards.fit import SAME_SYSTEM_RULE, BoardFit
 
 PUBLIC_COLUMNS = ("rank", "system", "elo", "ci_low", "ci_high", "pages", "wins", "losses", "ties", "first_round",
