@@ -20,7 +20,7 @@ from django.urls import reverse
 from django.utils import timezone
 
 from analysis.rankings.leaderboard import ELO_PER_LOG_ODDS
-from studyapp.designs.pairwise import board_votes
+from studyapp.designs.pairwise_pages import board_votes
 from studyapp.leaderboards.fit import fit_board
 from studyapp.leaderboards.models import Leaderboard, Round
 from studyapp.leaderboards.public import PUBLIC_COLUMNS

@@ -6,6 +6,8 @@ state of its rounds), so that visitors cannot make the server refit the bootstra
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Callable
+from functools import wraps
 
 from django.contrib import messages
 from django.core.cache import cache
@@ -24,8 +26,17 @@ CSV = "text/csv; charset=utf-8"
 PUBLIC_FIT_SECONDS = 60
 
 
-def _board(request: HttpRequest, pk: int) -> Leaderboard:
-    return get_object_or_404(Leaderboard, pk=pk, owner=request.user)
+def researcher_board(view: Callable[..., HttpResponse]) -> Callable[..., HttpResponse]:
+    """``view(request, board, ...)`` as a view of ``(request, pk, ...)``: behind the login, for
+    the owner's board only (404 for another's), as `studyapp.researchers.access.researcher_study`
+    guards a study's pages."""
+
+    @login_required
+    @wraps(view)
+    def guarded(request: HttpRequest, pk: int, *args, **kwargs) -> HttpResponse:
+        return view(request, get_object_or_404(Leaderboard, pk=pk, owner=request.user), *args, **kwargs)
+
+    return guarded
 
 
 def _public_fit(key: str) -> tuple[BoardFit, dict]:
@@ -77,17 +88,16 @@ def _page(request: HttpRequest, board: Leaderboard, status: int = 200, **forms) 
     return render(request, "studyapp/leaderboard/board.html", context, status=status)
 
 
-@login_required
+@researcher_board
 @require_safe
-def leaderboard_page(request: HttpRequest, pk: int) -> HttpResponse:
+def leaderboard_page(request: HttpRequest, board: Leaderboard) -> HttpResponse:
     """The board: its fit, rounds and settings, and the preview of its public page."""
-    return _page(request, _board(request, pk))
+    return _page(request, board)
 
 
-@login_required
+@researcher_board
 @require_POST
-def leaderboard_settings(request: HttpRequest, pk: int) -> HttpResponse:
-    board = _board(request, pk)
+def leaderboard_settings(request: HttpRequest, board: Leaderboard) -> HttpResponse:
     form = LeaderboardForm(request.POST, instance=board)
     if not form.is_valid():
         return _page(request, Leaderboard.objects.get(pk=board.pk), 400, settings_form=form)
@@ -96,10 +106,9 @@ def leaderboard_settings(request: HttpRequest, pk: int) -> HttpResponse:
     return redirect("leaderboard", pk=board.pk)
 
 
-@login_required
+@researcher_board
 @require_POST
-def leaderboard_add_round(request: HttpRequest, pk: int) -> HttpResponse:
-    board = _board(request, pk)
+def leaderboard_add_round(request: HttpRequest, board: Leaderboard) -> HttpResponse:
     form = RoundForm(request.POST, owner=request.user)
     if not form.is_valid():
         return _page(request, board, 400, round_form=form)
@@ -108,10 +117,9 @@ def leaderboard_add_round(request: HttpRequest, pk: int) -> HttpResponse:
     return redirect("leaderboard", pk=board.pk)
 
 
-@login_required
+@researcher_board
 @require_POST
-def leaderboard_round_fit(request: HttpRequest, pk: int, round_pk: int) -> HttpResponse:
-    board = _board(request, pk)
+def leaderboard_round_fit(request: HttpRequest, board: Leaderboard, round_pk: int) -> HttpResponse:
     round_ = get_object_or_404(Round, pk=round_pk, leaderboard=board)
     form = RoundFitForm(request.POST, instance=round_, prefix=f"round-{round_.pk}")
     if not form.is_valid():
@@ -127,11 +135,11 @@ def _csv(fit: BoardFit) -> HttpResponse:
     return response
 
 
-@login_required
+@researcher_board
 @require_safe
-def leaderboard_csv(request: HttpRequest, pk: int) -> HttpResponse:
+def leaderboard_csv(request: HttpRequest, board: Leaderboard) -> HttpResponse:
     """The board's table, the public page's CSV."""
-    return _csv(fit_board(_board(request, pk)))
+    return _csv(fit_board(board))
 
 
 @require_safe
