@@ -82,6 +82,14 @@ def stored_pages(study: Study) -> pd.DataFrame:
     return table.drop(columns=["early", "excluded", "finished"])
 
 
+
+def strength_words(count: int) -> list[tuple[int, str]]:
+    """Each strength of a preference, 1 to ``count``, with the word its button shows: the
+    weakest "slightly", the strongest "clearly" (GENEA's words, as the docs and the
+    appropriateness pages say them), any between by its number."""
+    words = {1: "slightly", count: "clearly"} if count > 1 else {1: "clearly"}
+    return [(point, words.get(point, str(point))) for point in range(1, count + 1)]
+
 class Pairwise(MultiClip):
     template = "pairwise.html"
     settings = ("pages_per_participant", "abx", "preference_strengths", "adaptive_pairing")
@@ -209,7 +217,7 @@ class Pairwise(MultiClip):
         return f"Each page shows two clips, A and B. {study.question} Say which clip is better."
 
     def page_context(self, study: Study, page: Page) -> dict:
-        return {**super().page_context(study, page), "strengths": list(self.strengths(study)),
+        return {**super().page_context(study, page), "strengths": strength_words(len(self.strengths(study))),
                 "reference": self._reference(study, page)}
 
     def _reference(self, study: Study, page: Page) -> dict | None:
