@@ -136,7 +136,9 @@ def _refusal(error: Exception) -> dict:
     """A refusal as the top of a page lists it: a title, then one problem a line."""
     problems = getattr(error, "lines", None)  # a submission's report, one control a line
     if problems:
-        return {"title": str(error).splitlines()[0].rstrip(":"), "problems": problems}
+        refused = set(getattr(error, "refused", problems))  # the others say what was read or ready
+        return {"title": str(error).splitlines()[0].rstrip(":"), "problems": problems,
+                "accepted": [line for line in problems if line not in refused]}
     return {"title": "Not done", "problems": [str(error)]}
 
 
@@ -602,10 +604,14 @@ def study_plan(request: HttpRequest, pk: int) -> HttpResponse:
 
 
 @login_required
-@require_POST
+@require_http_methods(["GET", "HEAD", "POST"])
 def study_report(request: HttpRequest, pk: int) -> HttpResponse:
-    """The analysis report of the ratings so far (the analysis pages' report)."""
+    """The analysis report of the ratings so far (the analysis pages' report), made by a POST;
+    a GET (a bookmark, a link) leads to the monitor's button that makes it."""
     study = _study(request, pk)
+    if request.method != "POST":
+        messages.info(request, "The analysis report is made from the ratings so far: press “Analysis report”.")
+        return redirect(reverse("study-monitor", args=[study.pk]) + "#data")
     try:
         digest = create_study_report(study, request.user.pk)
     except AnalysisInputError as error:
