@@ -64,13 +64,15 @@ def interval_errors(centre, low, high, limits: tuple[float, float] | None = None
 
 def fit_scale(ax, limits: tuple[float, float] | None) -> None:
     """The value axis spans the rating scale (a little beyond its ends), integer points
-    marked on a short scale."""
+    marked on a short scale, quarters on a share's 0..1."""
     if limits is None:
         return
     low, high = limits
     pad = 0.04 * (high - low)
     ax.set_xlim(low - pad, high + pad)
-    if high - low <= 10:
+    if high - low <= 1:  # a share: quarters
+        ax.set_xticks(np.linspace(low, high, 5), [f"{tick:g}" for tick in np.linspace(low, high, 5)])
+    elif high - low <= 10:
         ax.set_xticks(np.arange(low, high + 1))
 
 
