@@ -10,9 +10,9 @@ import pytest
 
 from analysis import AnalysisInputError, build_report, validate_ratings, write_report
 from analysis.cli import main
-from analysis.motion_io import load_motion_sets, save_clips
-from analysis.simulate import simulate_ratings
-from analysis.tables import to_latex
+from analysis.motion.motion_io import load_motion_sets, save_clips
+from analysis.ratings.simulate import simulate_ratings
+from analysis.reports.tables import to_latex
 
 pytestmark = pytest.mark.slow
 
@@ -129,7 +129,7 @@ def test_a_system_with_one_rating_is_noted_and_shown_not_as_nan(ratings):
 
 
 def test_a_system_rated_once_stands_in_the_means_plot_without_an_interval_as_in_the_distributions(ratings):
-    from analysis.report import report_figures
+    from analysis.reports.single_report import report_figures
     lonely = pd.DataFrame([{**ratings.iloc[0].to_dict(), "system": "Solo", "stimulus": "solo_1",
                             "task": "human", "control_class": "held-out", "value": 3,
                             "played_until_s": 10.0}])

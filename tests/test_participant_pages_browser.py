@@ -191,6 +191,7 @@ def test_the_single_clip_page_fits_a_laptops_screen_without_scrolling(browser, l
     page = enter(browser, live_server, study, {"viewport": {"width": 1366, "height": height}})
     skip_to_ratings(page, study)
     page.evaluate("() => { const v = document.getElementById('clip'); v.pause(); v.currentTime = 0; }")
+    shoot(page, f"single-1366x{height}-locked")
     assert page.is_visible("#lock-hint") and page.is_visible("#keys-hint")  # the page at its tallest
     assert page.evaluate("document.documentElement.scrollHeight") <= height
     box = page.locator("#keys-hint").bounding_box()
@@ -221,6 +222,7 @@ def test_four_or_five_clips_in_a_row_draw_the_character_large_with_submit_on_the
     slots = slots_on_page(page)
     assert len(slots) == models + 2
     tallest = max(figure_height(page, slot) for slot in slots)
+    shoot(page, f"side-by-side-{models + 2}-clips-1366x800")
     assert tallest >= (125 if models == 2 else 115), tallest  # 4:3 boxes of 318 / 250 px drew 92 / 73
     submit = page.get_by_role("button", name="Submit ratings").bounding_box()
     assert submit["y"] + submit["height"] <= 800 and page.evaluate(
@@ -262,6 +264,7 @@ def test_a_phones_clip_tabs_show_every_sliders_rating(browser, live_server, clip
     show_clip(page, "2")
     page.locator("#value-2").evaluate("(s) => { s.value = 83; s.dispatchEvent(new Event('input')); }")
     show_clip(page, "1")
+    shoot(page, "side-by-side-phone-tabs-with-ratings")
     tabs = page.locator(".clip-tabs [data-tab]")
     assert [text.split()[:2] for text in tabs.all_inner_texts()] == [["A", "50"], ["B", "83"], ["C", "50"]]
     assert all(box["y"] + box["height"] <= 844 and box["x"] + box["width"] <= 390
@@ -317,7 +320,9 @@ def test_a_graded_preference_asks_the_choice_first_then_slightly_or_clearly_all_
         assert box["y"] + box["height"] <= height  # "B is better" on the screen, a phone's too
     play_to_end(page, "1")
     play_to_end(page, "2")
+    shoot(page, f"pairwise-graded-{device}-choice")
     page.get_by_role("button", name="B is better").click()
+    shoot(page, f"pairwise-graded-{device}-strength")
     strength = page.locator("fieldset.strength")
     assert strength.is_visible() and page.locator("fieldset.strength button").all_inner_texts() == [
         "slightly", "clearly"]  # the docs' and the appropriateness pages' words

@@ -27,8 +27,8 @@ from collections import Counter
 import pandas as pd
 from django.http import QueryDict
 
-from analysis.exclusions import ExclusionRules
-from analysis.side_by_side import median_and_mean
+from analysis.ratings.exclusions import ExclusionRules
+from analysis.stats.within_page import median_and_mean
 from studyapp.designs.answers import whole_number
 from studyapp.designs.base import (Answer, OnPage, Page, PlannedPage, clip_label, rated_clip_exclusion)
 from studyapp.designs.multi_clip import MultiClip, bad_for, by_control, key_of, page_orders
