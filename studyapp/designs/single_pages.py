@@ -27,7 +27,7 @@ from django.http import QueryDict
 from analysis.ratings.exclusions import ExclusionRules
 from analysis.reports.single_report import Report
 from studyapp.designs.answers import client_times
-from studyapp.designs.base import (Answer, Design, OnPage, Page, PlannedPage, rated_clip_exclusion)
+from studyapp.designs.design import (Answer, Design, OnPage, Page, PlannedPage, rated_clip_exclusion)
 from studyapp.models import Assignment, Stimulus, Study, System
 from studyapp.participants.assignment import active_since
 from studyapp.participants.refusal import AnswerRefused
