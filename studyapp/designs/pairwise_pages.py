@@ -108,6 +108,14 @@ def board_votes(study: Study) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=columns)
 
 
+def strength_words(count: int) -> list[tuple[int, str]]:
+    """Each strength of a preference, 1 to ``count``, with the word its button shows: the
+    weakest "slightly", the strongest "clearly" (GENEA's words, as the docs and the
+    appropriateness pages say them), any between by its number."""
+    words = {1: "slightly", count: "clearly"} if count > 1 else {1: "clearly"}
+    return [(point, words.get(point, str(point))) for point in range(1, count + 1)]
+
+
 class Pairwise(MultiClip):
     template = "pairwise.html"
     settings = ("pages_per_participant", "abx", "preference_strengths", "adaptive_pairing", "reasons",
@@ -238,7 +246,7 @@ class Pairwise(MultiClip):
         return f"Each page shows two clips, A and B. {study.question} Say which clip is better."
 
     def page_context(self, study: Study, page: Page) -> dict:
-        return {**super().page_context(study, page), "strengths": list(self.strengths(study)),
+        return {**super().page_context(study, page), "strengths": strength_words(len(self.strengths(study))),
                 "reference": self._reference(study, page), **reasons_context(study)}
 
     def _reference(self, study: Study, page: Page) -> dict | None:
