@@ -46,15 +46,24 @@ clients asking as fast as they can for ``FLOOR_S``: the requests per second and 
 request that no rating step of this stack can beat on the machine, against which the
 saturation's ratings per second and CPU per rating are read.
 
+*Clips* (``--only clips``, ``benchmarks.crowd_clips``): the ``--clip-crowds`` (100, 500 and
+1,000) watching as above and downloading every clip their pages name, a 4-s clip of real
+motion, along three paths measured in the same run: gunicorn sending the clips itself (the
+code before), the proxy (Caddy, X-Accel-Redirect, signed addresses) and the bucket
+(SeaweedFS, presigned addresses); media throughput, every clip byte served, gunicorn's share
+of the media bytes and the rating latency beside them.
+
     python benchmarks/bench_study.py [--participants 100] [--crowds 500,1000] [--json]   # everything
     python benchmarks/bench_study.py --only server-time --reference-code /tmp/before     # the rating step
     python benchmarks/bench_study.py --only crowd            # 100 at saturation and watching, both setups
     python benchmarks/bench_study.py --only large --crowds 500   # one large crowd at a time
     python benchmarks/bench_study.py --only targets --reference-code /tmp/before   # the four targets, both codes
     python benchmarks/bench_study.py --only floor            # the least a rating request costs here
+    python benchmarks/bench_study.py --only clips --clip-crowds 100,500,1000   # crowds downloading the clips
 
 Needs PostgreSQL's server programs (Debian: postgresql); a throwaway cluster is
-created in a temporary folder and removed afterwards.
+created in a temporary folder and removed afterwards. The clips part needs Caddy
+(scripts/ensure-caddy.sh) and SeaweedFS's weed (the dev extra).
 """
 
 from __future__ import annotations
@@ -74,7 +83,7 @@ import tempfile
 import time
 import urllib.request
 from urllib.parse import urlencode
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -84,6 +93,7 @@ CODE = Path(os.environ.get("BENCH_STUDY_CODE", REPO))
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(CODE))
 from benchmarks.machine import describe_machine  # noqa: E402
+from benchmarks.crowd_clips import clip_checks, clip_crowd_rows, print_clip_rows  # noqa: E402
 try:
     from studyapp.participants.simulated import Outcome, longest_clip_s, percentile, run_participants  # noqa: E402
 except ImportError:  # a reference checkout from before the study app was split into subpackages
@@ -104,7 +114,7 @@ WATCH_S = 4.0  # a short stimulus clip
 CLIPS = 20  # rated clips per participant
 URLENCODED = "application/x-www-form-urlencoded"
 PARTICIPANTS_PER_PROCESS = 125  # simulated participants (threads) per client process
-PARTS = ("server-time", "crowd", "large", "targets", "floor")
+PARTS = ("server-time", "crowd", "large", "targets", "floor", "clips")
 FLOOR_S, FLOOR_CLIENTS = 20.0, 32  # the floor's length and its simultaneous clients (threads over two processes)
 # compose.yaml's web service, the configuration the README recommends.
 GUNICORN = ["--workers", "3", "--worker-class", "gthread", "--threads", "8"]
@@ -117,9 +127,11 @@ def django_step(env: dict, *args: str, code: Path = REPO) -> str:
                           check=True, capture_output=True, text=True).stdout.strip()
 
 
-def setup_study(participants: int) -> str:
-    """Migrate, and create an open 20-clip study whose stimuli exist (no videos are
-    fetched), with room for ``participants``: 90 rated stimuli, 19 of them per participant."""
+def setup_study(participants: int, video: str | None = None, clip_seconds: float = BROWSER_CLIP_S) -> str:
+    """Migrate, and create an open 20-clip study whose stimuli exist, with room for
+    ``participants``: 90 rated stimuli, 19 of them per participant. Without ``video`` no
+    clip is fetched (none exists); with it every clip is a copy of it (``clip_seconds``
+    long), in MEDIA_ROOT or, with MEDIA_BUCKET_URL, only in the bucket."""
     import django
 
     django.setup()
@@ -130,7 +142,12 @@ def setup_study(participants: int) -> str:
     call_command("migrate", verbosity=0)
     study = make_study(owner_name="bench", controls=30, clips_per_participant=CLIPS,
                        ratings_per_stimulus=max(40, math.ceil(participants * (CLIPS - 1) / 90) + 2),
-                       training_clips=2, clip_seconds=0.01)
+                       training_clips=2, clip_seconds=clip_seconds if video else 0.01,
+                       video=Path(video) if video else None)
+    if video:
+        from benchmarks.crowd_clips import move_clips_to_bucket
+
+        move_clips_to_bucket(study)
     return study.key
 
 
@@ -282,15 +299,18 @@ def server_errors(log: Path) -> list[str]:
     return [f"{count} x {key}" for key, count in counts.items()]
 
 
-def crowd(entry_url: str, participants: int, watch_s: float) -> tuple[list[Outcome], float]:
-    """Run the participants in client processes of their own; their outcomes and CPU seconds."""
+def crowd(entry_url: str, participants: int, watch_s: float,
+          participant: Callable | None = None) -> tuple[list[Outcome], float]:
+    """Run the participants in client processes of their own; their outcomes and CPU seconds.
+    ``participant`` makes each (default: run_participants' own, who download no clip)."""
     processes = math.ceil(participants / PARTICIPANTS_PER_PROCESS)
     shares = [participants // processes + (i < participants % processes) for i in range(processes)]
+    makers = [[participant] * processes] if participant else []  # a reference checkout's takes none
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     with ProcessPoolExecutor(max_workers=processes) as pool:
         batches = list(pool.map(run_participants, [entry_url] * processes, shares, [None] * processes,
                                 ["PROLIFIC_PID"] * processes, [f"sim{i}" for i in range(processes)],
-                                [watch_s] * processes))
+                                [watch_s] * processes, *makers))
     after = resource.getrusage(resource.RUSAGE_CHILDREN)  # the pool's processes, reaped at its end
     cpu_s = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     return [outcome for batch in batches for outcome in batch], cpu_s
@@ -559,6 +579,7 @@ def print_rows(result: dict) -> None:
                       f"floor's rate; a rating (every page counted in) costs "
                       f"{row['server_cpu_ms_per_rating'] / (floor['server_cpu_ms'] + floor['database_cpu_ms']):.1f} "
                       f"floor requests of CPU")
+    print_clip_rows(result["clips"])
     saturated = {row["setup"]: row["ratings_per_s"] for row in result["rows"]
                  if row["load"] == "saturation" and row["part"] == "crowd"}
     if len(saturated) == 2:
@@ -573,7 +594,8 @@ def main() -> int:
                              "(--participants at saturation and watching, on both setups), large (the --crowds on "
                              "the production shape), targets (the targets' crowds and the browser's answer to play, "
                              "with the --reference-code too, and the floor), floor (the least a rating request "
-                             "costs on the production shape); default: all")
+                             "costs on the production shape), clips (the --clip-crowds watching and downloading "
+                             "every clip: from gunicorn as before, through the proxy, from the bucket); default: all")
     parser.add_argument("--participants", type=int, default=100)
     parser.add_argument("--crowds", default="500,1000",
                         help="larger watching crowds on the production shape, comma-separated ('' for none)")
@@ -585,14 +607,18 @@ def main() -> int:
                         help="another checkout of the project whose rating step (server-time) and targets' "
                              "crowds and browser (targets) are measured alongside this one's")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
+    parser.add_argument("--clip-crowds", default="100,500,1000",
+                        help="watching crowds that download every clip (clips), comma-separated (default %(default)s)")
     parser.add_argument("--setup", type=int, metavar="PARTICIPANTS", help=argparse.SUPPRESS)
+    parser.add_argument("--video", help=argparse.SUPPRESS)
+    parser.add_argument("--clip-seconds", type=float, default=BROWSER_CLIP_S, help=argparse.SUPPRESS)
     parser.add_argument("--count", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--server-time", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--setup-browser", metavar="VIDEO", help=argparse.SUPPRESS)
     parser.add_argument("--setup-floor", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.setup is not None or args.count or args.server_time or args.setup_browser or args.setup_floor:
-        print(setup_study(args.setup) if args.setup is not None else count_ratings() if args.count
+        print(setup_study(args.setup, args.video, args.clip_seconds) if args.setup is not None else count_ratings() if args.count
               else setup_browser_study(args.setup_browser) if args.setup_browser
               else setup_floor() if args.setup_floor else server_time())
         return 0
@@ -623,9 +649,11 @@ def main() -> int:
                 rows.append({**measure("gunicorn + PostgreSQL", url, "gunicorn", participants, args.watch, pid_file),
                              "part": "large"})
     floor = measure_floor() if parts & {"floor", "targets"} else None
+    clips = clip_crowd_rows([int(n) for n in args.clip_crowds.split(",") if n.strip()], args.watch) \
+        if "clips" in parts else []
     load = " → ".join(", ".join(f"{x:.1f}" for x in averages) for averages in (load_before, os.getloadavg()))
     result = {"machine": describe_machine(), "load_average": load, "server_time": steps, "rows": rows,
-              "answer_to_play": plays, "floor": floor}
+              "answer_to_play": plays, "floor": floor, "clips": clips}
     if args.json:
         print(json.dumps(result, indent=2))
     else:
@@ -669,6 +697,7 @@ def targets_met(result: dict) -> bool:
         if row["code"] == "this":
             checks.append((f"answer to next clip playing in a browser: median {row['median_ms']:.0f} ms (target < "
                            f"{TARGET_ANSWER_TO_PLAY_MS:.0f} ms)", row["median_ms"] < TARGET_ANSWER_TO_PLAY_MS))
+    checks += clip_checks(result.get("clips", []))
     for text, met in checks:
         print(f"{'met' if met else 'MISSED'}: {text}")
     return all(met for _, met in checks)
