@@ -11,7 +11,7 @@ paths, each crowd size measured on all three in the same run, their order rotate
 size to the next so that a shared machine's load reaches each alike:
 
 - *gunicorn sends the clips* (the code before: the app without MEDIA_ACCEL, facing the
-  participants; ``files.serve_with_ranges`` streams each clip through a worker thread);
+  participants; ``file_responses.serve_with_ranges`` streams each clip through a worker thread);
 - *proxy*: Caddy with deploy/Caddyfile in front of gunicorn, MEDIA_ACCEL on: the clips'
   addresses signed and expiring, the app answering each with an empty X-Accel-Redirect and
   Caddy sending the bytes from MEDIA_ROOT;
