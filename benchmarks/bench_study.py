@@ -46,12 +46,7 @@ clients asking as fast as they can for ``FLOOR_S``: the requests per second and 
 request that no rating step of this stack can beat on the machine, against which the
 saturation's ratings per second and CPU per rating are read.
 
-*Clips* (``--only clips``, ``benchmarks.crowd_clips``): the ``--clip-crowds`` (100, 500 and
-1,000) watching as above and downloading every clip their pages name, a 4-s clip of real
-motion, along three paths measured in the same run: gunicorn sending the clips itself (the
-code before), the proxy (Caddy, X-Accel-Redirect, signed addresses) and the bucket
-(SeaweedFS, presigned addresses); media throughput, every clip byte served, gunicorn's share
-of the media bytes and the rating latency beside them.
+*Clips*: ``bench_study_clips.py``, this benchmark's crowds downloading every clip.
 
     python benchmarks/bench_study.py [--participants 100] [--crowds 500,1000] [--json]   # everything
     python benchmarks/bench_study.py --only server-time --reference-code /tmp/before     # the rating step
@@ -59,11 +54,9 @@ of the media bytes and the rating latency beside them.
     python benchmarks/bench_study.py --only large --crowds 500   # one large crowd at a time
     python benchmarks/bench_study.py --only targets --reference-code /tmp/before   # the four targets, both codes
     python benchmarks/bench_study.py --only floor            # the least a rating request costs here
-    python benchmarks/bench_study.py --only clips --clip-crowds 100,500,1000   # crowds downloading the clips
 
 Needs PostgreSQL's server programs (Debian: postgresql); a throwaway cluster is
-created in a temporary folder and removed afterwards. The clips part needs Caddy
-(scripts/ensure-caddy.sh) and SeaweedFS's weed (the dev extra).
+created in a temporary folder and removed afterwards.
 """
 
 from __future__ import annotations
@@ -93,7 +86,6 @@ CODE = Path(os.environ.get("BENCH_STUDY_CODE", REPO))
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(CODE))
 from benchmarks.machine import describe_machine  # noqa: E402
-from benchmarks.crowd_clips import clip_checks, clip_crowd_rows, print_clip_rows  # noqa: E402
 try:
     from studyapp.participants.simulated import Outcome, longest_clip_s, percentile, run_participants  # noqa: E402
 except ImportError:  # a reference checkout from before the study app was split into subpackages
@@ -114,7 +106,7 @@ WATCH_S = 4.0  # a short stimulus clip
 CLIPS = 20  # rated clips per participant
 URLENCODED = "application/x-www-form-urlencoded"
 PARTICIPANTS_PER_PROCESS = 125  # simulated participants (threads) per client process
-PARTS = ("server-time", "crowd", "large", "targets", "floor", "clips")
+PARTS = ("server-time", "crowd", "large", "targets", "floor")
 FLOOR_S, FLOOR_CLIENTS = 20.0, 32  # the floor's length and its simultaneous clients (threads over two processes)
 # compose.yaml's web service, the configuration the README recommends.
 GUNICORN = ["--workers", "3", "--worker-class", "gthread", "--threads", "8"]
@@ -145,9 +137,15 @@ def setup_study(participants: int, video: str | None = None, clip_seconds: float
                        training_clips=2, clip_seconds=clip_seconds if video else 0.01,
                        video=Path(video) if video else None)
     if video:
-        from benchmarks.crowd_clips import move_clips_to_bucket
+        from django.core.files import File
+        from django.core.files.storage import default_storage
 
-        move_clips_to_bucket(study)
+        from studyapp.server.media_bucket import in_bucket
+
+        for stimulus in study.stimuli.all() if in_bucket() else []:  # the clips only in the bucket
+            with stimulus.video_path().open("rb") as stream:
+                default_storage.save(stimulus.relative_path, File(stream))
+            stimulus.video_path().unlink()
     return study.key
 
 
@@ -579,7 +577,6 @@ def print_rows(result: dict) -> None:
                       f"floor's rate; a rating (every page counted in) costs "
                       f"{row['server_cpu_ms_per_rating'] / (floor['server_cpu_ms'] + floor['database_cpu_ms']):.1f} "
                       f"floor requests of CPU")
-    print_clip_rows(result["clips"])
     saturated = {row["setup"]: row["ratings_per_s"] for row in result["rows"]
                  if row["load"] == "saturation" and row["part"] == "crowd"}
     if len(saturated) == 2:
@@ -594,8 +591,7 @@ def main() -> int:
                              "(--participants at saturation and watching, on both setups), large (the --crowds on "
                              "the production shape), targets (the targets' crowds and the browser's answer to play, "
                              "with the --reference-code too, and the floor), floor (the least a rating request "
-                             "costs on the production shape), clips (the --clip-crowds watching and downloading "
-                             "every clip: from gunicorn as before, through the proxy, from the bucket); default: all")
+                             "costs on the production shape); default: all")
     parser.add_argument("--participants", type=int, default=100)
     parser.add_argument("--crowds", default="500,1000",
                         help="larger watching crowds on the production shape, comma-separated ('' for none)")
@@ -607,8 +603,6 @@ def main() -> int:
                         help="another checkout of the project whose rating step (server-time) and targets' "
                              "crowds and browser (targets) are measured alongside this one's")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
-    parser.add_argument("--clip-crowds", default="100,500,1000",
-                        help="watching crowds that download every clip (clips), comma-separated (default %(default)s)")
     parser.add_argument("--setup", type=int, metavar="PARTICIPANTS", help=argparse.SUPPRESS)
     parser.add_argument("--video", help=argparse.SUPPRESS)
     parser.add_argument("--clip-seconds", type=float, default=BROWSER_CLIP_S, help=argparse.SUPPRESS)
@@ -649,11 +643,9 @@ def main() -> int:
                 rows.append({**measure("gunicorn + PostgreSQL", url, "gunicorn", participants, args.watch, pid_file),
                              "part": "large"})
     floor = measure_floor() if parts & {"floor", "targets"} else None
-    clips = clip_crowd_rows([int(n) for n in args.clip_crowds.split(",") if n.strip()], args.watch) \
-        if "clips" in parts else []
     load = " → ".join(", ".join(f"{x:.1f}" for x in averages) for averages in (load_before, os.getloadavg()))
     result = {"machine": describe_machine(), "load_average": load, "server_time": steps, "rows": rows,
-              "answer_to_play": plays, "floor": floor, "clips": clips}
+              "answer_to_play": plays, "floor": floor}
     if args.json:
         print(json.dumps(result, indent=2))
     else:
@@ -697,7 +689,6 @@ def targets_met(result: dict) -> bool:
         if row["code"] == "this":
             checks.append((f"answer to next clip playing in a browser: median {row['median_ms']:.0f} ms (target < "
                            f"{TARGET_ANSWER_TO_PLAY_MS:.0f} ms)", row["median_ms"] < TARGET_ANSWER_TO_PLAY_MS))
-    checks += clip_checks(result.get("clips", []))
     for text, met in checks:
         print(f"{'met' if met else 'MISSED'}: {text}")
     return all(met for _, met in checks)

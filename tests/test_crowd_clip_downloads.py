@@ -1,4 +1,4 @@
-"""The crowd benchmark's clip downloads (benchmarks/crowd_clips.py) with a handful of watching
+"""The crowd benchmark's clip downloads (benchmarks/bench_study_clips.py) with a handful of watching
 participants on short clips: through the proxy every clip byte the pages named arrives and
 gunicorn writes none of them, and without it (the code before) gunicorn writes them all, which
 shows that the count of gunicorn's bytes sees them when they are there."""
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from benchmarks.crowd_clips import measure_clip_crowd
+from benchmarks.bench_study_clips import measure_clip_crowd
 
 pytestmark = pytest.mark.slow
 

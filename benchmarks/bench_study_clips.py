@@ -1,5 +1,5 @@
 """The crowd benchmark's watching participants who download every clip, as a browser does
-(``bench_study.py --only clips``).
+(bench_study.py's crowd code reused).
 
 Each simulated participant (``studyapp.participants.simulated``, with bench_study's crowd:
 real HTTP, cookies, CSRF, client processes of their own) fetches the bytes of every clip its
@@ -29,10 +29,16 @@ hand), media throughput (clip bytes received whole and right over the run's leng
 bytes served against those expected (every clip address the pages named, times the clip's
 size), gunicorn's share of the media bytes (the body bytes gunicorn wrote for /media/ requests,
 from its access log, over the clip bytes served), and each process's share of the machine's CPU.
+
+    python benchmarks/bench_study_clips.py [--crowds 100,500,1000] [--watch 4] [--json]
+
+Needs PostgreSQL's server programs, Caddy (scripts/ensure-caddy.sh) and SeaweedFS's weed (the
+dev extra); each server is a throwaway one on free ports of 127.0.0.1.
 """
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import functools
 import html
@@ -47,7 +53,11 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from studyapp.participants.simulated import Outcome, SimulatedParticipant, longest_clip_s, percentile
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+from benchmarks import bench_study as bench  # noqa: E402
+from benchmarks.machine import describe_machine  # noqa: E402
+from studyapp.participants.simulated import Outcome, SimulatedParticipant, longest_clip_s, percentile  # noqa: E402
 
 PATHS = {"gunicorn": "gunicorn sends the clips (before)", "proxy": "proxy sends the clips",
          "bucket": "bucket sends the clips"}
@@ -111,22 +121,6 @@ class ClipWatchingParticipant(SimulatedParticipant):
         time.sleep(max(0.0, remaining))
 
 
-def move_clips_to_bucket(study) -> None:
-    """With MEDIA_BUCKET_URL, put each of the study's clips in the bucket and remove it from
-    MEDIA_ROOT, so that only the bucket can send it; without a bucket, nothing."""
-    from django.core.files import File
-    from django.core.files.storage import default_storage
-
-    from studyapp.server.media_bucket import in_bucket
-
-    if not in_bucket():
-        return
-    for stimulus in study.stimuli.all():
-        with stimulus.video_path().open("rb") as stream:
-            default_storage.save(stimulus.relative_path, File(stream))
-        stimulus.video_path().unlink()
-
-
 def gunicorn_media_bytes(access_log: Path) -> int:
     """The body bytes gunicorn wrote for /media/ requests (ACCESS_FORMAT lines)."""
     total = 0
@@ -157,7 +151,6 @@ def measure_clip_crowd(path: str, participants: int, watch_s: float, video: Path
     """One crowd of ``participants`` watching and downloading every clip along ``path``
     (``s3``: the S3 server of the bucket path, a ``tests.s3_server.S3Server``), the study's
     clips ``video`` said to last ``clip_seconds`` (default: bench_study's browser clip's)."""
-    from benchmarks import bench_study as bench
     from tests.throwaway_postgres import free_port, throwaway_postgres
 
     with throwaway_postgres() as (database_url, pid_file), tempfile.TemporaryDirectory(prefix="bench-clips-") as name:
@@ -216,12 +209,11 @@ def clip_crowd_rows(crowds: list[int], watch_s: float) -> list[dict]:
     """Each crowd along each path, the paths' order rotated from one crowd to the next."""
     if not crowds:
         return []
-    from benchmarks.bench_study import render_browser_clip
     from tests.s3_server import s3_server
 
     rows, order = [], list(PATHS)
     with tempfile.TemporaryDirectory(prefix="bench-clip-") as folder, s3_server() as s3:
-        video = render_browser_clip(Path(folder))
+        video = bench.render_browser_clip(Path(folder))
         for n, participants in enumerate(crowds):
             for path in order[n % len(order):] + order[:n % len(order)]:
                 rows.append(measure_clip_crowd(path, participants, watch_s, video, s3))
@@ -282,3 +274,29 @@ def clip_checks(rows: list[dict]) -> list[tuple[str, bool]]:
             checks.append((f"{what}: rating p95 {row['p95_ms']:.0f} ms (target < {TARGET_P95_S * 1000:.0f} ms)",
                            row["p95_ms"] / 1000 < TARGET_P95_S))
     return checks
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--crowds", default="100,500,1000", help="watching crowds, comma-separated (default %(default)s)")
+    parser.add_argument("--watch", type=float, default=bench.WATCH_S,
+                        help="seconds each participant spends on a clip's page (default %(default)s)")
+    parser.add_argument("--json", action="store_true", help="print the figures as JSON")
+    args = parser.parse_args()
+    load_before = os.getloadavg()
+    rows = clip_crowd_rows([int(n) for n in args.crowds.split(",") if n.strip()], args.watch)
+    load = " → ".join(", ".join(f"{x:.1f}" for x in averages) for averages in (load_before, os.getloadavg()))
+    result = {"machine": describe_machine(), "load_average": load, "clips": rows}
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        print(f"machine: {result['machine']['cpu']}, {result['machine']['cores']} cores; load average {load}")
+        print_clip_rows(rows)
+    checks = clip_checks(rows)
+    for text, met in checks:
+        print(f"{'met' if met else 'MISSED'}: {text}")
+    return 0 if all(met for _, met in checks) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
