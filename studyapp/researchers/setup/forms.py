@@ -61,7 +61,7 @@ class StudyForm(forms.ModelForm):
 
     INSTRUMENT = INSTRUMENT  # plan.fixed's, which the admin and the commands hold to as well
     SECTIONS = (
-        ("The study", ("title", "instructions", "consent_text")),
+        ("The study", ("title", "language", "instructions", "consent_text")),
         ("Design", ("design", "pages_per_participant", "abx", "preference_strengths", "adaptive_pairing")),
         ("Question and scale", ("question", "scale_min", "scale_max", "label_min", "label_max")),
         ("Clips and targets", ("clips_per_participant", "ratings_per_stimulus", "training_clips",
@@ -162,6 +162,7 @@ class StudyForm(forms.ModelForm):
         model = Study
         exclude = ["owner", "camera", "previewed_at", "display_figure"]  # the figure comes from the systems' rigs
         labels = {
+            "language": "Participants' language",
             "pages_per_participant": "Pages per participant",
             "abx": "Natural clip shown as a reference (ABX)",
             "preference_strengths": "Degrees of preference",
