@@ -26,6 +26,7 @@ from collections import Counter
 
 import pandas as pd
 from django.db.models import QuerySet
+from django.utils.translation import gettext as _, gettext_lazy
 
 from analysis.appropriateness import appropriateness_scores, matched_preference
 from analysis.exclusions import ExclusionRules
@@ -36,7 +37,7 @@ from studyapp.models import ATTENTION_NAME, Assignment, ControlSignal, Rating, S
 from studyapp.stimuli.mismatched import study_pairings
 
 Pair = tuple[Stimulus, Stimulus]  # (matched, mismatched): a system's clips of a page, before sides are chosen
-STRENGTH_WORDS = {1: "slightly", 2: "clearly"}
+STRENGTH_WORDS = {1: gettext_lazy("slightly"), 2: gettext_lazy("clearly")}
 
 
 class Appropriateness(Pairwise):
@@ -113,8 +114,8 @@ class Appropriateness(Pairwise):
         return [s.id for pair in pages for s in rng.sample(pair, 2)]
 
     def task(self, study: Study) -> str:
-        return ("Each page shows two clips, A and B, of a character asked to move in a certain way: say which "
-                "clip's motion fits what it was asked better.")
+        return _("Each page shows two clips, A and B, of a character asked to move in a certain way: say which "
+                 "clip's motion fits what it was asked better.")
 
     def page_context(self, study: Study, page: Page) -> dict:
         clips = page.clips
@@ -122,7 +123,7 @@ class Appropriateness(Pairwise):
         control = ControlSignal.objects.filter(pk=shown).values_list("control", flat=True).first() or {}
         labels = {"action": control["action"], "style": control["style"]} if "action" in control else None
         return {**super().page_context(study, page), "labels": labels,
-                "strength_words": [(point, STRENGTH_WORDS[point]) for point in self.strengths(study)]}
+                "strength_words": [(point, str(STRENGTH_WORDS[point])) for point in self.strengths(study)]}
 
     def exclusion_reason(self, rules: ExclusionRules, study: Study, page: list[OnPage], answer: Answer) -> str:
         if not any(clip.assignment.is_check for clip in page):

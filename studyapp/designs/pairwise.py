@@ -36,6 +36,7 @@ from collections import Counter
 import numpy as np
 import pandas as pd
 from django.http import QueryDict
+from django.utils.translation import gettext as _
 
 from analysis.exclusions import ExclusionRules
 from analysis.pairing import plan_pairs
@@ -198,15 +199,15 @@ class Pairwise(MultiClip):
 
     def instruction(self, study: Study, expected: list[str]) -> str:
         label = clip_label(Assignment.LEFT if expected[0] == Rating.Answer.LEFT else Assignment.RIGHT)
-        return f"Attention check: whatever you think of these clips, please choose clip {label}."
+        return _("Attention check: whatever you think of these clips, please choose clip %(clip)s.") % {"clip": label}
 
     def follows_instruction(self, study: Study, expected: list[str], answer: Answer) -> bool:
         return answer.choice == expected[0]
 
     def task(self, study: Study) -> str:
         if study.abx:
-            return "Each page shows a reference clip X and two clips, A and B: say which of them is closer to X."
-        return f"Each page shows two clips, A and B. {study.question} Say which clip is better."
+            return _("Each page shows a reference clip X and two clips, A and B: say which of them is closer to X.")
+        return _("Each page shows two clips, A and B. %(question)s Say which clip is better.") % {"question": study.question}
 
     def page_context(self, study: Study, page: Page) -> dict:
         return {**super().page_context(study, page), "strengths": list(self.strengths(study)),
@@ -223,18 +224,20 @@ class Pairwise(MultiClip):
     def read_answer(self, study: Study, form: QueryDict) -> Answer:
         return Answer(form.get(self.form_field, ""), self.slot_times(form, list(SIDES)),
                       choice=form.get("answer", "").strip(),
-                      strength=whole_number(form, "strength", "the strength of the preference"))
+                      strength=whole_number(form, "strength", _("the strength of the preference")))
 
     def check_answer(self, study: Study, answer: Answer, slots: list[int]) -> None:
         if answer.choice not in Rating.Answer.values:
-            raise AnswerRefused(f"the answer must be one of {', '.join(Rating.Answer.values)}, "
-                                f"not {answer.choice[:20]!r}")
+            raise AnswerRefused(_("the answer must be one of %(answers)s, not %(given)s")
+                                % {"answers": ", ".join(Rating.Answer.values), "given": repr(answer.choice[:20])})
         strengths = self.strengths(study)
         if answer.choice == Rating.Answer.NONE or not strengths:
             if answer.strength is not None:
-                raise AnswerRefused("a strength goes with a preference for one clip, and only where the study asks it")
+                raise AnswerRefused(_("a strength goes with a preference for one clip, and only where the study "
+                                      "asks it"))
         elif answer.strength not in strengths:
-            raise AnswerRefused(f"the strength of the preference must be a whole number from 1 to {len(strengths)}")
+            raise AnswerRefused(_("the strength of the preference must be a whole number from 1 to %(high)s")
+                                % {"high": len(strengths)})
 
     def exclusion_reason(self, rules: ExclusionRules, study: Study, page: list[OnPage], answer: Answer) -> str:
         preferred = any(rules.preferred_attention(clip.system, answer.choice, SIDES.get(clip.assignment.slot))

@@ -41,7 +41,7 @@ from studyapp.researchers.setup.forms import (CheckpointSystemForm, ControlEditF
 from studyapp.researchers.results.monitor import study_monitor
 from studyapp.researchers.results.monitor_figures import live_figures
 from studyapp.researchers.crowd.participant_list import participant_rows, participants_csv, question_names
-from studyapp.researchers.setup.preview import preview_pages
+from studyapp.researchers.setup.preview import preview_pages, render_preview
 from studyapp.researchers.setup.readiness import open_problems, open_warnings
 from studyapp.researchers.setup.removal import SystemsFixed, removal_summary, remove, remove_study, require_not_started
 from studyapp.researchers.results.reports import AnalysisInputError, create_study_report, html_table
@@ -429,7 +429,7 @@ def study_preview(request: HttpRequest, pk: int, index: int = 0) -> HttpResponse
     following = reverse("study-preview-page", args=[study.pk, index + 1]) if index + 1 < len(pages) else ""
     preview = {"index": index + 1, "count": len(pages), "name": page.name, "next": following,
                "back": reverse("study-monitor", args=[study.pk])}
-    return render(request, f"studyapp/participant/{page.template}", {"study": study, "preview": preview, **page.context})
+    return render_preview(request, study, page, preview)
 
 
 @never_cache
