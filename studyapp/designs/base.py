@@ -271,6 +271,7 @@ class Design:
             "total": page.total, "percent": round(100 * page.done / page.total) if page.total else 100,
             "upcoming": page.upcoming, "time_fields": TIME_FIELDS,
             "instruction": self.instruction(study, expected) if any(expected) else "",
+            "instructed": ",".join(expected) if any(expected) else "",  # the same, in no language (dry runs read it)
         }
 
     def task(self, study: Study) -> str:

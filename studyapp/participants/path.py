@@ -92,10 +92,13 @@ class Step:
         return [self.page(study, nobody)] if self.pending(nobody) else []
 
 
-def message(request: HttpRequest, title: str, text: str, status: int = 200, back: str = "") -> HttpResponse:
-    """A page with a title and one notice, and no form; ``back``, a link to the page to go on from."""
-    return render(request, "studyapp/participant/message.html", {"title": title, "text": text, "back": back},
-                  status=status)
+def message(request: HttpRequest, title: str, text: str, status: int = 200, back: str = "",
+            ending: str = "") -> HttpResponse:
+    """A page with a title and one notice, and no form; ``back``, a link to the page to go on from;
+    ``ending``, how the participant's study ended there, in no language (``data-ending``, which
+    ``simulated`` reads, as on the completion page)."""
+    return render(request, "studyapp/participant/message.html",
+                  {"title": title, "text": text, "back": back, "ending": ending}, status=status)
 
 
 def current_page(request: HttpRequest, study: Study, participant: Participant, in_place: bool = False) -> HttpResponse:
@@ -209,7 +212,8 @@ def questions_page(part: str) -> PageContext:
         asked = questions(study, part)
         return {"questions": [(question, field_name(question)) for question in asked],
                 "action": "participant-screening" if part == Question.Part.BEFORE else "participant-survey",
-                "heading": _("A few questions first") if part == Question.Part.BEFORE else _("A few questions to finish")}
+                "heading": (_("A few questions first") if part == Question.Part.BEFORE
+                            else _("A few questions to finish"))}
     return page
 
 
@@ -246,9 +250,10 @@ def _screened_out_page(study: Study, participant: Participant) -> dict:
     ending = _("Thank you for your answers. This study is looking for participants with other answers, so it ends "
                "here for you.")
     if not study.screen_out_code:
-        return {"heading": _("Thank you"), "text": ending + " " + _("Please return it on your platform (do not submit "
-                                                                    "it), so that your place goes to someone else.")}
-    return {"heading": _("Thank you"),
+        return {"heading": _("Thank you"), "ending": "screened-out",
+                "text": ending + " " + _("Please return it on your platform (do not submit it), so that your place "
+                                         "goes to someone else.")}
+    return {"heading": _("Thank you"), "ending": "screened-out",
             "text": ending + " " + _("The code below tells %(platform)s that you were screened out, so that you are "
                                      "paid for your time.") % {"platform": study.get_platform_display()},
             **_leaving_with(study, participant, study.screen_out_code)}
@@ -290,7 +295,7 @@ def mturk_submit_url(platform_data: dict) -> str | None:
 
 def completion_page(study: Study, participant: Participant) -> dict:
     """Where a finished participant goes and what code they are given."""
-    return _leaving_with(study, participant, study.completion_code, study.redirect_url)
+    return {"ending": "finished", **_leaving_with(study, participant, study.completion_code, study.redirect_url)}
 
 
 def _leaving_with(study: Study, participant: Participant, code: str, target: str = "") -> dict:

@@ -217,7 +217,7 @@ def _enrolled(request: HttpRequest, study: Study) -> HttpResponse:
             participant = enrol(study, platform_id, data, request.META.get("HTTP_USER_AGENT", ""))
         except StudyFull:
             return message(request, _("The study is full"), _("Thank you for your interest: every clip has "
-                           "received the ratings it needs. Please return the study on your platform."))
+                           "received the ratings it needs. Please return the study on your platform."), ending="full")
         except StudyNotReady:
             return message(request, _("Not ready yet"), _("This study has no clips yet. Please try again later."), 503)
         except IntegrityError:  # the same id arriving at once elsewhere enrolled it: its session decides, as below
