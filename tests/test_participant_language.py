@@ -302,3 +302,6 @@ def test_the_language_is_a_setting_of_the_study_page_its_definition_bundle_and_p
     assert describe_study(study)["the_study"]["language"] == "de"
     assert study_record(study)["study"]["language"] == "de"
     assert plan_contents(study)["design"]["settings"]["language"] == "de"
+    client = Client()
+    client.force_login(study.owner)
+    assert "<li>Language: de</li>" in client.get(reverse("study-plan", args=[study.pk])).content.decode()

@@ -126,8 +126,8 @@ def record_answer(participant: Participant, answer: Answer) -> None:
         with pipeline(), transaction.atomic():
             _store(participant.study, participant, answer)
     except IntegrityError:  # a second submission racing this one; the transaction stored nothing
-        raise AnswerRefused(_("%(that_one)s has already been answered")
-                            % {"that_one": design_of(participant.study).participant_words.that_one}, status=409) from None
+        that_one = design_of(participant.study).participant_words.that_one
+        raise AnswerRefused(_("%(that_one)s has already been answered") % {"that_one": that_one}, status=409) from None
     except AnsweredTooSoon:  # counted outside the transaction, which stored nothing
         Participant.objects.filter(pk=participant.pk).update(refused_early=F("refused_early") + 1)
         raise

@@ -207,7 +207,8 @@ class Pairwise(MultiClip):
     def task(self, study: Study) -> str:
         if study.abx:
             return _("Each page shows a reference clip X and two clips, A and B: say which of them is closer to X.")
-        return _("Each page shows two clips, A and B. %(question)s Say which clip is better.") % {"question": study.question}
+        return (_("Each page shows two clips, A and B. %(question)s Say which clip is better.")
+                % {"question": study.question})
 
     def page_context(self, study: Study, page: Page) -> dict:
         return {**super().page_context(study, page), "strengths": list(self.strengths(study)),
