@@ -28,6 +28,7 @@ from studyapp.participants.path import screen_need
 from studyapp.plan.contents import plan_contents
 from studyapp.researchers.setup.forms import StudyForm
 from tests.appropriateness_fixtures import make_appropriateness_study
+from tests.test_hostile_numbers import study_fields
 from tests.study_fixtures import make_study
 from tests.test_study_designs import PAIRWISE, SIDE_BY_SIDE
 
@@ -293,6 +294,17 @@ def test_an_expired_form_is_explained_in_the_studys_language():
     enter(client, study)
     response = client.post(f"/p/{study.key}/consent/", {"agree": "yes"})
     assert response.status_code == 403 and "Diese Seite war abgelaufen" in response.content.decode()
+
+
+def test_the_study_form_sets_the_language_and_one_from_before_the_setting_keeps_it():
+    study = make_study(controls=0, is_open=False)
+    form = StudyForm(study_fields(language="de"), instance=study)
+    assert form.is_valid(), form.errors
+    assert form.save().language == "de"
+    form = StudyForm(study_fields(), instance=Study.objects.get(pk=study.pk))  # no language field posted
+    assert form.is_valid(), form.errors
+    assert form.save().language == "de"
+    assert "language" in StudyForm(study_fields(language="xx"), instance=study).errors
 
 
 def test_the_language_is_a_setting_of_the_study_page_its_definition_bundle_and_plan():

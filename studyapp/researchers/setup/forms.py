@@ -80,7 +80,7 @@ class StudyForm(forms.ModelForm):
                                   help_text=Study._meta.get_field("redirect_url").help_text)
 
     OPTIONAL_SIZES = ("min_screen_width", "min_screen_height")  # left empty: any size
-    KEPT_WHEN_EMPTY = ("path_tolerance_cm",)  # left empty (a form from before the setting): as it is
+    KEPT_WHEN_EMPTY = ("path_tolerance_cm", "language")  # left empty (a form from before the setting): as it is
 
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
@@ -138,7 +138,7 @@ class StudyForm(forms.ModelForm):
             if self.cleaned_data.get(name) is None and name not in self.errors:
                 self.cleaned_data[name] = 0
         for name in self.KEPT_WHEN_EMPTY:
-            if self.cleaned_data.get(name) is None and name not in self.errors:
+            if self.cleaned_data.get(name) in (None, "") and name not in self.errors:
                 self.cleaned_data[name] = getattr(self.instance, name)
         camera = {name[len(CAMERA_PREFIX):]: self.cleaned_data.get(name) for name in self.camera_fields()}
         for setting, value in camera.items():
