@@ -9,7 +9,7 @@ import shutil
 import numpy as np
 import pytest
 
-from analysis.footsteps import footstep_summary
+from analysis.motion.footsteps import footstep_summary
 from generation.motion.augment import mirror
 from generation.motion.bvh import load_motion, motion_to_bvh, write_bvh
 from generation.motion.dataset import DatasetOptions, build_dataset, find_bvh_files, load_body_motion, read_labels

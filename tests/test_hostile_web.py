@@ -20,7 +20,7 @@ import pytest
 from django.contrib.auth.models import Permission, User
 from django.core.files.uploadedfile import SimpleUploadedFile
 
-from analysis.simulate import simulate_ratings
+from analysis.ratings.simulate import simulate_ratings
 from generation.motion.dataset import DatasetOptions
 from generation.render.camera import Camera
 from studyapp.models import Assignment, ControlSignal, Participant, Rating, Stimulus, Study, System, camera_problem

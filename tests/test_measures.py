@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from analysis.cli import main as analysis_main
-from analysis.motion_io import SystemClips
-from analysis.units import to_centimetres_y_up
+from analysis.motion.motion_io import SystemClips
+from analysis.motion.centimetres import to_centimetres_y_up
 from generation.cli import main as generation_main
 from generation.motion.bvh import load_motion, motion_to_bvh, write_bvh
 from generation.motion.types import Motion, Skeleton

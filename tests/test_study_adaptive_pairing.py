@@ -1,5 +1,5 @@
 """Adaptive pairing as a pairwise study's setting: a new participant's pairs are planned
-from the fit of the votes stored so far (`analysis.pairing.plan_pairs`), sides balanced,
+from the fit of the votes stored so far (`analysis.rankings.pairing.plan_pairs`), sides balanced,
 and evenly as without the setting while there are too few votes."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from django.utils import timezone
 
-from analysis.pairing import plan_pairs
+from analysis.rankings.pairing import plan_pairs
 from studyapp.designs.pairwise import stored_pages
 from studyapp.models import Assignment, Participant, Rating, Stimulus
 from studyapp.participants.assignment import enrol

@@ -11,8 +11,8 @@ from django.core.exceptions import ValidationError
 from django.test import Client
 from django.urls import reverse
 
-from analysis.minimums import MODEL_MIN_PARTICIPANTS
-from analysis.ratings import read_ratings
+from analysis.stats.minimums import MODEL_MIN_PARTICIPANTS
+from analysis.ratings.reading import read_ratings
 from studyapp.models import Participant, Rating, Stimulus, Study, System
 from studyapp.researchers.results.export import ratings_csv
 from studyapp.researchers.setup.forms import StudyForm

@@ -24,8 +24,8 @@ from django.contrib.auth.models import User
 from django.core.management import call_command
 from django.core.management.base import CommandError
 
-from analysis.motion_io import SystemClips
-from analysis.objective import objective_metrics
+from analysis.motion.motion_io import SystemClips
+from analysis.motion.objective import objective_metrics
 from generation.motion.dataset import load_body_motion, read_labels
 from generation.motion.npz import load_motion_npz
 from generation.motion.types import Motion

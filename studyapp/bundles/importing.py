@@ -48,7 +48,7 @@ from django.core.exceptions import ValidationError
 from django.db import transaction
 
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import ExclusionRules
+from analysis.ratings.exclusions import ExclusionRules
 from generation.files import atomic_folder, atomic_output
 from generation.motion.npz import MotionFileError, load_motion_npz
 from generation.store import SHA256_HEX, SUFFIX, CheckpointError, content_digest, read_header

@@ -15,7 +15,7 @@ NAT's clip of a held-out control beside another take that obviously does not fol
 never repeats a rated page; preferring that take excludes the participant), and the
 rest from every system's pairs, least loaded first, among them the systems and controls
 this participant has seen least. In the ratings table a check page's rows name their
-system BAD, as the analysis expects (``analysis.appropriateness``). Practice shows pairs
+system BAD, as the analysis expects (``analysis.stats.matching``). Practice shows pairs
 too, an attention check's among them, none that the participant rates.
 """
 
@@ -28,8 +28,8 @@ import pandas as pd
 from django.db.models import QuerySet
 from django.utils.translation import gettext as _, gettext_lazy
 
-from analysis.appropriateness import appropriateness_scores, matched_preference
-from analysis.exclusions import ExclusionRules
+from analysis.stats.matching import appropriateness_scores, matched_preference
+from analysis.ratings.exclusions import ExclusionRules
 from studyapp.designs.base import Answer, OnPage, Page, PlannedPage
 from studyapp.designs.multi_clip import key_of, page_orders
 from studyapp.designs.pairwise import SIDES, Pairwise, balanced_sides

@@ -29,12 +29,12 @@ from django.http import QueryDict
 from django.utils.functional import Promise
 from django.utils.translation import gettext as _, gettext_lazy
 
-from analysis.exclusions import ExclusionRules
+from analysis.ratings.exclusions import ExclusionRules
 from studyapp.models import Assignment, Rating, Stimulus, Study, System
 
 if TYPE_CHECKING:
-    from analysis.design_report import DesignReport
-    from analysis.report import Report
+    from analysis.reports.design_report import DesignReport
+    from analysis.reports.single_report import Report
 
 PageKey = frozenset[int]  # the ids of a page's clips other than BAD: what a page's load counts
 TIME_FIELDS = ("started_s", "ended_s", "answered_s", "played_until_s")  # a clip's times on the page's form

@@ -10,7 +10,7 @@ there does not. An instructed check asks for clip A or B. Practice shows pairs t
 ``training_clips`` clips, a BAD-versus-NAT pair among them, none that the participant rates.
 
 Adaptive pairing (the study's ``adaptive_pairing``): the pairs of systems on a new
-participant's rated pages are planned at enrolment by `analysis.pairing.plan_pairs` from
+participant's rated pages are planned at enrolment by `analysis.rankings.pairing.plan_pairs` from
 the fit of the study's votes stored so far (kept participants' answered pages, early
 answers left out where the study discards them), each page in turn where one more vote is
 expected to narrow the leaderboard's intervals and settle its order most, a tenth of them
@@ -38,9 +38,9 @@ import pandas as pd
 from django.http import QueryDict
 from django.utils.translation import gettext as _
 
-from analysis.exclusions import ExclusionRules
-from analysis.pairing import plan_pairs
-from analysis.pairwise import preference_pairs
+from analysis.ratings.exclusions import ExclusionRules
+from analysis.rankings.pairing import plan_pairs
+from analysis.stats.preferences import preference_pairs
 from studyapp.designs.answers import whole_number
 from studyapp.designs.base import Answer, OnPage, Page, PlannedPage, clip_label
 from studyapp.designs.multi_clip import MultiClip, bad_for, by_control, key_of, page_orders
@@ -153,7 +153,7 @@ class Pairwise(MultiClip):
 
     def _adaptive_pages(self, study: Study, pairs: list[tuple[Stimulus, Stimulus]], loads: Counter, wanted: int,
                         rng: random.Random) -> list[PlannedPage] | None:
-        """Up to ``wanted`` pages whose pairs of systems `analysis.pairing.plan_pairs` plans
+        """Up to ``wanted`` pages whose pairs of systems `analysis.rankings.pairing.plan_pairs` plans
         from the votes so far (see the module's docstring); None with too few votes."""
         by_systems: dict[frozenset[str], list[tuple[Stimulus, Stimulus]]] = {}
         for pair in sorted(pairs, key=lambda p: loads[key_of(list(p))]):  # stable: random among equal loads

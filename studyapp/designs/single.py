@@ -25,8 +25,8 @@ from django.db.models import Count, Q
 from django.http import QueryDict
 from django.utils.translation import gettext as _
 
-from analysis.exclusions import ExclusionRules
-from analysis.report import Report
+from analysis.ratings.exclusions import ExclusionRules
+from analysis.reports.single_report import Report
 from studyapp.designs.answers import client_times
 from studyapp.designs.base import CLIP_WORDS, Answer, Design, OnPage, Page, PlannedPage, rated_clip_exclusion
 from studyapp.models import Assignment, Stimulus, Study, System

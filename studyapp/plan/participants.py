@@ -9,7 +9,7 @@ turns new participants away.
 With an expected effect (``Study.expected_effect``), the number is the power module's:
 the analysis' object of the study's design gives the units (ratings per system, pages
 per pair) its test needs to detect that effect at the report's alpha, split over the
-pairs of compared systems, with the report's power (``analysis.power``); the same
+pairs of compared systems, with the report's power (``analysis.stats.power``); the same
 simulated pages say how many of those units one participant gives to the least served
 system or pair, and so how many participants give them all.
 """

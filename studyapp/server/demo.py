@@ -103,12 +103,13 @@ def wait_for_worker(app, timeout: float = 60.0) -> None:
 def render_gallery(data: str, media_root: Path) -> int:
     from tqdm import tqdm
 
-    from generation.gallery import GalleryOptions, choose_clips, write_index
+    from generation.gallery import GalleryOptions, choose_clips, with_figure, write_index
     from studyapp.tasks import render_natural_clip
 
     options = GalleryOptions()
     out = media_root / "gallery"
     clips = choose_clips(data, options.per_content, options.contents, options.seconds, options.min_seconds)
+    options = with_figure(options, clips)  # every worker draws the first clip's figure
     pending = [render_natural_clip.delay(str(p), str(out), options.to_dict()) for p in clips]
     entries = []
     with tqdm(total=len(pending), desc="worker rendering gallery", unit="clip") as bar:

@@ -89,11 +89,12 @@ def _resolve_inside(document_root: Path, relative_path: str) -> Path:
 
 
 def accel_redirect(request: HttpRequest, path: str, document_root: str | Path,
-                   internal_prefix: str) -> HttpResponse:
+                   internal_prefix: str, max_age: int) -> HttpResponse:
     """An empty answer that tells the proxy in front to send `document_root/path` itself, from its
     own copy of the folder at ``internal_prefix`` (nginx's X-Accel-Redirect, which Caddy's
     ``handle_response`` reads too): the proxy answers ranges and caching, and no Python thread
-    is held while a clip downloads. The same files are refused as ``serve_with_ranges`` refuses.
+    is held while a clip downloads. Its Cache-Control (private, ``max_age`` seconds) is the one
+    the proxy sends with the file. The same files are refused as ``serve_with_ranges`` refuses.
     """
     if request.method not in ("GET", "HEAD"):
         return HttpResponseNotAllowed(["GET", "HEAD"])
@@ -101,6 +102,7 @@ def accel_redirect(request: HttpRequest, path: str, document_root: str | Path,
     target = _resolve_inside(root, path)
     response = HttpResponse()
     response["X-Accel-Redirect"] = f"{internal_prefix.rstrip('/')}/{quote(target.relative_to(root).as_posix())}"
+    response["Cache-Control"] = f"private, max-age={max_age}"
     return response
 
 

@@ -13,6 +13,7 @@ from django.core.exceptions import ImproperlyConfigured
 
 from studyapp.server.embedded import (
     FILESYSTEM_BROKER_URL,
+    FILESYSTEM_TRANSPORT,
     filesystem_broker_options,
     filesystem_result_backend_url,
     is_filesystem_broker,
@@ -171,6 +172,7 @@ STORAGES = {
 
 CELERY_BROKER_URL = env_str("CELERY_BROKER_URL", FILESYSTEM_BROKER_URL)
 if is_filesystem_broker(CELERY_BROKER_URL):
+    CELERY_BROKER_TRANSPORT = FILESYSTEM_TRANSPORT
     CELERY_BROKER_TRANSPORT_OPTIONS = filesystem_broker_options(VAR_DIR)
 CELERY_RESULT_BACKEND = env_str("CELERY_RESULT_BACKEND", "") or filesystem_result_backend_url(VAR_DIR)
 CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True

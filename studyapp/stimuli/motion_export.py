@@ -2,7 +2,7 @@
 system, one clip in two files.
 
     OUT/<system>/<control id>.npz    positions (frames, joints, 3) cm, y up; fps; names;
-                                     parents; offsets; system (analysis/motion_io.py's layout);
+                                     parents; offsets; system (analysis/motion/motion_io.py's layout);
                                      for a path control also control_path, control_yaw,
                                      root_path and root_yaw (its control adherence)
     OUT/<system>/<control id>.bvh    the same clip as a rotation BVH on the system's rig:

@@ -14,7 +14,7 @@ behind and a half-written report is never served.
 
 A rerun's report (a study imported with ``import_study --rerun``) also keeps the previous
 run's ratings and rules (``previous-ratings.csv``, ``previous-rules.json``) and shows
-each run's kept ratings per system side by side (``analysis.previous_run``), as
+each run's kept ratings per system side by side (``analysis.ratings.previous_run``), as
 ``python -m analysis report --previous`` writes them.
 """
 
@@ -31,14 +31,15 @@ from django.conf import settings
 from django.utils.html import escape
 from django.utils.safestring import SafeString, mark_safe
 
-from analysis.design_report import DesignReport
+from analysis.reports.design_report import DesignReport
 from analysis.designs import table_design
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import ExclusionRules
-from analysis.previous_run import previous_run_comparison
-from analysis.ratings import read_ratings
-from analysis.report import Report, build_report, summary_text, write_report
-from analysis.tables import write_table
+from analysis.ratings.exclusions import ExclusionRules
+from analysis.ratings.previous_run import previous_run_comparison
+from analysis.ratings.reading import read_ratings
+from analysis.reports.single_report import Report, summary_text, write_report
+from analysis.ratings.report import build_report
+from analysis.reports.tables import write_table
 from generation.files import atomic_folder
 from studyapp.researchers.results.table_format import readable_table
 from studyapp.designs.registry import design_named
