@@ -1,6 +1,7 @@
 """A German study end to end in a real browser (headless Debian Chromium): from the device
-check and consent to the completion code, every page (and what its scripts write into it)
-in German but the researcher's own texts; and a side-by-side page of a German study, whose
+check and consent to the completion code, on a phone, every page (and what its scripts write
+into it) in German but the researcher's own texts, none wider than the screen ($SHOTS_DIR:
+each saved as a PNG); and a side-by-side page of a German study, whose
 script's notes are German too."""
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ import pytest
 from studyapp.models import Participant, Question, Rating, Study
 from tests.study_fixtures import current_clip, make_study
 from tests.test_participant_language import ENGLISH, without_researcher_texts
-from tests.test_participant_pages_browser import PHONE, play_to_end, skip_to_ratings, slots_on_page
+from tests.test_participant_pages_browser import PHONE, play_to_end, shoot, skip_to_ratings, slots_on_page
 from tests.test_study_browser import browser, clip_video, wait_for_clip_end  # noqa: F401 (fixtures)
 
 pytestmark = pytest.mark.slow
@@ -41,6 +42,9 @@ def test_a_german_study_runs_end_to_end_in_german(browser, live_server, clip_vid
 
     def look(name: str) -> None:
         assert page.evaluate("document.documentElement.lang") == "de", name
+        # The German words, longer than the English, still fit a phone's width.
+        assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth"), name
+        shoot(page, f"german-{name.replace(' ', '-')}")
         seen.append((name, english_on(page, study)))
 
     page.goto(f"{live_server.url}/p/{study.key}/?PROLIFIC_PID=de-1&STUDY_ID=S1&SESSION_ID=X1")
