@@ -23,7 +23,7 @@ from tqdm import tqdm
 
 from .files import write_atomic
 from .motion.bvh import bvh_duration
-from .motion.dataset import content_matches, find_bvh_files, load_body_motion, read_labels
+from .motion.clip_files import content_matches, find_bvh_files, load_body_motion, read_labels
 from .motion.root import RootOptions, root_trajectory
 from .motion.unit_detection import choose_units
 from .motion.types import Motion

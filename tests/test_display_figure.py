@@ -11,7 +11,7 @@ import pytest
 from PIL import Image
 
 from generation.gallery import GalleryOptions, render_clip, with_figure
-from generation.motion.dataset import load_body_motion
+from generation.motion.clip_files import load_body_motion
 from generation.motion.types import Motion, Skeleton
 from generation.render import Camera
 from generation.render.display_figure import (DisplayFigure, MappingError, base_name, check_mapping,

@@ -19,7 +19,7 @@ from generation.cli import main as generation_main
 from generation.motion.bvh import load_motion, motion_to_bvh, write_bvh
 from generation.motion.types import Motion, Skeleton
 from generation.motion.unit_detection import choose_units
-from generation.motion.units import detect_up
+from generation.motion.skeleton_units import detect_up
 from measures.units import HUMAN_HEIGHT_CM, UNITS, Z_UP_TO_Y_UP, parse_scale, unit_for_height, up_axis
 from tests.lab_rigs import LAB_RIGS
 

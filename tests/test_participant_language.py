@@ -25,7 +25,7 @@ from studyapp.definitions.describe import describe_study
 from studyapp.designs.registry import design_of
 from studyapp.models import Participant, Question, Stimulus, Study
 from studyapp.participants.path import screen_need
-from studyapp.plan.contents import plan_contents
+from studyapp.preregistration.contents import plan_contents
 from studyapp.researchers.setup.forms import StudyForm
 from tests.appropriateness_fixtures import make_appropriateness_study
 from tests.test_hostile_numbers import study_fields

@@ -281,7 +281,7 @@ def test_the_room_checker_sees_an_upward_import_in_a_type_checking_block(tmp_pat
 MOST_MODULES = 15
 DJANGO_FOLDERS = ("studyapp/migrations", "studyapp/management/commands")
 NOT_SPLIT_YET = {  # folders over the limit today, split by their own change (issue 54)
-    "studyapp/server": "studyapp/server/ is split into deployment, db/ and uploads/ by the studyapp change",
+    "generation/motion": "generation/motion/ gained the dataset's four modules; its rooms are still to be drawn",
     "generation/models": "generation/models/ holds one module per model kind; its split is still to be planned",
     "generation": "generation/'s top floor is still to be split into rooms",
 }

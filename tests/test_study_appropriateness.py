@@ -225,7 +225,7 @@ def test_the_monitor_and_the_report_show_each_systems_scores(client, settings, t
 
 
 def test_the_demo_reuses_the_motion_another_study_sampled_for_the_same_clips(settings, tmp_path):
-    from studyapp.server.demo import reuse_sampled_motion
+    from studyapp.demo import reuse_sampled_motion
     from studyapp.stimuli.sources import sampled_path
 
     settings.VAR_DIR = tmp_path

@@ -341,7 +341,7 @@ def test_the_monitor_summarises_each_design_with_the_analysis_functions():
 
 def test_the_demo_opens_a_side_by_side_study_on_the_single_studys_clips(settings, tmp_path):
     from studyapp.participants.assignment import enrol
-    from studyapp.server.demo import ensure_side_by_side_study
+    from studyapp.demo import ensure_side_by_side_study
 
     settings.MEDIA_ROOT = tmp_path / "media"
     video = tmp_path / "clip.mp4"

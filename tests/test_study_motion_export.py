@@ -26,7 +26,7 @@ from django.core.management.base import CommandError
 
 from analysis.motion.motion_io import SystemClips
 from analysis.motion.objective import objective_metrics
-from generation.motion.dataset import load_body_motion, read_labels
+from generation.motion.clip_files import load_body_motion, read_labels
 from generation.motion.npz import load_motion_npz
 from generation.motion.types import Motion
 from studyapp.models import Stimulus, Study, System

@@ -13,7 +13,7 @@ from datetime import datetime
 from django.http import QueryDict
 
 from studyapp.designs.answers import client_times
-from studyapp.designs.base import CLIP_WORDS, Answer, Design, PlannedPage
+from studyapp.designs.design import CLIP_WORDS, Answer, Design, PlannedPage
 from studyapp.models import Stimulus, Study, System
 from studyapp.participants.refusal import AnswerRefused
 

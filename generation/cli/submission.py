@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 
 from ..files import write_atomic
-from ..motion.dataset import find_bvh_files
+from ..motion.clip_files import find_bvh_files
 from ..motion.root import RootOptions
 from ..submission import PATH_TOLERANCE_CM, prepare_submission, read_controls, submission_zip
 from .common import add_unit_arguments, up_axis

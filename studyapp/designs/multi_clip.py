@@ -21,7 +21,7 @@ from django.http import QueryDict
 
 from analysis.reports.design_report import DesignReport
 from studyapp.designs.answers import client_times
-from studyapp.designs.base import Design, PageKey
+from studyapp.designs.design import Design, PageKey
 from studyapp.models import Assignment, Stimulus, Study, System
 
 

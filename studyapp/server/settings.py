@@ -55,13 +55,13 @@ INSTALLED_APPS = [
 ]
 
 MIDDLEWARE = [
-    "studyapp.server.upload_limit.UploadLimitMiddleware",  # before anything reads the body
-    "studyapp.server.unreadable_forms.UnreadableFormMiddleware",  # a body no form parse can read: 400, not 500
+    "studyapp.server.uploads.upload_limit.UploadLimitMiddleware",  # before anything reads the body
+    "studyapp.server.uploads.unreadable_forms.UnreadableFormMiddleware",  # a body no form parse can read: 400, not 500
     "django.middleware.security.SecurityMiddleware",
     "django.contrib.sessions.middleware.SessionMiddleware",
     "django.middleware.common.CommonMiddleware",
     "django.middleware.csrf.CsrfViewMiddleware",
-    "studyapp.server.null_characters.RefuseNullCharactersMiddleware",  # text PostgreSQL could not hold
+    "studyapp.server.uploads.null_characters.RefuseNullCharactersMiddleware",  # text PostgreSQL could not hold
     "django.contrib.auth.middleware.AuthenticationMiddleware",
     "django.contrib.messages.middleware.MessageMiddleware",
     "django.middleware.clickjacking.XFrameOptionsMiddleware",
@@ -109,7 +109,7 @@ if DATABASES["default"]["ENGINE"] == "django.db.backends.sqlite3":
     # disk, which made a crowd's writers time out). synchronous=NORMAL syncs at
     # checkpoints: a crashed server process loses nothing, a power cut the last moments.
     # The writers of one server process take turns (``sqlite_backend``) rather than poll.
-    DATABASES["default"]["ENGINE"] = "studyapp.server.sqlite_backend"
+    DATABASES["default"]["ENGINE"] = "studyapp.server.db.sqlite_backend"
     DATABASES["default"].setdefault("OPTIONS", {}).update({
         "transaction_mode": "IMMEDIATE", "timeout": 30,
         "init_command": "PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL;"})

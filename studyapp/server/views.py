@@ -13,7 +13,7 @@ from django.views.decorators.http import require_safe
 from studyapp.researchers.results.reports import REPORTS_FOLDER, report_owner
 from studyapp.server.celery import app as celery_app
 from studyapp.server.clip_urls import is_signed_and_current, seconds_left
-from studyapp.server.files import accel_redirect, serve_with_ranges
+from studyapp.server.file_responses import accel_redirect, serve_with_ranges
 from studyapp.server.health import HealthReport, collect_health
 from studyapp.server.media_bucket import clip_redirect, in_bucket
 from studyapp.stimuli.gallery import GALLERY_FOLDER

@@ -94,7 +94,7 @@ def adherence_arrays(stimulus: Stimulus, clip: Clip) -> dict[str, np.ndarray]:
 
 def label_side_file(stimulus: Stimulus) -> bytes | None:
     """For a clip of a label control, the labels it asked for as the BVH reader's side
-    file reads them (``generation.motion.dataset.read_labels``); None for a path."""
+    file reads them (``generation.motion.clip_files.read_labels``); None for a path."""
     signal = stimulus.control.signal()
     if not isinstance(signal, AttributeControl):
         return None

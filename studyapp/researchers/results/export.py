@@ -19,7 +19,7 @@ import pandas as pd
 
 from analysis.ratings.exclusions import early_discards
 from analysis.reports.tables import spreadsheet_safe
-from studyapp.designs.base import Design
+from studyapp.designs.design import Design
 from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Rating, Study

@@ -3,7 +3,7 @@
 The app runs exactly the ``analysis`` package's report (the same tables and figures as
 ``python -m analysis report``), with the exclusion rules it is given (a study's own, for
 the study's report), which the folder keeps as rules.json and the page states. A
-study's report keeps its locked plan and deviations too (``studyapp.plan``): plan.json
+study's report keeps its locked plan and deviations too (``studyapp.preregistration``): plan.json
 as data, plan.md in words, and the page states the plan's hash, time and deviations. The
 design of the table says which tables the page shows (``Design.report_tables``). A
 report lives in ``MEDIA_ROOT/reports/<digest>/``, named by the SHA-256 of the
@@ -45,8 +45,8 @@ from studyapp.researchers.results.table_format import readable_table
 from studyapp.designs.registry import design_named
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Study
-from studyapp.plan.lock import preregistration
-from studyapp.plan.words import PlanInWords, in_words, plan_markdown
+from studyapp.preregistration.lock import preregistration
+from studyapp.preregistration.words import PlanInWords, in_words, plan_markdown
 from studyapp.researchers.results.export import ratings_csv
 
 REPORTS_FOLDER = "reports"

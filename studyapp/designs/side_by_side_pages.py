@@ -31,7 +31,7 @@ from django.utils.translation import gettext as _
 from analysis.ratings.exclusions import ExclusionRules
 from analysis.stats.within_page import median_and_mean
 from studyapp.designs.answers import whole_number
-from studyapp.designs.base import Answer, OnPage, Page, PlannedPage, clip_label, rated_clip_exclusion, scale_words
+from studyapp.designs.design import Answer, OnPage, Page, PlannedPage, clip_label, rated_clip_exclusion, scale_words
 from studyapp.designs.multi_clip import MultiClip, bad_for, by_control, key_of, page_orders
 from studyapp.models import Assignment, Rating, Stimulus, Study, System
 from studyapp.participants.refusal import AnswerRefused

@@ -23,7 +23,7 @@ from itertools import combinations
 
 from analysis.levels import ALPHA, POWER
 from analysis.designs import design_named as analysed_design
-from studyapp.designs.base import PlannedPage
+from studyapp.designs.design import PlannedPage
 from studyapp.designs.registry import design_of
 from studyapp.models import Stimulus, Study, System
 

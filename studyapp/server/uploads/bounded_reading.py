@@ -75,7 +75,8 @@ def _measured(text: str, name: str) -> None:
         raise ReadRefused(f"{name}: nested more than {MAX_DEPTH} levels deep, deeper than a study's records")
 
 
-def _finite(text: str) -> float:
+def finite_float(text: str) -> float:
+    """The float of a JSON number's text; ValueError for one too large to hold (an infinity)."""
     value = float(text)
     if not math.isfinite(value):
         raise ValueError(f"the number {text[:40]} is too large to hold")
@@ -100,7 +101,7 @@ def json_value(data: bytes, name: str, limit: int) -> object:
     text = utf8_text(data, name)
     _measured(text, name)
     try:
-        return json.loads(text, parse_float=_finite, parse_int=_whole, parse_constant=_refused_constant)
+        return json.loads(text, parse_float=finite_float, parse_int=_whole, parse_constant=_refused_constant)
     except json.JSONDecodeError as error:
         raise ReadRefused(f"{name}: not JSON ({error})") from None
     except ValueError as error:  # a NaN, an infinity, an integer of thousands of digits
@@ -180,5 +181,5 @@ def _finite_numbers(value: object, name: str) -> None:
         _finite_numbers(item, name)
 
 
-__all__ = ["MAX_DEPTH", "MAX_ITEMS", "PlainLoader", "ReadRefused", "json_value", "read_bytes", "utf8_text",
+__all__ = ["MAX_DEPTH", "MAX_ITEMS", "PlainLoader", "ReadRefused", "finite_float", "json_value", "read_bytes", "utf8_text",
            "yaml_value"]

@@ -32,7 +32,7 @@ def _private(owner: object, name: str) -> object:
         full = f"{module}.{where}" if module and module != where else where
         raise ImportError(f"Django {django.get_version()} has no {full}.{name}, which the app's compiled queries "
                           f"and pipelined writes rely on (tested with Django {SUPPORTED_SERIES}; see "
-                          f"studyapp/server/django_internals.py)") from None
+                          f"studyapp/server/db/django_internals.py)") from None
 
 
 _sql = importlib.import_module("django.db.models.sql")

@@ -25,7 +25,7 @@ from collections.abc import Iterator
 from django.db import connection
 from django.db.models import Model, QuerySet
 
-from studyapp.server.django_internals import CURSOR, NO_RESULTS, insert_rows, select_sql, update_compiler
+from studyapp.server.db.django_internals import CURSOR, NO_RESULTS, insert_rows, select_sql, update_compiler
 
 
 def _pipelines() -> bool:

@@ -30,9 +30,9 @@ from django.utils.translation import gettext as _, gettext_lazy
 
 from analysis.stats.matching import appropriateness_scores, matched_preference
 from analysis.ratings.exclusions import ExclusionRules
-from studyapp.designs.base import Answer, OnPage, Page, PlannedPage
+from studyapp.designs.design import Answer, OnPage, Page, PlannedPage
 from studyapp.designs.multi_clip import key_of, page_orders
-from studyapp.designs.pairwise import SIDES, Pairwise, balanced_sides
+from studyapp.designs.pairwise_pages import SIDES, Pairwise, balanced_sides
 from studyapp.models import ATTENTION_NAME, Assignment, ControlSignal, Rating, Stimulus, Study, System
 from studyapp.stimuli.mismatched import study_pairings
 

@@ -28,7 +28,7 @@ from django.utils.translation import gettext as _
 from analysis.ratings.exclusions import ExclusionRules
 from analysis.reports.single_report import Report
 from studyapp.designs.answers import client_times
-from studyapp.designs.base import CLIP_WORDS, Answer, Design, OnPage, Page, PlannedPage, rated_clip_exclusion
+from studyapp.designs.design import CLIP_WORDS, Answer, Design, OnPage, Page, PlannedPage, rated_clip_exclusion
 from studyapp.models import Assignment, Stimulus, Study, System
 from studyapp.participants.assignment import active_since
 from studyapp.participants.refusal import AnswerRefused

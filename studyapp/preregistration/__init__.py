@@ -1,4 +1,4 @@
-"""A study's plan, locked when it first opens (pre-registration), and what changed since.
+"""A study's pre-registration: its plan, locked when it first opens, and every deviation from it since.
 
     contents.py      the plan: design and settings, rules, systems, controls, planned analysis
     participants.py  the planned number of participants: the targets' or the design's power

@@ -28,8 +28,8 @@ from django.db.models.signals import post_delete, post_save
 from django.utils import timezone
 
 from studyapp.models import ControlSignal, PlanDeviation, Study, StudyPlan, System
-from studyapp.plan.contents import canonical_json, plan_contents, tracked
-from studyapp.plan.participants import planned_participants
+from studyapp.preregistration.contents import canonical_json, plan_contents, tracked
+from studyapp.preregistration.participants import planned_participants
 
 PLAN_FORMAT = 1  # the plan's layout; a reader of an older one knows it by this
 PARTICIPANTS = "participants"  # the deviation of more participants than planned

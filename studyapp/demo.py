@@ -41,7 +41,7 @@ from django.core.exceptions import ImproperlyConfigured
 
 from studyapp.server.env import env_bool, env_str
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[1]
 # The data the committed MoGlow learnt from, prepared as it was (README, "Trained on the
 # real data"): the locomotion of both Bandai-Namco folders, windows overlapping by
 # three quarters, mirrored and reversed.
@@ -380,10 +380,11 @@ def main() -> int:
     from django.core.management import call_command
     from django.urls import reverse
 
-    from generation.motion.dataset import DatasetOptions, build_dataset
+    from generation.motion.dataset import build_dataset
+    from generation.motion.dataset_options import DatasetOptions
     from studyapp.server.celery import app
     from studyapp.stimuli.natural import data_folders
-    from studyapp.participants.views import PLATFORM_PARAMETERS
+    from studyapp.platforms.links import PLATFORM_PARAMETERS
 
     data = settings.MOTION_DATA
     missing = [folder for folder in data_folders() if not folder.is_dir()]

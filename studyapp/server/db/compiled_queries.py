@@ -25,7 +25,7 @@ from collections.abc import Callable
 from django.db import DEFAULT_DB_ALIAS
 from django.db.models import QuerySet
 
-from studyapp.server.django_internals import compile_select, run_compiled
+from studyapp.server.db.django_internals import compile_select, run_compiled
 
 _stand_in_numbers = itertools.count(1)
 

@@ -42,7 +42,7 @@ from analysis.ratings.exclusions import ExclusionRules
 from analysis.rankings.pairing import plan_pairs
 from analysis.stats.preferences import preference_pairs
 from studyapp.designs.answers import whole_number
-from studyapp.designs.base import Answer, OnPage, Page, PlannedPage, clip_label
+from studyapp.designs.design import Answer, OnPage, Page, PlannedPage, clip_label
 from studyapp.designs.multi_clip import MultiClip, bad_for, by_control, key_of, page_orders
 from studyapp.models import Assignment, Rating, Stimulus, Study, System
 from studyapp.participants.refusal import AnswerRefused
