@@ -44,6 +44,7 @@ from analysis.stats.preferences import preference_pairs
 from studyapp.designs.answers import whole_number
 from studyapp.designs.design import Answer, OnPage, Page, PlannedPage, clip_label
 from studyapp.designs.multi_clip import MultiClip, bad_for, by_control, key_of, page_orders
+from studyapp.designs.reasons import check_reasons, read_reasons, reasons_context
 from studyapp.models import Assignment, Rating, Stimulus, Study, System
 from studyapp.participants.refusal import AnswerRefused
 
@@ -85,7 +86,8 @@ def stored_pages(study: Study) -> pd.DataFrame:
 
 class Pairwise(MultiClip):
     template = "pairwise.html"
-    settings = ("pages_per_participant", "abx", "preference_strengths", "adaptive_pairing")
+    settings = ("pages_per_participant", "abx", "preference_strengths", "adaptive_pairing", "reasons",
+                "reasons_required")
     export_columns = ("design", "page", "side", "answer", "strength")
     on_scale = False
 
@@ -212,7 +214,7 @@ class Pairwise(MultiClip):
 
     def page_context(self, study: Study, page: Page) -> dict:
         return {**super().page_context(study, page), "strengths": list(self.strengths(study)),
-                "reference": self._reference(study, page)}
+                "reference": self._reference(study, page), **reasons_context(study)}
 
     def _reference(self, study: Study, page: Page) -> dict | None:
         """ABX: the page's reference X, the natural clip of its control (played like the others, not rated)."""
@@ -223,9 +225,11 @@ class Pairwise(MultiClip):
         return {"video_url": natural.video_url} if natural else None
 
     def read_answer(self, study: Study, form: QueryDict) -> Answer:
+        reasons, other = read_reasons(study, form)
         return Answer(form.get(self.form_field, ""), self.slot_times(form, list(SIDES)),
                       choice=form.get("answer", "").strip(),
-                      strength=whole_number(form, "strength", _("the strength of the preference")))
+                      strength=whole_number(form, "strength", _("the strength of the preference")),
+                      reasons=reasons, other_reason=other)
 
     def check_answer(self, study: Study, answer: Answer, slots: list[int]) -> None:
         if answer.choice not in Rating.Answer.values:
@@ -239,6 +243,7 @@ class Pairwise(MultiClip):
         elif answer.strength not in strengths:
             raise AnswerRefused(_("the strength of the preference must be a whole number from 1 to %(high)s")
                                 % {"high": len(strengths)})
+        check_reasons(study, answer.reasons, answer.other_reason)
 
     def exclusion_reason(self, rules: ExclusionRules, study: Study, page: list[OnPage], answer: Answer) -> str:
         preferred = any(rules.preferred_attention(clip.system, answer.choice, SIDES.get(clip.assignment.slot))

@@ -6,7 +6,7 @@ from django.db import migrations, models
 class Migration(migrations.Migration):
 
     dependencies = [
-        ('studyapp', '0018_display_figure_and_path_tolerance'),
+        ('studyapp', '0019_reasons_with_the_votes'),
     ]
 
     operations = [
