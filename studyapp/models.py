@@ -878,3 +878,7 @@ class PreviousRun(models.Model):
 
     def __str__(self) -> str:
         return f"previous run of {self.study}"
+
+
+# The leaderboards that span studies live in their own room; Django finds their models here.
+from studyapp.leaderboards.models import Leaderboard, Round  # noqa: E402,F401

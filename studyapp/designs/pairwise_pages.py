@@ -21,6 +21,13 @@ never past ``ratings_per_stimulus`` (two pairs of systems may share a control on
 participant's pages). With fewer stored votes than pairs of systems the fit would be the
 prior's, so pages are planned evenly as without the setting.
 
+A round of a leaderboard (`studyapp.leaderboards`): the votes of the board's other rounds
+in its fit count as votes so far too (among this study's systems, a system the same as a
+board's where their names in the ratings table are equal), so a new system's first round is
+planned against the board's current estimates: its pages go where the board is least certain
+of it, from the first participant on. Those votes are only read; their sides, balanced per
+pair within their own study, count with the rest.
+
 ABX, the variant: the control's natural clip is shown above A and B as a reference X, and
 the question is which of them is closer to it; pages pair the systems other than NAT, on
 controls with a natural clip (held-out controls), and X is not a row of the ratings table.
@@ -45,7 +52,7 @@ from studyapp.designs.answers import whole_number
 from studyapp.designs.design import Answer, OnPage, Page, PlannedPage, clip_label
 from studyapp.designs.multi_clip import MultiClip, bad_for, by_control, key_of, page_orders
 from studyapp.designs.reasons import check_reasons, read_reasons, reasons_context
-from studyapp.models import Assignment, Rating, Stimulus, Study, System
+from studyapp.models import Assignment, Rating, Stimulus, Study, System, export_name
 from studyapp.participants.refusal import AnswerRefused
 
 SIDES = {Assignment.LEFT: Rating.Answer.LEFT, Assignment.RIGHT: Rating.Answer.RIGHT}  # slot -> side
@@ -82,6 +89,32 @@ def stored_pages(study: Study) -> pd.DataFrame:
     table["vote"] = answered & ~table["excluded"].astype(bool) & ~(study.discard_early & table["early"].astype(bool))
     table["held"] = ~answered & ~table["finished"].astype(bool)
     return table.drop(columns=["early", "excluded", "finished"])
+
+
+def board_votes(study: Study) -> pd.DataFrame:
+    """The votes (rows of `stored_pages`, renamed to this study's system names) of the other
+    rounds in the fit of the leaderboard the study is a round of; empty if it is none's."""
+    columns = ["system_left", "system_right", "answer", "strength"]
+    board_round = getattr(study, "board_round", None)
+    if board_round is None:
+        return pd.DataFrame(columns=columns)
+    ours = {export_name(role, name): name for name, role in study.systems.values_list("name", "role")}
+    frames = []
+    for other in board_round.leaderboard.rounds.filter(in_fit=True).exclude(pk=board_round.pk).select_related("study"):
+        theirs = {name: ours.get(export_name(role, name)) for name, role in other.study.systems.values_list("name", "role")}
+        pages = stored_pages(other.study)
+        pages = pages[pages["vote"]].assign(system_left=lambda t: t["system_left"].map(theirs),
+                                            system_right=lambda t: t["system_right"].map(theirs))
+        frames.append(pages.dropna(subset=["system_left", "system_right"])[columns])
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=columns)
+
+
+def strength_words(count: int) -> list[tuple[int, str]]:
+    """Each strength of a preference, 1 to ``count``, with the word its button shows: the
+    weakest "slightly", the strongest "clearly" (GENEA's words, as the docs and the
+    appropriateness pages say them), any between by its number."""
+    words = {1: _("slightly"), count: _("clearly")} if count > 1 else {1: _("clearly")}
+    return [(point, words.get(point, str(point))) for point in range(1, count + 1)]
 
 
 class Pairwise(MultiClip):
@@ -163,7 +196,9 @@ class Pairwise(MultiClip):
         systems = sorted({s.system.name for pair in pairs for s in pair})
         stored = stored_pages(study)
         among = stored["system_left"].isin(systems) & stored["system_right"].isin(systems)
-        votes, held = stored[among & stored["vote"]], stored[among & stored["held"]]
+        board = board_votes(study)
+        board = board[board["system_left"].isin(systems) & board["system_right"].isin(systems)]
+        votes, held = pd.concat([board, stored[among & stored["vote"]]], ignore_index=True), stored[among & stored["held"]]
         if len(systems) < 2 or len(votes) < len(systems) * (len(systems) - 1) // 2:
             return None
         natural = {s.system.name for pair in pairs for s in pair if s.system.role == System.Role.NATURAL}
@@ -213,7 +248,7 @@ class Pairwise(MultiClip):
                 % {"question": study.question})
 
     def page_context(self, study: Study, page: Page) -> dict:
-        return {**super().page_context(study, page), "strengths": list(self.strengths(study)),
+        return {**super().page_context(study, page), "strengths": strength_words(len(self.strengths(study))),
                 "reference": self._reference(study, page), **reasons_context(study)}
 
     def _reference(self, study: Study, page: Page) -> dict | None:

@@ -6,7 +6,7 @@ from django.db import migrations, models
 class Migration(migrations.Migration):
 
     dependencies = [
-        ('studyapp', '0019_reasons_with_the_votes'),
+        ('studyapp', '0020_leaderboards_and_rounds'),
     ]
 
     operations = [
