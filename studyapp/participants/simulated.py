@@ -47,7 +47,7 @@ _POINT = re.compile(r'<button type="submit" name="value" value="(-?\d+)"(?: disa
 # Side-by-side and pairwise pages: a slider per clip, or the answer buttons and strengths.
 _SLIDER = re.compile(r'<input type="range" form="page-form" id="[^"]+" name="(value-\d+)"[^>]*? min="(-?\d+)" max="(-?\d+)"')
 _ANSWER = re.compile(r'<button type="submit" name="answer" value="(\w+)"')
-_STRENGTH = re.compile(r'<input type="radio" name="strength" value="(\d+)"')
+_STRENGTH = re.compile(r'<button type="submit" name="strength" value="(\d+)"')
 _PLAY = re.compile(r'data-play="(\d+)"')
 _RATING_STEP = "/rate/"
 _CLIP_STEPS = ("/practice/", _RATING_STEP)  # the forms that the clip pages' script sends
