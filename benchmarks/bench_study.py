@@ -46,6 +46,8 @@ clients asking as fast as they can for ``FLOOR_S``: the requests per second and 
 request that no rating step of this stack can beat on the machine, against which the
 saturation's ratings per second and CPU per rating are read.
 
+*Clips*: ``bench_study_clips.py``, this benchmark's crowds downloading every clip.
+
     python benchmarks/bench_study.py [--participants 100] [--crowds 500,1000] [--json]   # everything
     python benchmarks/bench_study.py --only server-time --reference-code /tmp/before     # the rating step
     python benchmarks/bench_study.py --only crowd            # 100 at saturation and watching, both setups
@@ -74,7 +76,7 @@ import tempfile
 import time
 import urllib.request
 from urllib.parse import urlencode
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -117,9 +119,11 @@ def django_step(env: dict, *args: str, code: Path = REPO) -> str:
                           check=True, capture_output=True, text=True).stdout.strip()
 
 
-def setup_study(participants: int) -> str:
-    """Migrate, and create an open 20-clip study whose stimuli exist (no videos are
-    fetched), with room for ``participants``: 90 rated stimuli, 19 of them per participant."""
+def setup_study(participants: int, video: str | None = None, clip_seconds: float = BROWSER_CLIP_S) -> str:
+    """Migrate, and create an open 20-clip study whose stimuli exist, with room for
+    ``participants``: 90 rated stimuli, 19 of them per participant. Without ``video`` no
+    clip is fetched (none exists); with it every clip is a copy of it (``clip_seconds``
+    long), in MEDIA_ROOT or, with MEDIA_BUCKET_URL, only in the bucket."""
     import django
 
     django.setup()
@@ -130,7 +134,18 @@ def setup_study(participants: int) -> str:
     call_command("migrate", verbosity=0)
     study = make_study(owner_name="bench", controls=30, clips_per_participant=CLIPS,
                        ratings_per_stimulus=max(40, math.ceil(participants * (CLIPS - 1) / 90) + 2),
-                       training_clips=2, clip_seconds=0.01)
+                       training_clips=2, clip_seconds=clip_seconds if video else 0.01,
+                       video=Path(video) if video else None)
+    if video:
+        from django.core.files import File
+        from django.core.files.storage import default_storage
+
+        from studyapp.server.media_bucket import in_bucket
+
+        for stimulus in study.stimuli.all() if in_bucket() else []:  # the clips only in the bucket
+            with stimulus.video_path().open("rb") as stream:
+                default_storage.save(stimulus.relative_path, File(stream))
+            stimulus.video_path().unlink()
     return study.key
 
 
@@ -282,15 +297,18 @@ def server_errors(log: Path) -> list[str]:
     return [f"{count} x {key}" for key, count in counts.items()]
 
 
-def crowd(entry_url: str, participants: int, watch_s: float) -> tuple[list[Outcome], float]:
-    """Run the participants in client processes of their own; their outcomes and CPU seconds."""
+def crowd(entry_url: str, participants: int, watch_s: float,
+          participant: Callable | None = None) -> tuple[list[Outcome], float]:
+    """Run the participants in client processes of their own; their outcomes and CPU seconds.
+    ``participant`` makes each (default: run_participants' own, who download no clip)."""
     processes = math.ceil(participants / PARTICIPANTS_PER_PROCESS)
     shares = [participants // processes + (i < participants % processes) for i in range(processes)]
+    makers = [[participant] * processes] if participant else []  # a reference checkout's takes none
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     with ProcessPoolExecutor(max_workers=processes) as pool:
         batches = list(pool.map(run_participants, [entry_url] * processes, shares, [None] * processes,
                                 ["PROLIFIC_PID"] * processes, [f"sim{i}" for i in range(processes)],
-                                [watch_s] * processes))
+                                [watch_s] * processes, *makers))
     after = resource.getrusage(resource.RUSAGE_CHILDREN)  # the pool's processes, reaped at its end
     cpu_s = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     return [outcome for batch in batches for outcome in batch], cpu_s
@@ -586,13 +604,15 @@ def main() -> int:
                              "crowds and browser (targets) are measured alongside this one's")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     parser.add_argument("--setup", type=int, metavar="PARTICIPANTS", help=argparse.SUPPRESS)
+    parser.add_argument("--video", help=argparse.SUPPRESS)
+    parser.add_argument("--clip-seconds", type=float, default=BROWSER_CLIP_S, help=argparse.SUPPRESS)
     parser.add_argument("--count", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--server-time", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--setup-browser", metavar="VIDEO", help=argparse.SUPPRESS)
     parser.add_argument("--setup-floor", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.setup is not None or args.count or args.server_time or args.setup_browser or args.setup_floor:
-        print(setup_study(args.setup) if args.setup is not None else count_ratings() if args.count
+        print(setup_study(args.setup, args.video, args.clip_seconds) if args.setup is not None else count_ratings() if args.count
               else setup_browser_study(args.setup_browser) if args.setup_browser
               else setup_floor() if args.setup_floor else server_time())
         return 0

@@ -8,6 +8,7 @@ test runs on one machine would share), and the folder is deleted afterwards.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import shutil
 import subprocess
@@ -32,6 +33,7 @@ class S3Server:
     bucket: str
     access_key: str
     secret_key: str
+    pid: int = 0  # the server's process
 
     def client(self):
         return boto3.client("s3", endpoint_url=self.endpoint_url, aws_access_key_id=self.access_key,
@@ -75,7 +77,7 @@ def s3_server(bucket: str = "media") -> Iterator[S3Server]:
         stdout=log, stderr=subprocess.STDOUT)
     try:
         _create_bucket_once_up(server, process, folder / "log")
-        yield server
+        yield dataclasses.replace(server, pid=process.pid)
     finally:
         process.kill()  # its data is thrown away; stopping gracefully takes it twenty seconds
         process.wait()

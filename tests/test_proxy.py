@@ -11,7 +11,6 @@ import http.cookiejar
 import os
 import re
 import signal
-import ssl
 import subprocess
 import time
 import urllib.error
@@ -25,8 +24,9 @@ from django.conf import settings
 from django.db import connection
 from django.utils.http import http_date
 
-from studyapp.models import Participant, Rating, Study
+from studyapp.models import Participant, Rating
 from studyapp.server.clip_urls import seconds_left, signed_clip_url
+from tests.caddy_proxy import CADDYFILE, STATIC, Proxy
 from tests.conftest import REPO
 from tests.study_fixtures import make_study, render_clip_video
 from tests.test_serving_burst import compose_web_command
@@ -35,52 +35,11 @@ from tests.throwaway_postgres import free_port
 
 pytestmark = [pytest.mark.django_db(transaction=True), pytest.mark.slow]
 
-CADDYFILE = REPO / "deploy" / "Caddyfile"
-STATIC = REPO / "studyapp" / "static"
-
 
 @pytest.fixture(scope="module")
 def clip_video(motion_data, tmp_path_factory) -> Path:
     bvh = motion_data / "data" / "dataset-1_walk_normal_001.bvh"
     return render_clip_video(bvh, tmp_path_factory.mktemp("video") / "clip.mp4", 1.0)
-
-
-class Proxy:
-    """Caddy with the deployment's Caddyfile on free ports, its certificates from its local CA."""
-
-    def __init__(self, folder: Path, upstream: str, media_root: Path) -> None:
-        self.port = free_port()
-        self.url = f"https://localhost:{self.port}"
-        data = folder / "caddy"
-        environment = {**os.environ, "STUDY_DOMAIN": "localhost", "STUDY_HTTPS_PORT": str(self.port),
-                       "STUDY_HTTP_PORT": str(free_port()), "STUDY_LOCAL_CERTS": "local_certs",
-                       "STUDY_UPSTREAM": upstream, "MEDIA_ROOT": str(media_root), "STATIC_ROOT": str(STATIC),
-                       "XDG_DATA_HOME": str(data), "XDG_CONFIG_HOME": str(data), "HOME": str(folder)}
-        self.log = (folder / "caddy.log").open("w")
-        self.process = subprocess.Popen(["caddy", "run", "--config", str(CADDYFILE), "--adapter", "caddyfile"],
-                                        cwd=folder, env=environment, stdout=self.log, stderr=subprocess.STDOUT)
-        root_certificate = data / "caddy" / "pki" / "authorities" / "local" / "root.crt"
-        self.tls = self._trusting(root_certificate)
-
-    def _trusting(self, root_certificate: Path) -> ssl.SSLContext:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            if self.process.poll() is not None:
-                raise RuntimeError(f"caddy exited: {Path(self.log.name).read_text()[-3000:]}")
-            if root_certificate.is_file():
-                context = ssl.create_default_context(cafile=str(root_certificate))  # this CA alone
-                try:
-                    urllib.request.urlopen(f"{self.url}/static/studyapp/site.css", context=context, timeout=5).close()
-                    return context
-                except OSError:  # ssl.SSLError and URLError among them
-                    pass
-            time.sleep(0.2)
-        raise RuntimeError(f"caddy did not answer over HTTPS: {Path(self.log.name).read_text()[-3000:]}")
-
-    def stop(self) -> None:
-        self.process.terminate()
-        self.process.wait(timeout=20)
-        self.log.close()
 
 
 @pytest.fixture

@@ -23,13 +23,13 @@ from studyapp.leaderboards.fit import SAME_SYSTEM_RULE, BoardFit
 
 PUBLIC_COLUMNS = ("rank", "system", "elo", "ci_low", "ci_high", "pages", "wins", "losses", "ties", "first_round",
                   "first_round_name", "since", "rounds", "anchor", "origin", "model", "resamples_used",
-                  "participants", "few_participants")
+                  "participants", "warning")
 HEADERS = {"rank": "Rank", "system": "System", "elo": "Elo", "ci_low": "95 % low", "ci_high": "95 % high",
            "pages": "Votes (pages)", "wins": "Won", "losses": "Lost", "ties": "No preference",
            "first_round": "Since round", "first_round_name": "Round's name", "since": "First vote",
            "rounds": "Rounds", "anchor": "Anchor", "origin": "Origin", "model": "Model",
            "resamples_used": "Resamples used", "participants": "Participants (all rounds)",
-           "few_participants": "Few participants"}
+           "warning": "Warning"}
 
 
 def public_table(fit: BoardFit) -> pd.DataFrame:
@@ -87,7 +87,7 @@ def board_context(fit: BoardFit) -> dict:
         "method": method_text(report) if report is not None else "",
         "same_system_rule": SAME_SYSTEM_RULE,
         "participants": int(table["participants"].iloc[0]) if len(table) else 0,
-        "few_participants": bool(table["few_participants"].any()) if len(table) else False,
+        "warning": next((w for w in table["warning"] if w), "") if len(table) else "",
         "heat_map": heat_map_png(fit),
         "notes": fit.notes,
     }

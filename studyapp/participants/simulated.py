@@ -38,6 +38,7 @@ import urllib.error
 import urllib.parse
 import urllib.request
 from collections import Counter
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -153,7 +154,7 @@ class SimulatedParticipant:
         elif _QUESTIONS in match.group(0):
             data.update(self._questions_answer(form))
         elif points or sliders or answers:  # a rating page: every clip on it played to its end first
-            time.sleep(max(self.watch_s, longest_clip_s(body)))
+            self._watch(body)
             found = _INSTRUCTION.search(body)
             asked = html.unescape(found.group(1)).split(",") if found else []
             if points:
@@ -176,6 +177,10 @@ class SimulatedParticipant:
             self.outcome.rating_latencies_s.append(time.perf_counter() - start)
             return result
         return self._open(url, data, _IN_PLACE if action.endswith(_CLIP_STEPS) else None)
+
+    def _watch(self, body: str) -> None:
+        """Stay on a rating page as a person watching its clips does: its longest clip, at least ``watch_s``."""
+        time.sleep(max(self.watch_s, longest_clip_s(body)))
 
     def _page_answer(self, body: str, sliders: list[tuple[str, str, str]], answers: list[str],
                      strengths: list[str]) -> dict:
@@ -241,10 +246,13 @@ class SimulatedParticipant:
 
 
 def run_participants(entry_url: str, count: int, concurrency: int | None = None,
-                     id_parameter: str = "PROLIFIC_PID", prefix: str = "sim", watch_s: float = 0.0) -> list[Outcome]:
+                     id_parameter: str = "PROLIFIC_PID", prefix: str = "sim", watch_s: float = 0.0,
+                     participant: Callable[..., SimulatedParticipant] | None = None) -> list[Outcome]:
     """``count`` participants, ``concurrency`` at a time (default: all at once), each
-    spending at least ``watch_s`` on every rating page before answering."""
-    participants = [SimulatedParticipant(entry_url, f"{prefix}-{i:05d}", id_parameter, watch_s=watch_s)
+    spending at least ``watch_s`` on every rating page before answering; ``participant``
+    makes each (default: ``SimulatedParticipant``, or a kind of it that does more)."""
+    participant = participant or SimulatedParticipant
+    participants = [participant(entry_url, f"{prefix}-{i:05d}", id_parameter, watch_s=watch_s)
                     for i in range(count)]
     with ThreadPoolExecutor(max_workers=concurrency or count) as pool:
         return list(pool.map(SimulatedParticipant.run, participants))
