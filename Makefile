@@ -8,7 +8,7 @@ INSTALLED := $(VENV)/.installed
 # The motion capture: the demo and the study app read $MOTION_DATA (by default both
 # Bandai-Namco folders, studyapp/server/settings.py), the tests ../shared/data (tests/conftest.py).
 
-.PHONY: demo demo-models test bench tour docs docs-reference install clean
+.PHONY: demo demo-models test bench tour docs docs-reference messages install clean
 
 install: $(INSTALLED)
 
@@ -55,6 +55,14 @@ demo: $(INSTALLED)
 # (models/SHA256SUMS); `make demo` uses the committed ones and trains nothing itself.
 demo-models: $(INSTALLED)
 	PYTHON=$(BIN)/python scripts/train-demo-models.sh
+
+# The participant pages' catalogues (studyapp/locale/*/LC_MESSAGES/django.po) written again from the
+# code, then compiled to the committed django.mo: translate what is new or changed in each django.po
+# and run it again (tests/test_participant_language.py fails until both are current). Needs GNU gettext;
+# a new language starts with `cd studyapp && ../.venv/bin/python ../manage.py makemessages -l xx`.
+messages: $(INSTALLED)
+	cd studyapp && ../$(BIN)/python ../manage.py makemessages --all --no-location --no-obsolete
+	cd studyapp && ../$(BIN)/python ../manage.py compilemessages
 
 # The screenshots of docs/running-a-study.md, taken again by the tests' browser.
 tour: $(INSTALLED)

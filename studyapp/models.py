@@ -180,6 +180,12 @@ class Study(models.Model):
         MTURK = "mturk", "Amazon Mechanical Turk"
         LINK = "link", "A plain link"
 
+    class Language(models.TextChoices):
+        """The languages participant pages come in (each with its studyapp/locale catalogue)."""
+
+        ENGLISH = "en", "English"
+        GERMAN = "de", "German (Deutsch)"
+
     owner = models.ForeignKey(settings.AUTH_USER_MODEL, on_delete=models.CASCADE, related_name="studies")
     title = models.CharField(max_length=200)
     # The participants' entry link carries this key; it says nothing about the study.
@@ -196,6 +202,10 @@ class Study(models.Model):
         "This study is part of research on computer-generated motion. Taking part is voluntary and you "
         "may stop at any time. We record your ratings, the time you take, and the id your crowd "
         "platform gives you; nothing else about you."))
+    language = models.CharField(
+        max_length=8, choices=Language.choices, default=Language.ENGLISH,
+        help_text="the language of the participant pages' own words (buttons, hints, messages); the title, "
+                  "instructions, consent, question, labels and questions are shown as written")
     # A registered design's name (studyapp.designs.registry), as the ratings table's design column says it.
     design = models.CharField(max_length=20, choices=designs.choices, default=designs.DEFAULT)
     clips_per_participant = models.PositiveSmallIntegerField(

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from studyapp.models import Participant, Question, Rating
+from studyapp.models import Participant, Question, Rating, Study
 from studyapp.participants.simulated import FAILED, SimulatedParticipant, main, run_participants, summary
 from tests.appropriateness_fixtures import make_appropriateness_study
 from tests.study_fixtures import make_study
@@ -81,6 +81,29 @@ def test_the_dry_run_walks_a_careful_study_of_every_design(live_server, design, 
     assert f"6 participants: {finished.count()} finished, {screened_out.count()} screened out, 0 refused because " \
            "the study was full, 0 failed" in said.out
     assert said.err == ""
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("design", ["single", "side-by-side", "pairwise"])
+def test_the_dry_run_reads_a_german_studys_pages_as_an_english_ones(live_server, design, capsys):
+    """The instructed checks and the endings are read in no language (data-expected, data-ending)."""
+    study = DESIGNS[design]()
+    study.language = Study.Language.GERMAN
+    study.save(update_fields=["language"])
+    add_questions(study)
+    assert main([f"{live_server.url}/p/{study.key}/", "-n", "4", "--concurrency", "1"]) == 0
+    participants = Participant.objects.filter(study=study)
+    finished, screened_out = participants.filter(finished_at__isnull=False), participants.filter(
+        screened_out_at__isnull=False)
+    assert not participants.filter(failed_checks__gt=0).exists(), "the instructed checks answered as they ask"
+    assert f"4 participants: {finished.count()} finished, {screened_out.count()} screened out, 0 refused because " \
+           "the study was full, 0 failed" in capsys.readouterr().out and finished.exists()
+    full = make_study(owner_name="other", controls=1, clips_per_participant=3, ratings_per_stimulus=1,
+                      training_clips=0, bad_checks=0, natural_checks=0, clip_seconds=0.05,
+                      language=Study.Language.GERMAN)
+    assert main([f"{live_server.url}/p/{full.key}/", "-n", "2", "--concurrency", "1"]) == 0
+    assert "2 participants: 1 finished, 0 screened out, 1 refused because the study was full, 0 failed" in \
+        capsys.readouterr().out
 
 
 @pytest.mark.django_db(transaction=True)

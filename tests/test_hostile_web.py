@@ -142,7 +142,8 @@ def test_the_admin_makes_a_staff_researchers_new_study_their_own_and_lists_no_ot
               "bad_threshold": 4, "natural_threshold": 2, "reservation_minutes": 60, "platform": "link",
               "camera": '{"azimuth": 30}', "video_width": 320, "video_height": 240, "owner": victim.pk,
               "design": "single", "pages_per_participant": 0, "preference_strengths": 0, "instructed_checks": 0,
-              "stop_after_failed_checks": 0, "min_screen_width": 0, "min_screen_height": 0, "path_tolerance_cm": 100}
+              "stop_after_failed_checks": 0, "min_screen_width": 0, "min_screen_height": 0, "path_tolerance_cm": 100,
+              "language": "en"}
     response = client.post("/admin/studyapp/study/add/", fields)
 
     assert response.status_code == 302, response.context["adminform"].form.errors

@@ -13,7 +13,7 @@ from datetime import datetime
 from django.http import QueryDict
 
 from studyapp.designs.answers import client_times
-from studyapp.designs.design import Answer, Design, PlannedPage
+from studyapp.designs.design import CLIP_WORDS, Answer, Design, PlannedPage
 from studyapp.models import Stimulus, Study, System
 from studyapp.participants.refusal import AnswerRefused
 
@@ -29,6 +29,7 @@ TEMPLATE = """{% extends "studyapp/participant/base.html" %}{% block content %}
 class Thumbs(Design):
     template = "thumbs.html"
     page_word = "Clip"
+    participant_words = CLIP_WORDS
 
     def loads(self, study: Study, cutoff: datetime) -> Counter:
         return Counter()

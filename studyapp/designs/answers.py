@@ -26,6 +26,7 @@ from django.db import IntegrityError, transaction
 from django.db.models import F
 from django.http import QueryDict
 from django.utils import timezone
+from django.utils.translation import gettext as _
 
 from studyapp.designs.design import Answer, ClientTimes, OnPage, TIME_FIELDS
 from studyapp.designs.registry import design_of
@@ -41,10 +42,11 @@ class AnsweredTooSoon(AnswerRefused):
     """An answer that arrived sooner after its page was sent than its clips last."""
 
     def __init__(self, waited: timedelta, longest_s: float, clips: int) -> None:
-        what = "the clip to its end" if clips == 1 else "every clip to its end"
-        lasts = "it lasts" if clips == 1 else "the longest lasts"
-        super().__init__(f"Please watch {what} before you answer: {lasts} {longest_s:.1f} s and your answer came "
-                         f"{waited.total_seconds():.1f} s after it was sent.", status=409)
+        text = (_("Please watch the clip to its end before you answer: it lasts %(lasts)s s and your answer came "
+                  "%(waited)s s after it was sent.") if clips == 1 else
+                _("Please watch every clip to its end before you answer: the longest lasts %(lasts)s s and your "
+                  "answer came %(waited)s s after it was sent."))
+        super().__init__(text % {"lasts": f"{longest_s:.1f}", "waited": f"{waited.total_seconds():.1f}"}, status=409)
 
 
 def optional_seconds(form: QueryDict, name: str) -> float | None:
@@ -55,9 +57,11 @@ def optional_seconds(form: QueryDict, name: str) -> float | None:
     try:
         value = float(text)
     except ValueError:
-        raise AnswerRefused(f"{name} must be a number of seconds, not {text[:20]!r}") from None
+        raise AnswerRefused(_("%(name)s must be a number of seconds, not %(given)s")
+                            % {"name": name, "given": repr(text[:20])}) from None
     if not 0 <= value < 1e6:
-        raise AnswerRefused(f"{name} must lie between 0 and a million seconds, not {value}")
+        raise AnswerRefused(_("%(name)s must lie between 0 and a million seconds, not %(given)s")
+                            % {"name": name, "given": value})
     return value
 
 
@@ -74,7 +78,8 @@ def whole_number(form: QueryDict, name: str, what: str) -> int | None:
     try:
         return int(text)
     except ValueError:
-        raise AnswerRefused(f"{what} must be a whole number, not {text[:20]!r}") from None
+        raise AnswerRefused(_("%(what)s must be a whole number, not %(given)s")
+                            % {"what": what, "given": repr(text[:20])}) from None
 
 
 def _sooner_than_clip(shown_at: datetime | None, clip_seconds: float | None, answered_at: datetime) -> timedelta | None:
@@ -114,15 +119,15 @@ def record_answer(participant: Participant, answer: Answer) -> None:
     """Store the answer to the participant's current page, or raise AnswerRefused (nothing
     stored); ``participant`` is updated in memory as the answer changed it."""
     if participant.finished_at is not None:  # the last page answered, or stopped with pages left
-        raise AnswerRefused("this participant has already finished the study", status=409)
+        raise AnswerRefused(_("this participant has already finished the study"), status=409)
     try:
         # The server waits for the database twice (round_trips): for the page's clips, sent
         # with the transaction's start, and for the commit, sent with the writes.
         with pipeline(), transaction.atomic():
             _store(participant.study, participant, answer)
     except IntegrityError:  # a second submission racing this one; the transaction stored nothing
-        raise AnswerRefused(f"that {design_of(participant.study).page_word.lower()} has already been answered",
-                            status=409) from None
+        that_one = design_of(participant.study).participant_words.that_one
+        raise AnswerRefused(_("%(that_one)s has already been answered") % {"that_one": that_one}, status=409) from None
     except AnsweredTooSoon:  # counted outside the transaction, which stored nothing
         Participant.objects.filter(pk=participant.pk).update(refused_early=F("refused_early") + 1)
         raise
@@ -143,9 +148,9 @@ def _store(study: Study, participant: Participant, answer: Answer) -> None:
     # one else's; a race past them ends at the rating's unique assignment (IntegrityError).
     unrated = _unrated_for_update(participant.pk)
     if not unrated:
-        raise AnswerRefused("this participant has already finished the study", status=409)
+        raise AnswerRefused(_("this participant has already finished the study"), status=409)
     if unrated[0].token != answer.page:
-        raise refusal(participant, answer.page, design.page_word.lower())
+        raise refusal(participant, answer.page, str(design.participant_words.that_one))
     page = [a for a in unrated if a.page == unrated[0].page]
     design.check_answer(study, answer, [a.slot for a in page])
     now = timezone.now()
@@ -186,11 +191,13 @@ def _store(study: Study, participant: Participant, answer: Answer) -> None:
         setattr(participant, name, value)
 
 
-def refusal(participant: Participant, token: str, unit: str) -> AnswerRefused:
-    """Why ``token`` does not name the page on screen (asked only when it does not)."""
+def refusal(participant: Participant, token: str, that_one: str) -> AnswerRefused:
+    """Why ``token`` does not name the page on screen (asked only when it does not);
+    ``that_one``: the design's words for it ("that page", ``PageWords.that_one``)."""
     assignment = Assignment.objects.filter(participant=participant, token=token).first()
     if assignment is None:
-        return AnswerRefused(f"that {unit} is not assigned to this participant", status=403)
+        return AnswerRefused(_("%(that_one)s is not assigned to this participant") % {"that_one": that_one},
+                             status=403)
     if Rating.objects.filter(assignment=assignment).exists():
-        return AnswerRefused(f"that {unit} has already been answered", status=409)
-    return AnswerRefused(f"that {unit} is not the one on screen now", status=409)
+        return AnswerRefused(_("%(that_one)s has already been answered") % {"that_one": that_one}, status=409)
+    return AnswerRefused(_("%(that_one)s is not the one on screen now") % {"that_one": that_one}, status=409)

@@ -26,6 +26,7 @@ from collections import Counter
 
 import pandas as pd
 from django.db.models import QuerySet
+from django.utils.translation import gettext as _
 
 from analysis.stats.matching import appropriateness_scores, matched_preference
 from analysis.ratings.exclusions import ExclusionRules
@@ -113,8 +114,8 @@ class Appropriateness(Pairwise):
         return [s.id for pair in pages for s in rng.sample(pair, 2)]
 
     def task(self, study: Study) -> str:
-        return ("Each page shows two clips, A and B, of a character asked to move in a certain way: say which "
-                "clip's motion fits what it was asked better.")
+        return _("Each page shows two clips, A and B, of a character asked to move in a certain way: say which "
+                 "clip's motion fits what it was asked better.")
 
     def page_context(self, study: Study, page: Page) -> dict:
         clips = page.clips

@@ -26,6 +26,8 @@ from typing import TYPE_CHECKING
 import pandas as pd
 from django.db.models import QuerySet
 from django.http import QueryDict
+from django.utils.functional import Promise
+from django.utils.translation import gettext as _, gettext_lazy
 
 from analysis.ratings.exclusions import ExclusionRules
 from studyapp.models import Assignment, Rating, Stimulus, Study, System
@@ -111,6 +113,25 @@ class OnPage:
     seconds: float
 
 
+@dataclass(frozen=True)
+class PageWords:
+    """What the participant's pages call one of a design's pages, in the page's language:
+    the heading ("Page 3 of 8"), a practice page's, and the refusals' "that page"."""
+
+    heading: Promise  # with %(number)s and %(total)s
+    practice_heading: Promise  # the same
+    that_one: Promise
+
+    def of(self, number: int, total: int, practice: bool = False) -> str:
+        return (self.practice_heading if practice else self.heading) % {"number": number, "total": total}
+
+
+PAGE_WORDS = PageWords(gettext_lazy("Page %(number)s of %(total)s"),
+                       gettext_lazy("Practice page %(number)s of %(total)s (not recorded)"), gettext_lazy("that page"))
+CLIP_WORDS = PageWords(gettext_lazy("Clip %(number)s of %(total)s"),
+                       gettext_lazy("Practice clip %(number)s of %(total)s (not recorded)"), gettext_lazy("that clip"))
+
+
 def rated_clip_exclusion(rules: ExclusionRules, study: Study, page: list[OnPage], answer: Answer) -> str:
     """Why the values given to a page's clips exclude the participant ("" if they do not):
     the attention rules on the study's scale, clip by clip."""
@@ -124,6 +145,12 @@ def rated_clip_exclusion(rules: ExclusionRules, study: Study, page: list[OnPage]
     return ""
 
 
+def scale_words(study: Study) -> dict:
+    """The study's question and scale, as the participant's texts name them (``%(question)s``, ``%(low)s``, ...)."""
+    return {"question": study.question, "low": study.scale_min, "low_label": study.label_min,
+            "high": study.scale_max, "high_label": study.label_max}
+
+
 def clip_label(slot: int) -> str:
     """The neutral name of the clip at ``slot`` (1: A; past Z, or a slot a form made up, its number)."""
     return chr(ord("A") + slot - 1) if 1 <= slot <= 26 else str(slot)
@@ -134,7 +161,8 @@ class Design:
     lack; ``registry.DESIGNS`` names each with its class (registered by studyapp/apps.py)."""
 
     template: str  # the rating page, under templates/studyapp/participant/
-    page_word = "Page"  # the heading's "Page 3 of 8"
+    page_word = "Page"  # what the researcher's pages call one of its pages
+    participant_words = PAGE_WORDS  # and the participant's, in their language
     count_field = "pages_per_participant"  # the study's field saying how many pages a participant answers
     form_field = "page"  # the hidden field naming the page on its form
     default_scale: tuple[int, int] | None = None  # a new study's scale, where the design has its own
@@ -245,12 +273,13 @@ class Design:
             "total": page.total, "percent": round(100 * page.done / page.total) if page.total else 100,
             "upcoming": page.upcoming, "time_fields": TIME_FIELDS,
             "instruction": self.instruction(study, expected) if any(expected) else "",
+            "instructed": ",".join(expected) if any(expected) else "",  # the same, in no language (dry runs read it)
         }
 
     def task(self, study: Study) -> str:
         """What the instructions page says each page asks of the participant."""
-        return (f"For each clip you will answer: {study.question} On a scale from {study.scale_min} "
-                f"({study.label_min}) to {study.scale_max} ({study.label_max}).")
+        return _("For each clip you will answer: %(question)s On a scale from %(low)s (%(low_label)s) to %(high)s "
+                 "(%(high_label)s).") % scale_words(study)
 
     # Answers.
 

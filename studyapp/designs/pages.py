@@ -52,7 +52,7 @@ def rating_page(study: Study, participant: Participant) -> dict:
                         clip["stimulus__shown_control_id"])
                for clip in sorted(current, key=lambda clip: clip["slot"])],
         action="participant-rate", form={design.form_field: current[0]["token"]},
-        heading=f"{design.page_word} {done + 1} of {len(pages)}", done=done, total=len(pages),
+        heading=design.participant_words.of(done + 1, len(pages)), done=done, total=len(pages),
         upcoming=[_video_url(clip["stimulus__token"]) for clip in upcoming])
     return design.page_context(study, page)
 
@@ -84,7 +84,7 @@ def _clips_context(study: Study, clips: list[Stimulus], action: str, form: dict,
 def practice_context(study: Study, pages: list[list[Stimulus]], done: int, total: int, index: int) -> dict:
     """The context of practice page ``pages[0]`` (``done`` of ``total`` passed), its form naming ``index``."""
     return _clips_context(study, pages[0], "participant-practice", {"index": str(index)},
-                          f"Practice {design_of(study).page_word.lower()} {done + 1} of {total} (not recorded)",
+                          design_of(study).participant_words.of(done + 1, total, practice=True),
                           done, total, pages[1] if len(pages) > 1 else [])
 
 
@@ -119,7 +119,7 @@ def preview_rating_pages(study: Study) -> list[dict]:
     page = next((page for page in planned if not page.is_check), planned[0])
     total = design.page_count(study)
     return [_clips_context(study, page.clips, "participant-rate", {design.form_field: "preview"},
-                           f"{design.page_word} 1 of {total}", 0, total, [])]
+                           design.participant_words.of(1, total), 0, total, [])]
 
 
 def preview_practice_pages(study: Study) -> list[dict]:

@@ -43,6 +43,7 @@ from collections import Counter
 import numpy as np
 import pandas as pd
 from django.http import QueryDict
+from django.utils.translation import gettext as _
 
 from analysis.ratings.exclusions import ExclusionRules
 from analysis.rankings.pairing import plan_pairs
@@ -112,7 +113,7 @@ def strength_words(count: int) -> list[tuple[int, str]]:
     """Each strength of a preference, 1 to ``count``, with the word its button shows: the
     weakest "slightly", the strongest "clearly" (GENEA's words, as the docs and the
     appropriateness pages say them), any between by its number."""
-    words = {1: "slightly", count: "clearly"} if count > 1 else {1: "clearly"}
+    words = {1: _("slightly"), count: _("clearly")} if count > 1 else {1: _("clearly")}
     return [(point, words.get(point, str(point))) for point in range(1, count + 1)]
 
 
@@ -235,15 +236,16 @@ class Pairwise(MultiClip):
 
     def instruction(self, study: Study, expected: list[str]) -> str:
         label = clip_label(Assignment.LEFT if expected[0] == Rating.Answer.LEFT else Assignment.RIGHT)
-        return f"Attention check: whatever you think of these clips, please choose clip {label}."
+        return _("Attention check: whatever you think of these clips, please choose clip %(clip)s.") % {"clip": label}
 
     def follows_instruction(self, study: Study, expected: list[str], answer: Answer) -> bool:
         return answer.choice == expected[0]
 
     def task(self, study: Study) -> str:
         if study.abx:
-            return "Each page shows a reference clip X and two clips, A and B: say which of them is closer to X."
-        return f"Each page shows two clips, A and B. {study.question} Say which clip is better."
+            return _("Each page shows a reference clip X and two clips, A and B: say which of them is closer to X.")
+        return (_("Each page shows two clips, A and B. %(question)s Say which clip is better.")
+                % {"question": study.question})
 
     def page_context(self, study: Study, page: Page) -> dict:
         return {**super().page_context(study, page), "strengths": strength_words(len(self.strengths(study))),
@@ -261,19 +263,21 @@ class Pairwise(MultiClip):
         reasons, other = read_reasons(study, form)
         return Answer(form.get(self.form_field, ""), self.slot_times(form, list(SIDES)),
                       choice=form.get("answer", "").strip(),
-                      strength=whole_number(form, "strength", "the strength of the preference"),
+                      strength=whole_number(form, "strength", _("the strength of the preference")),
                       reasons=reasons, other_reason=other)
 
     def check_answer(self, study: Study, answer: Answer, slots: list[int]) -> None:
         if answer.choice not in Rating.Answer.values:
-            raise AnswerRefused(f"the answer must be one of {', '.join(Rating.Answer.values)}, "
-                                f"not {answer.choice[:20]!r}")
+            raise AnswerRefused(_("the answer must be one of %(answers)s, not %(given)s")
+                                % {"answers": ", ".join(Rating.Answer.values), "given": repr(answer.choice[:20])})
         strengths = self.strengths(study)
         if answer.choice == Rating.Answer.NONE or not strengths:
             if answer.strength is not None:
-                raise AnswerRefused("a strength goes with a preference for one clip, and only where the study asks it")
+                raise AnswerRefused(_("a strength goes with a preference for one clip, and only where the study "
+                                      "asks it"))
         elif answer.strength not in strengths:
-            raise AnswerRefused(f"the strength of the preference must be a whole number from 1 to {len(strengths)}")
+            raise AnswerRefused(_("the strength of the preference must be a whole number from 1 to %(high)s")
+                                % {"high": len(strengths)})
         check_reasons(study, answer.reasons, answer.other_reason)
 
     def exclusion_reason(self, rules: ExclusionRules, study: Study, page: list[OnPage], answer: Answer) -> str:

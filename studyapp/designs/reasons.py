@@ -19,6 +19,7 @@ import re
 
 from django.http import QueryDict
 from django.utils.html import strip_tags
+from django.utils.translation import gettext as _
 
 from studyapp.models import Rating, Study
 from studyapp.participants.refusal import AnswerRefused
@@ -42,25 +43,27 @@ def read_reasons(study: Study, form: QueryDict) -> tuple[tuple[str, ...], str]:
     typed = form.get(OTHER_FIELD, "")
     if not listed:
         if numbers or typed.strip() or form.get(OTHER_BOX):
-            raise AnswerRefused("this study asks for no reasons")
+            raise AnswerRefused(_("this study asks for no reasons"))
         return (), ""
     chosen = set()
     for number in numbers:
         if not (number.isascii() and number.isdigit() and 1 <= int(number) <= len(listed)):
-            raise AnswerRefused(f"a reason is one of the {len(listed)} listed, by its number; not {number[:20]!r}")
+            raise AnswerRefused(_("a reason is one of the %(count)s listed, by its number; not %(given)s")
+                                % {"count": len(listed), "given": repr(number[:20])})
         chosen.add(int(number))
     if len(typed) > MAX_OTHER_CHARS:
-        raise AnswerRefused(f"the other reason is at most {MAX_OTHER_CHARS} characters, not {len(typed)}")
+        raise AnswerRefused(_("the other reason is at most %(limit)s characters, not %(given)s")
+                            % {"limit": MAX_OTHER_CHARS, "given": len(typed)})
     other = plain_text(typed)
     if form.get(OTHER_BOX) and not other:
-        raise AnswerRefused('please say in a few words what the other reason is, or untick "Other"')
+        raise AnswerRefused(_('please say in a few words what the other reason is, or untick "Other"'))
     return tuple(listed[n - 1] for n in sorted(chosen)), other
 
 
 def check_reasons(study: Study, reasons: tuple[str, ...], other: str) -> None:
     """Refuse an answer without a reason where the study requires one."""
     if study.reason_list and study.reasons_required and not reasons and not other:
-        raise AnswerRefused('please tick at least one reason for your answer (or "Other" with a few words)')
+        raise AnswerRefused(_('please tick at least one reason for your answer (or "Other" with a few words)'))
 
 
 def reasons_context(study: Study) -> dict:

@@ -26,11 +26,12 @@ from collections import Counter
 
 import pandas as pd
 from django.http import QueryDict
+from django.utils.translation import gettext as _
 
 from analysis.ratings.exclusions import ExclusionRules
 from analysis.stats.within_page import median_and_mean
 from studyapp.designs.answers import whole_number
-from studyapp.designs.design import (Answer, OnPage, Page, PlannedPage, clip_label, rated_clip_exclusion)
+from studyapp.designs.design import Answer, OnPage, Page, PlannedPage, clip_label, rated_clip_exclusion, scale_words
 from studyapp.designs.multi_clip import MultiClip, bad_for, by_control, key_of, page_orders
 from studyapp.designs.reasons import check_reasons, read_reasons, reasons_context
 from studyapp.models import Assignment, Rating, Stimulus, Study, System
@@ -139,8 +140,8 @@ class SideBySide(MultiClip):
 
     def instruction(self, study: Study, expected: list[str]) -> str:
         label = clip_label(expected.index(MAX) + 1)
-        return (f"Attention check: whatever you think of these clips, please move the slider of clip {label} "
-                f"to the far right ({study.scale_max}).")
+        return (_("Attention check: whatever you think of these clips, please move the slider of clip %(clip)s to "
+                  "the far right (%(high)s).") % {"clip": label, "high": study.scale_max})
 
     def follows_instruction(self, study: Study, expected: list[str], answer: Answer) -> bool:
         floor = study.scale_max - TOP_SHARE * (study.scale_max - study.scale_min)
@@ -156,18 +157,18 @@ class SideBySide(MultiClip):
         return {**super().page_context(study, page), "middle": self.middle(study), **reasons_context(study)}
 
     def task(self, study: Study) -> str:
-        moved = " Move every slider before you answer." if study.sliders_must_move else ""
-        return (f"Each page shows several clips side by side. {study.question} Rate each clip on its slider, from "
-                f"{study.scale_min} ({study.label_min}) to {study.scale_max} ({study.label_max}).{moved}")
+        task = _("Each page shows several clips side by side. %(question)s Rate each clip on its slider, from "
+                 "%(low)s (%(low_label)s) to %(high)s (%(high_label)s).") % scale_words(study)
+        return task + " " + _("Move every slider before you answer.") if study.sliders_must_move else task
 
     def read_answer(self, study: Study, form: QueryDict) -> Answer:
         # A slot is ASCII digits: "²" passes isdigit() but not int(), nor do 5000 digits (a made-up slot of 18 is refused).
         slots = sorted({int(name.removeprefix("value-")) for name in form if SLOT_FIELD.fullmatch(name)})
         values = {}
         for slot in slots:
-            value = whole_number(form, f"value-{slot}", f"the rating of clip {clip_label(slot)}")
+            value = whole_number(form, f"value-{slot}", _("the rating of clip %(clip)s") % {"clip": clip_label(slot)})
             if value is None:
-                raise AnswerRefused(f"clip {clip_label(slot)} has no rating")
+                raise AnswerRefused(_("clip %(clip)s has no rating") % {"clip": clip_label(slot)})
             values[slot] = value
         moved = frozenset(slot for slot, value in values.items()
                           if form.get(f"moved-{slot}") == "1" or value != self.middle(study))
@@ -178,16 +179,17 @@ class SideBySide(MultiClip):
     def check_answer(self, study: Study, answer: Answer, slots: list[int]) -> None:
         for slot, value in answer.values.items():
             if value not in study.scale:
-                raise AnswerRefused(f"the rating of clip {clip_label(slot)} ({value}) is outside the scale "
-                                    f"{study.scale_min}-{study.scale_max}")
+                raise AnswerRefused(_("the rating of clip %(clip)s (%(value)s) is outside the scale %(low)s-%(high)s")
+                                    % {"clip": clip_label(slot), "value": value, "low": study.scale_min,
+                                       "high": study.scale_max})
         if set(answer.values) != set(slots):
             missing = sorted(set(slots) - set(answer.values))
-            raise AnswerRefused(f"every clip on the page needs a rating; missing: clip "
-                                f"{', '.join(map(clip_label, missing))}" if missing
-                                else "ratings were sent for clips that are not on this page")
+            raise AnswerRefused(_("every clip on the page needs a rating; missing: clip %(clips)s")
+                                % {"clips": ", ".join(map(clip_label, missing))} if missing
+                                else _("ratings were sent for clips that are not on this page"))
         if study.sliders_must_move and (unmoved := sorted(set(slots) - answer.moved)):
-            raise AnswerRefused(f"please move each clip's slider before you answer; not moved: the slider of clip "
-                                f"{', '.join(map(clip_label, unmoved))}")
+            raise AnswerRefused(_("please move each clip's slider before you answer; not moved: the slider of clip "
+                                  "%(clips)s") % {"clips": ", ".join(map(clip_label, unmoved))})
         check_reasons(study, answer.reasons, answer.other_reason)
 
     def exclusion_reason(self, rules: ExclusionRules, study: Study, page: list[OnPage], answer: Answer) -> str:

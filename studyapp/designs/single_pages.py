@@ -23,11 +23,12 @@ from datetime import datetime
 import pandas as pd
 from django.db.models import Count, Q
 from django.http import QueryDict
+from django.utils.translation import gettext as _
 
 from analysis.ratings.exclusions import ExclusionRules
 from analysis.reports.single_report import Report
 from studyapp.designs.answers import client_times
-from studyapp.designs.design import (Answer, Design, OnPage, Page, PlannedPage, rated_clip_exclusion)
+from studyapp.designs.design import CLIP_WORDS, Answer, Design, OnPage, Page, PlannedPage, rated_clip_exclusion
 from studyapp.models import Assignment, Stimulus, Study, System
 from studyapp.participants.assignment import active_since
 from studyapp.participants.refusal import AnswerRefused
@@ -73,6 +74,7 @@ MAX_BUTTON_POINTS = 11  # 0-10 at most
 class SingleClip(Design):
     template = "clip.html"
     page_word = "Clip"
+    participant_words = CLIP_WORDS
     count_field = "clips_per_participant"
     form_field = "assignment"
     settings = ("clips_per_participant", "natural_checks")
@@ -136,7 +138,7 @@ class SingleClip(Design):
         return [str(rng.choice(study.scale))]
 
     def instruction(self, study: Study, expected: list[str]) -> str:
-        return f"Attention check: whatever you think of this clip, please answer {expected[0]}."
+        return _("Attention check: whatever you think of this clip, please answer %(value)s.") % {"value": expected[0]}
 
     def follows_instruction(self, study: Study, expected: list[str], answer: Answer) -> bool:
         return str(answer.values.get(1)) == expected[0]  # as stored: a changed row asking for no number fails, never crashes
@@ -151,13 +153,14 @@ class SingleClip(Design):
         try:
             value = int(text)
         except ValueError:
-            raise AnswerRefused(f"the rating must be a whole number from {study.scale_min} to {study.scale_max}, "
-                                f"not {text[:20]!r}") from None
+            raise AnswerRefused(_("the rating must be a whole number from %(low)s to %(high)s, not %(given)s")
+                                % {"low": study.scale_min, "high": study.scale_max, "given": repr(text[:20])}) from None
         return Answer(form.get(self.form_field, ""), {1: client_times(form)}, values={1: value})
 
     def check_answer(self, study: Study, answer: Answer, slots: list[int]) -> None:
         if answer.values[1] not in study.scale:
-            raise AnswerRefused(f"rating {answer.values[1]} is outside the scale {study.scale_min}-{study.scale_max}")
+            raise AnswerRefused(_("rating %(value)s is outside the scale %(low)s-%(high)s")
+                                % {"value": answer.values[1], "low": study.scale_min, "high": study.scale_max})
 
     def exclusion_reason(self, rules: ExclusionRules, study: Study, page: list[OnPage], answer: Answer) -> str:
         return rated_clip_exclusion(rules, study, page, answer)

@@ -39,6 +39,7 @@ from urllib.parse import urlencode
 from django.http import HttpRequest, HttpResponse
 from django.shortcuts import redirect, render
 from django.utils import timezone
+from django.utils.translation import gettext as _
 
 from studyapp.designs.answers import record_answer
 from studyapp.designs.pages import (practice_page, preview_practice_pages, preview_rating_pages,
@@ -90,10 +91,13 @@ class Step:
         return [self.page(study, nobody)] if self.pending(nobody) else []
 
 
-def message(request: HttpRequest, title: str, text: str, status: int = 200, back: str = "") -> HttpResponse:
-    """A page with a title and one notice, and no form; ``back``, a link to the page to go on from."""
-    return render(request, "studyapp/participant/message.html", {"title": title, "text": text, "back": back},
-                  status=status)
+def message(request: HttpRequest, title: str, text: str, status: int = 200, back: str = "",
+            ending: str = "") -> HttpResponse:
+    """A page with a title and one notice, and no form; ``back``, a link to the page to go on from;
+    ``ending``, how the participant's study ended there, in no language (``data-ending``, which
+    ``simulated`` reads, as on the completion page)."""
+    return render(request, "studyapp/participant/message.html",
+                  {"title": title, "text": text, "back": back, "ending": ending}, status=status)
 
 
 def current_page(request: HttpRequest, study: Study, participant: Participant, in_place: bool = False) -> HttpResponse:
@@ -131,7 +135,8 @@ def _passing(moment: str) -> Submit:
 def _consent(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:
     """Agree (or not) to take part; a study without screening questions passes that step too."""
     if request.POST.get("agree") != "yes":
-        return message(request, "Thank you", "You chose not to take part. Please return the study on your platform.")
+        return message(request, _("Thank you"), _("You chose not to take part. Please return the study on your "
+                                                  "platform."))
     participant.consented_at = timezone.now()
     if not study.questions.filter(part=Question.Part.BEFORE).exists():
         participant.screened_at = participant.consented_at
@@ -143,8 +148,9 @@ def screen_need(study: Study) -> str:
     """The screen size the study's device check asks for, naming only the sides it sets."""
     width, height = study.min_screen_width, study.min_screen_height
     if width and height:
-        return f"at least {width} × {height} pixels"
-    return f"at least {width} pixels wide" if width else f"at least {height} pixels high"
+        return _("at least %(width)s × %(height)s pixels") % {"width": width, "height": height}
+    return (_("at least %(width)s pixels wide") % {"width": width} if width
+            else _("at least %(height)s pixels high") % {"height": height})
 
 
 def _device_context(study: Study) -> dict:
@@ -166,10 +172,11 @@ def _device_check(request: HttpRequest, study: Study, participant: Participant) 
     try:
         width, height = int(request.POST.get("width", "")), int(request.POST.get("height", ""))
     except ValueError:
-        raise AnswerRefused("the device check needs the screen's width and height in whole pixels") from None
+        raise AnswerRefused(_("the device check needs the screen's width and height in whole pixels")) from None
     if width < study.min_screen_width or height < study.min_screen_height:
-        raise AnswerRefused(f"this study needs a screen {screen_need(study)}, and this one is {width} × {height}: "
-                             f"please open the link on a larger screen (or turn your device)", status=409)
+        raise AnswerRefused(_("this study needs a screen %(need)s, and this one is %(width)s × %(height)s: please "
+                              "open the link on a larger screen (or turn your device)")
+                            % {"need": screen_need(study), "width": width, "height": height}, status=409)
     return _passing("device_checked_at")(request, study, participant)
 
 
@@ -197,7 +204,8 @@ def questions_page(part: str) -> PageContext:
         asked = questions(study, part)
         return {"questions": [(question, field_name(question)) for question in asked],
                 "action": "participant-screening" if part == Question.Part.BEFORE else "participant-survey",
-                "heading": "A few questions first" if part == Question.Part.BEFORE else "A few questions to finish"}
+                "heading": (_("A few questions first") if part == Question.Part.BEFORE
+                            else _("A few questions to finish"))}
     return page
 
 
@@ -231,12 +239,15 @@ def _screened_out_page(study: Study, participant: Participant) -> dict:
     """The end for a participant a screening answer turned away: the study's screen-out
     code where it has one (Prolific pays it at its fixed screen-out rate), else a request
     to return the study."""
-    ending = "Thank you for your answers. This study is looking for participants with other answers, so it ends here for you."
+    ending = _("Thank you for your answers. This study is looking for participants with other answers, so it ends "
+               "here for you.")
     if not study.screen_out_code:
-        return {"heading": "Thank you", "text": f"{ending} Please return it on your platform (do not submit it), so "
-                                                "that your place goes to someone else."}
-    return {"heading": "Thank you", "text": f"{ending} The code below tells {study.get_platform_display()} that you "
-                                            "were screened out, so that you are paid for your time.",
+        return {"heading": _("Thank you"), "ending": "screened-out",
+                "text": ending + " " + _("Please return it on your platform (do not submit it), so that your place "
+                                         "goes to someone else.")}
+    return {"heading": _("Thank you"), "ending": "screened-out",
+            "text": ending + " " + _("The code below tells %(platform)s that you were screened out, so that you are "
+                                     "paid for your time.") % {"platform": study.get_platform_display()},
             **_leaving_with(study, participant, study.screen_out_code)}
 
 
@@ -259,15 +270,15 @@ def _rate(request: HttpRequest, study: Study, participant: Participant) -> HttpR
         was_reserved = participant.assignments.filter(token=answer.page, rating__isnull=True).exists()
         participant = renew_reservations(participant)
         if was_reserved and not participant.assignments.filter(token=answer.page).exists():
-            raise AnswerRefused("that page was given to another participant while it was idle; "
-                                "please reload the page to go on with the next one", status=409)
+            raise AnswerRefused(_("that page was given to another participant while it was idle; "
+                                  "please reload the page to go on with the next one"), status=409)
     record_answer(participant, answer)  # after the last page, it says why not; updates ``participant``
     return next_page(request, study, participant)
 
 
 def completion_page(study: Study, participant: Participant) -> dict:
     """Where a finished participant goes and what code they are given."""
-    return _leaving_with(study, participant, study.completion_code, study.redirect_url)
+    return {"ending": "finished", **_leaving_with(study, participant, study.completion_code, study.redirect_url)}
 
 
 def _leaving_with(study: Study, participant: Participant, code: str, target: str = "") -> dict:
@@ -285,12 +296,13 @@ def _leaving_with(study: Study, participant: Participant, code: str, target: str
 def _stopped_page(study: Study, participant: Participant) -> dict:
     """The polite end of a session stopped by failed instructed checks: the study's code
     for those it stopped where it has one, else a request to return the study."""
-    ending = ("Thank you for your time. Some answers did not follow the instructions shown on the page, so this "
-              "session has ended here.")
+    ending = _("Thank you for your time. Some answers did not follow the instructions shown on the page, so this "
+               "session has ended here.")
     if not study.stopped_code:
-        return {"heading": "Thank you", "text": f"{ending} Please return the study on your platform."}
-    return {"heading": "Thank you", "text": f"{ending} Please hand in the code below on "
-                                            f"{study.get_platform_display()}.",
+        return {"heading": _("Thank you"), "text": ending + " " + _("Please return the study on your platform.")}
+    return {"heading": _("Thank you"),
+            "text": ending + " " + _("Please hand in the code below on %(platform)s.")
+            % {"platform": study.get_platform_display()},
             **_leaving_with(study, participant, study.stopped_code)}
 
 

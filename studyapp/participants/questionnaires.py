@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 from django.http import QueryDict
+from django.utils.translation import gettext as _
 
 from studyapp.models import Question, Study
 from studyapp.participants.refusal import AnswerRefused
@@ -29,7 +30,7 @@ def field_name(question: Question) -> str:
 def _answer(question: Question, text: str) -> str | int | float:
     if question.kind == Question.Kind.CHOICE:
         if text not in question.choice_list:
-            raise AnswerRefused(f"“{question.text}”: please choose one of the answers")
+            raise AnswerRefused(_("“%(question)s”: please choose one of the answers") % {"question": question.text})
         return text
     if question.kind == Question.Kind.NUMBER:
         return _number(question, text)
@@ -43,14 +44,17 @@ def _number(question: Question, text: str) -> int | float:
     or an analysis can use: every answer is finite and in range, or refused saying the range.
     """
     whole = question.whole_numbers
-    wanted = (f"a whole number from {math.ceil(question.minimum)} to {math.floor(question.maximum)}" if whole
-              else f"a number from {question.minimum:g} to {question.maximum:g}")
+    wanted = (_("a whole number from %(low)s to %(high)s") % {"low": math.ceil(question.minimum),
+                                                                "high": math.floor(question.maximum)} if whole
+              else _("a number from %(low)s to %(high)s") % {"low": f"{question.minimum:g}",
+                                                             "high": f"{question.maximum:g}"})
     try:
         value = float(text)
     except ValueError:
         value = math.nan
     if not (math.isfinite(value) and question.minimum <= value <= question.maximum) or (whole and value != int(value)):
-        raise AnswerRefused(f"“{question.text}”: please give {wanted}, not {text[:20]!r}")
+        raise AnswerRefused(_("“%(question)s”: please give %(wanted)s, not %(given)s")
+                            % {"question": question.text, "wanted": wanted, "given": repr(text[:20])})
     return int(value) if whole else value
 
 
@@ -62,7 +66,7 @@ def read_answers(asked: list[Question], form: QueryDict) -> dict[str, str | floa
         text = form.get(field_name(question), "").strip()
         if not text:
             if question.required:
-                raise AnswerRefused(f"“{question.text}”: please answer this question")
+                raise AnswerRefused(_("“%(question)s”: please answer this question") % {"question": question.text})
             continue
         answers[question.name] = _answer(question, text)
     return answers

@@ -48,7 +48,7 @@ _POINT = re.compile(r'<button type="submit" name="value" value="(-?\d+)"(?: disa
 # Side-by-side and pairwise pages: a slider per clip, or the answer buttons and strengths.
 _SLIDER = re.compile(r'<input type="range" form="page-form" id="[^"]+" name="(value-\d+)"[^>]*? min="(-?\d+)" max="(-?\d+)"')
 _ANSWER = re.compile(r'<button type="submit" name="answer" value="(\w+)"')
-_STRENGTH = re.compile(r'<input type="radio" name="strength" value="(\d+)"')
+_STRENGTH = re.compile(r'<button type="submit" name="strength" value="(\d+)"')
 _PLAY = re.compile(r'data-play="(\d+)"')
 _RATING_STEP = "/rate/"
 _CLIP_STEPS = ("/practice/", _RATING_STEP)  # the forms that the clip pages' script sends
@@ -62,16 +62,15 @@ _QUESTIONS = 'class="questions"'
 _CHOICE = re.compile(r'<input type="radio" name="([^"]+)" value="([^"]*)"')
 _NUMBER = re.compile(r'<input type="number" step="([^"]+)" min="([^"]+)" max="([^"]+)" name="([^"]+)"')
 _TEXT = re.compile(r'<textarea name="([^"]+)"')
-# The instructed check's words (the designs' ``instruction``): the point, or the clip, it asks for.
-_INSTRUCTION = re.compile(r'<p class="instruction">Attention check: whatever you think of [^,]+, please '
-                          r'(?:answer (?P<point>-?\d+)|choose clip (?P<choose>[A-Z])|move the slider of clip '
-                          r'(?P<slider>[A-Z]) to the far right)')
+# The answer an instructed check asks for, per clip, in any language (the page's data-expected):
+# a point (single), the side to choose (pairwise), or "max" on the slider to move to the far right.
+_INSTRUCTION = re.compile(r'<p class="instruction" data-expected="([^"]*)">')
 _HEADING = re.compile(r"<h1>(.*?)</h1>", re.S)
 _NOTICE = re.compile(r'<p class="notice[^"]*"[^>]*>(.*?)</p>', re.S)
-# How a participant's study ended, by the words of its last page.
+# How a participant's study ended, by its last page's heading (data-ending, in any language).
 FINISHED, SCREENED_OUT, FULL, FAILED = "finished", "screened out", "refused because the study was full", "failed"
-_ENDINGS = ((FINISHED, "You have finished the study"), (SCREENED_OUT, "looking for participants with other answers"),
-            (FULL, "<h1>The study is full</h1>"))
+_ENDINGS = {"finished": FINISHED, "screened-out": SCREENED_OUT, "full": FULL}
+_ENDING = re.compile(r'<h1 data-ending="([\w-]+)">')
 
 
 def longest_clip_s(page: str) -> float:
@@ -96,7 +95,8 @@ class Outcome:
         """FINISHED, SCREENED_OUT, FULL or FAILED."""
         if self.error:
             return FAILED
-        return next((ending for ending, words in _ENDINGS if words in self.final_page), FAILED)
+        found = _ENDING.search(self.final_page)
+        return _ENDINGS.get(found.group(1), FAILED) if found else FAILED
 
 
 def page_message(body: str) -> str:
@@ -155,18 +155,19 @@ class SimulatedParticipant:
             data.update(self._questions_answer(form))
         elif points or sliders or answers:  # a rating page: every clip on it played to its end first
             self._watch(body)
-            asked = _INSTRUCTION.search(body)
+            found = _INSTRUCTION.search(body)
+            asked = html.unescape(found.group(1)).split(",") if found else []
             if points:
-                value = asked.group("point") if asked and asked.group("point") else str(self.rng.choice(points))
+                value = asked[0] if asked else str(self.rng.choice(points))
                 data.update(value=value, started_s="0.05", ended_s="0.5", answered_s="0.6", played_until_s="0.45")
             else:
                 data.update(self._page_answer(body, sliders, answers, _STRENGTH.findall(form)))
-                if asked and asked.group("choose"):
-                    data["answer"] = ("left", "right")[ord(asked.group("choose")) - ord("A")]
+                if asked and answers:
+                    data["answer"] = asked[0]
                     if strengths := _STRENGTH.findall(form):  # a choice asked with its strength
                         data["strength"] = self.rng.choice(strengths)
-                elif asked and asked.group("slider"):
-                    name, _, high = sliders[ord(asked.group("slider")) - ord("A")]
+                elif "max" in asked:
+                    name, _, high = sliders[asked.index("max")]
                     data[name] = high
         if action.endswith(_RATING_STEP):
             start = time.perf_counter()

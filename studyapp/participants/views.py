@@ -19,11 +19,13 @@ from django.db.models import F
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import redirect
 from django.urls import reverse
+from django.utils.translation import gettext as _
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_POST, require_safe
 
 from studyapp.models import Participant, StoredDataError, Study, json_object, new_token
 from studyapp.participants.assignment import StudyFull, StudyNotReady, enrol
+from studyapp.participants.language import participant_language, speak
 from studyapp.participants.path import Step, current_page, may_post, message, stage
 from studyapp.participants.refusal import AnswerRefused
 from studyapp.participants.study_cache import current_study
@@ -82,37 +84,44 @@ def _study(key: str, must_be_open: bool = False) -> Study:
     lets those already taking part finish and get their completion code."""
     study = Study.objects.filter(key=key).first()
     if study is None:
-        raise StudyUnavailable("No study here", "There is no study at this address. Please check the link your "
-                               "platform gave you.")
+        raise StudyUnavailable(_("No study here"), _("There is no study at this address. Please check the link your "
+                                                    "platform gave you."))
+    speak(study)
     if must_be_open and not study.is_open:
-        raise StudyUnavailable(study.title, "This study is closed and takes no new participants. Thank you for "
-                               "your interest; please return it on your platform.", study)
+        raise StudyUnavailable(study.title, _("This study is closed and takes no new participants. Thank you for "
+                                              "your interest; please return it on your platform."), study)
     return study
 
 
 def plain_pages(view: Callable[..., HttpResponse]) -> Callable[..., HttpResponse]:
     """Whatever goes wrong, a participant gets a plain page of the study's own, never
     Django's error or debug pages: a missing study or page (404), a row of the study's
-    that its code cannot read (503) or a server error (500, its traceback logged)."""
+    that its code cannot read (503) or a server error (500, its traceback logged). Its pages
+    are in the study's language from the moment the study is read (``language``)."""
     @wraps(view)
     def shielded(request: HttpRequest, *args, **kwargs) -> HttpResponse:
-        try:
-            return view(request, *args, **kwargs)
-        except StudyUnavailable as unavailable:
-            response = message(request, unavailable.title, unavailable.text, 404)
-            return _framed(unavailable.study, response) if unavailable.study else response
-        except Http404:
-            return message(request, "Page not found", "There is no such page in this study. Please go back to "
-                           "the link your platform gave you.", 404)
-        except StoredDataError:  # the researcher's row, not the participant's doing: they may come back later
-            logger.exception("participant page %s met a broken row", request.path)
-            return message(request, "Not available just now", "This study cannot go on at the moment. Your "
-                           "answers so far are saved: please try again later, or contact the researcher.", 503)
-        except Exception:
-            logger.exception("participant page %s failed", request.path)
-            return message(request, "Something went wrong", "The server could not show this page. Please try "
-                           "again in a moment: your answers so far are saved.", 500)
+        with participant_language():
+            return _shielded(view, request, *args, **kwargs)
     return shielded
+
+
+def _shielded(view: Callable[..., HttpResponse], request: HttpRequest, *args, **kwargs) -> HttpResponse:
+    try:
+        return view(request, *args, **kwargs)
+    except StudyUnavailable as unavailable:
+        response = message(request, unavailable.title, unavailable.text, 404)
+        return _framed(unavailable.study, response) if unavailable.study else response
+    except Http404:
+        return message(request, _("Page not found"), _("There is no such page in this study. Please go back to "
+                                                       "the link your platform gave you."), 404)
+    except StoredDataError:  # the researcher's row, not the participant's doing: they may come back later
+        logger.exception("participant page %s met a broken row", request.path)
+        return message(request, _("Not available just now"), _("This study cannot go on at the moment. Your "
+                       "answers so far are saved: please try again later, or contact the researcher."), 503)
+    except Exception:
+        logger.exception("participant page %s failed", request.path)
+        return message(request, _("Something went wrong"), _("The server could not show this page. Please try "
+                       "again in a moment: your answers so far are saved."), 500)
 
 
 _participant_in_study = CompiledQuery(
@@ -129,7 +138,7 @@ def _participant(request: HttpRequest, key: str) -> tuple[Study, Participant | N
     if not rows:
         return _study(key), None
     found = rows[0]
-    found.study = current_study(found.study_id, found.study_updated)
+    found.study = speak(current_study(found.study_id, found.study_updated))
     return found.study, found
 
 
@@ -143,17 +152,17 @@ def participant_access(step: Step | None = None) -> Callable[[ParticipantView], 
         def guarded(request: HttpRequest, key: str) -> HttpResponse:
             study, participant = _participant(request, key)
             if participant is None:
-                return _framed(study, message(request, study.title, "Please open the study through the link your "
-                                              "platform gave you.", 403))
+                return _framed(study, message(request, study.title, _("Please open the study through the link "
+                                                                      "your platform gave you."), 403))
             if step is None:
                 return _framed(study, view(request, study, participant))
             try:
                 if not may_post(step, participant):
-                    raise AnswerRefused(f"this step is not the current one (expected {step.name}, "
-                                         f"at {stage(participant)})", status=409)
+                    raise AnswerRefused(_("this step is not the current one (expected %(step)s, at %(stage)s)")
+                                        % {"step": step.name, "stage": stage(participant)}, status=409)
                 response = view(request, study, participant)
             except AnswerRefused as rejection:
-                response = message(request, "That did not work", str(rejection),
+                response = message(request, _("That did not work"), str(rejection),
                                    rejection.status, back=reverse("participant-page", args=[key]))
             return _framed(study, response)
         return guarded
@@ -175,14 +184,14 @@ def _enrolled(request: HttpRequest, study: Study) -> HttpResponse:
     data = {name: request.GET[name] for name in names if request.GET.get(name)}
     # Refused rather than cut: two ids that differ only past the limit would become one participant.
     if too_long := [name for name, value in data.items() if len(value) > MAX_ID_LENGTH]:
-        return message(request, "Link not valid", f"The link's {too_long[0]} is longer than {MAX_ID_LENGTH} "
-                       f"characters, longer than any platform gives. Please open the study from the platform again.",
-                       400)
+        return message(request, _("Link not valid"), _(
+            "The link's %(name)s is longer than %(limit)s characters, longer than any platform gives. Please open "
+            "the study from the platform again.") % {"name": too_long[0], "limit": MAX_ID_LENGTH}, 400)
     if study.platform == Study.Platform.MTURK and data.get("assignmentId") == "ASSIGNMENT_ID_NOT_AVAILABLE":
-        return message(request, study.title, "This is a preview. Accept the task to take part.")
+        return message(request, study.title, _("This is a preview. Accept the task to take part."))
     if study.platform == Study.Platform.MTURK and mturk_submit_url(data) is None:
-        return message(request, "Link incomplete", "The link lacks MTurk's submit address (turkSubmitTo). "
-                       "Please open the task from MTurk again.", 400)
+        return message(request, _("Link incomplete"), _("The link lacks MTurk's submit address (turkSubmitTo). "
+                                                        "Please open the task from MTurk again."), 400)
     platform_id = data.get(names[0])
     pk = _participant_pk(request, key)
     existing = Participant.objects.filter(pk=pk, study=study).first() if pk else None
@@ -190,25 +199,26 @@ def _enrolled(request: HttpRequest, study: Study) -> HttpResponse:
         return redirect("participant-page", key=key)
     if platform_id is None:
         if study.platform != Study.Platform.LINK:
-            return message(request, "Link incomplete", f"The link lacks the {names[0]} parameter that "
-                           f"{study.get_platform_display()} adds. Please open the study from the platform again.", 400)
+            return message(request, _("Link incomplete"), _(
+                "The link lacks the %(name)s parameter that %(platform)s adds. Please open the study from the "
+                "platform again.") % {"name": names[0], "platform": study.get_platform_display()}, 400)
         platform_id = f"anonymous-{new_token()}"
     participant = Participant.objects.filter(study=study, platform_id=platform_id).first()
     if participant is None:
         try:
             participant = enrol(study, platform_id, data, request.META.get("HTTP_USER_AGENT", ""))
         except StudyFull:
-            return message(request, "The study is full", "Thank you for your interest: every clip has "
-                           "received the ratings it needs. Please return the study on your platform.")
+            return message(request, _("The study is full"), _("Thank you for your interest: every clip has "
+                           "received the ratings it needs. Please return the study on your platform."), ending="full")
         except StudyNotReady:
-            return message(request, "Not ready yet", "This study has no clips yet. Please try again later.", 503)
+            return message(request, _("Not ready yet"), _("This study has no clips yet. Please try again later."), 503)
         except IntegrityError:  # the same id arriving at once elsewhere enrolled it: its session decides, as below
             participant = Participant.objects.get(study=study, platform_id=platform_id)
         else:
             return _remember(redirect("participant-page", key=key), participant)
     if not _same_session(study, participant, data):
-        return message(request, "Already started elsewhere", "This id has already started the study in another "
-                       "browser or platform session. Please go on where you started it.", 409)
+        return message(request, _("Already started elsewhere"), _("This id has already started the study in "
+                       "another browser or platform session. Please go on where you started it."), 409)
     participant.study = study
     return _remember(redirect("participant-page", key=key), participant)
 
@@ -238,14 +248,21 @@ def page(request: HttpRequest, study: Study, participant: Participant) -> HttpRe
 @never_cache
 @plain_pages
 def unknown_page(request: HttpRequest, key: str, rest: str) -> HttpResponse:
-    """Any other address under a study's pages."""
+    """Any other address under a study's pages (said in the study's language)."""
+    _study(key)
     raise Http404(rest)
 
 
 def csrf_failure(request: HttpRequest, reason: str = "") -> HttpResponse:
     """A form sent without its CSRF token (a page kept open past its cookie, cookies
-    blocked): a plain page that leads back, never Django's explanation of CSRF."""
+    blocked): a plain page that leads back, never Django's explanation of CSRF; a
+    participant's in their study's language."""
     key = request.resolver_match.kwargs.get("key") if request.resolver_match else None
-    back = reverse("participant-page", args=[key]) if key and request.path.startswith("/p/") else ""
-    return message(request, "Please try again", "This page had expired, so your answer was not sent. Go back to "
-                   "the study and answer again (if this keeps happening, allow cookies for this site).", 403, back=back)
+    participant_page = bool(key and request.path.startswith("/p/"))
+    back = reverse("participant-page", args=[key]) if participant_page else ""
+    with participant_language():
+        if participant_page and (study := Study.objects.filter(key=key).first()):
+            speak(study)
+        return message(request, _("Please try again"), _("This page had expired, so your answer was not sent. Go "
+                       "back to the study and answer again (if this keeps happening, allow cookies for this site)."),
+                       403, back=back)

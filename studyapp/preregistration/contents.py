@@ -23,7 +23,7 @@ from studyapp.models import Study
 # The settings that shape what participants see and answer, and how many answers are
 # sought, besides the design's own (``Design.settings``, its count field); the rules'
 # settings (thresholds, early answers, full play) are planned as rules instead.
-COMMON_SETTINGS = ("question", "scale_min", "scale_max", "label_min", "label_max", "ratings_per_stimulus",
+COMMON_SETTINGS = ("language", "question", "scale_min", "scale_max", "label_min", "label_max", "ratings_per_stimulus",
                    "training_clips", "bad_checks", "instructed_checks", "stop_after_failed_checks", "expected_effect",
                    "device_check", "min_screen_width", "min_screen_height", "video_width", "video_height", "camera")
 

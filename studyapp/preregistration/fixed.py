@@ -25,9 +25,9 @@ from studyapp.models import (Assignment, ControlSignal, Participant, Question, R
                              System)
 
 # The study's settings that participants are shown and judged by (and the camera).
-INSTRUMENT = ("design", "abx", "question", "scale_min", "scale_max", "label_min", "label_max", "preference_strengths",
-              "bad_threshold", "natural_threshold", "video_width", "video_height", "sliders_must_move",
-              "reasons", "reasons_required")
+INSTRUMENT = ("design", "language", "abx", "question", "scale_min", "scale_max", "label_min", "label_max",
+              "preference_strengths", "bad_threshold", "natural_threshold", "video_width", "video_height",
+              "sliders_must_move", "reasons", "reasons_required")
 # The fields of each kind of row that are fixed once anyone has started (None: all of them).
 FIXED_FIELDS: dict[type[models.Model], tuple[str, ...] | None] = {
     Study: (*INSTRUMENT, "camera"),

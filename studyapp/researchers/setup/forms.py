@@ -61,7 +61,7 @@ class StudyForm(forms.ModelForm):
 
     INSTRUMENT = INSTRUMENT  # plan.fixed's, which the admin and the commands hold to as well
     SECTIONS = (
-        ("The study", ("title", "instructions", "consent_text")),
+        ("The study", ("title", "language", "instructions", "consent_text")),
         ("Design", ("design", "pages_per_participant", "abx", "preference_strengths", "adaptive_pairing",
                     "reasons", "reasons_required")),
         ("Question and scale", ("question", "scale_min", "scale_max", "label_min", "label_max")),
@@ -81,7 +81,7 @@ class StudyForm(forms.ModelForm):
                                   help_text=Study._meta.get_field("redirect_url").help_text)
 
     OPTIONAL_SIZES = ("min_screen_width", "min_screen_height")  # left empty: any size
-    KEPT_WHEN_EMPTY = ("path_tolerance_cm",)  # left empty (a form from before the setting): as it is
+    KEPT_WHEN_EMPTY = ("path_tolerance_cm", "language")  # left empty (a form from before the setting): as it is
 
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
@@ -139,7 +139,7 @@ class StudyForm(forms.ModelForm):
             if self.cleaned_data.get(name) is None and name not in self.errors:
                 self.cleaned_data[name] = 0
         for name in self.KEPT_WHEN_EMPTY:
-            if self.cleaned_data.get(name) is None and name not in self.errors:
+            if self.cleaned_data.get(name) in (None, "") and name not in self.errors:
                 self.cleaned_data[name] = getattr(self.instance, name)
         camera = {name[len(CAMERA_PREFIX):]: self.cleaned_data.get(name) for name in self.camera_fields()}
         for setting, value in camera.items():
@@ -163,6 +163,7 @@ class StudyForm(forms.ModelForm):
         model = Study
         exclude = ["owner", "camera", "previewed_at", "display_figure"]  # the figure comes from the systems' rigs
         labels = {
+            "language": "Participants' language",
             "pages_per_participant": "Pages per participant",
             "abx": "Natural clip shown as a reference (ABX)",
             "preference_strengths": "Degrees of preference",

@@ -25,7 +25,7 @@ from studyapp.researchers.access import owned_study, researcher_study
 from studyapp.researchers.setup.duplication import duplicate_study
 from studyapp.researchers.setup.editing import EditRefused, edit_system, rename_control
 from studyapp.researchers.setup.forms import ControlEditForm, StudyForm, SystemEditForm
-from studyapp.researchers.setup.preview import preview_pages
+from studyapp.researchers.setup.preview import preview_pages, render_preview
 from studyapp.researchers.setup.readiness import open_problems, open_warnings
 from studyapp.researchers.setup.removal import SystemsFixed, removal_summary, remove, remove_study, require_not_started
 
@@ -177,7 +177,7 @@ def study_preview(request: HttpRequest, study: Study, index: int = 0) -> HttpRes
     following = reverse("study-preview-page", args=[study.pk, index + 1]) if index + 1 < len(pages) else ""
     preview = {"index": index + 1, "count": len(pages), "name": page.name, "next": following,
                "back": reverse("study-monitor", args=[study.pk])}
-    return render(request, f"studyapp/participant/{page.template}", {"study": study, "preview": preview, **page.context})
+    return render_preview(request, study, page, preview)
 
 
 @researcher_study

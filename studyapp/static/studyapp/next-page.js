@@ -10,6 +10,7 @@
 // play at once. Any other next page (questions, the end) comes as a redirect, followed by
 // loading the page; a refused answer (too early, say) shows the server's reason on the
 // page, which stays. Without this script the form posts and is redirected as any form.
+// Its words are the page's (window.studyappText, in the study's language).
 (function () {
   const form = () => document.querySelector("form[data-next-page]");
   if (!form() || !window.studyappSetUpPage) return;
@@ -56,7 +57,7 @@
     if (back) {
       const link = document.createElement("a");
       link.href = back;
-      link.textContent = "Back to the study";
+      link.textContent = studyappText.back;
       notice.append(" ", link);
     }
     delete sent.dataset.sent;  // the participant may answer again
@@ -72,7 +73,7 @@
         headers: { "Studyapp-Next-Page": "in-place" },
       });
     } catch (error) {
-      refused(sent, "Your answer could not be sent. Please check your connection and answer again.");
+      refused(sent, studyappText.not_sent);
       return;
     }
     if (response.type === "opaqueredirect") {  // the next page is no page of clips: load it
@@ -82,7 +83,7 @@
     const next = new DOMParser().parseFromString(await response.text(), "text/html");
     if (!response.ok) {
       const reason = next.querySelector(".notice");
-      refused(sent, reason ? reason.textContent : `The server did not take the answer (${response.status}).`,
+      refused(sent, reason ? reason.textContent : studyappText.format(studyappText.not_taken, { status: response.status }),
               next.querySelector("a.button")?.getAttribute("href"));
     } else if (next.querySelector("main form[data-next-page]")) {
       swap(next);

@@ -23,8 +23,8 @@ window.studyappSetUpPage = (shownAt, signal) => {
     note.hidden = played;
     if (moveNote) {
       moveNote.hidden = !unmoved.length;
-      moveNote.textContent = `Move each clip's slider to your rating before you answer (not yet moved: clip ${
-        unmoved.map((slider) => slider.dataset.label).join(", ")}).`;
+      moveNote.textContent = studyappText.format(studyappText.move_sliders, {
+        clips: unmoved.map((slider) => slider.dataset.label).join(", ") });
     }
   };
   // Paused at once, not only on the "play" event (queued after play() returns), so that two
