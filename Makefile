@@ -50,7 +50,7 @@ docs-reference: $(INSTALLED)
 	$(BIN)/python scripts/docs_reference.py
 
 demo: $(INSTALLED)
-	$(BIN)/python -m studyapp.server.demo
+	$(BIN)/python -m studyapp.demo
 
 # The demo's RNN, VAE and BAD MoGlow trained again into models/, with their digests
 # (models/SHA256SUMS); `make demo` uses the committed ones and trains nothing itself.

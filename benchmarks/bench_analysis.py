@@ -32,11 +32,12 @@ import pandas as pd  # noqa: E402
 import scipy  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from analysis.motion_io import SystemClips  # noqa: E402
-from analysis.objective import objective_metrics  # noqa: E402
-from analysis.ratings import read_ratings  # noqa: E402
-from analysis.report import build_report, write_report  # noqa: E402
-from analysis.simulate import (simulate_pairwise, simulate_ratings,  # noqa: E402
+from analysis.motion.motion_io import SystemClips  # noqa: E402
+from analysis.motion.objective import objective_metrics  # noqa: E402
+from analysis.ratings.reading import read_ratings  # noqa: E402
+from analysis.reports.single_report import write_report  # noqa: E402
+from analysis.ratings.report import build_report
+from analysis.ratings.simulate import (simulate_pairwise, simulate_ratings,  # noqa: E402
                                simulate_side_by_side)
 from benchmarks.machine import describe_machine  # noqa: E402
 

@@ -47,7 +47,8 @@ from generation.registry import model_class, preset, training_knobs  # noqa: E40
 from generation.models.flows import AffineCoupling  # noqa: E402
 from generation.models.precision import (PRECISIONS, auto_precision, cpu_has_bfloat16_units,  # noqa: E402
                                          cpu_has_int8_products, input_dtype, matrix_product)
-from generation.motion.dataset import DatasetOptions, build_dataset  # noqa: E402
+from generation.motion.dataset import build_dataset  # noqa: E402
+from generation.motion.dataset_options import DatasetOptions  # noqa: E402
 
 REFERENCE_CONSTANTS = {1: 17.9, 64: 570.0}  # the authors' MoGlow, paper-sized, an earlier 2-core machine
 BATCHES = (1, 64)

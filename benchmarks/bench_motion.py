@@ -22,7 +22,7 @@ from scipy.spatial.transform import Rotation
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.machine import describe_machine  # noqa: E402
 from generation.motion import read_bvh  # noqa: E402
-from generation.motion.dataset import find_bvh_files  # noqa: E402
+from generation.motion.clip_files import find_bvh_files  # noqa: E402
 
 TARGET_SECONDS = 10.0
 

@@ -430,7 +430,7 @@ addEventListener("playing", (event) => {
 
 def render_browser_clip(folder: Path) -> Path:
     """A ``BROWSER_CLIP_S`` clip of real motion at the study's size (the first BVH file under $MOTION_DATA)."""
-    from generation.motion.dataset import load_body_motion
+    from generation.motion.clip_files import load_body_motion
     from generation.render import render_video
 
     data = Path(os.environ.get("MOTION_DATA", str(REPO.parent / "shared" / "data" / "bandai-namco-1")).split(":")[0])

@@ -27,7 +27,7 @@ from .store import CheckpointError, read_header, read_tensors, stored_layout, wr
 if TYPE_CHECKING:
     import torch
 
-    from .models.base import MotionModel
+    from .models.motion_model import MotionModel
 
 FORMAT_KEY = "motion_study"
 FORMAT_VERSION = 1

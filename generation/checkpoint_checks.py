@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .motion.dataset import DatasetOptions
+from .motion.dataset_options import DatasetOptions
 from .motion.types import Skeleton
 from .store import CheckpointError
 

@@ -283,7 +283,7 @@ def in_control_frame(motion: Motion, root: RootOptions = RootOptions()) -> Motio
 
 def following_arrays(motion: Motion, asked: RootTrajectory, root: RootOptions = RootOptions()) -> dict[str, np.ndarray]:
     """The arrays beside a clip that ``analysis``'s control-adherence metrics read
-    (analysis/motion_io.py): the path and facing the clip was asked to follow
+    (analysis/motion/motion_io.py): the path and facing the clip was asked to follow
     (``asked``, in the clip's floor coordinates) and where its root went and faced."""
     went = root_trajectory(motion, root)
     return {"control_path": asked.xz, "control_yaw": asked.yaw, "root_path": went.xz, "root_yaw": went.yaw}

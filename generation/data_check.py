@@ -18,7 +18,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .checkpoint import read_meta
-from .motion.dataset import DatasetOptions, choose_files, find_bvh_files, fingerprint, motion_folders
+from .motion.clip_files import choose_files, find_bvh_files, motion_folders
+from .motion.dataset import fingerprint
+from .motion.dataset_options import DatasetOptions
 
 REPO = Path(__file__).resolve().parents[1]
 MODELS = REPO / "models"

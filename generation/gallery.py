@@ -4,6 +4,12 @@ video plays), contact sheets and an index for the web page.
 The index (``index.json``) lists one entry per clip: file, title, content, style, frames,
 fps, sheet and poster. The study app's gallery page reads it. No clip is shorter than
 ``GalleryOptions.min_seconds``: too short to see a motion in, it is left out.
+
+Every clip is drawn on one display figure, as a study's clips are
+(``generation.render.retarget``): the bone lengths of the first clip the gallery draws
+(the reference skeleton of its natural data), its feet on the floor. Its description
+travels in the options (``GalleryOptions.figure``), so each worker draws the same figure;
+options without one draw each clip on the figure of its own skeleton's lengths.
 """
 
 from __future__ import annotations
@@ -17,10 +23,13 @@ from tqdm import tqdm
 
 from .files import write_atomic
 from .motion.bvh import bvh_duration
-from .motion.dataset import content_matches, find_bvh_files, load_body_motion, read_labels
+from .motion.clip_files import content_matches, find_bvh_files, load_body_motion, read_labels
 from .motion.root import RootOptions, root_trajectory
 from .motion.unit_detection import choose_units
+from .motion.types import Motion
 from .render import Camera, contact_sheet, render_video
+from .render.display_figure import DisplayFigure, complete_mapping, mapping_pose
+from .render.retarget import retarget
 
 
 @dataclass(frozen=True)
@@ -34,6 +43,7 @@ class GalleryOptions:
     camera: Camera = Camera()
     scale: float | None = None  # the files' unit in cm; None: detected
     up: str | None = None  # the files' up axis; None: detected
+    figure: DisplayFigure | None = None  # what every clip is drawn on; None: each clip's own lengths
 
     def to_dict(self) -> dict:
         """JSON-serialisable, to send to a worker."""
@@ -42,6 +52,7 @@ class GalleryOptions:
             "per_content": self.per_content,
             "contents": list(self.contents) if self.contents is not None else None,
             "camera": self.camera.to_dict(), "scale": self.scale, "up": self.up,
+            "figure": self.figure.to_dict() if self.figure is not None else None,
         }
 
     @classmethod
@@ -51,6 +62,7 @@ class GalleryOptions:
             per_content=data["per_content"],
             contents=tuple(data["contents"]) if data["contents"] is not None else None,
             camera=Camera.from_dict(data["camera"]), scale=data.get("scale"), up=data.get("up"),
+            figure=DisplayFigure.from_dict(data["figure"]) if data.get("figure") is not None else None,
         )
 
 
@@ -73,12 +85,32 @@ def choose_clips(folder: str | os.PathLike, per_content: int, contents: tuple[st
     return sorted(p for group in chosen.values() for p in group)
 
 
-def render_clip(path: Path, out_dir: Path, options: GalleryOptions) -> dict:
-    """Render one BVH clip (video, poster and contact sheet) unless already there; its index entry."""
-    video, sheet, poster = out_dir / f"{path.stem}.mp4", out_dir / f"{path.stem}.png", out_dir / f"{path.stem}.poster.png"
+def load_clip(path: Path, options: GalleryOptions) -> Motion:
+    """The clip as the gallery reads it: at its fps, cut to its seconds, in cm with y up."""
     units = choose_units([path], options.scale, options.up).units
-    motion = load_body_motion(path, options.fps, options.seconds, units.scale, up=units.up)
+    return load_body_motion(path, options.fps, options.seconds, units.scale, up=units.up)
+
+
+def figure_of(motion: Motion) -> DisplayFigure:
+    """The display figure with ``motion``'s bone lengths, its joints mapped by their names and shape."""
+    return DisplayFigure.of_motion(motion, complete_mapping(motion.skeleton, mapping_pose(motion)))
+
+
+def with_figure(options: GalleryOptions, clips: list[Path]) -> GalleryOptions:
+    """``options`` drawing every clip on the figure of the first of ``clips`` (where they
+    name no figure and there is a clip)."""
+    if options.figure is not None or not clips:
+        return options
+    return replace(options, figure=figure_of(load_clip(clips[0], options)))
+
+
+def render_clip(path: Path, out_dir: Path, options: GalleryOptions) -> dict:
+    """Render one BVH clip (video, poster and contact sheet) on the options' display figure
+    unless already there; its index entry."""
+    video, sheet, poster = out_dir / f"{path.stem}.mp4", out_dir / f"{path.stem}.png", out_dir / f"{path.stem}.poster.png"
+    motion = load_clip(path, options)
     floor = root_trajectory(motion, RootOptions()).xz
+    motion = retarget(motion, complete_mapping(motion.skeleton, mapping_pose(motion)), options.figure or figure_of(motion))
     if not video.exists():
         render_video(motion, video, camera=options.camera, size=options.size, root_path=floor)
     if not sheet.exists():
@@ -116,6 +148,7 @@ def build_gallery(folder: str | os.PathLike, out_dir: str | os.PathLike, options
         options = replace(options, scale=choice.units.scale, up=choice.units.up)
         if progress:
             print(choice.description)
+    options = with_figure(options, clips)
     entries = [render_clip(p, out_dir, options) for p in tqdm(clips, desc="rendering gallery", unit="clip", disable=not progress)]
     write_index(out_dir, entries)
     return entries

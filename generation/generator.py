@@ -32,7 +32,7 @@ from .motion.features import AngleFeatureSpec, decode_angles, decode_positions
 from .motion.types import Motion, Skeleton
 from .stylegestures import CONTROL_LAYOUT, stylegestures_control
 from .models.attribute import AttributeModel
-from .models.base import MotionModel
+from .models.motion_model import MotionModel
 from .models.noise import RowGenerators
 from .models.path import PathModel
 from .models.precision import auto_precision

@@ -27,7 +27,7 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from .models.base import MotionModel
+    from .models.motion_model import MotionModel
 
 # How a kind is controlled: by a path (MoGlow and its baselines) or by action and style
 # labels (HVRNN and its baselines).

@@ -43,7 +43,8 @@ import torch
 
 from .checkpoint import CheckpointMeta, code_version, save_checkpoint
 from .models.moglow import MoGlow, MoGlowConfig
-from .motion.dataset import DatasetOptions, Standardizer
+from .motion.dataset import Standardizer
+from .motion.dataset_options import DatasetOptions
 from .motion.root import integrate, to_root_frame
 from .motion.types import Skeleton
 

@@ -30,7 +30,7 @@ from tqdm import tqdm
 from .checkpoint import CheckpointMeta, code_version, load_checkpoint, load_optimizer_state, read_meta, save_checkpoint
 from .hvrnn.classifiers import AttributeClassifiers
 from .models.attribute import AttributeModel
-from .models.base import MotionModel
+from .models.motion_model import MotionModel
 from .models.hvrnn import HVRNN
 from .motion.dataset import MotionDataset
 from .registry import model_class, resolve_preset, training_knobs

@@ -23,8 +23,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from generation.motion.bvh import load_motion, motion_to_bvh, read_bvh, write_bvh  # noqa: E402
-from generation.motion.dataset import (  # noqa: E402
-    DatasetOptions, find_bvh_files, load_body_motion, read_labels, split_takes, take_of)
+from generation.motion.clip_files import find_bvh_files, load_body_motion, read_labels  # noqa: E402
+from generation.motion.dataset_options import DatasetOptions  # noqa: E402
+from generation.motion.splits import split_takes, take_of  # noqa: E402
 from generation.motion.types import Motion  # noqa: E402
 from generation.motion.unit_detection import choose_units  # noqa: E402
 

@@ -21,7 +21,7 @@ DATA=${DATA:-$(realpath ../shared/data/bandai-namco-1):$(realpath ../shared/data
 IFS=: read -r -a FOLDERS <<< "$DATA"
 THREADS=${THREADS:-1}
 [[ $THREADS =~ ^[1-9][0-9]*$ ]] || { echo "THREADS must be a whole number of at least 1, got '$THREADS'" >&2; exit 2; }
-# The options of the committed MoGlow (studyapp/server/demo.py, DATASET).
+# The options of the committed MoGlow (studyapp/demo.py, DATASET).
 CONTENTS=walk,run,dash,walk-back,walk-left,walk-right,walk-turn-left,walk-turn-right
 RUNS=var/demo-models
 mkdir -p "$RUNS"

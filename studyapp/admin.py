@@ -5,9 +5,9 @@ study pages: a new study is theirs (the owner comes from the request, so the for
 lists other researchers' names); a superuser sees everything. The names a row holds of
 files and folders (a held-out control's take and folders, a submitted system's folder)
 point only at the study owner's own or at what is shared (``studyapp.ownership``). What
-a study that has begun keeps fixed (``studyapp.plan.fixed``) is refused here as on the
+a study that has begun keeps fixed (``studyapp.preregistration.fixed``) is refused here as on the
 study's pages, and what it allows is recorded as a deviation from its plan, as on every
-path (``studyapp.plan.lock``).
+path (``studyapp.preregistration.lock``).
 """
 
 from django import forms
@@ -17,7 +17,7 @@ from django.db import models
 
 from studyapp.models import Assignment, ControlSignal, Participant, Rating, Stimulus, Study, System
 from studyapp.ownership import NotYours, check_take
-from studyapp.plan.fixed import change_refusal, deletion_refusal
+from studyapp.preregistration.fixed import change_refusal, deletion_refusal
 from studyapp.researchers.setup.removal import remove_study
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER
 

@@ -8,6 +8,6 @@ class StudyappConfig(AppConfig):
     verbose_name = "Motion rating study"
 
     def ready(self) -> None:
-        from studyapp.plan import lock
+        from studyapp.preregistration import lock
 
         lock.connect()  # opening a study locks its plan; later changes are recorded as deviations

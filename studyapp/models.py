@@ -20,7 +20,7 @@ from django.db import models
 from analysis.levels import ALPHA, POWER
 from analysis.designs import design_named as analysed_design
 from generation.control import Control, control_from_dict
-from generation.motion.dataset import DatasetOptions
+from generation.motion.dataset_options import DatasetOptions
 from generation.render.camera import Camera
 from generation.submission import PATH_TOLERANCE_CM
 from generation.render.display_figure import PARENT, DisplayFigure, MappingError
@@ -769,7 +769,7 @@ class ImmutableRow(ValueError):
 
 
 class StudyPlan(models.Model):
-    """A study's plan as it stood when the study first opened (``studyapp.plan``): its
+    """A study's plan as it stood when the study first opened (``studyapp.preregistration``): its
     design and settings, rules, systems, controls, planned analysis and number of
     participants, as canonical JSON with its SHA-256. Written once: reopening a closed
     study keeps it, and every later change is a ``PlanDeviation``."""
@@ -789,7 +789,7 @@ class StudyPlan(models.Model):
 
 
 class PlanDeviation(models.Model):
-    """One change to a locked plan: which part of it (``field``, as ``studyapp.plan``
+    """One change to a locked plan: which part of it (``field``, as ``studyapp.preregistration``
     names it), its value before and after (None: absent), and when. Written once."""
 
     study = models.ForeignKey(Study, on_delete=models.CASCADE, related_name="plan_deviations")

@@ -28,7 +28,7 @@ from pathlib import Path
 from django.conf import settings
 from django.contrib.auth.base_user import AbstractBaseUser
 
-from generation.motion.dataset import motion_folders
+from generation.motion.clip_files import motion_folders
 from generation.store import SUFFIX as CHECKPOINT_SUFFIX, CheckpointError, content_digest, read_header
 from studyapp.models import ControlSignal, System
 from studyapp.stimuli.natural import is_take_name

@@ -40,7 +40,7 @@ def make_appropriateness_study(owner_name: str = "researcher", video: Path | Non
                 "ratings_per_stimulus": 10, "training_clips": 2, "bad_checks": 1, "completion_code": "C0MPL3TE",
                 "is_open": True, "platform": Study.Platform.PROLIFIC}
     fields = {**defaults, **fields}
-    is_open = fields.pop("is_open")  # opened once its clips exist, as a researcher opens one (studyapp.plan)
+    is_open = fields.pop("is_open")  # opened once its clips exist, as a researcher opens one (studyapp.preregistration)
     study = Study.objects.create(owner=owner, **fields)
     for name, segments in TAKES.items():
         control = synthetic_path({"name": name, "segments": segments}, 20.0)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from generation.motion.dataset import motion_folders
+from generation.motion.clip_files import motion_folders
 from studyapp.server.gc_tuning import freeze_start_up
 from tests.lab_rigs import LAB_RIGS, write_lab_folder
 
@@ -47,8 +47,9 @@ def demo_dataset_cache(pytestconfig, motion_data, motion_data_2) -> Path:
     prepared as ``make demo`` prepares them), built once per run: in pytest's cache
     folder, which the test processes share, the first to need it building it while the
     others wait (it takes 40 s here; reading it back 3 s)."""
-    from generation.motion.dataset import DatasetOptions, build_dataset
-    from studyapp.server import demo
+    from generation.motion.dataset import build_dataset
+    from generation.motion.dataset_options import DatasetOptions
+    from studyapp import demo
 
     cache = pytestconfig.cache.mkdir("motion-dataset")
     with (cache / "demo-dataset.lock").open("w") as lock:

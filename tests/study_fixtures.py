@@ -20,7 +20,7 @@ SYSTEMS = (("MoGlow", System.Role.MODEL), ("RNN", System.Role.MODEL), ("NAT", Sy
 
 def render_clip_video(bvh: Path, out: Path, seconds: float) -> Path:
     """A short H.264 clip of real motion (small, so a browser test plays it quickly)."""
-    from generation.motion.dataset import load_body_motion
+    from generation.motion.clip_files import load_body_motion
     from generation.render import render_video
 
     motion = load_body_motion(bvh, fps=20.0, seconds=seconds)
@@ -39,7 +39,7 @@ def make_study(owner_name: str = "researcher", controls: int = 3, video: Path | 
                 "training_clips": 2, "completion_code": "C0MPL3TE", "is_open": True,
                 "platform": Study.Platform.PROLIFIC}
     fields = {**defaults, **fields}
-    # Opened once its systems and clips exist, as a researcher opens one: opening locks its plan (studyapp.plan).
+    # Opened once its systems and clips exist, as a researcher opens one: opening locks its plan (studyapp.preregistration).
     is_open = fields.pop("is_open")
     study = Study.objects.create(owner=owner, **fields)
     signals = [ControlSignal.objects.create(study=study, name=f"control-{i}", origin=ControlSignal.Origin.HELD_OUT,

@@ -13,7 +13,9 @@ import pytest
 import torch
 
 from generation import registry
-from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
+from generation.motion.clip_files import load_body_motion
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from generation.render import render_video
 from generation.train import TrainOptions, train
 

@@ -8,12 +8,12 @@ import pandas as pd
 import pytest
 from statsmodels.stats.proportion import proportion_confint
 
-from analysis.adherence import label_adherence, path_adherence, path_errors
-from analysis.attribute_scores import ClassifierOutputs
+from analysis.reports.adherence import label_adherence, path_adherence, path_errors
+from analysis.reports.attribute_scores import ClassifierOutputs
 from analysis.cli import main
 from analysis.errors import AnalysisInputError
-from analysis.motion_io import FollowedPath, load_motion_sets
-from analysis.simulate import simulate_appropriateness
+from analysis.motion.motion_io import FollowedPath, load_motion_sets
+from analysis.ratings.simulate import simulate_appropriateness
 from generation.control import following_arrays, preset_path
 from generation.motion.npz import save_motion_npz
 from generation.motion.root import RootTrajectory

@@ -14,12 +14,12 @@ from scipy import stats
 from statsmodels.stats.multitest import multipletests
 from statsmodels.stats.proportion import proportion_confint
 
-from analysis.appropriateness import (appropriateness_pages, appropriateness_scores, matched_preference,
+from analysis.stats.matching import (appropriateness_pages, appropriateness_scores, matched_preference,
                                       score_pairs)
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import apply_exclusions
-from analysis.ratings import validate_ratings
-from analysis.simulate import simulate_appropriateness
+from analysis.ratings.exclusions import apply_exclusions
+from analysis.ratings.reading import validate_ratings
+from analysis.ratings.simulate import simulate_appropriateness
 
 PREFER_MATCHED = {"NAT": 0.92, "MoGlow": 0.78, "RNN": 0.62, "Chance": 0.5}
 NO_PREFERENCE, CLEAR = 0.15, 0.5
@@ -142,8 +142,8 @@ def test_a_malformed_appropriateness_table_is_refused_naming_the_page_or_row(cha
 
 
 def test_both_figures_are_written_as_png_and_svg(simulated, tmp_path):
-    from analysis.design_plots import appropriateness_plots
-    from analysis.plots import save_figure
+    from analysis.reports.design_plots import appropriateness_plots
+    from analysis.reports.plots import save_figure
 
     figures = appropriateness_plots(matched_preference(simulated), appropriateness_scores(simulated, resamples=200),
                                     list(PREFER_MATCHED))

@@ -7,7 +7,7 @@ import pandas as pd
 
 from analysis import build_report, validate_ratings
 from analysis.cli import main
-from analysis.report import summary_text
+from analysis.reports.single_report import summary_text
 
 
 def pairwise_with_a_bad_preference() -> pd.DataFrame:

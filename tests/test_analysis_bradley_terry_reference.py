@@ -8,10 +8,10 @@ import pandas as pd
 import statsmodels.api as sm
 
 from analysis import build_report, validate_ratings
-from analysis.bradley_terry import bradley_terry_covariance, bradley_terry_scale, win_matrix
+from analysis.rankings.bradley_terry import bradley_terry_covariance, bradley_terry_scale, win_matrix
 from analysis.cli import main
-from analysis.pairwise import preference_pages
-from analysis.simulate import simulate_pairwise
+from analysis.stats.preferences import preference_pages
+from analysis.ratings.simulate import simulate_pairwise
 
 STRENGTHS = {"NAT": 1.0, "A": 0.4, "B": 0.1, "C": -0.5}
 

@@ -10,9 +10,9 @@ from scipy import stats
 
 from analysis import build_report, validate_ratings
 from analysis.cli import main
-from analysis.signed_rank import signed_rank_test
-from analysis.appropriateness import appropriateness_pages, score_pairs
-from analysis.simulate import simulate_appropriateness, simulate_side_by_side
+from analysis.stats.signed_rank import signed_rank_test
+from analysis.stats.matching import appropriateness_pages, score_pairs
+from analysis.ratings.simulate import simulate_appropriateness, simulate_side_by_side
 
 
 @pytest.mark.parametrize("correction", [False, True])

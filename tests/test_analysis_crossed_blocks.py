@@ -9,8 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import analysis.crossed_design as crossed_design
-from analysis.crossed_design import CrossedBlocks, crossed_layout
+import analysis.raters.crossed_design as crossed_design
+from analysis.raters.crossed_design import CrossedBlocks, crossed_layout
 
 
 def sparse_ratings(participants: int, stimuli: int, per_participant: int, seed: int) -> pd.DataFrame:

@@ -11,9 +11,9 @@ import statsmodels.api as sm
 from scipy import optimize
 from statsmodels.stats.multitest import multipletests
 
-from analysis.crossed_design import crossed_layout
-from analysis.crossed_mixed import crossed_mixed_model, fit_crossed, reml_deviance
-from analysis.mixed import mixed_model_means
+from analysis.raters.crossed_design import crossed_layout
+from analysis.raters.crossed_mixed import crossed_mixed_model, fit_crossed, reml_deviance
+from analysis.raters.mixed import mixed_model_means
 
 MEANS = {"NAT": 4.0, "A": 3.2, "B": 3.0}
 

@@ -14,9 +14,9 @@ import pytest
 from analysis import build_report, validate_ratings
 from analysis.cli import main
 from analysis.designs import DESIGNS, design_named, design_of
-from analysis.exclusions import ExclusionRules
-from analysis.report import summary_text
-from analysis.simulate import (simulate_appropriateness, simulate_pairwise, simulate_ratings,
+from analysis.ratings.exclusions import ExclusionRules
+from analysis.reports.single_report import summary_text
+from analysis.ratings.simulate import (simulate_appropriateness, simulate_pairwise, simulate_ratings,
                                simulate_side_by_side)
 
 ANALYSIS = Path(__file__).resolve().parents[1] / "analysis"

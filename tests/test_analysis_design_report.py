@@ -11,9 +11,9 @@ import pytest
 
 from analysis import build_report, validate_ratings
 from analysis.cli import main
-from analysis.motion_io import save_clips
-from analysis.power import SEQUENTIAL_LOOKS_NOTE
-from analysis.simulate import simulate_pairwise, simulate_ratings, simulate_side_by_side
+from analysis.motion.motion_io import save_clips
+from analysis.stats.power import SEQUENTIAL_LOOKS_NOTE
+from analysis.ratings.simulate import simulate_pairwise, simulate_ratings, simulate_side_by_side
 
 FORMATS = ("csv", "md", "tex", "json")
 
@@ -111,8 +111,8 @@ def test_single_report_gains_the_power_table_and_paragraph(tmp_path):
 
 
 def test_the_preference_plot_draws_a_pair_whose_decided_pages_all_went_one_way():
-    from analysis.design_plots import preference_plot
-    from analysis.pairwise import preference_pairs
+    from analysis.reports.design_plots import preference_plot
+    from analysis.stats.preferences import preference_pairs
 
     # 5 pages: 1 preferring A, 4 without preference (1 - 4/5 is a hair under 1/5 in floating point).
     rows = [{"task": "all", "control_class": "held-out", "participant": f"p{page}", "page": page, "system": system,

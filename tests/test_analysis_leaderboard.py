@@ -1,7 +1,7 @@
 """The leaderboard against independent computations.
 
 References: statsmodels' GLM (binomial, ``freq_weights``) on one row per weighted vote
-for the weighted Bradley-Terry fit, the project's MM fit (`analysis.bradley_terry`) for
+for the weighted Bradley-Terry fit, the project's MM fit (`analysis.rankings.bradley_terry`) for
 plain answers, an independently written page-level Davidson likelihood maximised by
 scipy, the bootstrap's resamples refitted one by one from the resampled participants'
 pages, and a simulation of many studies for the intervals' coverage.
@@ -17,16 +17,16 @@ import pytest
 import statsmodels.api as sm
 from scipy import optimize
 
-from analysis.bradley_terry import fit_bradley_terry, win_matrix
+from analysis.rankings.bradley_terry import fit_bradley_terry, win_matrix
 from analysis.cli import main
 from analysis.errors import AnalysisInputError
-from analysis.graded_votes import simulate_graded_pairwise
-from analysis.leaderboard import (ELO_PER_LOG_ODDS, INTERVAL_WARNING_PARTICIPANTS, battles, fit_votes,
+from analysis.rankings.graded_votes import simulate_graded_pairwise
+from analysis.rankings.leaderboard import (ELO_PER_LOG_ODDS, INTERVAL_WARNING_PARTICIPANTS, battles, fit_votes,
                                   leaderboard, pair_votes, participant_resamples, vote_pages)
-from analysis.leaderboard_report import build_leaderboard, leaderboard_text
-from analysis.pairwise import preference_pages
-from analysis.ratings import read_ratings
-from analysis.simulate import simulate_pairwise
+from analysis.reports.leaderboard_report import build_leaderboard, leaderboard_text
+from analysis.stats.preferences import preference_pages
+from analysis.ratings.reading import read_ratings
+from analysis.ratings.simulate import simulate_pairwise
 
 STRENGTHS = {"NAT": 1.0, "A": 0.5, "B": 0.2, "C": -0.1, "D": -0.6}
 

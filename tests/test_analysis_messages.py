@@ -8,15 +8,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis.bradley_terry import bradley_terry_scale, fit_bradley_terry
+from analysis.rankings.bradley_terry import bradley_terry_scale, fit_bradley_terry
 from analysis.cli import main
 from analysis.designs import design_of
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import ExclusionRules, apply_exclusions, compared_ratings
-from analysis.leaderboard import leaderboard
-from analysis.pairwise import preference_pages
-from analysis.ratings import validate_ratings
-from analysis.simulate import (
+from analysis.ratings.exclusions import ExclusionRules, apply_exclusions, compared_ratings
+from analysis.rankings.leaderboard import leaderboard
+from analysis.stats.preferences import preference_pages
+from analysis.ratings.reading import validate_ratings
+from analysis.ratings.simulate import (
     simulate_appropriateness,
     simulate_pairwise,
     simulate_ratings,

@@ -11,10 +11,10 @@ from scipy import linalg
 from scipy import stats as sps
 
 from analysis.cli import main
-from analysis.frechet import frechet_distance, gaussian_frechet, pose_features
-from analysis.leaderboard import INTERVAL_WARNING_PARTICIPANTS
-from analysis.metric_agreement import clip_metrics, clip_stimulus, kendall_tau_rows, metric_agreement
-from analysis.motion_io import load_motion_sets, save_clips
+from analysis.motion.frechet import frechet_distance, gaussian_frechet, pose_features
+from analysis.rankings.leaderboard import INTERVAL_WARNING_PARTICIPANTS
+from analysis.reports.metric_agreement import clip_metrics, clip_stimulus, kendall_tau_rows, metric_agreement
+from analysis.motion.motion_io import load_motion_sets, save_clips
 
 
 def sqrtm_frechet(a: np.ndarray, b: np.ndarray) -> float:

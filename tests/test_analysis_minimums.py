@@ -1,4 +1,4 @@
-"""Results only where the data can carry them: below the minimums of `analysis.minimums`
+"""Results only where the data can carry them: below the minimums of `analysis.stats.minimums`
 the models and bootstraps are not run and the report and command line say "too few
 ratings"; intervals from few participants carry a warning."""
 
@@ -7,19 +7,19 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from analysis.appropriateness import appropriateness_scores, matched_preference
-from analysis.bradley_terry import bradley_terry_scale
+from analysis.stats.matching import appropriateness_scores, matched_preference
+from analysis.rankings.bradley_terry import bradley_terry_scale
 from analysis.cli import main
-from analysis.exclusions import ExclusionRules, apply_exclusions, compared_ratings
-from analysis.leaderboard import leaderboard
-from analysis.minimums import (BOOTSTRAP_MIN_PARTICIPANTS, INTERVAL_FEW_PARTICIPANTS, MODEL_MIN_PARTICIPANTS,
+from analysis.ratings.exclusions import ExclusionRules, apply_exclusions, compared_ratings
+from analysis.rankings.leaderboard import leaderboard
+from analysis.stats.minimums import (BOOTSTRAP_MIN_PARTICIPANTS, INTERVAL_FEW_PARTICIPANTS, MODEL_MIN_PARTICIPANTS,
                                MODEL_MIN_RATINGS_PER_SYSTEM)
-from analysis.pairwise import preference_pages, preference_pairs
-from analysis.ratings import validate_ratings
-from analysis.report import build_report
-from analysis.side_by_side import median_and_mean
-from analysis.simulate import simulate_appropriateness, simulate_pairwise, simulate_ratings, simulate_side_by_side
-from analysis.tables import FEW_PARTICIPANTS_MARK
+from analysis.stats.preferences import preference_pages, preference_pairs
+from analysis.ratings.reading import validate_ratings
+from analysis.ratings.report import build_report
+from analysis.stats.within_page import median_and_mean
+from analysis.ratings.simulate import simulate_appropriateness, simulate_pairwise, simulate_ratings, simulate_side_by_side
+from analysis.reports.tables import FEW_PARTICIPANTS_MARK
 
 
 def one_participants_ratings() -> pd.DataFrame:

@@ -19,10 +19,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.crossed_design import crossed_layout
-from analysis.crossed_mixed import fit_crossed
-from analysis.ordinal_mixed import fit_ordinal
-from analysis.simulate import simulate_ratings
+from analysis.raters.crossed_design import crossed_layout
+from analysis.raters.crossed_mixed import fit_crossed
+from analysis.raters.ordinal_mixed import fit_ordinal
+from analysis.ratings.simulate import simulate_ratings
 
 pytestmark = pytest.mark.slow
 

@@ -18,12 +18,12 @@ import pandas as pd
 import pytest
 from scipy.signal import find_peaks
 
-from analysis.bones import bone_length_rmse, rigid_bones
-from analysis.correlation import subjective_objective_correlation
+from analysis.motion.bones import bone_length_rmse, rigid_bones
+from analysis.stats.correlation import subjective_objective_correlation
 from analysis.errors import AnalysisInputError
-from analysis.footsteps import FootSpeeds, footstep_summary, footstep_tolerance_curve, step_durations, v_tol_95
-from analysis.scores import frechet_distance, inception_score
-from analysis.smoothness import mean_joint_acceleration
+from analysis.motion.footsteps import FootSpeeds, footstep_summary, footstep_tolerance_curve, step_durations, v_tol_95
+from analysis.motion.scores import frechet_distance, inception_score
+from analysis.motion.smoothness import mean_joint_acceleration
 from measures.feet import choose_foot_joints, find_foot_joints, lower_foot_speed
 from measures.units import Z_UP_TO_Y_UP
 
@@ -218,7 +218,7 @@ def test_feet_are_the_lowest_end_joints_when_names_say_nothing(walks):
 
 def test_objective_metrics_of_motion_in_metres_with_z_up_equal_those_in_centimetres(walks, tmp_path, capsys):
     from analysis.cli import main
-    from analysis.motion_io import save_clips
+    from analysis.motion.motion_io import save_clips
 
     skeleton = walks[0].skeleton
     for name, scale, rotation in (("cm", 1.0, np.eye(3)), ("m-z-up", 0.01, Z_UP_TO_Y_UP.T)):

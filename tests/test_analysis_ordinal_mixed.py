@@ -12,8 +12,8 @@ import pytest
 from scipy import optimize, special
 from statsmodels.miscmodels.ordinal_model import OrderedModel
 
-from analysis.crossed_design import crossed_layout
-from analysis.ordinal_mixed import _Data, _gradient, _laplace, fit_ordinal, ordinal_mixed_model
+from analysis.raters.crossed_design import crossed_layout
+from analysis.raters.ordinal_mixed import _Data, _gradient, _laplace, fit_ordinal, ordinal_mixed_model
 
 EFFECTS = {"NAT": 0.0, "A": -0.8, "B": -1.3}
 THRESHOLDS = np.array([-2.5, -1.0, 0.5, 2.0])

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from django.contrib.auth.models import User
 
-from analysis.simulate import simulate_pairwise, simulate_ratings, simulate_side_by_side
+from analysis.ratings.simulate import simulate_pairwise, simulate_ratings, simulate_side_by_side
 
 
 @pytest.fixture

@@ -11,10 +11,10 @@ from scipy.optimize import brentq
 from scipy.stats import multivariate_normal, norm
 
 from analysis.errors import AnalysisInputError
-from analysis.pairing import (PRIOR_TIES, PairingState, choose_pair, current_fit, expected_misorders,
+from analysis.rankings.pairing import (PRIOR_TIES, PairingState, choose_pair, current_fit, expected_misorders,
                               expected_standard_errors, next_pair, page_effect, pair_incidence, pair_scores,
                               pairing_state, plan_pages, plan_pairs)
-from analysis.pairing_simulation import (Scenario, best_allocation_saving, best_joint_allocation_saving,
+from analysis.reports.pairing_simulation import (Scenario, best_allocation_saving, best_joint_allocation_saving,
                                          compare_pairings, pairing_summary, simulate_votes, votes_saved)
 
 SYSTEMS = ["NAT", "A", "B", "C", "D"]

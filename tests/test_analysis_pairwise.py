@@ -15,12 +15,12 @@ from scipy import stats
 from statsmodels.stats.multitest import multipletests
 from statsmodels.stats.proportion import proportion_confint
 
-from analysis.bradley_terry import bradley_terry_scale, fit_bradley_terry, win_matrix
+from analysis.rankings.bradley_terry import bradley_terry_scale, fit_bradley_terry, win_matrix
 from analysis.errors import AnalysisInputError
-from analysis.pairwise import (preference_pages, preference_pairs, side_bias, sign_test_p,
+from analysis.stats.preferences import (preference_pages, preference_pairs, side_bias, sign_test_p,
                                wilson_interval)
-from analysis.ratings import validate_ratings
-from analysis.simulate import simulate_pairwise
+from analysis.ratings.reading import validate_ratings
+from analysis.ratings.simulate import simulate_pairwise
 
 STRENGTHS = {"NAT": 1.0, "A": 0.4, "B": 0.1, "C": -0.5}
 

@@ -12,12 +12,13 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from analysis.exclusions import apply_exclusions
-from analysis.power import (SEQUENTIAL_LOOKS_NOTE, more_ratings_for_power, pages_for_page_effect,
-                            pages_for_preference, power_summary, ratings_per_system_for_effect, sign_test_power,
-                            sign_test_trials_for_power, walsh_positive_share)
-from analysis.ratings import validate_ratings
-from analysis.simulate import simulate_pairwise, simulate_ratings, simulate_side_by_side
+from analysis.ratings.exclusions import apply_exclusions
+from analysis.stats.power import (SEQUENTIAL_LOOKS_NOTE, pages_for_page_effect, pages_for_preference, power_summary,
+                                  ratings_per_system_for_effect, sign_test_power, sign_test_trials_for_power,
+                                  walsh_positive_share)
+from analysis.ratings.more_ratings import more_ratings_for_power
+from analysis.ratings.reading import validate_ratings
+from analysis.ratings.simulate import simulate_pairwise, simulate_ratings, simulate_side_by_side
 
 pytestmark = pytest.mark.slow
 

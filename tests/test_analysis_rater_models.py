@@ -7,9 +7,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.agreement import rater_agreement
+from analysis.raters.agreement import rater_agreement
 from analysis.cli import main
-from analysis.simulate import simulate_ratings, simulate_side_by_side
+from analysis.ratings.simulate import simulate_ratings, simulate_side_by_side
 
 # Krippendorff (2011), "Computing Krippendorff's alpha-reliability", the example with
 # missing values: four observers, twelve units, values 1-5

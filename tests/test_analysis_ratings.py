@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from analysis import AnalysisInputError, ExclusionRules, apply_exclusions, exclusion_summary, read_ratings
-from analysis.exclusions import exclusion_notes, scaled_threshold
+from analysis.ratings.exclusions import exclusion_notes, scaled_threshold
 
 
 def ratings_csv(rows: list[dict]) -> io.StringIO:

@@ -10,9 +10,9 @@ import pytest
 
 from analysis import AnalysisInputError, build_report, validate_ratings, write_report
 from analysis.cli import main
-from analysis.motion_io import load_motion_sets, save_clips
-from analysis.simulate import simulate_ratings
-from analysis.tables import to_latex
+from analysis.motion.motion_io import load_motion_sets, save_clips
+from analysis.ratings.simulate import simulate_ratings
+from analysis.reports.tables import to_latex
 
 pytestmark = pytest.mark.slow
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from analysis.cli import main
-from analysis.exclusions import ExclusionRules
+from analysis.ratings.exclusions import ExclusionRules
 
 
 def test_rules_written_as_json_read_back_the_same():

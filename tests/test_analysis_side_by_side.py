@@ -13,12 +13,12 @@ import pytest
 from scipy import stats
 from statsmodels.stats.multitest import multipletests
 
-from analysis.multiple_comparisons import holm_adjusted
-from analysis.ratings import validate_ratings
-from analysis.side_by_side import (median_and_mean, median_interval, page_differences,
+from analysis.stats.multiple_comparisons import holm_adjusted
+from analysis.ratings.reading import validate_ratings
+from analysis.stats.within_page import (median_and_mean, median_interval, page_differences,
                                    significance_matrix, signed_rank_pairs)
-from analysis.signed_rank import signed_rank_test
-from analysis.simulate import simulate_side_by_side
+from analysis.stats.signed_rank import signed_rank_test
+from analysis.ratings.simulate import simulate_side_by_side
 
 
 @pytest.fixture(scope="module")

@@ -14,9 +14,9 @@ import pytest
 from scipy import stats
 
 from analysis.errors import AnalysisInputError
-from analysis.mixed import mixed_model_means
-from analysis.stats import anova, pvalue_matrix, system_means, tukey_hsd
-from analysis.studentized_range import studentized_range_ppf, studentized_range_sf
+from analysis.raters.mixed import mixed_model_means
+from analysis.stats.anova import anova, pvalue_matrix, system_means, tukey_hsd
+from analysis.stats.studentized_range import studentized_range_ppf, studentized_range_sf
 
 
 def tidy(groups: dict[str, list[float]], task="t", control_class="c") -> pd.DataFrame:

@@ -9,15 +9,17 @@ import shutil
 import numpy as np
 import pytest
 
-from analysis.footsteps import footstep_summary
+from analysis.motion.footsteps import footstep_summary
 from generation.motion.augment import mirror
 from generation.motion.bvh import load_motion, motion_to_bvh, write_bvh
-from generation.motion.dataset import DatasetOptions, build_dataset, find_bvh_files, load_body_motion, read_labels
+from generation.motion.clip_files import find_bvh_files, load_body_motion, read_labels
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from generation.motion.features import angle_feature_spec, encode_positions
 from generation.motion.root import RootOptions, limb_root_pairs
 from generation.motion.symmetry import left_right_pairs
 from generation.motion.unit_detection import choose_units
-from generation.motion.units import Units, skeleton_size
+from generation.motion.skeleton_units import Units, skeleton_size
 from generation.render import Camera
 from generation.render.draw import FrameDrawer
 from measures.feet import choose_foot_joints

@@ -6,7 +6,8 @@ import pytest
 import torch
 from torch.distributions import Normal, kl_divergence
 
-from generation.motion.dataset import DatasetOptions, build_dataset
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from generation.registry import preset
 from generation.models.rnn import RNNBaseline, RNNConfig
 from generation.models.vae import VAEBaseline, VAEConfig, kl_to_standard_normal

@@ -16,7 +16,7 @@ import pytest
 from django.core.files.uploadedfile import SimpleUploadedFile
 
 from studyapp.models import PreviousRun, Study
-from studyapp.server.bounded_reading import MAX_DEPTH
+from studyapp.server.uploads.bounded_reading import MAX_DEPTH
 from tests.test_hostile_bundles import bundle, members, rewritten  # noqa: F401 (fixtures)
 from tests.test_study_researcher import files, new_study, researcher, site, upload_checkpoint  # noqa: F401 (fixtures)
 

@@ -20,7 +20,7 @@ from django.core.management import call_command
 from studyapp.definitions import DefinitionError, create_study_from_definition
 from studyapp.definitions.reading import read_definition
 from studyapp.models import Rating, Study
-from studyapp.server.bounded_reading import MAX_DEPTH, MAX_ITEMS
+from studyapp.server.uploads.bounded_reading import MAX_DEPTH, MAX_ITEMS
 from tests.test_hostile_bundles import bundle, members, refused, rewritten  # noqa: F401 (fixtures)
 from tests.test_hostile_web import UnreadBody
 from tests.test_study_definition_refusals import VALID, owner  # noqa: F401 (fixtures)

@@ -14,7 +14,8 @@ from generation import registry
 from generation.checkpoint import CheckpointError, load_checkpoint, read_meta, save_checkpoint
 from generation.control import load_control_file, preset_path
 from generation.generator import Generator
-from generation.motion.dataset import DatasetOptions, build_dataset
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from generation.train import TrainOptions, train
 
 pytestmark = pytest.mark.slow
@@ -356,7 +357,7 @@ def test_sample_command_writes_rotation_bvh_for_the_path_baselines_too(kind, dat
 def test_sample_command_writes_bvh_in_the_unit_asked_for_and_says_which(checkpoint, tmp_path, capsys):
     from generation.cli import main
     from generation.motion.unit_detection import choose_units
-    from generation.motion.units import Units
+    from generation.motion.skeleton_units import Units
 
     out = tmp_path / "in-metres"
     assert main(["sample", str(checkpoint), "-c", "walk-straight", "--out", str(out), "--bvh-unit", "m"]) == 0

@@ -80,7 +80,8 @@ def test_controls_round_trip_through_dicts():
 
 
 def test_held_out_control_comes_from_held_out_natural_clips(motion_data, tmp_path):
-    from generation.motion.dataset import DatasetOptions, build_dataset
+    from generation.motion.dataset import build_dataset
+    from generation.motion.dataset_options import DatasetOptions
 
     dataset = build_dataset(motion_data, DatasetOptions(contents=("walk-back",)), cache_dir=tmp_path, progress=False)
     controls = held_out_paths(dataset, seconds=4)
@@ -110,7 +111,8 @@ def test_a_lead_in_round_trips_and_a_control_without_one_keeps_its_dict():
 
 
 def test_held_out_control_with_a_lead_in_starts_that_far_into_each_take(motion_data, tmp_path):
-    from generation.motion.dataset import DatasetOptions, build_dataset
+    from generation.motion.dataset import build_dataset
+    from generation.motion.dataset_options import DatasetOptions
 
     dataset = build_dataset(motion_data, DatasetOptions(contents=("walk-back",)), cache_dir=tmp_path, progress=False)
     plain, led = held_out_paths(dataset, seconds=None), held_out_paths(dataset, seconds=2, lead_in_seconds=1)
@@ -123,7 +125,9 @@ def test_held_out_control_with_a_lead_in_starts_that_far_into_each_take(motion_d
 
 
 def test_a_natural_take_moved_into_its_controls_frame_walks_along_its_controls_path(motion_data, tmp_path):
-    from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
+    from generation.motion.clip_files import load_body_motion
+    from generation.motion.dataset import build_dataset
+    from generation.motion.dataset_options import DatasetOptions
     from generation.motion.root import root_trajectory
 
     dataset = build_dataset(motion_data, DatasetOptions(contents=("walk-left",)), cache_dir=tmp_path, progress=False)

@@ -12,7 +12,8 @@ from django.core.management import call_command
 
 from generation.cli import main
 from generation.control import length_warning, shorter_than_asked, take_paths
-from generation.motion.dataset import DatasetOptions, build_dataset
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from tests.test_study_held_out_lead_in import path_study, post_held_out
 from tests.test_study_researcher import files, researcher, site  # noqa: F401 (fixtures)
 

@@ -11,8 +11,10 @@ from urllib.parse import parse_qs, urlparse
 import pytest
 
 from generation.checkpoint import read_meta
-from generation.motion.dataset import DatasetOptions, build_dataset, motion_folders
-from studyapp.server import demo
+from generation.motion.clip_files import motion_folders
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
+from studyapp import demo
 from tests.study_fixtures import make_study
 from tests.test_checkpoint import clips_folder, dataset  # noqa: F401
 

@@ -11,7 +11,7 @@ def test_the_demo_without_its_motion_data_names_the_missing_folder_and_exits_2(t
     var, missing = tmp_path / "var", tmp_path / "no-such-data"
     env = {key: value for key, value in os.environ.items() if key != "DATABASE_URL"}  # the embedded database
     env.update(MOTION_DATA=f"{motion_data}:{missing}", STUDYAPP_VAR_DIR=str(var))
-    result = subprocess.run([sys.executable, "-m", "studyapp.server.demo"], cwd=ROOT, env=env, capture_output=True,
+    result = subprocess.run([sys.executable, "-m", "studyapp.demo"], cwd=ROOT, env=env, capture_output=True,
                             text=True, timeout=120)
     assert result.returncode == 2, result.stdout + result.stderr
     assert f"no motion data at {missing}" in result.stdout + result.stderr

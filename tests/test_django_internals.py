@@ -1,4 +1,4 @@
-"""The private parts of Django that ``studyapp.server.django_internals`` drives behave as
+"""The private parts of Django that ``studyapp.server.db.django_internals`` drives behave as
 the app relies on: a Django upgrade that changes one fails here, naming it, before the
 compiled queries (``test_server_queries``) or the pipelined writes go wrong."""
 
@@ -15,8 +15,8 @@ from django.db.models import F, QuerySet
 from django.db.models.sql.compiler import SQLCompiler
 from django.db.models.sql.query import Query
 
-from studyapp.server import django_internals
-from studyapp.server.django_internals import (
+from studyapp.server.db import django_internals
+from studyapp.server.db.django_internals import (
     CURSOR, NO_RESULTS, UpdateQuery, compile_select, insert_rows, run_compiled, select_sql, update_compiler,
 )
 

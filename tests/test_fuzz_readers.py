@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from generation.motion.bvh import BVHError, bvh_duration, read_bvh
-from generation.motion.dataset import read_labels
+from generation.motion.clip_files import read_labels
 from generation.motion.npz import MotionFileError, load_motion_npz
 from tests.test_motion_bvh import SMALL_BVH
 

@@ -44,7 +44,7 @@ from hypothesis import settings as fuzz_settings
 from hypothesis import strategies as st
 
 from generation.control import preset_path
-from generation.motion.dataset import DatasetOptions
+from generation.motion.dataset_options import DatasetOptions
 from studyapp.definitions import create_study_from_definition
 from studyapp.bundles.manifest import entry_of
 from studyapp.bundles.pseudonyms import export_key

@@ -10,7 +10,9 @@ import torch
 from generation.cli import main
 from generation.control import PathControl
 from generation.generator import Generator
-from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
+from generation.motion.clip_files import load_body_motion
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from generation.motion.features import decode_positions
 from generation.motion.npz import load_motion_npz
 from tests.test_checkpoint import checkpoint, clips_folder, dataset, monkeypatch_module, tiny_preset  # noqa: F401

@@ -25,7 +25,7 @@ from studyapp.bundles.manifest import entry_of
 from studyapp.bundles.pseudonyms import export_key
 from studyapp.bundles.writing import write_study_bundle
 from studyapp.models import ControlSignal, Question, Stimulus, Study, System
-from studyapp.plan.contents import canonical_json
+from studyapp.preregistration.contents import canonical_json
 from studyapp.stimuli.clips import plan_stimuli, render_stimulus
 from studyapp.stimuli.controls import add_preset_controls
 from studyapp.stimuli.systems import add_checkpoint_system, add_natural_system, add_video_system

@@ -12,7 +12,9 @@ import pytest
 from generation.cli import main as cli_main
 from generation.motion import BVHError, read_bvh, write_bvh
 from generation.motion.bvh import bvh_duration, read_bvh_skeleton
-from generation.motion.dataset import DatasetOptions, build_dataset, read_labels
+from generation.motion.clip_files import read_labels
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from generation.motion.types import Motion
 from generation.render.draw import FrameDrawer
 from tests.test_motion_bvh import SMALL_BVH

@@ -17,7 +17,7 @@ from django.test import Client
 from django.urls import reverse
 
 from studyapp.models import Participant, Question, Rating, Stimulus, Study, System
-from studyapp.server.null_characters import null_character_in
+from studyapp.server.uploads.null_characters import null_character_in
 from tests.study_fixtures import make_study
 from tests.test_hostile_checkpoints import rewritten, tiny  # noqa: F401 (a fixture: a tiny checkpoint)
 from tests.test_study_designs import SIDE_BY_SIDE, page_html, page_token

@@ -18,8 +18,8 @@ import pytest
 from django.contrib.auth.models import User
 
 from analysis.cli import main
-from analysis.simulate import simulate_pairwise, simulate_ratings, simulate_side_by_side
-from analysis.tables import spreadsheet_safe, to_latex, to_markdown, write_table
+from analysis.ratings.simulate import simulate_pairwise, simulate_ratings, simulate_side_by_side
+from analysis.reports.tables import spreadsheet_safe, to_latex, to_markdown, write_table
 
 GOOD = simulate_ratings({"NAT": 4.2, "MoGlow": 3.8, "RNN": 2.9}, 600, seed=3).to_csv(index=False)
 HEADER, FIRST, *REST = GOOD.splitlines()

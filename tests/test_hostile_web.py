@@ -20,8 +20,8 @@ import pytest
 from django.contrib.auth.models import Permission, User
 from django.core.files.uploadedfile import SimpleUploadedFile
 
-from analysis.simulate import simulate_ratings
-from generation.motion.dataset import DatasetOptions
+from analysis.ratings.simulate import simulate_ratings
+from generation.motion.dataset_options import DatasetOptions
 from generation.render.camera import Camera
 from studyapp.models import Assignment, ControlSignal, Participant, Rating, Stimulus, Study, System, camera_problem
 from tests.study_fixtures import make_study

@@ -9,9 +9,9 @@ import pytest
 import torch
 
 from analysis import cli as analysis_cli
-from analysis.attribute_scores import read_classifier_outputs, score_table
-from analysis.scores import frechet_distance, inception_score
-from analysis.tsne import conditional_affinities, kl_divergence, tsne
+from analysis.reports.attribute_scores import read_classifier_outputs, score_table
+from analysis.motion.scores import frechet_distance, inception_score
+from analysis.motion.tsne import conditional_affinities, kl_divergence, tsne
 from generation import cli as generation_cli
 from generation.hvrnn.classifiers import train_classifiers
 from generation.hvrnn.data import ROOT_DIMS

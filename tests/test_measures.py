@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 
 from analysis.cli import main as analysis_main
-from analysis.motion_io import SystemClips
-from analysis.units import to_centimetres_y_up
+from analysis.motion.motion_io import SystemClips
+from analysis.motion.centimetres import to_centimetres_y_up
 from generation.cli import main as generation_main
 from generation.motion.bvh import load_motion, motion_to_bvh, write_bvh
 from generation.motion.types import Motion, Skeleton
 from generation.motion.unit_detection import choose_units
-from generation.motion.units import detect_up
+from generation.motion.skeleton_units import detect_up
 from measures.units import HUMAN_HEIGHT_CM, UNITS, Z_UP_TO_Y_UP, parse_scale, unit_for_height, up_axis
 from tests.lab_rigs import LAB_RIGS
 

@@ -7,11 +7,14 @@ rest of the suite checks."""
 
 from __future__ import annotations
 
+import hashlib
 import urllib.error
 import urllib.request
 
 import pytest
 from django.core.exceptions import ImproperlyConfigured
+from django.core.files.base import ContentFile
+from django.core.files.storage import default_storage
 from django.core.management import CommandError, call_command
 from django.test import Client
 
@@ -83,6 +86,31 @@ def test_a_study_generated_rated_and_reported_keeps_its_clips_only_in_the_bucket
     digest = create_study_report(Study.objects.get(pk=study.pk), researcher.pk)
     assert files_under(report_folder(settings.MEDIA_ROOT, digest))  # the report stays in MEDIA_ROOT
     assert not (settings.MEDIA_ROOT / "stimuli").exists()
+
+
+def answer_of(url: str, **headers: str) -> tuple[int, dict[str, str]]:
+    try:
+        with urllib.request.urlopen(urllib.request.Request(url, headers=headers), timeout=30) as answer:
+            answer.read()
+            return answer.status, dict(answer.headers)
+    except urllib.error.HTTPError as refused:
+        return refused.code, dict(refused.headers)
+
+
+def test_the_bucket_sends_a_clip_kept_as_long_as_its_address_works_but_dated_by_its_upload(bucket, settings):
+    """The presigned address asks for the Cache-Control of the address's lifetime, which the
+    bucket honours. What it cannot be asked to leave out (S3 overrides no Last-Modified) is
+    pinned here as the known leak the deployment page names: the clip's upload time, in its
+    Last-Modified and in its answers to conditional requests."""
+    default_storage.save("stimuli/0123abcd.mp4", ContentFile(b"\0\0\0\x18ftypmp42" + bytes(4096)))
+    redirect = Client().get("/media/stimuli/0123abcd.mp4")
+    assert redirect.status_code == 302
+    status, headers = answer_of(redirect["Location"])
+    assert status == 200 and headers["Cache-Control"] == f"private, max-age={int(settings.CLIP_URL_LIFETIME_S)}"
+    assert answer_of(redirect["Location"], Range="bytes=0-9")[0] == 206
+    uploaded = headers["Last-Modified"]  # the leak: when the clip went into the bucket
+    assert answer_of(redirect["Location"], **{"If-Modified-Since": uploaded})[0] == 304
+    assert headers["Etag"].strip('"') == hashlib.md5(b"\0\0\0\x18ftypmp42" + bytes(4096)).hexdigest()  # no time in it
 
 
 def test_a_clip_request_names_a_clip_file_or_is_refused_without_asking_the_bucket(bucket):

@@ -10,7 +10,8 @@ import pytest
 from generation.control import AttributeControl, PathControl, held_out_paths, preset_path
 from generation.mismatch import (ATTENTION_GAP, SHAPE_GAP, SPEED_BAND, SPEED_FLOOR, TURN_BAND,
                                  choose_attention_checks, choose_mismatches)
-from generation.motion.dataset import DatasetOptions, build_dataset
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 
 STYLES = ("normal", "elderly", "exhausted")
 CONTENTS = ("walk", "walk-turn-left", "walk-turn-right")

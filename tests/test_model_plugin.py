@@ -22,7 +22,8 @@ import pytest
 import torch
 
 from generation import registry
-from generation.motion.dataset import DatasetOptions, build_dataset
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from generation.train import TrainOptions, train
 from tests.study_setup import study_files
 from tests.test_celery_roundtrip import clean_env, require_redis

@@ -15,7 +15,8 @@ import torch
 from generation.models.flows import ActNorm, AffineCoupling, Flow, InvertibleLinearLU, glow_step
 from generation.models.moglow import MoGlow, MoGlowConfig
 from generation.registry import preset
-from generation.motion.dataset import DatasetOptions, build_dataset
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 
 pytestmark = pytest.mark.slow
 

@@ -163,7 +163,7 @@ def test_a_failed_write_leaves_no_partial_file(small_bvh, tmp_path, monkeypatch)
 
 def test_position_only_motion_writes_a_rotation_bvh_that_reproduces_its_positions(clip_path, tmp_path):
     from generation.motion import Motion
-    from generation.motion.dataset import load_body_motion
+    from generation.motion.clip_files import load_body_motion
 
     motion = load_body_motion(clip_path("walk_normal_001"), 30.0)  # the body, as models give it
     positions_only = Motion(motion.positions, motion.fps, motion.skeleton)
@@ -177,9 +177,9 @@ def test_position_only_motion_writes_a_rotation_bvh_that_reproduces_its_position
 def test_motion_written_in_another_unit_reads_back_as_the_same_centimetres_with_the_unit_detected(
         clip_path, tmp_path, unit, kind):
     from generation.motion import Motion
-    from generation.motion.dataset import load_body_motion
+    from generation.motion.clip_files import load_body_motion
     from generation.motion.unit_detection import choose_units
-    from generation.motion.units import Units
+    from generation.motion.skeleton_units import Units
     from measures.units import UNITS
 
     motion = load_body_motion(clip_path("walk_normal_001"), 30.0)

@@ -8,8 +8,10 @@ import time
 import numpy as np
 import pytest
 
-from generation.motion.dataset import (SPLITS, DatasetOptions, MotionDataset, build_dataset, contents_or_all, find_bvh_files,
-                                      split_takes)
+from generation.motion.clip_files import contents_or_all, find_bvh_files
+from generation.motion.dataset import MotionDataset, build_dataset
+from generation.motion.dataset_options import DatasetOptions
+from generation.motion.splits import SPLITS, split_takes
 
 CLIPS = [f"{c}_{s}_001" for c in ("walk", "walk-left", "run") for s in ("normal", "happy", "old")] + ["walk_normal_002"]
 

@@ -7,7 +7,9 @@ import numpy as np
 import pytest
 
 from generation.motion import Motion, Skeleton, load_motion, motion_to_bvh, read_bvh, write_bvh
-from generation.motion.dataset import DatasetOptions, find_bvh_files, load_body_motion, read_labels, split_takes
+from generation.motion.clip_files import find_bvh_files, load_body_motion, read_labels
+from generation.motion.dataset_options import DatasetOptions
+from generation.motion.splits import split_takes
 from generation.motion.ik import solve_rotations, with_rotations
 from generation.motion.kinematics import forward_kinematics
 from generation.motion.rotations import euler_to_matrix, matrix_to_continuous_euler, matrix_to_euler, quat_to_matrix

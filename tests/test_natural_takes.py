@@ -11,7 +11,9 @@ import pytest
 
 from generation.cli import main
 from generation.control import held_out_paths, take_paths
-from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
+from generation.motion.clip_files import load_body_motion
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from generation.motion.npz import load_motion_npz
 from generation.motion.takes import natural_takes
 from tests.study_setup import link_clips

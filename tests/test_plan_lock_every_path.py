@@ -1,5 +1,5 @@
 """The plan lock holds on every path: the admin, the commands and the pages refuse what a
-study that has begun keeps fixed (``studyapp.plan.fixed``), and what it allows is recorded
+study that has begun keeps fixed (``studyapp.preregistration.fixed``), and what it allows is recorded
 as a deviation from its plan.
 
 The study is opened (its plan locked) and one participant has rated two of its clips; its

@@ -15,8 +15,8 @@ import pytest
 from generation.cli import parser
 from generation.cli.common import dataset_units
 from generation.cli.models import _contents
-from generation.motion.dataset import DatasetOptions
-from studyapp.server import demo
+from generation.motion.dataset_options import DatasetOptions
+from studyapp import demo
 
 REPO = Path(__file__).resolve().parents[1]
 DOC = REPO / "docs" / "adding-a-model.md"

@@ -124,6 +124,31 @@ def test_every_refusal_is_listed_per_control_and_nothing_is_written(cmu, cmu_con
     assert "walk: walk.bvh: refused: the root strays 4" in capsys.readouterr().out and not out.exists()  # 4.68 m away
 
 
+
+def test_a_wider_path_tolerance_accepts_motion_that_need_not_follow_its_control(cmu, cmu_control, tmp_path, capsys):
+    folder = tmp_path / "lab"
+    folder.mkdir()
+    shutil.copy(cmu, folder / "walk.bvh")
+    bundle = tmp_path / "controls"
+    bundle_of({"walk": cmu_control}, bundle)
+    out = tmp_path / "submission.zip"
+    command = ["prepare-submission", str(folder), "--controls", str(bundle), "-o", str(out), "--keep-root"]
+    assert main(command) == 2 and not out.exists()  # left where it was captured, 4.68 m from the path's start
+    assert "the tolerance is 100 cm" in capsys.readouterr().out
+    assert main([*command, "--path-tolerance", "600"]) == 0 and out.is_file()
+    assert "(the tolerance is 600 cm)" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("tolerance", ["0", "-5", "nan", "inf", "wide"])
+def test_a_path_tolerance_that_is_not_positive_finite_centimetres_is_refused(tolerance, tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["prepare-submission", str(tmp_path), "--controls", str(tmp_path), "-o", str(tmp_path / "s.zip"),
+              "--path-tolerance", tolerance])
+    assert exit_.value.code == 2
+    error = capsys.readouterr().err
+    assert "--path-tolerance" in error and f"positive number of centimetres, got {tolerance!r}" in error
+
+
 def bundle_of(controls, folder):
     """A controls bundle as the study exports it (studyapp.stimuli.control_export), for tests without a study."""
     (folder / "paths").mkdir(parents=True)

@@ -18,14 +18,15 @@ import urllib.error
 import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
-from urllib.parse import urlencode
+from urllib.parse import parse_qs, urlencode, urlsplit
 
 import pytest
 from django.conf import settings
 from django.db import connection
+from django.utils.http import http_date
 
 from studyapp.models import Participant, Rating, Study
-from studyapp.server.clip_urls import signed_clip_url
+from studyapp.server.clip_urls import seconds_left, signed_clip_url
 from tests.conftest import REPO
 from tests.study_fixtures import make_study, render_clip_video
 from tests.test_serving_burst import compose_web_command
@@ -184,8 +185,10 @@ def test_a_participant_rates_through_the_proxy_with_the_clips_sent_by_it(proxy, 
             assert part.read() == video[100:200]
         with browser.get(clip) as whole:
             assert whole.read() == video
-            # The proxy's answer, with nothing that dates the clip's rendering.
-            assert whole.headers["Server"] == "Caddy" and whole.headers["Cache-Control"] == "private, max-age=3600"
+            # The proxy's answer, with nothing that dates the clip's rendering, kept while its address works.
+            assert whole.headers["Server"] == "Caddy" and whole.headers["Cache-Control"].startswith("private, max-age=")
+            kept = int(whole.headers["Cache-Control"].rpartition("=")[2])
+            assert abs(kept - seconds_left(query_of(clip))) <= 2 and kept >= settings.CLIP_URL_LIFETIME_S - 60
             assert whole.headers["Content-Type"] == "video/mp4"
             assert "Last-Modified" not in whole.headers and "ETag" not in whole.headers
             assert "X-Accel-Redirect" not in whole.headers
@@ -198,6 +201,33 @@ def test_a_participant_rates_through_the_proxy_with_the_clips_sent_by_it(proxy, 
     with urllib.request.urlopen(f"http://{app_server}{seen[0]}", timeout=30) as direct:
         token = re.search(r"/media/stimuli/([0-9a-f]+)\.mp4\?", seen[0]).group(1)
         assert direct.read() == b"" and direct.headers["X-Accel-Redirect"] == f"/_accel/media/stimuli/{token}.mp4"
+
+
+def query_of(address: str) -> dict[str, str]:
+    return {key: values[0] for key, values in parse_qs(urlsplit(address).query).items()}
+
+
+def test_no_conditional_request_tells_when_a_clip_was_rendered(proxy, clip_video):
+    """A file's time is in the proxy's 304 and 412 answers as surely as in a Last-Modified
+    header: asked whether a clip changed since a moment just after and just before it was
+    written, the proxy answers alike, and a range request with a validator is a range still."""
+    study = make_study(video=clip_video, controls=1)
+    stimulus = study.stimuli.first()
+    written = (settings.MEDIA_ROOT / stimulus.relative_path).stat().st_mtime
+    browser = Browser(proxy)
+    after, before = http_date(written + 2), http_date(written - 2)
+    answers = []
+    for headers in ({"If-Modified-Since": after}, {"If-Modified-Since": before}, {"If-Unmodified-Since": before},
+                    {"If-None-Match": "*"}, {"If-Match": '"x"'}, {"Range": "bytes=0-9", "If-Range": before}):
+        try:
+            with browser.get(stimulus.video_url, **headers) as answer:
+                answers.append((answer.status, len(answer.read())))
+        except urllib.error.HTTPError as refused:  # 304 Not Modified, 412 Precondition Failed
+            answers.append((refused.code, 0))
+            answer = refused
+        assert "Last-Modified" not in answer.headers and "ETag" not in answer.headers, headers
+    size = clip_video.stat().st_size
+    assert answers == [(200, size)] * 5 + [(206, 10)]
 
 
 def test_a_clip_address_unsigned_altered_expired_or_internal_is_refused_by_the_app(proxy, clip_video):

@@ -13,12 +13,14 @@ import torch
 
 from generation.cli import main
 from generation.motion.bvh import load_motion, read_bvh, write_bvh
-from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
+from generation.motion.clip_files import load_body_motion
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from generation.motion.features import angle_feature_spec, encode_angles
 from generation.motion.npz import load_motion_npz
 from generation.motion.resample import resample
 from generation.motion.takes import natural_takes
-from generation.motion.units import skeleton_size
+from generation.motion.skeleton_units import skeleton_size
 from measures.units import UNITS
 from tests.lab_rigs import LAB_FPS, LAB_RIGS
 from tests.test_any_rig import figure_box

@@ -18,10 +18,11 @@ from django.contrib.auth.models import User
 from django.test import Client
 from django.urls import reverse
 
-from analysis.design_plots import scale_plot
-from analysis.plots import means_plot, rating_scale
-from analysis.report import build_report, report_figures
-from analysis.simulate import simulate_ratings, simulate_side_by_side
+from analysis.reports.design_plots import scale_plot
+from analysis.reports.plots import means_plot, rating_scale
+from analysis.reports.single_report import report_figures
+from analysis.ratings.report import build_report
+from analysis.ratings.simulate import simulate_ratings, simulate_side_by_side
 from studyapp.models import Assignment, Participant, Rating
 from studyapp.researchers.results.monitor_figures import live_figures
 from studyapp.researchers.results.table_format import readable_table

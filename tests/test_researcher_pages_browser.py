@@ -14,7 +14,7 @@ from django.test import Client
 from django.urls import reverse
 
 from generation.control import preset_path
-from generation.motion.dataset import DatasetOptions
+from generation.motion.dataset_options import DatasetOptions
 from studyapp.models import Assignment, Participant, Question, Rating
 from tests.study_fixtures import make_study
 from tests.test_study_browser import PASSWORD, browser  # noqa: F401 (fixture)

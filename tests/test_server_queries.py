@@ -14,8 +14,8 @@ from django.test import Client
 from studyapp.models import Assignment, Participant, Stimulus, Study, System
 from studyapp.participants.assignment import enrol
 from studyapp.participants.study_cache import rendered_clips
-from studyapp.server.compiled_queries import CompiledQuery
-from studyapp.server.round_trips import draw_id, insert, lock_rows, pipeline, updated_count
+from studyapp.server.db.compiled_queries import CompiledQuery
+from studyapp.server.db.round_trips import draw_id, insert, lock_rows, pipeline, updated_count
 from tests.study_fixtures import make_study
 from tests.test_study_next_page import rate, study_of, through_instructions
 

@@ -37,7 +37,7 @@ def run_settings(**env: str) -> subprocess.CompletedProcess:
 def test_defaults_need_no_server_and_live_under_the_var_dir(tmp_path: Path) -> None:
     shown = json.loads(run_settings(STUDYAPP_VAR_DIR=str(tmp_path)).stdout)
 
-    assert shown["database"] == f"studyapp.server.sqlite_backend {tmp_path / 'db.sqlite3'}"  # Django's, writers in turn
+    assert shown["database"] == f"studyapp.server.db.sqlite_backend {tmp_path / 'db.sqlite3'}"  # Django's, writers in turn
     assert shown["broker"].startswith("filesystem://")
     assert shown["broker_options"]["data_folder_in"] == str(tmp_path / "broker" / "queue")
     assert shown["results"] == f"file://{tmp_path / 'celery-results'}"

@@ -11,7 +11,9 @@ import torch
 
 from measures.feet import lower_foot_speed
 from generation.cli import main
-from generation.motion.dataset import DatasetOptions, build_dataset, load_body_motion
+from generation.motion.clip_files import load_body_motion
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from tests.test_checkpoint import checkpoint, clips_folder, dataset, monkeypatch_module, tiny_preset  # noqa: F401
 
 CONTENTS = "walk,walk-back,run,walk-left"

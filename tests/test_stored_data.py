@@ -17,7 +17,7 @@ from django.urls import reverse
 from django.utils import timezone
 
 from generation.control import preset_path
-from generation.motion.dataset import DatasetOptions
+from generation.motion.dataset_options import DatasetOptions
 from studyapp.models import Assignment, ControlSignal, Participant, Question, Rating, Stimulus, Study, System
 
 pytestmark = [pytest.mark.django_db, pytest.mark.slow]

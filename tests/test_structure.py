@@ -45,31 +45,31 @@ def project_modules() -> dict[str, Path]:
     return {module_name(path): path for package in PACKAGES for path in sorted((ROOT / package).rglob("*.py"))}
 
 
-def is_type_checking_block(node: ast.AST) -> bool:
-    return isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
-
-
 def import_statements(path: Path) -> list[ast.Import | ast.ImportFrom]:
-    """Every import of a module, functions included; imports only for type checkers
-    never run, so they are left out."""
-    found: list[ast.Import | ast.ImportFrom] = []
+    """Every import statement of a module: at the top, inside functions and inside
+    ``if TYPE_CHECKING:`` blocks alike (an import for type checkers still ties the modules)."""
+    return [node for node in ast.walk(ast.parse(path.read_text(), str(path)))
+            if isinstance(node, ast.Import | ast.ImportFrom)]
 
-    def visit(node: ast.AST) -> None:
-        if is_type_checking_block(node):
-            return
-        if isinstance(node, ast.Import | ast.ImportFrom):
-            found.append(node)
-        for child in ast.iter_child_nodes(node):
-            visit(child)
 
-    visit(ast.parse(path.read_text(), str(path)))
-    return found
+def lazy_imports(path: Path, modules: dict[str, Path]) -> set[str]:
+    """The project modules a module imports by name at run time: in a module that calls
+    ``import_module``, every string that names a project module, alone or as a registry's
+    "module:Class" (``importlib.import_module("analysis.x")``, a table of such names)."""
+    tree = ast.parse(path.read_text(), str(path))
+    calls = any(isinstance(node, ast.Call) and ast.unparse(node.func).split(".")[-1] == "import_module"
+                for node in ast.walk(tree))
+    if not calls:
+        return set()
+    named = {node.value.partition(":")[0] for node in ast.walk(tree)
+             if isinstance(node, ast.Constant) and isinstance(node.value, str)}
+    return named & set(modules)
 
 
 def imported_modules(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
-    """The project modules that ``name`` imports anywhere in its body."""
+    """The project modules that ``name`` imports anywhere in its body, lazily included."""
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    found: set[str] = set()
+    found: set[str] = lazy_imports(path, modules)
     for node in import_statements(path):
         if isinstance(node, ast.Import):
             found.update(alias.name for alias in node.names)
@@ -104,9 +104,8 @@ def broken_package_rules(modules: dict[str, Path]) -> list[str]:
     return broken
 
 
-def find_cycle(graph: dict[str, set[str]], starts: list[str] | None = None) -> list[str] | None:
-    """One import cycle of ``graph`` through a module of ``starts`` (default: any) as a
-    list of modules (first repeated last), or None."""
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One import cycle of ``graph`` as a list of modules (first repeated last), or None."""
     state: dict[str, int] = {}  # 1: on the current path, 2: done
     path: list[str] = []
 
@@ -122,7 +121,7 @@ def find_cycle(graph: dict[str, set[str]], starts: list[str] | None = None) -> l
         state[node] = 2
         return None
 
-    for node in sorted(graph) if starts is None else starts:
+    for node in sorted(graph):
         if node not in state and (cycle := visit(node)):
             return cycle
     return None
@@ -146,7 +145,7 @@ def test_every_package_imports_only_what_its_rules_allow():
     assert broken_package_rules(project_modules()) == []
 
 
-def test_the_rule_checker_sees_a_forbidden_import_inside_a_function(tmp_path):
+def test_the_rule_checker_sees_a_forbidden_import_inside_a_function_or_a_type_checking_block(tmp_path):
     modules = {"generation.sliding": tmp_path / "sliding.py", "analysis.units": tmp_path / "units.py",
                "measures.feet": tmp_path / "feet.py"}
     modules["generation.sliding"].write_text(
@@ -157,19 +156,151 @@ def test_the_rule_checker_sees_a_forbidden_import_inside_a_function(tmp_path):
     modules["measures.feet"].write_text("import numpy as np\nimport pandas as pd\nimport generation\n")
     assert broken_package_rules(modules) == [
         "analysis.units imports torch.nn (analysis never imports torch)",
+        "generation.sliding imports studyapp.models (generation may import only measures)",
         "generation.sliding imports analysis.smoothness (generation may import only measures)",
         "measures.feet imports pandas (measures never imports pandas)",
         "measures.feet imports generation (measures imports no other project package)",
     ]
 
 
-@pytest.mark.parametrize("package", PACKAGES)
+# Circles that counting type-checking and lazy imports found in a package whose rooms are
+# split by another change of issue 54; each names its circle.
+KNOWN_CIRCLES = {
+    "studyapp": "studyapp.models -> studyapp.designs.registry (lazy) -> studyapp.designs.appropriateness -> "
+                "studyapp.designs.base -> studyapp.models: broken by the studyapp change",
+}
+
+
+@pytest.mark.parametrize("package", [
+    pytest.param(package, marks=pytest.mark.xfail(reason=KNOWN_CIRCLES[package], strict=True))
+    if package in KNOWN_CIRCLES else package for package in PACKAGES])
 def test_no_module_of_a_package_takes_part_in_an_import_cycle(package):
+    """Type-checking and lazy imports (``import_module``, registries' "module:Class")
+    count; packages import one way (their rules above), so a circle lies inside one."""
     modules = project_modules()
     graph = {name: imported_modules(name, path, modules) for name, path in modules.items()}
     assert "generation.checkpoint" in graph["generation.train"]  # the parser sees the imports
-    cycle = find_cycle(graph, [name for name in graph if name.split(".")[0] == package])
+    inside = {name: {m for m in graph[name] if m.split(".")[0] == package} for name in graph
+              if name.split(".")[0] == package}
+    cycle = find_cycle(inside)
     assert cycle is None, f"import cycle: {' -> '.join(cycle or [])}"
+
+
+def test_the_cycle_finder_counts_type_checking_and_lazy_imports(tmp_path):
+    modules = {name: tmp_path / f"{name}.py" for name in ("pkg.a", "pkg.b", "pkg.c")}
+    modules["pkg.a"].write_text("from pkg.b import thing\n")
+    modules["pkg.b"].write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from pkg.c import Kind\n")
+    modules["pkg.c"].write_text("import importlib\nKINDS = {'a': 'pkg.a:Thing'}\n"
+                                "def kind(name):\n    return importlib.import_module(KINDS[name].partition(':')[0])\n")
+    graph = {name: imported_modules(name, path, modules) for name, path in modules.items()}
+    assert graph == {"pkg.a": {"pkg.b"}, "pkg.b": {"pkg.c"}, "pkg.c": {"pkg.a"}}
+    assert find_cycle(graph) == ["pkg.a", "pkg.b", "pkg.c", "pkg.a"]
+    modules["pkg.c"].write_text("KINDS = {'a': 'pkg.a:Thing'}\n")  # names only, never imported
+    assert imported_modules("pkg.c", modules["pkg.c"], modules) == set()
+
+
+# docs/architecture.md's picture of analysis/: the rooms each room of analysis/ may import
+# (besides itself), bottom to top. "" is the modules directly in analysis/ (errors, levels,
+# the page columns, the exclusion rules), below every room; the package's __init__ and
+# __main__ are its entry points and may import every room.
+ANALYSIS_ROOMS = {
+    "": set(),
+    "stats": {""},
+    "rankings": {"", "stats"},
+    "raters": {"", "stats"},
+    "motion": {"", "stats"},
+    "reports": {"", "stats", "rankings", "raters", "motion"},
+    "designs": {"", "stats", "rankings", "raters", "motion", "reports"},
+    "ratings": {"", "stats", "rankings", "raters", "motion", "reports", "designs"},
+    "cli": {"", "stats", "rankings", "raters", "motion", "reports", "designs", "ratings"},
+}
+ENTRY = "entry"
+
+
+def analysis_room(name: str, modules: dict[str, Path]) -> str:
+    """The room of an analysis module: its folder below analysis/, "" for a module directly
+    in analysis/, ``ENTRY`` for the package itself and ``__main__``."""
+    if name in ("analysis", "analysis.__main__"):
+        return ENTRY
+    folder = name.split(".")[1]
+    return folder if f"analysis.{folder}" in modules and modules[f"analysis.{folder}"].name == "__init__.py" else ""
+
+
+def broken_room_rules(modules: dict[str, Path]) -> list[str]:
+    """'module imports module (why not)' for every import between analysis's rooms that
+    ``ANALYSIS_ROOMS`` does not allow, type-checking and lazy imports included."""
+    broken = []
+    for name, path in sorted(modules.items()):
+        if name.split(".")[0] != "analysis":
+            continue
+        room = analysis_room(name, modules)
+        for target in sorted(imported_modules(name, path, modules)):
+            if target.split(".")[0] != "analysis":
+                continue
+            other = analysis_room(target, modules)
+            if room == ENTRY or other == room or other in ANALYSIS_ROOMS.get(room, set()):
+                continue
+            why = "nothing imports the entry points" if other == ENTRY else \
+                f"analysis/{room or '*.py'} may import only " + ", ".join(
+                    f"{r}/" if r else "analysis/*.py" for r in sorted(ANALYSIS_ROOMS.get(room, set()))) \
+                if room in ANALYSIS_ROOMS else f"analysis/{room}/ is not a room of docs/architecture.md"
+            broken.append(f"{name} imports {target} ({why})")
+    return broken
+
+
+def test_analysis_rooms_import_one_way():
+    assert broken_room_rules(project_modules()) == []
+    rooms = sorted(ANALYSIS_ROOMS, key=lambda room: len(ANALYSIS_ROOMS[room]))
+    for lower, upper in zip(rooms, rooms[1:]):  # one way: no room may import a room that imports it
+        assert upper not in ANALYSIS_ROOMS[lower], (lower, upper)
+
+
+def test_the_room_checker_sees_an_upward_import_in_a_type_checking_block(tmp_path):
+    names = ("analysis", "analysis.errors", "analysis.stats", "analysis.stats.anova", "analysis.designs",
+             "analysis.designs.base", "analysis.cli", "analysis.cli.main")
+    modules = {name: tmp_path / (name.replace(".", "_") + ("/__init__.py" if name.count(".") < 2 and name not in (
+        "analysis.errors",) else ".py")) for name in names}
+    for path in modules.values():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("")
+    modules["analysis.stats.anova"].write_text(
+        "from typing import TYPE_CHECKING\nfrom analysis.errors import AnalysisInputError\n"
+        "if TYPE_CHECKING:\n    from analysis.designs.base import RatingDesign\n")
+    modules["analysis.designs.base"].write_text("from analysis.stats.anova import CELL\nfrom analysis.cli import main\n")
+    modules["analysis.cli.main"].write_text("from analysis.designs.base import RatingDesign\n")
+    assert broken_room_rules(modules) == [
+        "analysis.designs.base imports analysis.cli.main (analysis/designs may import only analysis/*.py, motion/, "
+        "rankings/, raters/, reports/, stats/)",
+        "analysis.stats.anova imports analysis.designs.base (analysis/stats may import only analysis/*.py)",
+    ]
+
+
+# At most this many modules (an __init__.py aside) in one folder, so that a newcomer reads
+# a folder's names at a glance; Django's numbered migrations and management commands are
+# one module per migration or command by Django's rule.
+MOST_MODULES = 15
+DJANGO_FOLDERS = ("studyapp/migrations", "studyapp/management/commands")
+NOT_SPLIT_YET = {  # folders over the limit today, split by their own change (issue 54)
+    "generation/motion": "generation/motion/ gained the dataset's four modules; its rooms are still to be drawn",
+    "generation/models": "generation/models/ holds one module per model kind; its split is still to be planned",
+    "generation": "generation/'s top floor is still to be split into rooms",
+}
+
+
+def module_folders() -> dict[str, int]:
+    folders: dict[str, int] = {}
+    for package in PACKAGES:
+        for path in (ROOT / package).rglob("*.py"):
+            folder = path.parent.relative_to(ROOT).as_posix()
+            folders[folder] = folders.get(folder, 0) + (path.name != "__init__.py")
+    return {folder: count for folder, count in sorted(folders.items()) if folder not in DJANGO_FOLDERS}
+
+
+@pytest.mark.parametrize("folder", [
+    pytest.param(folder, marks=pytest.mark.xfail(reason=NOT_SPLIT_YET[folder], strict=True))
+    if folder in NOT_SPLIT_YET else folder for folder in module_folders()])
+def test_no_module_folder_holds_more_than_fifteen_modules(folder):
+    assert module_folders()[folder] <= MOST_MODULES, f"{folder}/ holds {module_folders()[folder]} modules"
 
 
 def test_every_generation_module_imports_in_a_fresh_interpreter():

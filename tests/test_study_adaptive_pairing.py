@@ -1,5 +1,5 @@
 """Adaptive pairing as a pairwise study's setting: a new participant's pairs are planned
-from the fit of the votes stored so far (`analysis.pairing.plan_pairs`), sides balanced,
+from the fit of the votes stored so far (`analysis.rankings.pairing.plan_pairs`), sides balanced,
 and evenly as without the setting while there are too few votes."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from django.utils import timezone
 
-from analysis.pairing import plan_pairs
-from studyapp.designs.pairwise import stored_pages
+from analysis.rankings.pairing import plan_pairs
+from studyapp.designs.pairwise_pages import stored_pages
 from studyapp.models import Assignment, Participant, Rating, Stimulus
 from studyapp.participants.assignment import enrol
 from tests.study_fixtures import make_study
@@ -97,7 +97,7 @@ def test_without_the_setting_or_with_too_few_votes_pages_are_planned_as_without_
     def no_fit(*args, **kwargs):
         raise AssertionError("the votes were fitted")
 
-    monkeypatch.setattr("studyapp.designs.pairwise.plan_pairs", no_fit)
+    monkeypatch.setattr("studyapp.designs.pairwise_pages.plan_pairs", no_fit)
     study = pairwise_study(adaptive)
     store_votes(study, votes)
     pages = enrol_new(study)

@@ -11,8 +11,8 @@ import pytest
 from django.test import Client
 
 from analysis.designs import table_design
-from analysis.exclusions import apply_exclusions
-from analysis.ratings import read_ratings
+from analysis.ratings.exclusions import apply_exclusions
+from analysis.ratings.reading import read_ratings
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Participant, Stimulus, System
 from studyapp.participants.assignment import enrol
@@ -225,7 +225,7 @@ def test_the_monitor_and_the_report_show_each_systems_scores(client, settings, t
 
 
 def test_the_demo_reuses_the_motion_another_study_sampled_for_the_same_clips(settings, tmp_path):
-    from studyapp.server.demo import reuse_sampled_motion
+    from studyapp.demo import reuse_sampled_motion
     from studyapp.stimuli.sources import sampled_path
 
     settings.VAR_DIR = tmp_path

@@ -22,11 +22,12 @@ from django.contrib.auth.models import User
 from django.core.files.uploadedfile import SimpleUploadedFile
 from django.test import Client
 
-from analysis.appropriateness import appropriateness_pages, appropriateness_scores, matched_preference
-from analysis.exclusions import apply_exclusions, compared_ratings
+from analysis.stats.matching import appropriateness_pages, appropriateness_scores, matched_preference
+from analysis.ratings.exclusions import apply_exclusions, compared_ratings
 from analysis.cli import main as analysis_main
-from analysis.ratings import read_ratings
-from generation.motion.dataset import DatasetOptions, build_dataset
+from analysis.ratings.reading import read_ratings
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from generation.render.camera import Camera
 from generation.train import TrainOptions, train
 from studyapp.designs.rules import StudyRules

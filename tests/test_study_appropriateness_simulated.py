@@ -10,9 +10,9 @@ import re
 
 import pytest
 
-from analysis.appropriateness import matched_preference
-from analysis.exclusions import apply_exclusions, compared_ratings
-from analysis.ratings import read_ratings
+from analysis.stats.matching import matched_preference
+from analysis.ratings.exclusions import apply_exclusions, compared_ratings
+from analysis.ratings.reading import read_ratings
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Assignment
 from studyapp.participants import assignment

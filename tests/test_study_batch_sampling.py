@@ -66,7 +66,8 @@ def count_model_calls(monkeypatch) -> list[int]:
 
 @pytest.mark.parametrize("precision, tolerance_cm", [("float32", FLOAT32_CM), ("auto", BFLOAT16_CM)])
 def test_a_clip_sampled_in_a_batch_equals_the_clip_sampled_alone(files, motion_data, precision, tolerance_cm):
-    from generation.motion.dataset import DatasetOptions, build_dataset
+    from generation.motion.dataset import build_dataset
+    from generation.motion.dataset_options import DatasetOptions
 
     generator = Generator.load(files.good)
     dataset = build_dataset(files.clips, DatasetOptions(), cache_dir=files.root / "var" / "cache", progress=False)

@@ -13,7 +13,7 @@ from django.core.files.uploadedfile import SimpleUploadedFile
 from django.test import Client
 
 from studyapp.models import Participant, Study
-from studyapp.server.upload_limit import FORM_MARGIN_BYTES, request_limit
+from studyapp.server.uploads.upload_limit import FORM_MARGIN_BYTES, request_limit
 from tests.test_hostile_bundles import rewritten, small_study
 from tests.test_study_researcher import files, researcher, site  # noqa: F401 (fixtures)
 

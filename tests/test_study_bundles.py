@@ -19,7 +19,7 @@ from django.core.management import call_command
 
 from analysis.cli import main as analysis_main
 from studyapp.models import Participant, Rating, Stimulus, Study
-from studyapp.plan.lock import preregistration
+from studyapp.preregistration.lock import preregistration
 from studyapp.researchers.results.export import ratings_csv, rules_json
 from studyapp.stimuli.clips import plan_stimuli
 from studyapp.tasks import sample_stimuli

@@ -11,7 +11,7 @@ from django.db import connection, transaction
 
 from studyapp.models import Participant, Rating, Stimulus, Study, System
 from studyapp.participants.simulated import run_participants
-from studyapp.server.sqlite_backend.base import DatabaseWrapper
+from studyapp.server.db.sqlite_backend.base import DatabaseWrapper
 from tests.study_fixtures import make_study
 
 pytestmark = pytest.mark.slow

@@ -8,7 +8,7 @@ import pytest
 from django.core.management import call_command
 from django.core.management.base import CommandError
 
-from generation.motion.dataset import DatasetOptions
+from generation.motion.dataset_options import DatasetOptions
 from studyapp.models import System
 from tests.study_setup import train_tiny_moglow
 from tests.test_study_researcher import files, new_study, researcher, site, stored_files, upload_checkpoint  # noqa: F401

@@ -246,7 +246,7 @@ def test_the_documented_definition_is_the_demos_study_and_makes_it_again(setting
                                                                         demo_dataset_cache):
     """docs/running-a-study.md's example, made on the demo's data with its committed models."""
     from generation.store import keep
-    from studyapp.server import demo
+    from studyapp import demo
 
     guide = (Path(__file__).resolve().parents[1] / "docs" / "running-a-study.md").read_text()
     text = guide.split("as `describe_study` writes it:\n\n```yaml\n", 1)[1].split("```\n", 1)[0]

@@ -12,7 +12,7 @@ from django.db import connection
 from django.utils import timezone
 
 from studyapp.designs.multi_clip import page_loads
-from studyapp.designs.single import stimulus_loads
+from studyapp.designs.single_pages import stimulus_loads
 from studyapp.models import Assignment, Participant, Rating, Stimulus, Study, System
 from studyapp.participants.assignment import StudyFull, enrol
 from studyapp.participants.simulated import run_participants

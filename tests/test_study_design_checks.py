@@ -10,7 +10,7 @@ import pytest
 from django.test import Client
 from django.utils import timezone
 
-from analysis.ratings import read_ratings
+from analysis.ratings.reading import read_ratings
 from studyapp.designs.multi_clip import page_loads
 from tests.study_fixtures import current_clip, current_page
 from studyapp.designs.rules import StudyRules
@@ -134,7 +134,7 @@ def test_a_session_ends_politely_after_the_studys_number_of_failed_instructed_ch
 
 @pytest.mark.parametrize("settings", [SIDE_BY_SIDE, PAIRWISE])
 def test_the_analysis_recomputes_the_apps_flags_of_each_design_and_agrees(settings):
-    from analysis.exclusions import apply_exclusions, exclusion_notes
+    from analysis.ratings.exclusions import apply_exclusions, exclusion_notes
 
     study = make_study(**{**settings, "bad_checks": 1, "instructed_checks": 1})
     side_by_side = study.design == "side-by-side"

@@ -33,7 +33,7 @@ def thumbs(tmp_path, settings, monkeypatch):
     (tmp_path / "studyapp" / "participant" / "thumbs.html").write_text(toy_design.TEMPLATE)
     settings.TEMPLATES = [{**settings.TEMPLATES[0], "DIRS": [tmp_path]}]
     monkeypatch.setitem(registry.DESIGNS, "thumbs", registry.DesignEntry("thumbs up or down", "tests.toy_design:Thumbs"))
-    # and its analysis, whose rules and tests the plan locked at opening states (studyapp.plan)
+    # and its analysis, whose rules and tests the plan locked at opening states (studyapp.preregistration)
     monkeypatch.setitem(ANALYSED_DESIGNS, "thumbs", "tests.toy_analysis_design:Thumbs")
 
 

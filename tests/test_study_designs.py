@@ -11,8 +11,8 @@ from django.core.exceptions import ValidationError
 from django.test import Client
 from django.urls import reverse
 
-from analysis.minimums import MODEL_MIN_PARTICIPANTS
-from analysis.ratings import read_ratings
+from analysis.stats.minimums import MODEL_MIN_PARTICIPANTS
+from analysis.ratings.reading import read_ratings
 from studyapp.models import Participant, Rating, Stimulus, Study, System
 from studyapp.researchers.results.export import ratings_csv
 from studyapp.researchers.setup.forms import StudyForm
@@ -341,7 +341,7 @@ def test_the_monitor_summarises_each_design_with_the_analysis_functions():
 
 def test_the_demo_opens_a_side_by_side_study_on_the_single_studys_clips(settings, tmp_path):
     from studyapp.participants.assignment import enrol
-    from studyapp.server.demo import ensure_side_by_side_study
+    from studyapp.demo import ensure_side_by_side_study
 
     settings.MEDIA_ROOT = tmp_path / "media"
     video = tmp_path / "clip.mp4"

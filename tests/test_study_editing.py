@@ -8,7 +8,7 @@ from django.contrib.auth.models import User
 from django.test import Client
 from django.urls import reverse
 
-from generation.motion.dataset import load_body_motion
+from generation.motion.clip_files import load_body_motion
 from generation.motion.npz import save_motion_npz
 from studyapp.models import ControlSignal, Participant, Study, System
 from studyapp.stimuli.clips import content_key

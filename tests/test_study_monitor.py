@@ -1,7 +1,7 @@
 """The monitor page and the ratings export, checked against the stored ratings.
 
 Means and confidence intervals are recomputed here from the database rows with
-scipy.stats.t, independently of ``analysis.stats``.
+scipy.stats.t, independently of ``analysis.stats.anova``.
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ import pytest
 from django.utils import timezone
 from scipy import stats
 
-from analysis.exclusions import scaled_threshold
-from analysis.minimums import INTERVAL_FEW_PARTICIPANTS, MODEL_MIN_PARTICIPANTS
+from analysis.ratings.exclusions import scaled_threshold
+from analysis.stats.minimums import INTERVAL_FEW_PARTICIPANTS, MODEL_MIN_PARTICIPANTS
 from studyapp.models import Assignment, Participant, Rating, Stimulus
 from studyapp.researchers.results.export import EXPORT_COLUMNS
 from studyapp.researchers.results.monitor import study_monitor

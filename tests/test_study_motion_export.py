@@ -24,9 +24,9 @@ from django.contrib.auth.models import User
 from django.core.management import call_command
 from django.core.management.base import CommandError
 
-from analysis.motion_io import SystemClips
-from analysis.objective import objective_metrics
-from generation.motion.dataset import load_body_motion, read_labels
+from analysis.motion.motion_io import SystemClips
+from analysis.motion.objective import objective_metrics
+from generation.motion.clip_files import load_body_motion, read_labels
 from generation.motion.npz import load_motion_npz
 from generation.motion.types import Motion
 from studyapp.models import Stimulus, Study, System

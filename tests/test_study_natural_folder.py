@@ -13,7 +13,9 @@ import pytest
 from django.core.management import call_command
 from django.core.management.base import CommandError
 
-from generation.motion.dataset import LOCOMOTION, DatasetOptions, build_dataset, load_body_motion
+from generation.motion.clip_files import LOCOMOTION, load_body_motion
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from studyapp.models import ControlSignal, Stimulus, System
 from studyapp.stimuli.clips import plan_stimuli
 from studyapp.stimuli.controls import natural_options

@@ -23,7 +23,8 @@ from django.test import Client
 from generation.control import control_from_dict
 from generation.generator import Generator
 from generation.motion.bvh import bvh_text, motion_to_bvh
-from generation.motion.dataset import DatasetOptions, build_dataset
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from generation.train import TrainOptions, train
 from tests.study_fixtures import current_clip
 from studyapp.models import Participant, Stimulus, Study, System

@@ -13,7 +13,7 @@ from django.urls import reverse
 from django.utils import timezone
 
 from studyapp.designs.rules import StudyRules
-from studyapp.designs.single import stimulus_loads
+from studyapp.designs.single_pages import stimulus_loads
 from studyapp.models import Assignment, Participant, Rating, Stimulus, Study, System
 from studyapp.participants.assignment import StudyFull, enrol
 from studyapp.researchers.results.export import ratings_rows

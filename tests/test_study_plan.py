@@ -16,8 +16,8 @@ from django.utils import timezone
 
 from studyapp.models import ControlSignal, ImmutableRow, Participant, PlanDeviation, StudyPlan, System
 from studyapp.participants.assignment import StudyFull, enrol
-from studyapp.plan.contents import canonical_json
-from studyapp.plan.lock import build_plan, deviations, preregistration, restore_preregistration
+from studyapp.preregistration.contents import canonical_json
+from studyapp.preregistration.lock import build_plan, deviations, preregistration, restore_preregistration
 from tests.appropriateness_fixtures import make_appropriateness_study
 from tests.study_fixtures import make_study
 from tests.test_study_monitor import store_ratings

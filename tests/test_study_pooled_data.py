@@ -12,7 +12,8 @@ import pytest
 from django.contrib.auth.models import User
 from django.core.files.uploadedfile import SimpleUploadedFile
 
-from generation.motion.dataset import DatasetOptions, load_body_motion
+from generation.motion.clip_files import load_body_motion
+from generation.motion.dataset_options import DatasetOptions
 from studyapp.models import ControlSignal, Stimulus, Study
 from studyapp.stimuli.clips import plan_stimuli
 from studyapp.stimuli.controls import training_options

@@ -13,10 +13,10 @@ from django.test import Client
 from django.urls import reverse
 
 from analysis.cli import main as analysis_main
-from analysis.exclusions import ExclusionRules
-from analysis.minimums import MODEL_MIN_PARTICIPANTS
-from analysis.ratings import read_ratings
-from analysis.report import build_report
+from analysis.ratings.exclusions import ExclusionRules
+from analysis.stats.minimums import MODEL_MIN_PARTICIPANTS
+from analysis.ratings.reading import read_ratings
+from analysis.ratings.report import build_report
 from studyapp.models import Participant, System
 from studyapp.researchers.results.monitor import study_monitor
 from studyapp.researchers.results.reports import html_table, report_folder
@@ -200,7 +200,7 @@ def test_the_monitor_and_the_in_app_report_show_the_rater_and_clip_aware_models(
     settings.MEDIA_ROOT = tmp_path / "media"
     study = make_study(controls=3, clips_per_participant=7, ratings_per_stimulus=10, training_clips=0, **fields)
     populate(study)
-    for n in range(2):  # five kept participants: enough for the models (analysis.minimums)
+    for n in range(2):  # five kept participants: enough for the models (analysis.stats.minimums)
         for pid in ("careful", "fair"):
             take_part(study, f"{pid}-{n}", SCORES[pid])
     app, page, rater_models, shown = rater_models_three_ways(study, settings, tmp_path)

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.design_report import DesignReport, exclusion_sentence, in_cell
+from analysis.reports.design_report import DesignReport, exclusion_sentence, in_cell
 from analysis.designs.base import RatingDesign
-from analysis.pairwise import wilson_interval
-from analysis.stats import CELL
+from analysis.stats.preferences import wilson_interval
+from analysis.stats.anova import CELL
 
 
 class Thumbs(RatingDesign):

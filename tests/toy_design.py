@@ -13,7 +13,7 @@ from datetime import datetime
 from django.http import QueryDict
 
 from studyapp.designs.answers import client_times
-from studyapp.designs.base import Answer, Design, PlannedPage
+from studyapp.designs.design import Answer, Design, PlannedPage
 from studyapp.models import Stimulus, Study, System
 from studyapp.participants.refusal import AnswerRefused
 

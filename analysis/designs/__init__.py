@@ -20,12 +20,15 @@ rest of the analysis for everything that differs between designs (`base.RatingDe
   other) on each; ``strength`` is 1 (slightly) or 2 (clearly), the five levels of GENEA's
   question.
 
-A page is identified by (task, participant, page) (`pages.py`). One table holds one design.
+A page is identified by (task, participant, page) (`analysis.pages`). One table holds one
+design.
 
-A design is a class named here as "module:Class" and imported when first asked for: the
-design modules build on the statistics, the exclusions and the reports, which themselves
-ask this registry for a table's design. Adding a design is its module and one entry in
-`DESIGNS` (docs/architecture.md).
+A design is a class named here as "module:Class" and imported when first asked for, so
+that the study app can ask for the names without importing the statistics and the
+plots. The design modules build on the statistics, the exclusion rules and the reports,
+which take the design object as an argument and never ask this registry; only the
+entry points above (`analysis.ratings`, `analysis.cli`) look a table's design up. Adding a
+design is its module and one entry in `DESIGNS` (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
-from analysis.designs.pages import ANSWERS, NO_PREFERENCE, PAGE, SIDES
+from analysis.pages import ANSWERS, NO_PREFERENCE, PAGE, SIDES
 from analysis.errors import AnalysisInputError
 
 if TYPE_CHECKING:

@@ -8,7 +8,7 @@ control) on each row, both rows naming the same system, ``strength`` 1 (slightly
 when its system is BAD (natural motion against a path it obviously does not follow), and
 preferring the mismatched clip on one excludes.
 
-Its report (`analysis.appropriateness`): per system the share of pages preferring the
+Its report (`analysis.stats.matching`): per system the share of pages preferring the
 matched clip (ties split, Wilson interval) with a sign test of 50 %, the mean
 appropriateness score with a bootstrap interval over participants, Wilcoxon tests of
 every pair of systems' scores, Holm corrected, and the raters' side bias. No power
@@ -21,15 +21,15 @@ from __future__ import annotations
 import pandas as pd
 from matplotlib.figure import Figure
 
-from analysis import design_plots
-from analysis.appropriateness import appropriateness_scores, matched_preference, score_pairs
-from analysis.design_report import DesignReport, in_cell, interval_text, p_text
-from analysis.designs.pages import PAGE, every_page, first_row
+from analysis.reports import design_plots
+from analysis.stats.matching import appropriateness_scores, matched_preference, score_pairs
+from analysis.reports.design_report import DesignReport, in_cell, interval_text, p_text
+from analysis.pages import PAGE, every_page, first_row
 from analysis.designs.pairwise import Pairwise
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import ExclusionRules
-from analysis.pairwise import side_bias
-from analysis.tables import system_order
+from analysis.exclusion_rules import ExclusionRules
+from analysis.stats.preferences import side_bias
+from analysis.reports.tables import system_order
 
 
 class Appropriateness(Pairwise):

@@ -3,12 +3,12 @@
 A design object says everything that differs between designs in the analysis:
 
 - the table: the columns it needs beyond the minimal schema, and the page structure it
-  checks (`analysis.ratings` calls both);
-- the rules (`analysis.exclusions`): which rows fail the attention rule, which answers
+  checks (`analysis.ratings.reading` calls both);
+- the rules (`analysis.ratings.exclusions`): which rows fail the attention rule, which answers
   came before their clips had played, and which kept ratings are compared;
 - the words: its rules as the report and the study app state them;
-- the report: which report it gets (`analysis.report` for the single design,
-  `analysis.design_report` for the designs of several clips on a page), and there its
+- the report: which report it gets (`analysis.reports.single_report` for the single design,
+  `analysis.reports.design_report` for the designs of several clips on a page), and there its
   tables, figures and summary sentences, and the power calculation of its test.
 
 The defaults here are those of the designs whose clips are each rated on a scale (single,
@@ -23,14 +23,14 @@ from typing import TYPE_CHECKING
 import pandas as pd
 from matplotlib.figure import Figure
 
-from analysis import plots
-from analysis.design_report import DesignReport, build_design_report
-from analysis.exclusions import REFERENCE_SCALE, ExclusionRules, scaled_threshold
-from analysis.power import pairs_of, ratings_per_system_for_effect, single_pairs
+from analysis.reports import plots
+from analysis.reports.design_report import DesignReport, build_design_report
+from analysis.exclusion_rules import REFERENCE_SCALE, ExclusionRules, scaled_threshold
+from analysis.stats.power import pairs_of, ratings_per_system_for_effect, single_pairs
 
 if TYPE_CHECKING:
-    from analysis.motion_io import SystemClips
-    from analysis.report import Report
+    from analysis.motion.motion_io import SystemClips
+    from analysis.reports.single_report import Report
 
 
 class RatingDesign:
@@ -61,7 +61,7 @@ class RatingDesign:
         """The table with its page columns checked and normalised (labels already checked)."""
         return df
 
-    # The rules applied to a table (`analysis.exclusions`).
+    # The rules applied to a table (`analysis.ratings.exclusions`).
 
     def attention_failures(self, df: pd.DataFrame, rules: ExclusionRules) -> list[tuple[pd.Series, str]]:
         """(rows failing a rule, its reason) for each attention rule, the first rule a
@@ -110,12 +110,12 @@ class RatingDesign:
     def build_report(self, ratings: pd.DataFrame, rules: ExclusionRules, reference: str | None,
                      continuity_correction: bool, motion: dict[str, SystemClips] | None,
                      foot_joints: list[str] | None, foot_kind: str) -> Report | DesignReport:
-        """The report of a validated table of this design (`analysis.report.build_report`
+        """The report of a validated table of this design (`analysis.ratings.report.build_report`
         has checked the arguments and applied ``compare_attention_checks`` to ``rules``)."""
         return build_design_report(ratings, self, reference, rules, continuity_correction=continuity_correction)
 
     def power_pairs(self, frame: pd.DataFrame, alpha: float, power: float) -> pd.DataFrame:
-        """The pairs of one cell with the ratings their test needs for ``power`` (`analysis.power`)."""
+        """The pairs of one cell with the ratings their test needs for ``power`` (`analysis.stats.power`)."""
         return single_pairs(frame, alpha, power)
 
     # The plan, before any rating exists (the study app locks it when a study opens).
@@ -133,7 +133,7 @@ class RatingDesign:
         the pairs, with ``power``; ValueError for an effect outside its range."""
         return ratings_per_system_for_effect(effect, pairs_of(systems), alpha, power)
 
-    # The parts of a `DesignReport` (`analysis.design_report`), for the designs that get one.
+    # The parts of a `DesignReport` (`analysis.reports.design_report`), for the designs that get one.
 
     main_table: str  # the table whose cells the summary walks
 

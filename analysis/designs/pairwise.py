@@ -11,7 +11,7 @@ left out of the comparisons whole, since without it the page compares nothing.
 Its report: per pair the preference share with its Wilson interval and the share of "no
 preference", exact two-sided binomial (sign) tests on the pages with a preference,
 Holm-Bonferroni corrected, a Bradley-Terry scale with 95 % intervals, a check of the
-raters' side bias, the leaderboard (`analysis.leaderboard_report`: graded votes
+raters' side bias, the leaderboard (`analysis.reports.leaderboard_report`: graded votes
 weighted, Elo with bootstrap intervals, win-fraction and battle heat maps) and the pages
 needed for 80 % power per pair.
 """
@@ -23,18 +23,18 @@ from pathlib import Path
 import pandas as pd
 from matplotlib.figure import Figure
 
-from analysis import design_plots
-from analysis.bradley_terry import bradley_terry_covariance, bradley_terry_scale
-from analysis.design_report import DesignReport, exclusion_sentence, in_cell, interval_text, p_text, power_table
+from analysis.reports import design_plots
+from analysis.rankings.bradley_terry import bradley_terry_covariance, bradley_terry_scale
+from analysis.reports.design_report import DesignReport, exclusion_sentence, in_cell, interval_text, p_text, power_table
 from analysis.designs.base import RatingDesign
-from analysis.designs.pages import (ANSWERS, NO_PREFERENCE, PAGE, SIDES, every_page, first_row, labels,
+from analysis.pages import (ANSWERS, NO_PREFERENCE, PAGE, SIDES, every_page, first_row, labels,
                                     no_system_twice_on_a_page, positive_integers)
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import ExclusionRules
-from analysis.leaderboard_report import build_leaderboard, leaderboard_tables, write_heat_maps
-from analysis.pairwise import preference_pages, preference_pairs, side_bias
-from analysis.power import pages_for_preference, pairs_of, pairwise_pairs
-from analysis.tables import system_order
+from analysis.exclusion_rules import ExclusionRules
+from analysis.reports.leaderboard_report import build_leaderboard, leaderboard_tables, write_heat_maps
+from analysis.stats.preferences import preference_pages, preference_pairs, side_bias
+from analysis.stats.power import pages_for_preference, pairs_of, pairwise_pairs
+from analysis.reports.tables import system_order
 
 _SCALE_COLUMNS = ("value", "scale_min", "scale_max")
 
@@ -164,7 +164,7 @@ class Pairwise(RatingDesign):
         report.leaderboard = build_leaderboard(kept, anchor, natural=report.rules.natural_system)
         report.tables.update(leaderboard_tables(report.leaderboard))
         report.notes += report.leaderboard.notes
-        report.tables["power_more_ratings"] = power_table(kept, report.alpha)
+        report.tables["power_more_ratings"] = power_table(kept, self, report.alpha)
 
     def exclusion_sentence(self, report: DesignReport, row) -> str:
         # both rows of a page share its flags, so pages are rows / 2

@@ -7,7 +7,7 @@ analysis of HEMVIP pages): per system the median and mean with 95 % intervals, t
 Wilcoxon signed-rank tests on the per-page differences of every pair, Holm-Bonferroni
 corrected per task x control class, the significance matrix, the random-intercept mixed
 model on the slider values, the rater- and clip-aware models with rater agreement
-(`analysis.rater_models`) and the ratings needed for 80 % power per pair.
+(`analysis.reports.rater_models`) and the ratings needed for 80 % power per pair.
 """
 
 from __future__ import annotations
@@ -16,17 +16,17 @@ from __future__ import annotations
 import pandas as pd
 from matplotlib.figure import Figure
 
-from analysis import design_plots, plots
-from analysis.design_report import (DesignReport, exclusion_sentence, in_cell, interval_text, power_table)
+from analysis.reports import design_plots, plots
+from analysis.reports.design_report import (DesignReport, exclusion_sentence, in_cell, interval_text, power_table)
 from analysis.designs.base import RatingDesign
-from analysis.designs.pages import PAGE, first_row, labels, no_system_twice_on_a_page, page_name, positive_integers
+from analysis.pages import PAGE, first_row, labels, no_system_twice_on_a_page, page_name, positive_integers
 from analysis.errors import AnalysisInputError
-from analysis.mixed import mixed_model_means
-from analysis.power import pages_for_page_effect, pairs_of, side_by_side_pairs
-from analysis.rater_models import build_rater_models
-from analysis.side_by_side import median_and_mean, signed_rank_pairs
-from analysis.stats import CELL, comparable_cells, too_few_ratings
-from analysis.tables import system_order
+from analysis.raters.mixed import mixed_model_means
+from analysis.stats.power import pages_for_page_effect, pairs_of, side_by_side_pairs
+from analysis.reports.rater_models import build_rater_models
+from analysis.stats.within_page import median_and_mean, signed_rank_pairs
+from analysis.stats.anova import CELL, comparable_cells, too_few_ratings
+from analysis.reports.tables import system_order
 
 
 class SideBySide(RatingDesign):
@@ -100,7 +100,7 @@ class SideBySide(RatingDesign):
         report.rater_models = build_rater_models(kept, reference, report.alpha)
         report.tables.update(report.rater_models.tables())
         notes += report.rater_models.notes
-        report.tables["power_more_ratings"] = power_table(kept, report.alpha)
+        report.tables["power_more_ratings"] = power_table(kept, self, report.alpha)
 
     def exclusion_sentence(self, report: DesignReport, row) -> str:
         in_task = report.flagged[report.flagged["task"] == row.task]

@@ -1,7 +1,7 @@
 """The single design: one clip per page, rated on the scale (MoGlow, HVRNN).
 
 Its table is the minimal schema and its rules are the rated clips' defaults of
-`RatingDesign`. Its report is `analysis.report`'s: the MoGlow Table 2 layout, the
+`RatingDesign`. Its report is `analysis.reports.single_report`'s: the MoGlow Table 2 layout, the
 one-way ANOVA and Tukey HSD per cell, the mixed models, and the objective metrics when
 motion is given, which no other design's report takes.
 """
@@ -11,9 +11,9 @@ from __future__ import annotations
 import pandas as pd
 
 from analysis.designs.base import RatingDesign
-from analysis.exclusions import ExclusionRules
-from analysis.motion_io import SystemClips
-from analysis.report import Report, build_single_report
+from analysis.exclusion_rules import ExclusionRules
+from analysis.motion.motion_io import SystemClips
+from analysis.reports.single_report import Report, build_single_report
 
 
 class Single(RatingDesign):

@@ -27,15 +27,18 @@ import sys
 from ..motion.bvh import BVHError
 from . import check_data, data, hvrnn, models, render, stylegestures, submission
 
-# The command groups, in the order --help lists their commands.
-GROUPS = (data, check_data, render, models, submission, stylegestures, hvrnn)
+# Every command's parser, in the order --help lists the commands; each is written beside
+# its command in its group's module (a group's add_commands adds all of its own).
+PARSERS = (data.add_commands, check_data.add_commands, render.add_commands, models.add_train_parser,
+           models.add_sample_parser, data.add_natural_parser, models.add_evaluate_parser, models.add_sliding_parser,
+           submission.add_commands, stylegestures.add_commands, hvrnn.add_commands)
 
 
 def parser() -> argparse.ArgumentParser:
     root = argparse.ArgumentParser(prog="python -m generation", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = root.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for group in GROUPS:
-        group.add_commands(commands)
+    for add_parser in PARSERS:
+        add_parser(commands)
     return root
 
 

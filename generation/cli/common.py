@@ -96,6 +96,14 @@ def up_axis(args: argparse.Namespace) -> str | None:
     return None if args.up == "auto" else args.up
 
 
+def take_names(text: str) -> list[str]:
+    """``--takes NAME,...``: the take names (file names without .bvh), at least one."""
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError("name at least one take (file names, comma-separated)")
+    return names
+
+
 def warn(lines: list[str]) -> None:
     for line in lines:
         print(f"warning: {line}", file=sys.stderr)

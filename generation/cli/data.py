@@ -1,15 +1,27 @@
-"""Commands on motion data: ``info`` (a BVH file or a dataset) and ``build-dataset``."""
+"""Commands on motion data: ``info`` (a BVH file or a dataset), ``build-dataset`` and ``natural``
+(held-out natural clips exported like samples: the NAT system)."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
+from tqdm import tqdm
+
+from ..control import following_arrays, lead_in_frames
 from ..motion.bvh import read_bvh
-from ..motion.dataset import SPLITS, DatasetOptions, MotionDataset, build_dataset, default_cache_dir
+from ..motion.dataset import MotionDataset, build_dataset, default_cache_dir
+from ..motion.dataset_options import DatasetOptions
+from ..motion.npz import save_motion_npz
+from ..motion.root import integrate, root_trajectory
+from ..motion.splits import SPLITS
+from ..motion.takes import natural_takes
 from ..motion.unit_detection import choose_units
-from .common import add_unit_arguments, chosen_contents, dataset_units, up_axis, warn
+from ..render import render_video
+from .common import (add_camera_arguments, add_unit_arguments, camera_from, chosen_contents, dataset_units, take_names,
+                     up_axis, warn)
 
 
 def info(args: argparse.Namespace) -> int:
@@ -60,6 +72,73 @@ def build(args: argparse.Namespace) -> int:
           f"{len(dataset.select('test'))} held-out test takes ({windows['test']} windows)")
     print(f"cached in {args.cache_dir or default_cache_dir()}" + (f"; saved to {args.out}" if args.out else ""))
     return 0
+
+
+def natural_command(args: argparse.Namespace) -> int:
+    if not (math.isfinite(args.seconds) and args.seconds > 0):
+        raise ValueError(f"--seconds must be a positive number, not {args.seconds}")
+    options = DatasetOptions(contents=None if args.takes else chosen_contents(args), holdout_fraction=args.holdout,
+                             seed=args.seed, **dataset_units(args))
+    takes, options = natural_takes(args.folder, options, args.takes, args.split, progress=True)
+    lead = lead_in_frames(args.lead_in, options.fps)
+    frames = int(round(args.seconds * options.fps))
+    out = Path(args.out)
+    written, short = 0, []
+    for take in tqdm(takes, desc="natural clips", unit="clip", disable=len(takes) < 2):
+        if take.motion.n_frames < lead + 2:  # as held-out control leaves it out
+            continue
+        motion = take.clip(args.seconds, args.lead_in)
+        if motion.n_frames < frames:
+            short.append(take.name)
+        control = take.control[lead:lead + motion.n_frames]
+        start = root_trajectory(motion, options.root)  # the take's control, from where the clip starts
+        asked = integrate(control, options.fps, start.xz[0], start.yaw[0])
+        save_motion_npz(motion, out / f"{take.name}.npz", **following_arrays(motion, asked, options.root))
+        written += 1
+        if args.render:
+            floor = root_trajectory(motion, options.root).xz
+            render_video(motion, out / f"{take.name}.mp4", camera=camera_from(args), size=args.size, root_path=floor)
+    which = "named" if args.takes else args.split
+    if not written:
+        raise ValueError(f"no {which} take is longer than the lead-in of {args.lead_in:g} s")
+    if short:
+        warn([f"{len(short)} take(s) end before {args.lead_in + args.seconds:g} s, so their clips are shorter: "
+              + ", ".join(short[:10]) + (f" and {len(short) - 10} more" if len(short) > 10 else "")])
+    skipped = f" ({len(takes) - written} shorter than the lead-in left out)" if written < len(takes) else ""
+    print(f"{written} natural {which} clips in {out}{skipped}")
+    return 0
+
+
+def add_natural_parser(commands: argparse._SubParsersAction) -> None:
+    """The ``natural`` command's parser."""
+    p = commands.add_parser("natural", help="export natural clips (held-out takes by default) like samples",
+                            description="Write natural clips of FOLDER as npz (and optionally MP4), read exactly as "
+                                        "the models' training data is: the NAT system of a study or of the objective "
+                                        "metrics. The takes are those the seeded split that build-dataset and training "
+                                        "make of the folder hold out, of every content by default as build-dataset "
+                                        "reads it (each content's share is drawn on its own, so a model trained on "
+                                        "some contents has its held-out takes among them; no model needs to have been "
+                                        "trained on it), or the takes named with --takes.")
+    p.add_argument("folder", nargs="+", help="folder of .bvh files; several are pooled (clip names must differ)")
+    p.add_argument("--out", "-o", required=True, help="output folder")
+    p.add_argument("--split", choices=("test", "train"), default="test", help="which takes (default: held-out)")
+    p.add_argument("--takes", type=take_names, metavar="NAME,...",
+                   help="these takes (file names without .bvh, comma-separated) instead of a split's, whatever "
+                        "their content")
+    p.add_argument("--contents", help="comma-separated content labels to keep (default: every content, as "
+                                      "build-dataset's)")
+    p.add_argument("--holdout", type=float, default=0.1,
+                   help="fraction of each content's takes the split holds out, as build-dataset's (default "
+                        "%(default)s, as train's)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the split, as build-dataset's (default %(default)s)")
+    p.add_argument("--seconds", type=float, default=4.0, help="length of each clip (default %(default)s)")
+    p.add_argument("--lead-in", type=float, default=0.0, metavar="SECONDS",
+                   help="each clip starts SECONDS into its take, as `sample -c held-out --lead-in` samples it "
+                        "(default %(default)s)")
+    p.add_argument("--render", action="store_true", help="also render each clip to MP4")
+    add_camera_arguments(p)
+    add_unit_arguments(p)
+    p.set_defaults(run=natural_command)
 
 
 def add_commands(commands: argparse._SubParsersAction) -> None:

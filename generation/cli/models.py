@@ -1,6 +1,5 @@
-"""Commands on models and the systems of a study: ``train``, ``sample``, ``natural``
-(held-out natural clips exported like samples), ``evaluate`` and ``sliding`` (where a
-MoGlow's foot sliding arises).
+"""Commands on models: ``train``, ``sample``, ``evaluate`` (the held-out loss) and ``sliding``
+(where a MoGlow's foot sliding arises), each with its parser beside it.
 
 Modules that import torch (train, generator, checkpoint) are imported by the commands
 that need them, so that ``--help`` starts quickly.
@@ -20,17 +19,19 @@ from tqdm import tqdm
 from measures.feet import choose_foot_joints
 from measures.units import UNIT_NAMES, UNITS
 
-from ..control import (PRESETS, following_arrays, lead_in_frames, length_warning, load_control_file, preset_path,
-                       shorter_than_asked, take_paths)
+from ..control import (PRESETS, following_arrays, length_warning, load_control_file, preset_path, shorter_than_asked,
+                       take_paths)
 from ..motion.bvh import motion_to_bvh, write_bvh
-from ..motion.dataset import LOCOMOTION, DatasetOptions, build_dataset, contents_or_all
+from ..motion.clip_files import LOCOMOTION, contents_or_all
+from ..motion.dataset import build_dataset
+from ..motion.dataset_options import DatasetOptions
 from ..motion.npz import save_motion_npz
-from ..motion.root import RootOptions, integrate, root_trajectory
+from ..motion.root import RootOptions, root_trajectory
 from ..motion.takes import natural_takes
 from ..registry import LABELS, MODELS, model_kind
 from ..render import render_video
-from .common import (add_camera_arguments, add_unit_arguments, camera_from, chosen_contents, dataset_units,
-                     shown_control, warn)
+from .common import (add_camera_arguments, add_unit_arguments, camera_from, dataset_units, shown_control, take_names,
+                     warn)
 
 
 OWN_CONTROL = "own"  # --draw-control without a value: each clip's own control
@@ -92,6 +93,42 @@ def train_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def add_train_parser(commands: argparse._SubParsersAction) -> None:
+    """The ``train`` command's parser."""
+    p = commands.add_parser("train", help="train a model on a BVH folder",
+                            description="Train a model on the locomotion clips of FOLDER (held-out takes for "
+                                        "validation). Writes CHECKPOINT (safetensors + JSON header) at every evaluation; "
+                                        "--resume continues from it.")
+    p.add_argument("folder", nargs="+", help="folder of .bvh files; several are pooled (clip names must differ)")
+    p.add_argument("--model", "--kind", choices=tuple(MODELS), default="moglow", help="model kind (default %(default)s)")
+    p.add_argument("--preset", default="cpu", help="configuration preset: cpu, paper, or with an ablation such as cpu-MG-D or cpu-SL (default %(default)s)")
+    p.add_argument("--classifiers", help="attribute classifiers' file for HVRNN's classifier loss")
+    p.add_argument("--rotation-output", help="HVRNN: what its decoder outputs per joint: quaternion (default), matrix "
+                                             "(6-D, Gram-Schmidt) or axis_angle (a rotation vector)")
+    p.add_argument("--denoiser", help="attribute models: a denoiser (hvrnn-denoiser) that cleans the training "
+                                      "takes first, as HVRNN's paper does; the checkpoint's data fingerprint records it")
+    p.add_argument("--out", "-o", required=True, help="checkpoint path (.safetensors)")
+    p.add_argument("--steps", type=int, default=4000, help="total training steps (default %(default)s)")
+    p.add_argument("--eval-every", type=int, default=250, help="steps between validation and checkpoint (default %(default)s)")
+    p.add_argument("--resume", action="store_true", help="continue from the checkpoint at --out")
+    p.add_argument("--set", action="append", type=_setting, default=[], metavar="NAME=VALUE", dest="settings",
+                   help="replace one field of the preset's model configuration (e.g. dropout=0.7) or training "
+                        "knobs (learning_rate, warmup_steps, grad_clip, batch_size); repeatable. With --resume "
+                        "it applies from the checkpoint's step on, and the checkpoint records the change")
+    p.add_argument("--contents", help="content labels to train on (default: locomotion for path models, all for "
+                                      "attribute models; every clip where the clips have no labels)")
+    p.add_argument("--reverse", action="store_true", help="path models: also train on the training takes played backwards "
+                   "(as the MoGlow authors' locomotion set-up does; held-out takes are never augmented)")
+    p.add_argument("--overlap", type=float, default=0.5, help="path models: overlap of consecutive 4-s training "
+                   "windows; short takes give more windows with more overlap (default %(default)s)")
+    p.add_argument("--cache-dir", help="dataset cache folder")
+    p.add_argument("--device", default="cpu", help="cpu or cuda (default %(default)s)")
+    p.add_argument("--threads", type=_thread_count, help="CPU threads for torch (default: torch's own choice)")
+    p.add_argument("--seed", type=int, default=0)
+    add_unit_arguments(p)
+    p.set_defaults(run=train_command)
+
+
 def _require_device(device: str) -> None:
     """Refuse --device cuda up front where torch has no GPU, instead of a traceback from deep in torch."""
     import torch
@@ -150,13 +187,6 @@ def _thread_count(text: str) -> int:
     if count < 1:
         raise argparse.ArgumentTypeError(f"threads must be a whole number of at least 1, got {text!r}")
     return count
-
-
-def _take_names(text: str) -> list[str]:
-    names = [name.strip() for name in text.split(",") if name.strip()]
-    if not names:
-        raise argparse.ArgumentTypeError("name at least one take (file names, comma-separated)")
-    return names
 
 
 def sample_command(args: argparse.Namespace) -> int:
@@ -243,39 +273,55 @@ def _note_training_unit(generator, bvh_unit: str) -> None:
               "the samples in that unit", file=sys.stderr)
 
 
-def natural_command(args: argparse.Namespace) -> int:
-    if not (math.isfinite(args.seconds) and args.seconds > 0):
-        raise ValueError(f"--seconds must be a positive number, not {args.seconds}")
-    options = DatasetOptions(contents=None if args.takes else chosen_contents(args), holdout_fraction=args.holdout,
-                             seed=args.seed, **dataset_units(args))
-    takes, options = natural_takes(args.folder, options, args.takes, args.split, progress=True)
-    lead = lead_in_frames(args.lead_in, options.fps)
-    frames = int(round(args.seconds * options.fps))
-    out = Path(args.out)
-    written, short = 0, []
-    for take in tqdm(takes, desc="natural clips", unit="clip", disable=len(takes) < 2):
-        if take.motion.n_frames < lead + 2:  # as held-out control leaves it out
-            continue
-        motion = take.clip(args.seconds, args.lead_in)
-        if motion.n_frames < frames:
-            short.append(take.name)
-        control = take.control[lead:lead + motion.n_frames]
-        start = root_trajectory(motion, options.root)  # the take's control, from where the clip starts
-        asked = integrate(control, options.fps, start.xz[0], start.yaw[0])
-        save_motion_npz(motion, out / f"{take.name}.npz", **following_arrays(motion, asked, options.root))
-        written += 1
-        if args.render:
-            floor = root_trajectory(motion, options.root).xz
-            render_video(motion, out / f"{take.name}.mp4", camera=camera_from(args), size=args.size, root_path=floor)
-    which = "named" if args.takes else args.split
-    if not written:
-        raise ValueError(f"no {which} take is longer than the lead-in of {args.lead_in:g} s")
-    if short:
-        warn([f"{len(short)} take(s) end before {args.lead_in + args.seconds:g} s, so their clips are shorter: "
-              + ", ".join(short[:10]) + (f" and {len(short) - 10} more" if len(short) > 10 else "")])
-    skipped = f" ({len(takes) - written} shorter than the lead-in left out)" if written < len(takes) else ""
-    print(f"{written} natural {which} clips in {out}{skipped}")
-    return 0
+def add_sample_parser(commands: argparse._SubParsersAction) -> None:
+    """The ``sample`` command's parser."""
+    p = commands.add_parser("sample", help="generate motion for control signals",
+                            description="Sample N motions per control signal. CONTROL is a preset name "
+                                        "(walk-straight, walk-circle, sidestep-left, walk-backward, stand-still, speed-ramp, ...), "
+                                        "a JSON or YAML path description, or 'held-out' for the held-out natural clips.")
+    p.add_argument("checkpoint", help="a checkpoint written by train")
+    p.add_argument("--control", "-c", nargs="+", default=["walk-straight"], help="control presets, files or 'held-out'")
+    p.add_argument("--action", nargs="+", help="attribute models: actions to sample (default: all the model knows)")
+    p.add_argument("--style", nargs="+", help="attribute models: styles to sample (default: all the model knows)")
+    p.add_argument("--out", "-o", required=True,
+                   help="output folder: per clip an npz (the model's joint positions) and a BVH (the root's "
+                        "position and every joint's ZXY rotation on the training rig; path models' rotations "
+                        "come from their positions by inverse kinematics)")
+    p.add_argument("--n", type=int, default=1, help="samples per control (default %(default)s)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--temperature", type=float, default=1.0, help="sampling temperature (default %(default)s)")
+    p.add_argument("--warmup-seconds", type=float,
+                   help="path models: motion generated before the kept clip and discarded, holding the first "
+                        "control frame (default: 1 s for MoGlow, as in its paper; 0 for the baselines)")
+    # generation.models.precision.PRECISIONS, spelt out so that building the parser imports no torch
+    p.add_argument("--precision", choices=("auto", "float32", "bfloat16", "int8"), default="auto",
+                   help="how MoGlow's coupling networks multiply: auto is bfloat16 on CPUs with bfloat16 units "
+                        "(AVX512-BF16 or AMX), float32 elsewhere; int8 (x86 CPUs) is faster still but further "
+                        "from float32's samples (default %(default)s)")
+    p.add_argument("--seconds", type=float, default=4.0, help="length of held-out control or of attribute-controlled clips (default %(default)s)")
+    p.add_argument("--data", nargs="+", help="motion folder(s) for held-out control (default $MOTION_DATA)")
+    p.add_argument("--takes", type=take_names, metavar="NAME,...",
+                   help="held-out control from these takes of the folder (file names without .bvh), instead of "
+                        "the takes the training's seeded split holds out")
+    p.add_argument("--lead-in", type=float, default=0.0, metavar="SECONDS",
+                   help="held-out control starts SECONDS into each take, and the warm-up runs on the take's own "
+                        "control before it, as the MoGlow authors' code samples a test take from its start "
+                        "(default %(default)s: the control starts with the take, and the warm-up holds its first "
+                        "frame); export NAT with the same `natural --lead-in`")
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--threads", type=_thread_count, help="CPU threads for torch (default: torch's own choice)")
+    p.add_argument("--render", action="store_true", help="also render each clip to MP4")
+    p.add_argument("--draw-control", nargs="?", const=OWN_CONTROL, metavar="CONTROL",
+                   help="render each clip (implies --render) with a control's path drawn on the floor and the "
+                        "camera following that path, the figure's own path over it: without a value each "
+                        "clip's own control; with a preset name or a JSON or YAML file describing one path, "
+                        "that path under every clip, as an appropriateness study shows a clip sampled for "
+                        "another control (it must last as many frames as the clips)")
+    p.add_argument("--bvh-unit", choices=tuple(UNITS), default="cm",
+                   help="length unit of the BVH files written (BVH cannot state it; the command prints it); "
+                        "npz files are always in cm (default %(default)s)")
+    add_camera_arguments(p)
+    p.set_defaults(run=sample_command)
 
 
 def evaluate_command(args: argparse.Namespace) -> int:
@@ -306,6 +352,16 @@ def evaluate_command(args: argparse.Namespace) -> int:
         raise ValueError(f"{args.checkpoint}: the held-out {name} is {loss}: the model's outputs overflow on this data")
     print(f"{args.checkpoint}: held-out {name}: {loss:.4f} over {len(dataset.select('test'))} held-out takes")
     return 0
+
+
+def add_evaluate_parser(commands: argparse._SubParsersAction) -> None:
+    """The ``evaluate`` command's parser."""
+    p = commands.add_parser("evaluate", help="held-out loss of a checkpoint")
+    p.add_argument("checkpoint")
+    p.add_argument("--data", nargs="+", help="motion folder(s) (default $MOTION_DATA)")
+    p.add_argument("--cache-dir", help="dataset cache folder")
+    p.add_argument("--device", default="cpu")
+    p.set_defaults(run=evaluate_command)
 
 
 def sliding_command(args: argparse.Namespace) -> int:
@@ -347,125 +403,8 @@ def sliding_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_commands(commands: argparse._SubParsersAction) -> None:
-    """Add the group's commands to the ``generation`` command line's subparsers."""
-    p = commands.add_parser("train", help="train a model on a BVH folder",
-                            description="Train a model on the locomotion clips of FOLDER (held-out takes for "
-                                        "validation). Writes CHECKPOINT (safetensors + JSON header) at every evaluation; "
-                                        "--resume continues from it.")
-    p.add_argument("folder", nargs="+", help="folder of .bvh files; several are pooled (clip names must differ)")
-    p.add_argument("--model", "--kind", choices=tuple(MODELS), default="moglow", help="model kind (default %(default)s)")
-    p.add_argument("--preset", default="cpu", help="configuration preset: cpu, paper, or with an ablation such as cpu-MG-D or cpu-SL (default %(default)s)")
-    p.add_argument("--classifiers", help="attribute classifiers' file for HVRNN's classifier loss")
-    p.add_argument("--rotation-output", help="HVRNN: what its decoder outputs per joint: quaternion (default), matrix "
-                                             "(6-D, Gram-Schmidt) or axis_angle (a rotation vector)")
-    p.add_argument("--denoiser", help="attribute models: a denoiser (hvrnn-denoiser) that cleans the training "
-                                      "takes first, as HVRNN's paper does; the checkpoint's data fingerprint records it")
-    p.add_argument("--out", "-o", required=True, help="checkpoint path (.safetensors)")
-    p.add_argument("--steps", type=int, default=4000, help="total training steps (default %(default)s)")
-    p.add_argument("--eval-every", type=int, default=250, help="steps between validation and checkpoint (default %(default)s)")
-    p.add_argument("--resume", action="store_true", help="continue from the checkpoint at --out")
-    p.add_argument("--set", action="append", type=_setting, default=[], metavar="NAME=VALUE", dest="settings",
-                   help="replace one field of the preset's model configuration (e.g. dropout=0.7) or training "
-                        "knobs (learning_rate, warmup_steps, grad_clip, batch_size); repeatable. With --resume "
-                        "it applies from the checkpoint's step on, and the checkpoint records the change")
-    p.add_argument("--contents", help="content labels to train on (default: locomotion for path models, all for "
-                                      "attribute models; every clip where the clips have no labels)")
-    p.add_argument("--reverse", action="store_true", help="path models: also train on the training takes played backwards "
-                   "(as the MoGlow authors' locomotion set-up does; held-out takes are never augmented)")
-    p.add_argument("--overlap", type=float, default=0.5, help="path models: overlap of consecutive 4-s training "
-                   "windows; short takes give more windows with more overlap (default %(default)s)")
-    p.add_argument("--cache-dir", help="dataset cache folder")
-    p.add_argument("--device", default="cpu", help="cpu or cuda (default %(default)s)")
-    p.add_argument("--threads", type=_thread_count, help="CPU threads for torch (default: torch's own choice)")
-    p.add_argument("--seed", type=int, default=0)
-    add_unit_arguments(p)
-    p.set_defaults(run=train_command)
-
-    p = commands.add_parser("sample", help="generate motion for control signals",
-                            description="Sample N motions per control signal. CONTROL is a preset name "
-                                        "(walk-straight, walk-circle, sidestep-left, walk-backward, stand-still, speed-ramp, ...), "
-                                        "a JSON or YAML path description, or 'held-out' for the held-out natural clips.")
-    p.add_argument("checkpoint", help="a checkpoint written by train")
-    p.add_argument("--control", "-c", nargs="+", default=["walk-straight"], help="control presets, files or 'held-out'")
-    p.add_argument("--action", nargs="+", help="attribute models: actions to sample (default: all the model knows)")
-    p.add_argument("--style", nargs="+", help="attribute models: styles to sample (default: all the model knows)")
-    p.add_argument("--out", "-o", required=True,
-                   help="output folder: per clip an npz (the model's joint positions) and a BVH (the root's "
-                        "position and every joint's ZXY rotation on the training rig; path models' rotations "
-                        "come from their positions by inverse kinematics)")
-    p.add_argument("--n", type=int, default=1, help="samples per control (default %(default)s)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--temperature", type=float, default=1.0, help="sampling temperature (default %(default)s)")
-    p.add_argument("--warmup-seconds", type=float,
-                   help="path models: motion generated before the kept clip and discarded, holding the first "
-                        "control frame (default: 1 s for MoGlow, as in its paper; 0 for the baselines)")
-    # generation.models.precision.PRECISIONS, spelt out so that building the parser imports no torch
-    p.add_argument("--precision", choices=("auto", "float32", "bfloat16", "int8"), default="auto",
-                   help="how MoGlow's coupling networks multiply: auto is bfloat16 on CPUs with bfloat16 units "
-                        "(AVX512-BF16 or AMX), float32 elsewhere; int8 (x86 CPUs) is faster still but further "
-                        "from float32's samples (default %(default)s)")
-    p.add_argument("--seconds", type=float, default=4.0, help="length of held-out control or of attribute-controlled clips (default %(default)s)")
-    p.add_argument("--data", nargs="+", help="motion folder(s) for held-out control (default $MOTION_DATA)")
-    p.add_argument("--takes", type=_take_names, metavar="NAME,...",
-                   help="held-out control from these takes of the folder (file names without .bvh), instead of "
-                        "the takes the training's seeded split holds out")
-    p.add_argument("--lead-in", type=float, default=0.0, metavar="SECONDS",
-                   help="held-out control starts SECONDS into each take, and the warm-up runs on the take's own "
-                        "control before it, as the MoGlow authors' code samples a test take from its start "
-                        "(default %(default)s: the control starts with the take, and the warm-up holds its first "
-                        "frame); export NAT with the same `natural --lead-in`")
-    p.add_argument("--device", default="cpu")
-    p.add_argument("--threads", type=_thread_count, help="CPU threads for torch (default: torch's own choice)")
-    p.add_argument("--render", action="store_true", help="also render each clip to MP4")
-    p.add_argument("--draw-control", nargs="?", const=OWN_CONTROL, metavar="CONTROL",
-                   help="render each clip (implies --render) with a control's path drawn on the floor and the "
-                        "camera following that path, the figure's own path over it: without a value each "
-                        "clip's own control; with a preset name or a JSON or YAML file describing one path, "
-                        "that path under every clip, as an appropriateness study shows a clip sampled for "
-                        "another control (it must last as many frames as the clips)")
-    p.add_argument("--bvh-unit", choices=tuple(UNITS), default="cm",
-                   help="length unit of the BVH files written (BVH cannot state it; the command prints it); "
-                        "npz files are always in cm (default %(default)s)")
-    add_camera_arguments(p)
-    p.set_defaults(run=sample_command)
-
-    p = commands.add_parser("natural", help="export natural clips (held-out takes by default) like samples",
-                            description="Write natural clips of FOLDER as npz (and optionally MP4), read exactly as "
-                                        "the models' training data is: the NAT system of a study or of the objective "
-                                        "metrics. The takes are those the seeded split that build-dataset and training "
-                                        "make of the folder hold out, of every content by default as build-dataset "
-                                        "reads it (each content's share is drawn on its own, so a model trained on "
-                                        "some contents has its held-out takes among them; no model needs to have been "
-                                        "trained on it), or the takes named with --takes.")
-    p.add_argument("folder", nargs="+", help="folder of .bvh files; several are pooled (clip names must differ)")
-    p.add_argument("--out", "-o", required=True, help="output folder")
-    p.add_argument("--split", choices=("test", "train"), default="test", help="which takes (default: held-out)")
-    p.add_argument("--takes", type=_take_names, metavar="NAME,...",
-                   help="these takes (file names without .bvh, comma-separated) instead of a split's, whatever "
-                        "their content")
-    p.add_argument("--contents", help="comma-separated content labels to keep (default: every content, as "
-                                      "build-dataset's)")
-    p.add_argument("--holdout", type=float, default=0.1,
-                   help="fraction of each content's takes the split holds out, as build-dataset's (default "
-                        "%(default)s, as train's)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the split, as build-dataset's (default %(default)s)")
-    p.add_argument("--seconds", type=float, default=4.0, help="length of each clip (default %(default)s)")
-    p.add_argument("--lead-in", type=float, default=0.0, metavar="SECONDS",
-                   help="each clip starts SECONDS into its take, as `sample -c held-out --lead-in` samples it "
-                        "(default %(default)s)")
-    p.add_argument("--render", action="store_true", help="also render each clip to MP4")
-    add_camera_arguments(p)
-    add_unit_arguments(p)
-    p.set_defaults(run=natural_command)
-
-    p = commands.add_parser("evaluate", help="held-out loss of a checkpoint")
-    p.add_argument("checkpoint")
-    p.add_argument("--data", nargs="+", help="motion folder(s) (default $MOTION_DATA)")
-    p.add_argument("--cache-dir", help="dataset cache folder")
-    p.add_argument("--device", default="cpu")
-    p.set_defaults(run=evaluate_command)
-
+def add_sliding_parser(commands: argparse._SubParsersAction) -> None:
+    """The ``sliding`` command's parser."""
     p = commands.add_parser("sliding", help="where a MoGlow's foot sliding arises, on held-out takes",
                             description="The weight-bearing foot's speed on held-out takes of CONTENTS, on each "
                                         "take's own control, from 1 s in: the take itself; each frame predicted "

@@ -9,7 +9,7 @@ from tqdm import tqdm
 
 from ..control import in_control_frame
 from ..gallery import GalleryOptions, build_gallery
-from ..motion.dataset import load_body_motion
+from ..motion.clip_files import load_body_motion
 from ..motion.root import RootOptions, root_trajectory
 from ..motion.unit_detection import choose_units
 from ..render import contact_sheet, render_video

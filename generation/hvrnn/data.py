@@ -31,7 +31,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..motion.dataset import Clip, DatasetOptions, MotionDataset, Standardizer, build_dataset
+from ..motion.dataset import Clip, MotionDataset, Standardizer, build_dataset
+from ..motion.dataset_options import DatasetOptions
 from ..motion.features import ROOT_DIMS
 
 FPS = 30.0

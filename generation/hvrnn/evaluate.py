@@ -100,7 +100,7 @@ def evaluation_outputs(data: AttributeData, classifiers: AttributeClassifiers, c
 
 
 def save_outputs(path: str | os.PathLike, outputs: dict[str, dict[str, np.ndarray]], data: AttributeData) -> Path:
-    """Write the file ``analysis.attribute_scores.read_classifier_outputs`` reads, atomically."""
+    """Write the file ``analysis.reports.attribute_scores.read_classifier_outputs`` reads, atomically."""
     arrays = {"sets": np.array(list(outputs)), "reference": np.array(REFERENCE),
               "actions": np.array(data.actions.names), "styles": np.array(data.styles.names)}
     for name, values in outputs.items():

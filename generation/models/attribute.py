@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 import torch
 from torch.nn import functional as F
 
-from .base import MotionModel
+from .motion_model import MotionModel
 
 
 class AttributeModel(MotionModel):

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import torch
 
-from .base import MotionModel
+from .motion_model import MotionModel
 
 
 class PathModel(MotionModel):

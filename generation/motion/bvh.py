@@ -30,7 +30,7 @@ from .ik import with_rotations
 from .kinematics import forward_kinematics
 from .rotations import euler_to_matrix, matrix_to_continuous_euler, matrix_to_quat, quat_to_matrix
 from .types import Motion, Skeleton
-from .units import Units
+from .skeleton_units import Units
 
 POSITION_AXIS = {"Xposition": 0, "Yposition": 1, "Zposition": 2}
 ROTATION_AXIS = {"Xrotation": "X", "Yrotation": "Y", "Zrotation": "Z"}

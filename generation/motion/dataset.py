@@ -1,14 +1,10 @@
 """Build a training set from a folder of BVH files, cache it, and serve windows.
 
-Each clip is read, reduced to the body (the hips and everything below), resampled,
-optionally augmented (training clips only), and encoded into both representations.
-The result is cached as ``.npz`` under a fingerprint of the input files' contents and
-every option, so a changed file or option rebuilds it and nothing else does.
-
-Labels are optional: a ``NAME.json`` beside ``NAME.bvh`` holding ``{"content": i,
-"style": j}`` indexes the lines of ``content_label.txt`` and ``style_label.txt`` (looked
-for beside the BVH files, in their folder's ``cfg/`` and in its parent's ``cfg/``), as
-in the Bandai-Namco data; a clip without labels has content and style None.
+Each clip is read (``clip_files``), reduced to the body (the hips and everything below),
+resampled, split by take (``splits``), optionally augmented (training clips only), and
+encoded into both representations. The result is cached as ``.npz`` under a fingerprint
+of the input files' contents and every option (``dataset_options``), so a changed file
+or option rebuilds it and nothing else does.
 
 Units: every clip is read in centimetres with y up; the files' unit and up axis are
 given in the options or detected (``unit_detection``), and the options that the
@@ -21,94 +17,28 @@ import dataclasses
 import hashlib
 import io
 import json
-import math
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 from tqdm import tqdm
 
-from .augment import mirror, reverse, window_count, windows
 from ..files import write_atomic
-from .bvh import BVHError, load_motion
+from .augment import mirror, reverse, window_count, windows
+from .bvh import BVHError
+from .clip_files import choose_files, label_name_file, load_body_motion
+from .dataset_options import DatasetOptions, with_units
 from .features import AngleFeatureSpec, angle_feature_spec, encode_angles, encode_positions
-from .kinematics import subtree_motion
-from .resample import resample
-from .root import RootOptions, hips_index, limb_root_pairs
+from .root import limb_root_pairs
+from .splits import SPLITS, take_of, take_splits
 from .types import Motion, Skeleton
-from .unit_detection import choose_units
-from .units import detect_up
+from .skeleton_units import detect_up
 
 FORMAT_VERSION = 1  # bump when the cached arrays change meaning
-SPLITS = ("train", "validation", "test")
-# The contents path-controlled models are trained on unless told otherwise (train --contents).
-LOCOMOTION = ("walk", "run", "dash", "walk-back", "walk-left", "walk-right")
-MAX_FPS = 1000.0  # motion capture runs at hundreds of frames per second at most
-
-
-@dataclass(frozen=True)
-class DatasetOptions:
-    """Everything that decides the contents of a dataset (all part of its fingerprint)."""
-
-    fps: float = 20.0
-    window_seconds: float = 4.0
-    overlap: float = 0.5
-    mirror: bool = True
-    reverse: bool = False
-    contents: tuple[str, ...] | None = None  # keep only these content labels
-    holdout_fraction: float = 0.1  # of the takes of each content, held out for testing
-    # Of each content's remaining takes, held out for choosing checkpoints during training:
-    # never trained on, and never reported, so held-out (test) figures stay unbiased.
-    validation_fraction: float = 0.1
-    seed: int = 0
-    angle_representation: str = "quaternion"
-    mirror_pairs: dict[str, str] | None = None
-    scale: float | None = None  # file units to centimetres; None: detected when building
-    root: RootOptions = field(default_factory=RootOptions)
-    up: str | None = None  # the files' up axis, "y" or "z"; None: detected when building
-
-    def __post_init__(self) -> None:
-        # Checked here, before any file is read or cache written: each value below would
-        # otherwise give a dataset that is silently wrong (no test takes, no windows) or
-        # an error far from its cause.
-        def refuse(name: str, rule: str) -> None:
-            raise ValueError(f"dataset option {name} must be {rule}, got {getattr(self, name)!r}")
-
-        if not (math.isfinite(self.fps) and 0 < self.fps <= MAX_FPS):
-            refuse("fps", f"a number of frames per second above 0 and at most {MAX_FPS:g}")
-        if not (math.isfinite(self.window_seconds) and self.window_seconds > 0) or self.window_frames < 2:
-            refuse("window_seconds", f"long enough for two frames at {self.fps:g} fps")
-        if not 0 <= self.overlap < 1:
-            refuse("overlap", "at least 0 and below 1")
-        for name in ("holdout_fraction", "validation_fraction"):
-            if not 0 <= getattr(self, name) < 1:
-                refuse(name, "at least 0 and below 1")
-        if self.scale is not None and not (math.isfinite(self.scale) and self.scale > 0):
-            refuse("scale", "a positive number (file units to centimetres)")
-
-    @property
-    def window_frames(self) -> int:
-        return int(round(self.window_seconds * self.fps))
-
-    @property
-    def hop_frames(self) -> int:
-        return max(1, int(round(self.window_frames * (1.0 - self.overlap))))
-
-    def to_dict(self) -> dict:
-        return dataclasses.asdict(self)
-
-    @classmethod
-    def from_dict(cls, data: dict) -> "DatasetOptions":
-        data = dict(data)
-        data["root"] = RootOptions(**data["root"])
-        data.setdefault("up", "y")  # recorded before the up axis was an option: y
-        if data.get("contents") is not None:
-            data["contents"] = tuple(data["contents"])
-        return cls(**data)
 
 
 @dataclass(frozen=True)
@@ -272,148 +202,6 @@ class MotionDataset:
         )
 
 
-def motion_folders(folders: str | os.PathLike | Sequence[str | os.PathLike]) -> list[Path]:
-    """One folder, or several (a sequence, or strings joined with ``os.pathsep`` as in
-    ``MOTION_DATA=/data/a:/data/b``, also as a command-line argument), as a list of paths."""
-    if isinstance(folders, (str, os.PathLike)):
-        folders = [folders]
-    result = [Path(part) for folder in folders for part in str(folder).split(os.pathsep) if part]
-    if not result:
-        raise FileNotFoundError("no motion folder given")
-    return result
-
-
-def find_bvh_files(folders: str | os.PathLike | Sequence[str | os.PathLike]) -> list[Path]:
-    """BVH files in each folder or its ``data/`` subfolder, sorted by name within each
-    folder. Several folders pool their clips; their file names must differ, because a
-    file's stem names its take."""
-    files: list[Path] = []
-    for folder in motion_folders(folders):
-        files += _bvh_files_in(folder)
-    stems: dict[str, Path] = {}
-    for path in files:
-        if path.stem in stems:
-            raise ValueError(f"{path}: a clip named {path.stem!r} is also in {stems[path.stem].parent}; "
-                             "clips of pooled folders need different names")
-        stems[path.stem] = path
-    return files
-
-
-def _bvh_files_in(folder: Path) -> list[Path]:
-    if not folder.is_dir():
-        raise FileNotFoundError(f"motion folder {folder} does not exist")
-    files = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".bvh")
-    if not files and (folder / "data").is_dir():
-        files = sorted(p for p in (folder / "data").iterdir() if p.suffix.lower() == ".bvh")
-    if not files:
-        raise FileNotFoundError(f"no .bvh files in {folder} (or {folder / 'data'})")
-    return files
-
-
-def label_name_file(folder: Path, kind: str) -> Path | None:
-    """The ``{kind}_label.txt`` that names the labels of the clips in ``folder``: beside
-    them, in ``folder/cfg`` or in ``folder/../cfg``."""
-    for place in (folder, folder / "cfg", folder.parent / "cfg"):
-        path = place / f"{kind}_label.txt"
-        if path.is_file():
-            return path
-    return None
-
-
-def _label_names(folder: Path, kind: str) -> tuple[Path, list[str]] | None:
-    """The ``{kind}_label.txt`` that covers ``folder`` and its labels, or None."""
-    path = label_name_file(folder, kind)
-    if path is None:
-        return None
-    try:
-        lines = [line.strip() for line in path.read_text(encoding="utf-8").splitlines() if line.strip()]
-    except UnicodeDecodeError as error:
-        raise ValueError(f"{path}: not UTF-8 text (byte {error.start})") from None
-    # Drop a shared "dataset-1_" style prefix, up to its last underscore.
-    prefix = os.path.commonprefix(lines)
-    cut = prefix.rfind("_") + 1 if len(lines) > 1 else 0
-    return path, [line[cut:] for line in lines]
-
-
-def read_labels(bvh_path: Path) -> tuple[str | None, str | None]:
-    """(content, style) of a clip from its JSON side file, or (None, None). Where a label
-    list covers the folder, a label is one of its lines, by index or by name."""
-    side = bvh_path.with_suffix(".json")
-    if not side.is_file():
-        return None, None
-    try:
-        data = json.loads(side.read_text(encoding="utf-8"))
-    except UnicodeDecodeError as error:
-        raise ValueError(f"{side}: not UTF-8 text (byte {error.start})") from None
-    except json.JSONDecodeError as error:
-        raise ValueError(f"{side}:{error.lineno}: invalid JSON ({error.msg})") from None
-    except (ValueError, RecursionError) as error:  # a number of thousands of digits, arrays nested thousands deep
-        raise ValueError(f"{side}: not a label file ({error})") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"{side}: expected a JSON object with 'content' and 'style', got a {type(data).__name__}")
-    result = []
-    for kind in ("content", "style"):
-        index = data.get(kind)
-        listed = _label_names(bvh_path.parent, kind)
-        if index is None:
-            result.append(None)
-        elif isinstance(index, bool) or not isinstance(index, int | str):
-            raise ValueError(f"{side}: {kind!r} must be a label index or name, got {index!r}")
-        elif listed is None:  # no label list: the label as given
-            result.append(str(index))
-        elif isinstance(index, int):
-            names_file, names = listed
-            if not 0 <= index < len(names):
-                raise ValueError(f"{side}: {kind!r} is {index}, but {names_file} lists {len(names)} labels "
-                                 f"(0 to {len(names) - 1})")
-            result.append(names[index])
-        else:
-            names_file, names = listed
-            if not any(content_matches(index, name) for name in names):
-                shown = ", ".join(names[:10]) + (f" and {len(names) - 10} more" if len(names) > 10 else "")
-                raise ValueError(f"{side}: {kind!r} is {index!r}, which is not a label of {names_file} ({shown})")
-            result.append(index)
-    return result[0], result[1]
-
-
-def content_matches(content: str | None, wanted: str) -> bool:
-    """Whether a clip's content label is ``wanted``, also across a dataset prefix:
-    ``dataset-2_walk`` matches ``walk`` and the other way round."""
-    if content is None:
-        return False
-    return content == wanted or content.endswith(f"_{wanted}") or wanted.endswith(f"_{content}")
-
-
-def contents_or_all(folder: str | os.PathLike | Sequence[str | os.PathLike],
-                    contents: tuple[str, ...] | None) -> tuple[str, ...] | None:
-    """``contents`` where the clips have content labels; None (every clip, as one
-    content) for folders without any."""
-    if contents is None or any(read_labels(path)[0] is not None for path in find_bvh_files(folder)):
-        return contents
-    return None
-
-
-def take_of(stem: str) -> str:
-    """The take a file belongs to: its name without augmentation; one file is one take."""
-    return stem
-
-
-def split_takes(takes: list[tuple[str, str | None]], fraction: float, seed: int) -> set[str]:
-    """The held-out takes: for each content, a seeded-random ``fraction`` (at least one
-    when the content has two or more takes)."""
-    by_content: dict[str | None, list[str]] = {}
-    for take, content in takes:
-        by_content.setdefault(content, []).append(take)
-    held = set()
-    for content, group in sorted(by_content.items(), key=lambda kv: str(kv[0])):
-        group = sorted(set(group), key=lambda t: hashlib.sha256(f"{seed}:{t}".encode()).hexdigest())
-        n = int(round(fraction * len(group)))
-        if fraction > 0 and len(group) >= 2:
-            n = max(1, min(n, len(group) - 1))
-        held.update(group[:n])
-    return held
-
-
 def fingerprint(files: list[Path], options: DatasetOptions) -> str:
     """A hash of the input files' names and contents, the options and the format."""
     settings = options.to_dict()
@@ -450,40 +238,6 @@ def cache_key(data_fingerprint: str, files: list[Path]) -> str:
 
 def default_cache_dir() -> Path:
     return Path(os.environ.get("MOTION_CACHE_DIR", Path(os.environ.get("STUDYAPP_VAR_DIR", "var")) / "cache"))
-
-
-def choose_files(folder: str | os.PathLike | Sequence[str | os.PathLike], contents: tuple[str, ...] | None
-                 ) -> tuple[list[Path], dict[Path, tuple[str | None, str | None]]]:
-    """The BVH files of ``folder`` (or several, pooled) whose content is one of
-    ``contents`` (all where None), and every file's (content, style) labels."""
-    files = find_bvh_files(folder)
-    labels = {f: read_labels(f) for f in files}
-    if contents is not None:
-        files = [f for f in files if any(content_matches(labels[f][0], c) for c in contents)]
-        if not files:
-            folders = ", ".join(str(f) for f in motion_folders(folder))
-            raise ValueError(f"no clips in {folders} have content in {list(contents)}")
-    return files, labels
-
-
-def with_units(files: list[Path], options: DatasetOptions, progress: bool = False) -> DatasetOptions:
-    """``options`` with the unit and up axis it leaves open (None) detected from
-    ``files``; the choice is printed when ``progress`` is on."""
-    choice = choose_units(files, options.scale, options.up, options.root)  # reads no file where both are given
-    if progress:
-        print(choice.description)
-    return dataclasses.replace(options, scale=choice.units.scale, up=choice.units.up)
-
-
-def take_splits(files: list[Path], labels: dict[Path, tuple[str | None, str | None]],
-                options: DatasetOptions) -> dict[str, str]:
-    """The split ("train", "validation" or "test") of each file's take: a seeded
-    fraction of each content's takes held out for testing, then of the others for
-    validation (``split_takes``)."""
-    takes = [(take_of(f.stem), labels[f][0]) for f in files]
-    held_out = split_takes(takes, options.holdout_fraction, options.seed)
-    validation = split_takes([t for t in takes if t[0] not in held_out], options.validation_fraction, options.seed + 1)
-    return {take: "test" if take in held_out else "validation" if take in validation else "train" for take, _ in takes}
 
 
 def build_dataset(
@@ -559,34 +313,6 @@ def _naming(path: Path) -> Iterator[None]:
         raise ValueError(f"{path}: {error}") from error
 
 
-def load_body_motion(path: str | os.PathLike, fps: float, seconds: float | None = None,
-                     scale: float = 1.0, root: RootOptions = RootOptions(), up: str = "y",
-                     start: float = 0.0) -> Motion:
-    """A BVH clip as the models see it: in centimetres with y up (from the file's unit
-    ``scale`` and ``up`` axis), resampled to ``fps``, reduced to the body (the hips and
-    below), and cut (positions only) to the ``seconds`` after ``start`` seconds into the
-    take when given (``cut_motion``)."""
-    motion = resample(load_motion(path, scale, up), fps)
-    motion = subtree_motion(motion, hips_index(motion.skeleton, root.hips))
-    return cut_motion(motion, seconds, start, path)
-
-
-def cut_motion(motion: Motion, seconds: float | None = None, start: float = 0.0,
-               source: str | os.PathLike = "the take") -> Motion:
-    """The positions of the ``seconds`` after ``start`` seconds into a take (the whole
-    take where neither is given). Frames are counted as ``round(seconds * fps)``, as
-    controls count them; ``source`` names the take in the error for a start past its end."""
-    if seconds is None and not start:
-        return motion
-    fps = motion.fps
-    first = int(round(start * fps))
-    if first >= motion.n_frames:
-        raise ValueError(f"{source}: the take lasts {motion.n_frames} frames at {fps:g} fps and so ends "
-                         f"before {start:g} s into it")
-    last = motion.n_frames if seconds is None else first + int(round(seconds * fps))
-    return Motion(motion.positions[first:last], motion.fps, motion.skeleton)
-
-
 def _augmented(motion: Motion, options: DatasetOptions, train: bool):
     """The clip and, for training clips, its augmented copies."""
     yield "", motion
@@ -598,3 +324,6 @@ def _augmented(motion: Motion, options: DatasetOptions, train: bool):
         yield "reverse", reverse(motion)
         if options.mirror:
             yield "mirror+reverse", reverse(mirror(motion, options.mirror_pairs))
+
+
+__all__ = ["Clip", "MotionDataset", "Standardizer", "build_dataset", "cache_key", "default_cache_dir", "fingerprint"]

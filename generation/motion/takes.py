@@ -17,8 +17,9 @@ from typing import Sequence
 
 import numpy as np
 
-from .dataset import (SPLITS, DatasetOptions, choose_files, cut_motion, find_bvh_files, load_body_motion,
-                      motion_folders, read_labels, take_of, take_splits, with_units)
+from .clip_files import choose_files, cut_motion, find_bvh_files, load_body_motion, motion_folders, read_labels
+from .dataset_options import DatasetOptions, with_units
+from .splits import SPLITS, take_of, take_splits
 from .features import encode_positions
 from .types import Motion
 

@@ -13,7 +13,7 @@ from measures.units import HUMAN_HEIGHT_CM, UNITS, unit_for_height
 
 from .bvh import load_motion, read_bvh_skeleton
 from .root import RootOptions
-from .units import Units, detect_up, skeleton_size
+from .skeleton_units import Units, detect_up, skeleton_size
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from ..motion.types import Motion
-from ..motion.units import skeleton_size
+from ..motion.skeleton_units import skeleton_size
 
 
 @dataclass(frozen=True)

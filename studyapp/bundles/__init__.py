@@ -1,4 +1,6 @@
-"""A study as one file: the bundle ``export_study`` writes and ``import_study`` reads.
+"""A study's bundle: the whole study with its data as one zip (its rows, participants and ratings,
+definition, checkpoints, motion and videos), which ``export_study`` writes and ``import_study`` reads.
+The recipe alone, to make a new study like it, is a definition (``studyapp.definitions``).
 
     manifest.py     the manifest: every file's SHA-256 and size, the format version, the code version
     pseudonyms.py   platform ids replaced by a keyed hash (HMAC-SHA-256)

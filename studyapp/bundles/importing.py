@@ -48,7 +48,7 @@ from django.core.exceptions import ValidationError
 from django.db import transaction
 
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import ExclusionRules
+from analysis.ratings.exclusions import ExclusionRules
 from generation.files import atomic_folder, atomic_output
 from generation.motion.npz import MotionFileError, load_motion_npz
 from generation.store import SHA256_HEX, SUFFIX, CheckpointError, content_digest, read_header
@@ -60,9 +60,9 @@ from studyapp.definitions import DefinitionError, definition_yaml
 from studyapp.definitions.reading import read_definition
 from studyapp.models import (Assignment, ControlSignal, Participant, PreviousRun, Question, Rating, Stimulus,
                              StoredDataError, Study, System, new_token)
-from studyapp.plan.lock import preregistration, restore_preregistration
-from studyapp.plan.words import plan_markdown
-from studyapp.server.bounded_reading import ReadRefused, json_value, read_bytes, utf8_text
+from studyapp.preregistration.lock import preregistration, restore_preregistration
+from studyapp.preregistration.words import plan_markdown
+from studyapp.server.uploads.bounded_reading import ReadRefused, json_value, read_bytes, utf8_text
 from studyapp.stimuli.clips import CODE_VERSION, content_key
 from studyapp.stimuli.sources import imported_sampled_path
 from studyapp.stimuli.submissions import SUBMITTED_FOLDER, stored_motion_digest
@@ -334,7 +334,7 @@ def _previous_run(bundle: ReadBundle, study: Study) -> None:
                        code_version=bundle.manifest.code_version), "the previous run")
 
 
-# The keys of plan.json (``studyapp.plan.lock.preregistration``) and of each of its deviations.
+# The keys of plan.json (``studyapp.preregistration.lock.preregistration``) and of each of its deviations.
 PLAN_KEYS, DEVIATION_KEYS = {"locked", "plan", "sha256", "locked_at", "deviations"}, {"at", "field", "old", "new",
                                                                                      "recorded"}
 

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 from generation.store import SHA256_HEX
-from studyapp.server.bounded_reading import ReadRefused, json_value
+from studyapp.server.uploads.bounded_reading import ReadRefused, json_value
 
 FORMAT = "motion-study bundle"
 VERSION = 1

@@ -1,6 +1,6 @@
 """A bundle read into a scratch folder, every file checked before anything is imported.
 
-The zip is read as every zip from outside is (``studyapp.server.zips``): at most
+The zip is read as every zip from outside is (``studyapp.server.uploads.zips``): at most
 ``MAX_MEMBERS`` members, no encrypted one, no name that leaves the folder (zip slip), no
 member past its declared size; and here also no member past the upload limit of its kind
 (a checkpoint's, a video's, a definition's, a ratings table's, the records' limit for the
@@ -24,7 +24,7 @@ from django.conf import settings
 from studyapp.bundles import records
 from studyapp.bundles.manifest import MANIFEST_NAME, MAX_MANIFEST_BYTES, BundleRefused, HashingWriter, Manifest, parse_manifest
 from studyapp.definitions.reading import MAX_DEFINITION_BYTES
-from studyapp.server.zips import ZipRefused, checked_members, copy_member, member_path, opened_zip
+from studyapp.server.uploads.zips import ZipRefused, checked_members, copy_member, member_path, opened_zip
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from studyapp.models import Assignment, ControlSignal, Participant, Question, Ra
 STUDY_FILE, STIMULI_FILE, PARTICIPANTS_FILE = "study.json", "stimuli.json", "participants.json"
 DEFINITION_FILE = "study.yaml"
 RATINGS_FILE, RULES_FILE = "ratings.csv", "rules.json"
-PLAN_FILE = "plan.json"  # the plan locked when the study opened, and its deviations (studyapp.plan)
+PLAN_FILE = "plan.json"  # the plan locked when the study opened, and its deviations (studyapp.preregistration)
 RECORD_FILES = (STUDY_FILE, STIMULI_FILE, PARTICIPANTS_FILE, RULES_FILE, PLAN_FILE)  # JSON, read whole
 CHECKPOINTS, MOTION, SAMPLED, VIDEOS, CONTROLS = "checkpoints/", "motion/", "sampled/", "stimuli/", "controls/"
 

@@ -32,7 +32,7 @@ from studyapp.bundles.manifest import MANIFEST_NAME, VERSION, Entry, Manifest, e
 from studyapp.definitions import definition_yaml
 from studyapp.bundles.pseudonyms import pseudonym, pseudonymous_data
 from studyapp.models import Rating, Stimulus, Study, System, json_object
-from studyapp.plan.lock import preregistration
+from studyapp.preregistration.lock import preregistration
 from studyapp.researchers.results.export import ratings_csv, rules_json
 from studyapp.stimuli.clips import CODE_VERSION
 from studyapp.stimuli.control_export import bundle_files as control_files

@@ -1,4 +1,6 @@
-"""A study as one file: its definition, written from a study and read back into a new one.
+"""A study's definition: its recipe as one YAML file (settings, questions, systems by digest, controls
+by how they are made; no participants, ratings or files), written from a study and made into a new one.
+The whole study with its data is a bundle (``studyapp.bundles``).
 
 ``describe`` writes a study's settings, questions, systems and controls as YAML;
 ``create`` makes a study from such a file through the checks of the study's pages;

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import yaml
 
 from studyapp.definitions.errors import DefinitionError
-from studyapp.server.bounded_reading import MAX_DEPTH, PlainLoader
+from studyapp.server.uploads.bounded_reading import MAX_DEPTH, PlainLoader
 
 # A definition with a hundred custom paths of a minute each is about this long.
 MAX_DEFINITION_BYTES = 4_000_000

@@ -27,14 +27,14 @@ from django.db.models import F
 from django.http import QueryDict
 from django.utils import timezone
 
-from studyapp.designs.base import Answer, ClientTimes, OnPage, TIME_FIELDS
+from studyapp.designs.design import Answer, ClientTimes, OnPage, TIME_FIELDS
 from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Assignment, Participant, Rating, Study, export_name
 from studyapp.participants.assignment import last_seen_is_stale
 from studyapp.participants.refusal import AnswerRefused
-from studyapp.server.compiled_queries import CompiledQuery
-from studyapp.server.round_trips import insert, pipeline, update, updated_count
+from studyapp.server.db.compiled_queries import CompiledQuery
+from studyapp.server.db.round_trips import insert, pipeline, update, updated_count
 
 
 class AnsweredTooSoon(AnswerRefused):

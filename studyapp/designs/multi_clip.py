@@ -19,9 +19,9 @@ from datetime import datetime
 import pandas as pd
 from django.http import QueryDict
 
-from analysis.design_report import DesignReport
+from analysis.reports.design_report import DesignReport
 from studyapp.designs.answers import client_times
-from studyapp.designs.base import Design, PageKey
+from studyapp.designs.design import Design, PageKey
 from studyapp.models import Assignment, Stimulus, Study, System
 
 

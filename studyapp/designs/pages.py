@@ -17,10 +17,10 @@ from collections import Counter
 from django.http import Http404
 from django.utils import timezone
 
-from studyapp.designs.base import Page, PageClip, PlannedPage
+from studyapp.designs.design import Page, PageClip, PlannedPage
 from studyapp.designs.registry import design_of
 from studyapp.models import Assignment, Participant, Stimulus, Study, System
-from studyapp.server.compiled_queries import CompiledQuery
+from studyapp.server.db.compiled_queries import CompiledQuery
 
 
 def _video_url(token: str) -> str:

@@ -15,24 +15,24 @@ from functools import cache
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from studyapp.designs.base import Design
+    from studyapp.designs.design import Design
     from studyapp.models import Study
 
 
 @dataclass(frozen=True)
 class DesignEntry:
     label: str  # what the researcher chooses by
-    implementation: str  # "module:Class", a subclass of designs.base.Design
+    implementation: str  # "module:Class", a subclass of designs.design.Design
 
 
 DESIGNS: dict[str, DesignEntry] = {
-    "single": DesignEntry("single clip per page, rated on the scale", "studyapp.designs.single:SingleClip"),
+    "single": DesignEntry("single clip per page, rated on the scale", "studyapp.designs.single_pages:SingleClip"),
     "side-by-side": DesignEntry("side by side: every system's clip of one control on a page, each on a slider",
-                                "studyapp.designs.side_by_side:SideBySide"),
+                                "studyapp.designs.side_by_side_pages:SideBySide"),
     "pairwise": DesignEntry("pairwise: two systems' clips of one control, which is better",
-                            "studyapp.designs.pairwise:Pairwise"),
+                            "studyapp.designs.pairwise_pages:Pairwise"),
     "appropriateness": DesignEntry("appropriateness: a system's clip for the shown control beside its clip for "
-                                   "another control, which fits better", "studyapp.designs.appropriateness:Appropriateness"),
+                                   "another control, which fits better", "studyapp.designs.appropriateness_pages:Appropriateness"),
 }
 DEFAULT = "single"
 

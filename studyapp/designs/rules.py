@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from analysis.designs import design_named as analysed_design
-from analysis.exclusions import ExclusionRules
+from analysis.ratings.exclusions import ExclusionRules
 from studyapp.models import ATTENTION_NAME, NATURAL_NAME, Study
 
 

@@ -22,11 +22,11 @@ from datetime import datetime, timedelta
 from django.db import transaction
 from django.utils import timezone
 
-from studyapp.designs.base import Design, PlannedPage
+from studyapp.designs.design import Design, PlannedPage
 from studyapp.designs.registry import design_of
 from studyapp.models import Assignment, Participant, Stimulus, Study, System
 from studyapp.participants.study_cache import rendered_clips
-from studyapp.server.round_trips import draw_id, insert, lock_rows, pipeline
+from studyapp.server.db.round_trips import draw_id, insert, lock_rows, pipeline
 
 
 class StudyFull(Exception):

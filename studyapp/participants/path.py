@@ -34,7 +34,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from urllib.parse import urlencode, urlparse
+from urllib.parse import urlencode
 
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import redirect, render
@@ -48,9 +48,7 @@ from studyapp.models import Participant, Question, Stimulus, Study, json_object
 from studyapp.participants.assignment import is_idle, renew_reservations
 from studyapp.participants.questionnaires import field_name, questions, read_answers, screened_out
 from studyapp.participants.refusal import AnswerRefused
-
-PROLIFIC_COMPLETION_URL = "https://app.prolific.com/submissions/complete"
-MTURK_SUBMIT_HOSTS = {"www.mturk.com", "workersandbox.mturk.com"}
+from studyapp.platforms.links import PROLIFIC_COMPLETION_URL, mturk_submit_url
 
 # Sent by the clip pages' script (static/studyapp/next-page.js) with an answer: "in-place"
 # asks for the next page in the response where it is another page of clips.
@@ -273,15 +271,6 @@ def _rate(request: HttpRequest, study: Study, participant: Participant) -> HttpR
     return next_page(request, study, participant)
 
 
-def mturk_submit_url(platform_data: dict) -> str | None:
-    """MTurk's external-submit URL from the link's turkSubmitTo, if that is MTurk's own site."""
-    submit_to = platform_data.get("turkSubmitTo", "")
-    parsed = urlparse(submit_to)
-    if parsed.scheme == "https" and parsed.hostname in MTURK_SUBMIT_HOSTS:
-        return f"{submit_to.rstrip('/')}/mturk/externalSubmit"
-    return None
-
-
 def completion_page(study: Study, participant: Participant) -> dict:
     """Where a finished participant goes and what code they are given."""
     return _leaving_with(study, participant, study.completion_code, study.redirect_url)
@@ -355,4 +344,4 @@ def may_post(step: Step, participant: Participant) -> bool:
 
 
 __all__ = ["NEXT_PAGE_HEADER", "PATH", "Step", "completion_page", "current_page", "current_step", "may_post",
-           "message", "mturk_submit_url", "next_page", "questions_page", "stage"]
+           "message", "next_page", "questions_page", "stage"]

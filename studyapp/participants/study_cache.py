@@ -21,7 +21,7 @@ from __future__ import annotations
 from datetime import datetime
 
 from studyapp.models import Stimulus, Study
-from studyapp.server.compiled_queries import CompiledQuery
+from studyapp.server.db.compiled_queries import CompiledQuery
 
 _studies: dict[int, Study] = {}
 _rendered: dict[int, tuple[frozenset[tuple], list[Stimulus]]] = {}  # by study: what plans read of them, and the clips

@@ -24,20 +24,12 @@ from django.views.decorators.http import require_POST, require_safe
 
 from studyapp.models import Participant, StoredDataError, Study, json_object, new_token
 from studyapp.participants.assignment import StudyFull, StudyNotReady, enrol
-from studyapp.participants.path import Step, current_page, may_post, message, mturk_submit_url, stage
+from studyapp.participants.path import Step, current_page, may_post, message, stage
 from studyapp.participants.refusal import AnswerRefused
 from studyapp.participants.study_cache import current_study
-from studyapp.server.compiled_queries import CompiledQuery
+from studyapp.platforms.links import PLATFORM_PARAMETERS, SESSION_PARAMETERS, mturk_submit_url
+from studyapp.server.db.compiled_queries import CompiledQuery
 
-# The query parameters each platform adds to the entry link; the first one is the id.
-PLATFORM_PARAMETERS = {
-    Study.Platform.PROLIFIC: ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID"),
-    Study.Platform.MTURK: ("workerId", "assignmentId", "hitId", "turkSubmitTo"),
-    Study.Platform.LINK: ("pid",),
-}
-# The parameter naming the platform's session: a platform id continues in another browser
-# only with the session it started in (elsewhere, only the browser's cookie continues it).
-SESSION_PARAMETERS = {Study.Platform.PROLIFIC: "SESSION_ID", Study.Platform.MTURK: "assignmentId"}
 # MTurk shows the study in an iframe of its own site; other platforms link to it, so
 # their pages keep Django's X-Frame-Options: DENY.
 MTURK_FRAME_ANCESTORS = "frame-ancestors https://*.mturk.com"

@@ -24,7 +24,7 @@ from django.db import IntegrityError
 from django.utils import timezone
 
 from studyapp.models import Participant, PlatformAction, Study
-from studyapp.participants.views import SESSION_PARAMETERS
+from studyapp.platforms.links import SESSION_PARAMETERS
 from studyapp.platforms.calls import Call, Payee, PlatformError, UnconfirmedAnswer, is_platform_id
 from studyapp.platforms.mturk import MTurkAPI
 from studyapp.platforms.prolific import ProlificAPI

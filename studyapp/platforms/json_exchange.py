@@ -33,6 +33,7 @@ from email.utils import parsedate_to_datetime
 from urllib.parse import urlsplit
 
 from studyapp.platforms.calls import PlatformError, UnconfirmedAnswer
+from studyapp.server.uploads.bounded_reading import finite_float
 
 TIMEOUT_S = 30.0  # the longest wait for the platform to answer at all
 MAX_ANSWER_BYTES = 8 * 1024 * 1024
@@ -168,20 +169,13 @@ def _is_json(headers: http.client.HTTPMessage) -> bool:
 def _json(raw: bytes) -> object | None:
     """The JSON of ``raw``, or None if it is not JSON (or holds NaN or an infinity)."""
     try:
-        return json.loads(raw, parse_constant=_no_constant, parse_float=_finite)
+        return json.loads(raw, parse_constant=_no_constant, parse_float=finite_float)
     except (ValueError, RecursionError):
         return None
 
 
 def _no_constant(name: str) -> None:
     raise ValueError(f"{name} is not JSON")
-
-
-def _finite(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise ValueError(f"{text} is out of range")
-    return value
 
 
 __all__ = ["Answer", "exchange", "retry_after_s", "shown"]

@@ -1,6 +1,6 @@
-"""The researcher's side: the study pages (``views``, ``urls``), the pages outside any
-one study (``site_views``), a study's definition as a file (``definition_views``) and
-its bundle's download and import (``bundle_views``), with what they call in three rooms:
-``setup`` (building a study: its forms, checklist, readiness, preview, editing, removal
-and copies), ``results`` (the monitor, the reports and the exports) and ``crowd`` (the
-participant list and the crowd platform's page)."""
+"""The researcher's side: the URL map (``urls``), who reaches a study (``access``), its
+files as downloads (``downloads``), the pages outside any one study (``site_views``), a
+study's definition as a file (``definition_views``) and its bundle (``bundle_views``);
+each room holds its own pages beside what they call: ``setup`` (building a study),
+``results`` (the monitor, the reports and the exports) and ``crowd`` (the participant
+list and the crowd platform's page)."""

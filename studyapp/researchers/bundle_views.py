@@ -14,7 +14,7 @@ from pathlib import Path
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
 from django.http import FileResponse, HttpRequest, HttpResponse
-from django.shortcuts import get_object_or_404, redirect, render
+from django.shortcuts import redirect, render
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_http_methods, require_safe
 
@@ -23,15 +23,15 @@ from studyapp.bundles.manifest import BundleRefused
 from studyapp.bundles.pseudonyms import export_key
 from studyapp.bundles.writing import ExportError, write_study_bundle
 from studyapp.models import StoredDataError, Study
+from studyapp.researchers.access import researcher_study
 from studyapp.researchers.setup.forms import BundleImportForm
 
 
 @never_cache
-@login_required
+@researcher_study
 @require_safe
-def study_bundle_download(request: HttpRequest, pk: int) -> HttpResponse:
+def study_bundle_download(request: HttpRequest, study: Study) -> HttpResponse:
     """The study as one bundle (``?videos=1``: with every finished clip's video)."""
-    study = get_object_or_404(Study, pk=pk, owner=request.user)
     with tempfile.TemporaryDirectory(prefix="study-bundle-") as folder:
         path = Path(folder) / "study.zip"
         try:

@@ -14,13 +14,19 @@ from django import forms
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
 from django.http import HttpRequest, HttpResponse
-from django.shortcuts import get_object_or_404, redirect, render
+from django.shortcuts import redirect, render
 from django.views.decorators.cache import never_cache
 from django.views.decorators.http import require_http_methods, require_safe
 
-from studyapp.definitions import DefinitionError, create_study_from_definition, definition_yaml
+from studyapp.definitions import (
+    DefinitionError,
+    create_study_from_definition,
+    definition_yaml,
+)
 from studyapp.definitions.reading import MAX_DEFINITION_BYTES
 from studyapp.models import StoredDataError, Study
+from studyapp.researchers.access import researcher_study
+from studyapp.researchers.downloads import download
 
 
 class DefinitionUploadForm(forms.Form):
@@ -59,16 +65,13 @@ def study_from_definition(request: HttpRequest) -> HttpResponse:
 
 
 @never_cache
-@login_required
+@researcher_study
 @require_safe
-def study_definition(request: HttpRequest, pk: int) -> HttpResponse:
+def study_definition(request: HttpRequest, study: Study) -> HttpResponse:
     """The study's definition as a YAML download."""
-    study = get_object_or_404(Study, pk=pk, owner=request.user)
     try:
         text = definition_yaml(study)
     except StoredDataError as error:
         messages.error(request, f"No definition: {error} (fix it in the admin: {error.admin_url})")
         return redirect("study-monitor", pk=study.pk)
-    response = HttpResponse(text, content_type="application/yaml; charset=utf-8")
-    response["Content-Disposition"] = f'attachment; filename="study-{study.pk}.yaml"'
-    return response
+    return download(text, "application/yaml; charset=utf-8", f"study-{study.pk}.yaml")

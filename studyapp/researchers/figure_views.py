@@ -4,13 +4,13 @@ researcher's corrections of that mapping (``setup.editing.correct_figure_mapping
 from __future__ import annotations
 
 from django.contrib import messages
-from django.contrib.auth.decorators import login_required
 from django.http import HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.views.decorators.http import require_http_methods
 
 from generation.render.display_figure import PARENT
 from studyapp.models import Study, System
+from studyapp.researchers.access import researcher_study
 from studyapp.researchers.setup.editing import EditRefused, correct_figure_mapping
 from studyapp.researchers.setup.removal import SystemsFixed
 from studyapp.stimuli.figure import figure_table
@@ -18,12 +18,11 @@ from studyapp.stimuli.figure import figure_table
 FIELD_PREFIX = "point_"
 
 
-@login_required
+@researcher_study
 @require_http_methods(["GET", "HEAD", "POST"])
-def system_figure(request: HttpRequest, pk: int, system: int) -> HttpResponse:
+def system_figure(request: HttpRequest, study: Study, system: int) -> HttpResponse:
     """The mapping of ``system``'s joints to the figure's points (GET); a corrected table
     kept (POST, one ``point_<name>`` field a point, blank: as found)."""
-    study = get_object_or_404(Study, pk=pk, owner=request.user)
     target = get_object_or_404(System, pk=system, study=study)
     status, refusal = 200, ""
     if request.method == "POST":

@@ -1,3 +1,3 @@
-"""How the study app runs: settings read from the environment, the embedded defaults
-(SQLite, a filesystem broker), the Celery app, the WSGI entry point, health checks, the
-files it serves itself, the upload limit, the embedded database backend and the demo."""
+"""How the study app is deployed and runs: settings read from the environment with embedded
+defaults, the Celery app, the WSGI entry point, health checks and the files it serves itself;
+the database seams in ``db/``, what comes from outside in ``uploads/``."""

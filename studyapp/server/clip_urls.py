@@ -36,6 +36,15 @@ def signed_clip_url(relative_path: str, now: float | None = None) -> str:
     return f"/{settings.MEDIA_URL.strip('/')}/{relative_path}?{query}"
 
 
+def seconds_left(query: dict[str, str], now: float | None = None) -> int:
+    """How long the signed address of ``query`` still works (0 where it names no time): how
+    long a browser may keep the clip it fetched, the address's lifetime being the clip's."""
+    until = query.get(UNTIL, "")
+    if not until.isdigit() or len(until) > 12:
+        return 0
+    return max(0, int(until) - int(now if now is not None else time.time()))
+
+
 def is_signed_and_current(relative_path: str, query: dict[str, str], now: float | None = None) -> bool:
     """Whether a request's query signs ``relative_path`` and has not expired."""
     until, signature = query.get(UNTIL, ""), query.get(SIGNATURE, "")

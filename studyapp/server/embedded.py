@@ -13,6 +13,8 @@ from pathlib import Path
 # kombu ignores the host of a filesystem URL but warns on every clone of a
 # connection that has none, which floods the worker log.
 FILESYSTEM_BROKER_URL = "filesystem://localhost//"
+# kombu's filesystem transport writing each message whole before it is seen (broker_files).
+FILESYSTEM_TRANSPORT = "studyapp.server.broker_files:Transport"
 
 # kombu polls the folders; its 1 s default would make a 1 s control ping miss
 # replies, and a tenth of a second costs next to nothing in directory listings.

@@ -49,6 +49,9 @@ def bucket_storage(url: str, endpoint_url: str, lifetime_s: float) -> dict:
         "querystring_expire": int(lifetime_s),
         "file_overwrite": True,  # a clip's name is its token: a second upload replaces the first
         "default_acl": None,
+        # Signature version 4: SeaweedFS refuses a version-2 address whose response-cache-control
+        # holds a comma or an equals sign, and AWS asks for version 4 in its newer regions.
+        "signature_version": "s3v4",
     }
     return {"BACKEND": S3_STORAGE, "OPTIONS": options}
 
@@ -113,6 +116,11 @@ def clip_redirect(request: HttpRequest, name: str) -> HttpResponseBase:
         return HttpResponseNotAllowed(["GET", "HEAD"])
     if not _CLIP_NAME.fullmatch(name):
         raise Http404("No such file")
-    response = HttpResponseRedirect(default_storage.url(f"{CLIPS_FOLDER}/{name}"))
+    # The bucket's answer is kept by the browser as long as the address works (S3's
+    # response-cache-control). Its Last-Modified cannot be left out: see the deployment page.
+    lifetime = int(settings.CLIP_URL_LIFETIME_S)
+    address = default_storage.url(f"{CLIPS_FOLDER}/{name}",
+                                  parameters={"ResponseCacheControl": f"private, max-age={lifetime}"})
+    response = HttpResponseRedirect(address)
     response["Cache-Control"] = f"private, max-age={int(settings.CLIP_URL_LIFETIME_S // 8)}"
     return response

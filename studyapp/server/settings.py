@@ -13,6 +13,7 @@ from django.core.exceptions import ImproperlyConfigured
 
 from studyapp.server.embedded import (
     FILESYSTEM_BROKER_URL,
+    FILESYSTEM_TRANSPORT,
     filesystem_broker_options,
     filesystem_result_backend_url,
     is_filesystem_broker,
@@ -54,13 +55,13 @@ INSTALLED_APPS = [
 ]
 
 MIDDLEWARE = [
-    "studyapp.server.upload_limit.UploadLimitMiddleware",  # before anything reads the body
-    "studyapp.server.unreadable_forms.UnreadableFormMiddleware",  # a body no form parse can read: 400, not 500
+    "studyapp.server.uploads.upload_limit.UploadLimitMiddleware",  # before anything reads the body
+    "studyapp.server.uploads.unreadable_forms.UnreadableFormMiddleware",  # a body no form parse can read: 400, not 500
     "django.middleware.security.SecurityMiddleware",
     "django.contrib.sessions.middleware.SessionMiddleware",
     "django.middleware.common.CommonMiddleware",
     "django.middleware.csrf.CsrfViewMiddleware",
-    "studyapp.server.null_characters.RefuseNullCharactersMiddleware",  # text PostgreSQL could not hold
+    "studyapp.server.uploads.null_characters.RefuseNullCharactersMiddleware",  # text PostgreSQL could not hold
     "django.contrib.auth.middleware.AuthenticationMiddleware",
     "django.contrib.messages.middleware.MessageMiddleware",
     "django.middleware.clickjacking.XFrameOptionsMiddleware",
@@ -108,7 +109,7 @@ if DATABASES["default"]["ENGINE"] == "django.db.backends.sqlite3":
     # disk, which made a crowd's writers time out). synchronous=NORMAL syncs at
     # checkpoints: a crashed server process loses nothing, a power cut the last moments.
     # The writers of one server process take turns (``sqlite_backend``) rather than poll.
-    DATABASES["default"]["ENGINE"] = "studyapp.server.sqlite_backend"
+    DATABASES["default"]["ENGINE"] = "studyapp.server.db.sqlite_backend"
     DATABASES["default"].setdefault("OPTIONS", {}).update({
         "transaction_mode": "IMMEDIATE", "timeout": 30,
         "init_command": "PRAGMA journal_mode=WAL; PRAGMA synchronous=NORMAL;"})
@@ -171,6 +172,7 @@ STORAGES = {
 
 CELERY_BROKER_URL = env_str("CELERY_BROKER_URL", FILESYSTEM_BROKER_URL)
 if is_filesystem_broker(CELERY_BROKER_URL):
+    CELERY_BROKER_TRANSPORT = FILESYSTEM_TRANSPORT
     CELERY_BROKER_TRANSPORT_OPTIONS = filesystem_broker_options(VAR_DIR)
 CELERY_RESULT_BACKEND = env_str("CELERY_RESULT_BACKEND", "") or filesystem_result_backend_url(VAR_DIR)
 CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True

@@ -12,8 +12,8 @@ from django.views.decorators.http import require_safe
 
 from studyapp.researchers.results.reports import REPORTS_FOLDER, report_owner
 from studyapp.server.celery import app as celery_app
-from studyapp.server.clip_urls import is_signed_and_current
-from studyapp.server.files import accel_redirect, serve_with_ranges
+from studyapp.server.clip_urls import is_signed_and_current, seconds_left
+from studyapp.server.file_responses import accel_redirect, serve_with_ranges
 from studyapp.server.health import HealthReport, collect_health
 from studyapp.server.media_bucket import clip_redirect, in_bucket
 from studyapp.stimuli.gallery import GALLERY_FOLDER
@@ -21,6 +21,7 @@ from studyapp.stimuli.gallery import GALLERY_FOLDER
 # Where the proxy (deploy/Caddyfile) finds MEDIA_ROOT for the files this app tells it to send;
 # no client can ask for it: the proxy sends every request to the app, which answers 404 here.
 ACCEL_MEDIA_PREFIX = "/_accel/media/"
+RESEARCHER_FILES_MAX_AGE_S = 3600  # the gallery and reports behind the proxy: an hour in the browser
 
 
 def current_health() -> HealthReport:
@@ -85,8 +86,9 @@ def media_file(request: HttpRequest, path: str) -> HttpResponseBase:
         raise Http404("No such file")
     if folder == "stimuli" and in_bucket():
         return clip_redirect(request, rest)  # the bucket sends the bytes
-    if settings.MEDIA_ACCEL:  # the proxy sends the bytes
-        return accel_redirect(request, path, settings.MEDIA_ROOT, ACCEL_MEDIA_PREFIX)
+    if settings.MEDIA_ACCEL:  # the proxy sends the bytes, a clip's kept while its address works
+        max_age = seconds_left(request.GET) if folder == "stimuli" else RESEARCHER_FILES_MAX_AGE_S
+        return accel_redirect(request, path, settings.MEDIA_ROOT, ACCEL_MEDIA_PREFIX, max_age)
     return serve_with_ranges(request, path, settings.MEDIA_ROOT, reveal_mtime=folder != "stimuli")
 
 

@@ -43,7 +43,7 @@ from generation.render import Camera, render_video
 from generation.render.video_check import VideoError, check_rendered_video
 from studyapp.designs.registry import design_of
 from studyapp.models import ControlSignal, Stimulus, Study, System
-from studyapp.plan.fixed import require_seed_allowed
+from studyapp.preregistration.fixed import require_seed_allowed
 from studyapp.server.media_bucket import clip_destination, clip_exists
 from studyapp.stimuli.controls import study_options
 from studyapp.stimuli.figure import on_display_figure, work_out_figure

@@ -32,11 +32,12 @@ from django.core.files import File
 from generation.control import (AttributeControl, Control, PathControl, described_paths, held_out_attributes,
                                 held_out_paths, lead_in_frames, preset_path, shorter_than_asked, take_paths)
 from generation import registry
-from generation.motion.dataset import (LOCOMOTION, DatasetOptions, build_dataset, contents_or_all, find_bvh_files,
-                                       motion_folders)
+from generation.motion.clip_files import LOCOMOTION, contents_or_all, find_bvh_files, motion_folders
+from generation.motion.dataset import build_dataset
+from generation.motion.dataset_options import DatasetOptions
 from generation.motion.takes import natural_takes
 from studyapp.models import ControlSignal, Study
-from studyapp.server.bounded_reading import json_value, yaml_value
+from studyapp.server.uploads.bounded_reading import json_value, yaml_value
 from studyapp.stimuli.natural import data_folders, natural_source, source_name
 
 CONTROL_FILE_SUFFIXES = (".json", ".yaml", ".yml")

@@ -2,7 +2,7 @@
 system, one clip in two files.
 
     OUT/<system>/<control id>.npz    positions (frames, joints, 3) cm, y up; fps; names;
-                                     parents; offsets; system (analysis/motion_io.py's layout);
+                                     parents; offsets; system (analysis/motion/motion_io.py's layout);
                                      for a path control also control_path, control_yaw,
                                      root_path and root_yaw (its control adherence)
     OUT/<system>/<control id>.bvh    the same clip as a rotation BVH on the system's rig:
@@ -94,7 +94,7 @@ def adherence_arrays(stimulus: Stimulus, clip: Clip) -> dict[str, np.ndarray]:
 
 def label_side_file(stimulus: Stimulus) -> bytes | None:
     """For a clip of a label control, the labels it asked for as the BVH reader's side
-    file reads them (``generation.motion.dataset.read_labels``); None for a path."""
+    file reads them (``generation.motion.clip_files.read_labels``); None for a path."""
     signal = stimulus.control.signal()
     if not isinstance(signal, AttributeControl):
         return None

@@ -17,7 +17,8 @@ from pathlib import Path, PurePath
 
 from django.conf import settings
 
-from generation.motion.dataset import DatasetOptions, load_body_motion, motion_folders
+from generation.motion.clip_files import load_body_motion, motion_folders
+from generation.motion.dataset_options import DatasetOptions
 from generation.motion.types import Motion
 from studyapp.models import ControlSignal
 

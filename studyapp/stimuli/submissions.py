@@ -14,7 +14,7 @@ clips are reduced to the body (the hips and below, as NAT clips are) and stored 
 ``.npz`` under ``CHECKPOINT_ROOT/submitted/<digest>/``; ``sources.SubmittedMotion``
 reads them and the workers render them as they render sampled motion.
 
-A zip is read member by member into memory by ``studyapp.server.zips``, never
+A zip is read member by member into memory by ``studyapp.server.uploads.zips``, never
 extracted: no member name becomes a path (no zip slip), and no member is read past its
 declared size or the upload cap (no zip bomb).
 """
@@ -39,7 +39,7 @@ from generation.motion.types import Motion
 from generation.render.display_figure import MappingError, complete_mapping, mapping_pose
 from generation.submission import MOTION_SUFFIXES, prepare_submission
 from studyapp.models import ControlSignal, Study, System
-from studyapp.server.zips import ZipRefused, checked_members, copy_member, opened_zip
+from studyapp.server.uploads.zips import ZipRefused, checked_members, copy_member, opened_zip
 from studyapp.stimuli.control_export import control_id
 from studyapp.stimuli.controls import ControlError, study_options
 from studyapp.stimuli.systems import UploadRefused, check_name
@@ -73,7 +73,7 @@ def _max_bytes() -> int:
 
 def read_zip(stream) -> dict[str, bytes]:
     """The motion files of a zip by file name (folders inside it ignored), read as
-    ``studyapp.server.zips`` reads any zip from outside; UploadRefused naming the member
+    ``studyapp.server.uploads.zips`` reads any zip from outside; UploadRefused naming the member
     where it cannot be read."""
     limit = _max_bytes()
     files = {}

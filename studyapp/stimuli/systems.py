@@ -37,7 +37,7 @@ from generation.store import SUFFIX as CHECKPOINT_SUFFIX
 from studyapp.bounds import check_field
 from studyapp.models import Stimulus, Study, System, new_token
 from studyapp.server.media_bucket import CLIPS_FOLDER, clip_destination
-from studyapp.server.null_characters import null_character_in
+from studyapp.server.uploads.null_characters import null_character_in
 from studyapp.stimuli.data_match import data_mismatch
 
 if TYPE_CHECKING:  # torch-backed modules load only when a checkpoint is handled

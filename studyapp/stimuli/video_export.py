@@ -43,7 +43,7 @@ def stimuli_zip(study: Study) -> IO[bytes]:
                 name = f"{folder_name(clip.system)}/{clip_name(clip) if clip.control else f'video-{clip.pk}'}.mp4"
                 if not clip.video_path().is_file():
                     raise FileNotFoundError(f"the video of {clip.system.name} for "
-                                            f"{clip.control.name if clip.control else 'an uploaded video'} is missing")
+                                            f"{clip.control.name if clip.control else 'an uploaded video'} is missing.")
                 archive.write(clip.video_path(), f"{top}/{name}")
                 rows.writerow([name, clip.system.export_name, clip.control.name if clip.control else "",
                                clip.control_class, clip.token])

@@ -5,7 +5,7 @@ import time
 from django.core.management.base import BaseCommand
 
 from studyapp.models import Stimulus
-from studyapp.plan.fixed import StudyFixed
+from studyapp.preregistration.fixed import StudyFixed
 from studyapp.stimuli.clips import progress
 from studyapp.stimuli.dispatch import BrokerUnavailable, generate_stimuli
 

@@ -12,7 +12,7 @@ The command keeps what runserver did for the demo: its address argument (``8000`
 the apps' static files served with DEBUG on (or ``--insecure``), reloading on a change of
 the code (gunicorn's reloader; ``--noreload`` turns it off) and a listen queue long enough
 for a crowd's connections opened at once. SQLite's writers of one process take turns
-(``studyapp.server.sqlite_backend``); SQLite's busy timeout arbitrates between the processes.
+(``studyapp.server.db.sqlite_backend``); SQLite's busy timeout arbitrates between the processes.
 """
 
 from __future__ import annotations

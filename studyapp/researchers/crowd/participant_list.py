@@ -23,7 +23,7 @@ from django.utils import timezone
 
 from studyapp.models import Participant, PlatformAction, Study, json_object
 from studyapp.participants.assignment import is_idle
-from studyapp.participants.views import SESSION_PARAMETERS
+from studyapp.platforms.links import SESSION_PARAMETERS
 from studyapp.platforms.rules import Standing, Submission, study_minutes, suggest
 
 FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")

@@ -9,19 +9,33 @@ and sends only the calls the dry run showed, unchanged (``platforms.actions.chos
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import wraps
+
 from django.contrib import messages
-from django.contrib.auth.decorators import login_required
 from django.http import Http404, HttpRequest, HttpResponse, QueryDict
-from django.shortcuts import get_object_or_404, redirect, render
+from django.shortcuts import redirect, render
 from django.views.decorators.cache import never_cache
 from django.views.decorators.debug import sensitive_post_parameters
 from django.views.decorators.http import require_POST
 
 from studyapp.models import Study
 from studyapp.platforms import credentials
-from studyapp.platforms.actions import (BonusListError, PlanChanged, apply, bonus_calls, chosen, decision_calls,
-                                        planned, platform_api, read_back, without_submission)
+from studyapp.platforms.actions import (
+    BonusListError,
+    PlanChanged,
+    PlatformAPI,
+    apply,
+    bonus_calls,
+    chosen,
+    decision_calls,
+    planned,
+    platform_api,
+    read_back,
+    without_submission,
+)
 from studyapp.platforms.calls import Call, PlatformError
+from studyapp.researchers.access import researcher_study
 from studyapp.researchers.crowd.platform_forms import BonusForm, MTurkCredentialsForm, ProlificCredentialsForm
 
 CREDENTIAL_FORMS = {Study.Platform.PROLIFIC: ProlificCredentialsForm, Study.Platform.MTURK: MTurkCredentialsForm}
@@ -29,11 +43,34 @@ SECRET_FIELDS = ("token", "secret_access_key")
 LOG_LENGTH = 200
 
 
-def _study(request: HttpRequest, pk: int) -> Study:
-    study = get_object_or_404(Study, pk=pk, owner=request.user)
-    if study.platform not in CREDENTIAL_FORMS:
-        raise Http404("a study on a plain link has no platform to send requests to")
-    return study
+def _on_platform(view: Callable[..., HttpResponse]) -> Callable[..., HttpResponse]:
+    """``researcher_study`` for a study paid through a platform (404 for a study on a plain link)."""
+
+    @researcher_study
+    @wraps(view)
+    def guarded(request: HttpRequest, study: Study, *args, **kwargs) -> HttpResponse:
+        if study.platform not in CREDENTIAL_FORMS:
+            raise Http404("a study on a plain link has no platform to send requests to")
+        return view(request, study, *args, **kwargs)
+
+    return guarded
+
+
+def _with_credentials(view: Callable[..., HttpResponse]) -> Callable[..., HttpResponse]:
+    """``view(request, study, api)`` with the platform's API under the researcher's kept
+    credentials; without them, back to the platform page asking for them."""
+
+    @_on_platform
+    @wraps(view)
+    def guarded(request: HttpRequest, study: Study, *args, **kwargs) -> HttpResponse:
+        kept = credentials.read(request.session, study.platform)
+        if not kept:
+            messages.error(request, f"Enter your {study.get_platform_display()} credentials first (they are kept "
+                                    f"for {credentials.CREDENTIALS_TTL_S // 3600} hours at most).")
+            return redirect("study-platform", pk=study.pk)
+        return view(request, study, platform_api(study, kept), *args, **kwargs)
+
+    return guarded
 
 
 def _page(request: HttpRequest, study: Study, form=None, bonus_form=None, status: int = 200) -> HttpResponse:
@@ -49,10 +86,9 @@ def _page(request: HttpRequest, study: Study, form=None, bonus_form=None, status
 
 @never_cache
 @sensitive_post_parameters(*SECRET_FIELDS)
-@login_required
-def study_platform(request: HttpRequest, pk: int) -> HttpResponse:
+@_on_platform
+def study_platform(request: HttpRequest, study: Study) -> HttpResponse:
     """Keep or forget the researcher's credentials; the actions, and what was sent."""
-    study = _study(request, pk)
     if request.method != "POST":
         return _page(request, study)
     if request.POST.get("action") == "forget":
@@ -68,32 +104,17 @@ def study_platform(request: HttpRequest, pk: int) -> HttpResponse:
     return redirect("study-platform", pk=study.pk)
 
 
-def _with_api(request: HttpRequest, pk: int):
-    study = _study(request, pk)
-    kept = credentials.read(request.session, study.platform)
-    return study, (platform_api(study, kept) if kept else None)
-
-
 def _calls(study: Study, api, data: QueryDict) -> list[Call]:
     if data.get("kind") == "bonuses":
         return bonus_calls(study, api, data.get("bonuses", ""), data.get("reason", ""))
     return decision_calls(study, api)
 
 
-def _needs_credentials(request: HttpRequest, study: Study) -> HttpResponse:
-    messages.error(request, f"Enter your {study.get_platform_display()} credentials first (they are kept for "
-                            f"{credentials.CREDENTIALS_TTL_S // 3600} hours at most).")
-    return redirect("study-platform", pk=study.pk)
-
-
 @never_cache
-@login_required
+@_with_credentials
 @require_POST
-def study_platform_dry_run(request: HttpRequest, pk: int) -> HttpResponse:
+def study_platform_dry_run(request: HttpRequest, study: Study, api: PlatformAPI) -> HttpResponse:
     """The requests an action would send, exactly; nothing is sent."""
-    study, api = _with_api(request, pk)
-    if api is None:
-        return _needs_credentials(request, study)
     try:
         calls = _calls(study, api, request.POST)
     except BonusListError as error:
@@ -109,13 +130,10 @@ def study_platform_dry_run(request: HttpRequest, pk: int) -> HttpResponse:
 
 
 @never_cache
-@login_required
+@_with_credentials
 @require_POST
-def study_platform_apply(request: HttpRequest, pk: int) -> HttpResponse:
+def study_platform_apply(request: HttpRequest, study: Study, api: PlatformAPI) -> HttpResponse:
     """Send the requests of the dry run that were left ticked, each once."""
-    study, api = _with_api(request, pk)
-    if api is None:
-        return _needs_credentials(request, study)
     try:
         calls = chosen(_calls(study, api, request.POST), request.POST.getlist("call"))
     except (PlanChanged, BonusListError) as error:
@@ -129,13 +147,10 @@ def study_platform_apply(request: HttpRequest, pk: int) -> HttpResponse:
 
 
 @never_cache
-@login_required
+@_with_credentials
 @require_POST
-def study_platform_read(request: HttpRequest, pk: int) -> HttpResponse:
+def study_platform_read(request: HttpRequest, study: Study, api: PlatformAPI) -> HttpResponse:
     """The platform's status of each submission beside the participant list's."""
-    study, api = _with_api(request, pk)
-    if api is None:
-        return _needs_credentials(request, study)
     try:
         rows = read_back(study, api, request.user)
     except PlatformError as error:

@@ -4,9 +4,9 @@ metrics over the study's own motion export.
 
 The motion is written as ``export_motion`` writes it (``stimuli.motion_export``, with
 each path clip's control and root paths) into a temporary folder and read back by
-``analysis.motion_io``, so the page gives the tables ``python -m analysis objective
+``analysis.motion.motion_io``, so the page gives the tables ``python -m analysis objective
 DIR --appropriateness ratings.csv`` gives for the same files: per system the root's
-distance from its control's path and its heading error (``analysis.adherence``), and,
+distance from its control's path and its heading error (``analysis.reports.adherence``), and,
 in an appropriateness study with kept pages, their correlation across systems with the
 mean appropriateness scores. Label-controlled studies have no paths: their adherence is
 how often HVRNN's attribute classifiers see the asked labels in the clips, which the
@@ -21,11 +21,11 @@ from pathlib import Path
 
 import pandas as pd
 
-from analysis.adherence import adherence_correlation, path_adherence
-from analysis.appropriateness import appropriateness_pages
+from analysis.reports.adherence import adherence_correlation, path_adherence
+from analysis.stats.matching import appropriateness_pages
 from analysis.designs import design_of
-from analysis.exclusions import compared_ratings
-from analysis.motion_io import load_motion_sets
+from analysis.ratings.exclusions import compared_ratings
+from analysis.motion.motion_io import load_motion_sets
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Study
 from studyapp.researchers.results.monitor import flagged_ratings

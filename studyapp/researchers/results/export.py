@@ -5,7 +5,7 @@ structure its design adds (``Design.export_columns``); designs whose answers are
 a scale (pairwise) carry no value or scale columns. Instructed checks are left out: their
 answers were dictated, not given. Each row carries the live flags: the participant's
 exclusion as it was set when their answers arrived, and the early-answer discard, the
-analysis's own rule (``analysis.exclusions.early_discards``) with the study's rules.
+analysis's own rule (``analysis.ratings.exclusions.early_discards``) with the study's rules.
 
 ``rules_json`` is those rules as ``python -m analysis report --rules`` reads them.
 """
@@ -17,9 +17,9 @@ import io
 
 import pandas as pd
 
-from analysis.exclusions import early_discards
-from analysis.tables import spreadsheet_safe
-from studyapp.designs.base import Design
+from analysis.ratings.exclusions import early_discards
+from analysis.reports.tables import spreadsheet_safe
+from studyapp.designs.design import Design
 from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Rating, Study
@@ -34,7 +34,7 @@ SCALE_COLUMNS = ("value", "scale_min", "scale_max")
 
 
 def design_export_columns(design: Design) -> tuple[str, ...]:
-    """The columns of a ratings table of ``design`` (each declared in ``analysis.ratings.COLUMNS``)."""
+    """The columns of a ratings table of ``design`` (each declared in ``analysis.ratings.reading.COLUMNS``)."""
     shared = EXPORT_COLUMNS if design.on_scale else tuple(c for c in EXPORT_COLUMNS if c not in SCALE_COLUMNS)
     return (*design.export_columns, *shared)
 

@@ -1,6 +1,6 @@
 """The analysis report's figures of the ratings so far, for the monitor.
 
-The figures are the report's own (``analysis.report.report_figures``) of the report the
+The figures are the report's own (``analysis.reports.single_report.report_figures``) of the report the
 study's ratings would make now (its ratings table and rules, as ``python -m analysis
 report`` reads them), so the monitor shows what the report will. Each is an SVG image
 inside the page (a data URI: an image, so nothing in it runs). The analysis runs again
@@ -18,8 +18,9 @@ import matplotlib.pyplot as plt
 from django.core.cache import cache
 
 from analysis.errors import AnalysisInputError
-from analysis.ratings import read_ratings
-from analysis.report import build_report, report_figures
+from analysis.ratings.reading import read_ratings
+from analysis.reports.single_report import report_figures
+from analysis.ratings.report import build_report
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Study
 from studyapp.researchers.results.export import ratings_csv

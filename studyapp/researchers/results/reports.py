@@ -3,7 +3,7 @@
 The app runs exactly the ``analysis`` package's report (the same tables and figures as
 ``python -m analysis report``), with the exclusion rules it is given (a study's own, for
 the study's report), which the folder keeps as rules.json and the page states. A
-study's report keeps its locked plan and deviations too (``studyapp.plan``): plan.json
+study's report keeps its locked plan and deviations too (``studyapp.preregistration``): plan.json
 as data, plan.md in words, and the page states the plan's hash, time and deviations. The
 design of the table says which tables the page shows (``Design.report_tables``). A
 report lives in ``MEDIA_ROOT/reports/<digest>/``, named by the SHA-256 of the
@@ -14,7 +14,7 @@ behind and a half-written report is never served.
 
 A rerun's report (a study imported with ``import_study --rerun``) also keeps the previous
 run's ratings and rules (``previous-ratings.csv``, ``previous-rules.json``) and shows
-each run's kept ratings per system side by side (``analysis.previous_run``), as
+each run's kept ratings per system side by side (``analysis.ratings.previous_run``), as
 ``python -m analysis report --previous`` writes them.
 """
 
@@ -31,21 +31,22 @@ from django.conf import settings
 from django.utils.html import escape
 from django.utils.safestring import SafeString, mark_safe
 
-from analysis.design_report import DesignReport
+from analysis.reports.design_report import DesignReport
 from analysis.designs import table_design
 from analysis.errors import AnalysisInputError
-from analysis.exclusions import ExclusionRules
-from analysis.previous_run import previous_run_comparison
-from analysis.ratings import read_ratings
-from analysis.report import Report, build_report, summary_text, write_report
-from analysis.tables import write_table
+from analysis.ratings.exclusions import ExclusionRules
+from analysis.ratings.previous_run import previous_run_comparison
+from analysis.ratings.reading import read_ratings
+from analysis.reports.single_report import Report, summary_text, write_report
+from analysis.ratings.report import build_report
+from analysis.reports.tables import write_table
 from generation.files import atomic_folder
 from studyapp.researchers.results.table_format import readable_table
 from studyapp.designs.registry import design_named
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Study
-from studyapp.plan.lock import preregistration
-from studyapp.plan.words import PlanInWords, in_words, plan_markdown
+from studyapp.preregistration.lock import preregistration
+from studyapp.preregistration.words import PlanInWords, in_words, plan_markdown
 from studyapp.researchers.results.export import ratings_csv
 
 REPORTS_FOLDER = "reports"

@@ -18,7 +18,7 @@ from measures.units import UNITS, parse_scale
 from studyapp.bounds import bound_of
 from studyapp.designs import registry as designs
 from studyapp.models import TEMPERATURE, ControlSignal, Question, Stimulus, Study, System, camera_setting_problem
-from studyapp.plan.fixed import INSTRUMENT, started
+from studyapp.preregistration.fixed import INSTRUMENT, started
 
 
 CAMERA_PREFIX = "camera_"

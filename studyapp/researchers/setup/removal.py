@@ -16,7 +16,7 @@ import shutil
 from django.db import transaction
 
 from studyapp.models import ControlSignal, Rating, Stimulus, Study, System
-from studyapp.plan.fixed import STARTED, StudyFixed, started
+from studyapp.preregistration.fixed import STARTED, StudyFixed, started
 from studyapp.server.media_bucket import delete_clip
 from studyapp.stimuli.sources import imported_sampled_folder, imported_sampled_path, sampled_folder
 
