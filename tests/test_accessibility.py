@@ -60,8 +60,8 @@ def serious_violations(page, axe: Path) -> list[str]:
 
 
 def accessible_names(page, selector: str) -> list[tuple[str, str]]:
-    """(role, name) of each element matching ``selector``, as the browser's accessibility
-    tree gives them to a screen reader."""
+    """(role, name) of each element matching ``selector`` that a screen reader is given, as
+    the browser's accessibility tree gives them."""
     cdp = page.context.new_cdp_session(page)
     try:
         root = cdp.send("DOM.getDocument", {"depth": 0})["root"]["nodeId"]
@@ -69,6 +69,8 @@ def accessible_names(page, selector: str) -> list[tuple[str, str]]:
         named = []
         for node in nodes:
             ax = cdp.send("Accessibility.getPartialAXTree", {"nodeId": node, "fetchRelatives": False})["nodes"][0]
+            if ax.get("ignored"):  # not on screen (another clip's slider, behind its tab on a phone)
+                continue
             named.append((ax.get("role", {}).get("value", ""), ax.get("name", {}).get("value", "").strip()))
         return named
     finally:
