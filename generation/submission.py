@@ -106,6 +106,12 @@ class SubmissionReport:
                      + (f", {refused} refused: nothing written" if refused else ""))
         return lines
 
+    def refused_lines(self) -> list[str]:
+        """Those of ``lines`` that say what was refused: each refused control's, and the count's
+        where any was (the others say what was read and what was ready)."""
+        refused = [result.line() for result in self.results if result.motion is None]
+        return refused + self.lines()[-1:] if refused else []
+
 
 def read_controls(bundle: str | os.PathLike) -> dict[str, Control]:
     """The controls of a study's exported bundle (a folder or its zip) by id, in the

@@ -197,3 +197,7 @@ class RatingAdmin(OwnStudiesOnly):
     list_display = ["assignment", "value", "answer", "strength", "answered_at", "answered_before_end"]
     list_filter = ["answered_before_end"]
     readonly_fields = ["answered_at"]
+
+
+# The leaderboards' admin, in their own room.
+import studyapp.leaderboards.admin  # noqa: E402,F401

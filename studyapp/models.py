@@ -148,6 +148,30 @@ VIDEO_SIDE = Within(64, 3840, "pixels: smaller shows no figure, larger is past 4
 MAX_VIDEO_PIXELS = 3840 * 2160
 
 
+MAX_REASONS, MAX_REASON_CHARS = 12, 80  # a list a participant reads at a glance
+
+
+def reason_lines(text: str) -> list[str]:
+    """A study's reasons: its ``reasons`` text's non-empty lines, stripped."""
+    return [line.strip() for line in (text or "").splitlines() if line.strip()]
+
+
+def reasons_problem(text: str) -> None:
+    """ValidationError for a reasons list a page cannot show as checkboxes."""
+    lines = reason_lines(text)
+    if len(lines) > MAX_REASONS:
+        raise ValidationError(f"at most {MAX_REASONS} reasons (one a line), not {len(lines)}")
+    if long := [line for line in lines if len(line) > MAX_REASON_CHARS]:
+        raise ValidationError(f"a reason is at most {MAX_REASON_CHARS} characters: {long[0][:40]!r}... is "
+                              f"{len(long[0])}")
+    if len({line.casefold() for line in lines}) < len(lines):
+        raise ValidationError("each reason once: the list names one twice")
+    if any(line.casefold() == "other" for line in lines):
+        raise ValidationError("\"Other\" is offered with its text field beside the reasons; leave it out of the list")
+    if any(c in line for line in lines for c in "<>"):
+        raise ValidationError("a reason is plain text: no < or >")
+
+
 class Study(models.Model):
     """One rating study: its question, scale, design, protocol and crowd platform."""
 
@@ -192,6 +216,14 @@ class Study(models.Model):
     adaptive_pairing = models.BooleanField(
         default=False, help_text="pairwise: plan each new participant's pairs of systems where the votes so far leave "
                                  "the ranking least certain (a tenth of them at random), instead of evenly")
+    reasons = models.TextField(
+        blank=True, default="", validators=[reasons_problem],
+        help_text="pairwise and side-by-side: the reasons a participant may tick for a page's answer, one a line "
+                  "(GENEA asks: motion smoothness, recognisable gestures, unrealistic motion, amount of motion), "
+                  "with an \"Other\" and its own words beside them; empty: no reasons asked")
+    reasons_required = models.BooleanField(
+        default=False, help_text="pairwise and side-by-side: a page's answer needs at least one reason (or "
+                                 "\"Other\" with its words)")
     training_clips = models.PositiveSmallIntegerField(default=4, help_text="practice clips shown first and not recorded",
                                                       validators=[Within(0, 20)])
     bad_checks = models.PositiveSmallIntegerField(default=1, help_text="BAD clips per participant (attention checks)",
@@ -298,6 +330,8 @@ class Study(models.Model):
             if getattr(self, name) is True and self._meta.get_field(name).default is not True:
                 raise ValidationError({name: f"{self._meta.get_field(name).verbose_name} goes with the "
                                              f"{' or '.join(owners)} design"})
+        if self.reason_list and (owners := designs.foreign_settings(self.design).get("reasons")):
+            raise ValidationError({"reasons": f"reasons go with the {' or '.join(owners)} design"})
         if self.stop_after_failed_checks > self.instructed_checks:
             raise ValidationError({"stop_after_failed_checks": f"a participant meets {self.instructed_checks} "
                                                                f"instructed check(s): stopping after "
@@ -318,6 +352,11 @@ class Study(models.Model):
     @property
     def strengths(self) -> range:
         return range(1, self.preference_strengths + 1)
+
+    @property
+    def reason_list(self) -> list[str]:
+        """The reasons a page asks for (empty: none), as the participant reads them."""
+        return reason_lines(self.reasons)
 
 
 # Past 10 the noise swamps what a model learnt; the models take any finite temperature.
@@ -724,6 +763,10 @@ class Rating(models.Model):
     client_answered_s = models.FloatField(null=True, blank=True)
     played_until_s = models.FloatField(null=True, blank=True)
     answered_before_end = models.BooleanField(default=False)
+    # The reasons ticked for the page's answer (the study's words), the same on every rating of the page.
+    reasons = models.JSONField(default=list, blank=True)
+    other_reason = models.CharField(max_length=300, blank=True, default="",
+                                    help_text="the participant's own words under \"Other\" (plain text)")
 
     class Meta:
         ordering = ["answered_at"]
@@ -825,3 +868,7 @@ class PreviousRun(models.Model):
 
     def __str__(self) -> str:
         return f"previous run of {self.study}"
+
+
+# The leaderboards that span studies live in their own room; Django finds their models here.
+from studyapp.leaderboards.models import Leaderboard, Round  # noqa: E402,F401

@@ -5,6 +5,8 @@ from django.contrib import admin
 from django.contrib.auth import views as auth_views
 from django.urls import include, path
 
+from studyapp.leaderboards.urls import public_urls as public_board_urls
+from studyapp.leaderboards.urls import researcher_urls as leaderboard_urls
 from studyapp.participants import views as participant_views
 from studyapp.participants.path import PATH
 from studyapp.researchers import site_views
@@ -22,6 +24,8 @@ urlpatterns = [
     path("login/", auth_views.LoginView.as_view(), name="login"),
     path("logout/", auth_views.LogoutView.as_view(), name="logout"),
     path("studies/", include("studyapp.researchers.urls")),
+    path("leaderboards/", include(leaderboard_urls)),
+    path("boards/", include(public_board_urls)),  # public boards, at their unguessable keys
     # Participants: the entry link, the one page they are on, and its steps' forms as
     # participants.path.PATH declares them (/p/KEY/consent/, /p/KEY/rate/, ...).
     path("p/<str:key>/", participant_views.enter, name="participant-enter"),

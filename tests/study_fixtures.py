@@ -28,8 +28,9 @@ def render_clip_video(bvh: Path, out: Path, seconds: float) -> Path:
 
 
 def make_study(owner_name: str = "researcher", controls: int = 3, video: Path | None = None,
-               clip_seconds: float = 4.0, **fields) -> Study:
-    """An open study with MoGlow, RNN, NAT and BAD systems and one done stimulus per (system, control).
+               clip_seconds: float = 4.0, systems: tuple[tuple[str, str], ...] = SYSTEMS, **fields) -> Study:
+    """An open study with ``systems`` (name, role; default MoGlow, RNN, NAT and BAD) and one done
+    stimulus per (system, control).
 
     With ``video``, every stimulus's file is a copy of it; otherwise no files exist
     (enough for tests that never play a clip).
@@ -45,7 +46,7 @@ def make_study(owner_name: str = "researcher", controls: int = 3, video: Path | 
     signals = [ControlSignal.objects.create(study=study, name=f"control-{i}", origin=ControlSignal.Origin.HELD_OUT,
                                             control={"type": "path"}, source_clip=f"clip-{i}", seconds=clip_seconds)
                for i in range(controls)]
-    for name, role in SYSTEMS:
+    for name, role in systems:
         system = System.objects.create(study=study, name=name, role=role)
         for signal in signals:
             stimulus = Stimulus.objects.create(study=study, system=system, control=signal, status=Stimulus.Status.DONE,

@@ -23,7 +23,8 @@ from analysis.errors import AnalysisInputError
 from analysis.rankings.graded_votes import simulate_graded_pairwise
 from analysis.rankings.leaderboard import (ELO_PER_LOG_ODDS, INTERVAL_WARNING_PARTICIPANTS, battles, fit_votes,
                                   leaderboard, pair_votes, participant_resamples, vote_pages)
-from analysis.reports.leaderboard_report import build_leaderboard, leaderboard_text
+from analysis.reports.leaderboard_report import build_leaderboard, leaderboard_tables, leaderboard_text
+from analysis.stats.minimums import few_participants_warning
 from analysis.stats.preferences import preference_pages
 from analysis.ratings.reading import read_ratings
 from analysis.ratings.simulate import simulate_pairwise
@@ -288,12 +289,16 @@ def test_every_leaderboard_table_states_its_anchor_and_origin(graded, tmp_path):
     assert "Elo with the systems' mean at 1000" in (tmp_path / "mean" / "tables" / "leaderboard.md").read_text()
 
 
-def test_intervals_from_fewer_than_ten_participants_are_flagged(graded):
+def test_intervals_from_fewer_than_ten_participants_are_flagged_once_by_the_reports_warning_column(graded):
     few = graded[graded["participant"].isin([f"p{i}" for i in range(3, 3 + INTERVAL_WARNING_PARTICIPANTS - 1)])]
     board, notes = leaderboard(few, resamples=50)
-    assert board["few_participants"].all() and set(board["participants"]) == {INTERVAL_WARNING_PARTICIPANTS - 1}
+    assert "few_participants" not in board.columns  # one flag: the warning every interval table carries
+    assert set(board["warning"]) == {few_participants_warning(INTERVAL_WARNING_PARTICIPANTS - 1)} != {""}
+    assert set(board["participants"]) == {INTERVAL_WARNING_PARTICIPANTS - 1}
     assert any(f"come from {INTERVAL_WARNING_PARTICIPANTS - 1} participants, fewer than 10" in n for n in notes)
     enough, notes = leaderboard(graded[graded["participant"].isin([f"p{i}" for i in range(3, 13)])], resamples=50)
-    assert not enough["few_participants"].any() and not any("fewer than 10" in n for n in notes)
+    assert set(enough["warning"]) == {""} and not any("fewer than 10" in n for n in notes)
+    assert "intervals from fewer than 10 participants are rough (warning)" in \
+        leaderboard_tables(build_leaderboard(few, resamples=50))["leaderboard"][0]
     text = leaderboard_text(build_leaderboard(few, resamples=50))
     assert "these intervals understate the uncertainty" in text

@@ -128,6 +128,25 @@ def test_a_system_with_one_rating_is_noted_and_shown_not_as_nan(ratings):
     assert "Solo" not in set(report.tukey["system_a"]) | set(report.tukey["system_b"])
 
 
+def test_a_system_rated_once_stands_in_the_means_plot_without_an_interval_as_in_the_distributions(ratings):
+    from analysis.reports.single_report import report_figures
+    lonely = pd.DataFrame([{**ratings.iloc[0].to_dict(), "system": "Solo", "stimulus": "solo_1",
+                            "task": "human", "control_class": "held-out", "value": 3,
+                            "played_until_s": 10.0}])
+    report = build_report(validate_ratings(pd.concat([ratings, lonely], ignore_index=True)))
+    figures = report_figures(report)
+    for name in ("means_ci", "rating_distributions"):
+        labels = [tick.get_text() for tick in figures[name].axes[0].get_yticklabels()]
+        assert "Solo" in labels, (name, labels)
+    means = figures["means_ci"]
+    row = [t.get_text() for t in means.axes[0].get_yticklabels()].index("Solo")
+    at = means.axes[0].get_yticks()[row]
+    panel = next(ax for ax in means.axes if ax.get_title() == "human · held-out")
+    hollow = [line for line in panel.get_lines() if line.get_markerfacecolor() == "none"]
+    assert [(list(line.get_xdata()), list(line.get_ydata())) for line in hollow] == [([3.0], [at])]
+    assert [t.get_text() for t in panel.get_legend().get_texts()] == ["one rating: no interval"]
+
+
 def test_no_natural_system_means_no_markers_and_a_note(ratings):
     report = build_report(validate_ratings(ratings[ratings["system"] != "NAT"]))
     assert report.reference is None

@@ -84,19 +84,20 @@ def test_without_questions_consent_leads_to_the_instructions():
     assert "Instructions" in page(client, study)
 
 
-def test_the_device_check_comes_before_consent_and_refuses_a_small_screen():
+def test_the_device_check_comes_before_consent_plays_no_stimulus_and_refuses_a_small_screen():
     study = make_study(device_check=True, min_screen_width=600, min_screen_height=400)
     client = Client()
     first = enter(client, study).content.decode()
     assert "Checking your device" in first and "at least 600 × 400 pixels" in first
-    participant = Participant.objects.get()
-    assert "/media/stimuli/" in first and participant.training  # one of their own clips
+    # Before consent: a neutral clip (the synthetic walker), no stimulus of this or any study.
+    assert 'src="/static/studyapp/device-check.mp4"' in first and "/media/" not in first
+    assert all(stimulus.video_url not in first for stimulus in study.stimuli.all())
     assert post(client, study, "consent", agree="yes").status_code == 409  # not before the check
     small = post(client, study, "device", width=390, height=844)
     assert small.status_code == 409 and "at least 600 × 400" in small.content.decode()
     assert post(client, study, "device", width="wide", height=800).status_code == 400
     assert post(client, study, "device", width=1280, height=800).status_code == 302
-    participant.refresh_from_db()
+    participant = Participant.objects.get()
     assert participant.device_checked_at is not None and "Consent" in page(client, study)
 
 
@@ -123,3 +124,14 @@ def test_the_researcher_adds_and_removes_questions_until_someone_starts():
     assert client.post(url, {**form, "name": "late"}).status_code == 302
     assert list(Question.objects.values_list("name", flat=True)) == ["language"]
     assert "the questions are fixed" in client.get(url).content.decode()
+
+
+def test_the_device_checks_clip_is_the_whole_synthetic_walker_as_the_renderer_draws_it(tmp_path):
+    from generation.render.synthetic import walking_in_a_circle
+    from generation.render.video_check import check_rendered_video
+    from studyapp.participants.device_clip import CLIP_PATH, FPS, SECONDS, SIZE, render_device_clip
+
+    walker = walking_in_a_circle(SECONDS, FPS)
+    shipped = check_rendered_video(CLIP_PATH, walker)  # the static file decodes to its last frame
+    again = check_rendered_video(render_device_clip(tmp_path / "again.mp4"), walker)
+    assert shipped.frames == again.frames == round(SECONDS * FPS) and shipped.size == again.size == SIZE

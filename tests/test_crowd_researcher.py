@@ -168,5 +168,8 @@ def test_the_settings_card_says_how_long_to_advertise_and_how_it_was_reckoned(fi
     note = checklist(study)[0].note
     assert f"advertise about {math.ceil(seconds / 60)} min" in note
     assert f"{pages} " in note and f"and {practice} practice" in note and "6.0 s" in note
+    clips = "1 clip" if study.design == "single" else "2 clips"
+    assert f"each with {clips} of about 6.0 s to watch and 1 answer of about 5 s to give" in note
+    assert "15 s for the question" in note and not any(sign in note for sign in ("×", "(s)", "+"))  # words, no formula
     assert ("scale 1–5" in note) is (study.design == "single")  # a preference has no scale
 

@@ -121,7 +121,7 @@ def test_the_answer_waits_for_every_slider_to_move_and_each_played_clip_is_marke
                                                                                  settings, tmp_path, device):
     settings.MEDIA_ROOT = tmp_path / "media"
     study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, bad_checks=0, **SIDE_BY_SIDE)
-    page = enter(browser, live_server, study, SCREENS[device])
+    page = enter(browser, live_server, study, {**SCREENS[device], "reduced_motion": "reduce"})  # nothing plays by itself
     participant = skip_to_ratings(page, study)
     submit = page.get_by_role("button", name="Submit ratings")
     slots = slots_on_page(page)
@@ -183,6 +183,96 @@ def test_the_single_clip_pages_hints_and_end_labels_are_above_the_fold(browser, 
 
 
 @pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("height", [768, 800])
+def test_the_single_clip_page_fits_a_laptops_screen_without_scrolling(browser, live_server, clip_video, settings,
+                                                                     tmp_path, height):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2)
+    page = enter(browser, live_server, study, {"viewport": {"width": 1366, "height": height}})
+    skip_to_ratings(page, study)
+    page.evaluate("() => { const v = document.getElementById('clip'); v.pause(); v.currentTime = 0; }")
+    shoot(page, f"single-1366x{height}-locked")
+    assert page.is_visible("#lock-hint") and page.is_visible("#keys-hint")  # the page at its tallest
+    assert page.evaluate("document.documentElement.scrollHeight") <= height
+    box = page.locator("#keys-hint").bounding_box()
+    assert box["y"] + box["height"] <= height
+
+
+def figure_height(page, slot: str) -> int:
+    """How many pixel rows of clip ``slot``'s box the character's left side (drawn red) spans, paused mid-clip."""
+    page.evaluate(f"() => {{ const v = document.querySelector('video[data-slot=\"{slot}\"]'); v.pause();"
+                  " v.currentTime = 0.5; }")
+    page.wait_for_timeout(300)
+    frame = np.asarray(Image.open(io.BytesIO(page.locator(f'video[data-slot="{slot}"]').screenshot())).convert("RGB"))
+    red = (frame[..., 0] > 140) & (frame[..., 1] < 90) & (frame[..., 2] < 90)
+    rows = np.flatnonzero(red.any(axis=1))
+    return int(rows[-1] - rows[0] + 1) if len(rows) else 0
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("models", [2, 3])  # with NAT and the BAD anchor: 4 and 5 clips
+def test_four_or_five_clips_in_a_row_draw_the_character_large_with_submit_on_the_screen(
+        browser, live_server, clip_video, settings, tmp_path, models):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, bad_checks=2, **SIDE_BY_SIDE)
+    if models == 3:
+        add_system(study, "VAE")
+    page = enter(browser, live_server, study, {"viewport": {"width": 1366, "height": 800}, "reduced_motion": "reduce"})
+    skip_to_ratings(page, study)
+    slots = slots_on_page(page)
+    assert len(slots) == models + 2
+    tallest = max(figure_height(page, slot) for slot in slots)
+    shoot(page, f"side-by-side-{models + 2}-clips-1366x800")
+    assert tallest >= (125 if models == 2 else 115), tallest  # 4:3 boxes of 318 / 250 px drew 92 / 73
+    submit = page.get_by_role("button", name="Submit ratings").bounding_box()
+    assert submit["y"] + submit["height"] <= 800 and page.evaluate(
+        "document.documentElement.scrollWidth <= window.innerWidth")
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("device", SCREENS)
+def test_the_clips_of_a_page_play_by_themselves_one_after_another_unless_motion_is_reduced(
+        browser, live_server, clip_video, settings, tmp_path, device):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, bad_checks=0, **SIDE_BY_SIDE)
+    page = enter(browser, live_server, study, SCREENS[device])
+    skip_to_ratings(page, study)
+    slots = slots_on_page(page)
+    shown = slots if device == "desktop" else slots[:1]  # a phone plays the clip on its screen only
+    for slot in shown:
+        page.wait_for_function(f"() => document.querySelector('video[data-slot=\"{slot}\"]').ended",
+                               timeout=20_000)
+    started = page.eval_on_selector_all("video[data-slot]", "videos => videos.map((v) => v.played.length > 0)")
+    assert started == [slot in shown for slot in slots]
+    if device == "phone":  # the next tab's clip plays when it is shown
+        show_clip(page, slots[1])
+        page.wait_for_function(f"() => document.querySelector('video[data-slot=\"{slots[1]}\"]').ended",
+                               timeout=20_000)
+    still = enter(browser, live_server, study, {**SCREENS[device], "reduced_motion": "reduce"}, pid="p2")
+    skip_to_ratings(still, study, "p2")
+    still.wait_for_timeout(1500)
+    assert still.eval_on_selector_all("video[data-slot]", "videos => videos.map((v) => v.played.length)") == \
+        [0] * len(slots)
+
+
+@pytest.mark.django_db(transaction=True)
+def test_a_phones_clip_tabs_show_every_sliders_rating(browser, live_server, clip_video, settings, tmp_path):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, bad_checks=0, **SIDE_BY_SIDE)
+    page = enter(browser, live_server, study, {**PHONE, "reduced_motion": "reduce"})
+    skip_to_ratings(page, study)
+    show_clip(page, "2")
+    page.locator("#value-2").evaluate("(s) => { s.value = 83; s.dispatchEvent(new Event('input')); }")
+    show_clip(page, "1")
+    shoot(page, "side-by-side-phone-tabs-with-ratings")
+    tabs = page.locator(".clip-tabs [data-tab]")
+    assert [text.split()[:2] for text in tabs.all_inner_texts()] == [["A", "50"], ["B", "83"], ["C", "50"]]
+    assert all(box["y"] + box["height"] <= 844 and box["x"] + box["width"] <= 390
+               for box in (tab.bounding_box() for tab in tabs.all()))
+    assert all(tab.evaluate("(t) => t.getClientRects().length === 1 && t.offsetHeight < 50") for tab in tabs.all())
+
+
+@pytest.mark.django_db(transaction=True)
 @pytest.mark.parametrize("models", [2, 3])  # with NAT and the BAD anchor: 4 and 5 clips
 def test_side_by_side_end_labels_stay_on_one_line_with_four_or_five_clips(browser, live_server, clip_video, settings,
                                                                           tmp_path, models):
@@ -211,6 +301,39 @@ def test_the_pairwise_question_and_its_prompt_are_two_lines(browser, live_server
     question, prompt = page.locator("p.question"), page.locator("p.prompt")
     assert question.inner_text() == study.question and prompt.inner_text() == "Which clip is better?"
     assert prompt.bounding_box()["y"] >= question.bounding_box()["y"] + question.bounding_box()["height"]
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("device", SCREENS)
+def test_a_graded_preference_asks_the_choice_first_then_slightly_or_clearly_all_on_the_screen(
+        browser, live_server, clip_video, settings, tmp_path, device):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, design="pairwise",
+                       pages_per_participant=3, preference_strengths=2)
+    page = enter(browser, live_server, study, {**SCREENS[device], "reduced_motion": "reduce"})
+    participant = skip_to_ratings(page, study)
+    height = SCREENS[device]["viewport"]["height"]
+    answers = page.locator("#page-form button[name=answer]")
+    assert answers.all_inner_texts() == ["A is better", "No preference", "B is better"]
+    assert not page.locator("fieldset.strength").is_visible()  # the choice first
+    for box in (answer.bounding_box() for answer in answers.all()):
+        assert box["y"] + box["height"] <= height  # "B is better" on the screen, a phone's too
+    play_to_end(page, "1")
+    play_to_end(page, "2")
+    shoot(page, f"pairwise-graded-{device}-choice")
+    page.get_by_role("button", name="B is better").click()
+    shoot(page, f"pairwise-graded-{device}-strength")
+    strength = page.locator("fieldset.strength")
+    assert strength.is_visible() and page.locator("fieldset.strength button").all_inner_texts() == [
+        "slightly", "clearly"]  # the docs' and the appropriateness pages' words
+    assert strength.bounding_box()["y"] > answers.first.bounding_box()["y"]  # asked after the choice, below it
+    assert page.get_by_role("button", name="B is better").get_attribute("aria-pressed") == "true"
+    box = page.get_by_role("button", name="clearly").bounding_box()
+    assert box["y"] + box["height"] <= height  # brought on the screen
+    page.get_by_role("button", name="clearly").click()
+    page.wait_for_function("() => document.body.innerText.includes('Page 2 of')")
+    rating = Rating.objects.get(assignment__participant=participant, assignment__slot=1)
+    assert (rating.answer, rating.strength) == ("right", 2)
 
 
 @pytest.mark.django_db(transaction=True)

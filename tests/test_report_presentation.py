@@ -21,8 +21,9 @@ from django.urls import reverse
 from analysis.reports.design_plots import scale_plot
 from analysis.reports.plots import means_plot, rating_scale
 from analysis.reports.single_report import report_figures
+from analysis import validate_ratings
 from analysis.ratings.report import build_report
-from analysis.ratings.simulate import simulate_ratings, simulate_side_by_side
+from analysis.ratings.simulate import simulate_appropriateness, simulate_ratings, simulate_side_by_side
 from studyapp.models import Assignment, Participant, Rating
 from studyapp.researchers.results.monitor_figures import live_figures
 from studyapp.researchers.results.table_format import readable_table
@@ -60,6 +61,35 @@ def test_the_reports_figures_are_drawn_on_the_ratings_scale():
     side = simulate_side_by_side({"NAT": 75, "A": 60, "B": 50}, 8, seed=1)
     figures = report_figures(build_report(side))
     assert figures["median_mean_ci"].axes[0].get_xlim() == pytest.approx((-4, 104))
+    for figure in figures.values():
+        plt.close(figure)
+
+
+def overlapping_texts(figure) -> list[tuple[str, str]]:
+    """The pairs of the figure's axis labels and tick labels whose drawn boxes overlap."""
+    figure.canvas.draw()
+    renderer = figure.canvas.get_renderer()
+    texts = [text for ax in figure.axes for text in (*ax.get_xticklabels(), ax.xaxis.label) if text.get_text()]
+    texts += [text for text in figure.texts if text.get_text()]  # the label under the panels
+    boxes = [(text.get_text(), text.get_window_extent(renderer)) for text in texts]
+    return [(a, b) for i, (a, box) in enumerate(boxes) for b, other in boxes[i + 1:] if box.overlaps(other)]
+
+
+def test_the_appropriateness_figures_span_the_whole_scales_in_every_panel_with_no_label_overlapping():
+    held = simulate_appropriateness({"NAT": 0.92, "MoGlow": 0.78, "RNN": 0.62}, 40, seed=1)
+    synthetic = simulate_appropriateness({"MoGlow": 0.7, "RNN": 0.55}, 40, control_class="synthetic", seed=2)
+    synthetic["participant"] = "s" + synthetic["participant"]  # NAT has no clip of a synthetic control
+    report = build_report(validate_ratings(pd.concat([held, synthetic], ignore_index=True).astype(str)))
+    figures = report_figures(report)
+    for name, (low, high) in (("appropriateness_scores", (-2, 2)), ("matched_preference", (0, 1))):
+        figure = figures[name]
+        limits = {ax.get_xlim() for ax in figure.axes}
+        assert len(limits) == 1 and min(limits)[0] <= low and min(limits)[1] >= high, (name, limits)  # one range
+        assert overlapping_texts(figure) == [], name
+        synthetic_panel = next(ax for ax in figure.axes if "synthetic" in ax.get_title())
+        rows = dict(zip([t.get_text() for t in figure.axes[0].get_yticklabels()], figure.axes[0].get_yticks()))
+        notes = [(text.get_text(), text.get_position()[1]) for text in synthetic_panel.texts]
+        assert notes == [("none in this cell", rows["NAT"])], name  # NAT's row says why it is empty
     for figure in figures.values():
         plt.close(figure)
 

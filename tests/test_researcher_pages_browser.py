@@ -48,7 +48,7 @@ def rated_study():
 def researcher_urls(study) -> dict[str, str]:
     system, control = study.systems.get(name="RNN"), study.controls.first()
     per_study = ("study-edit", "study-systems", "study-controls", "study-stimuli", "study-questions", "study-monitor",
-                 "study-participants")
+                 "study-participants", "study-plan")
     return {
         "study-list": reverse("study-list"), "study-create": reverse("study-create"),
         **{name: reverse(name, args=[study.pk]) for name in per_study},
@@ -94,10 +94,11 @@ def test_every_researcher_page_fits_the_screen(browser, live_server, settings, t
         width = page.evaluate("document.documentElement.scrollWidth")
         if width > page.viewport_size["width"]:
             too_wide[name] = width
-        if name in ("study-monitor", "report") and device == "desktop":  # each table fits without scrolling
-            for box in page.locator(".table-scroll").all():
+        # each table fits without scrolling (the participants' "Finished" column at 1366 pixels too)
+        if name in ("study-monitor", "report", "study-participants") and device == "desktop":
+            for index, box in enumerate(page.locator(".table-scroll").all()):
                 if box.evaluate("box => box.scrollWidth > box.clientWidth"):
-                    too_wide[f"{name}: {box.locator('xpath=preceding-sibling::h2[1]').inner_text()}"] = width
+                    too_wide[f"{name}: table {index + 1}"] = box.evaluate("box => [box.scrollWidth, box.clientWidth]")
     context.close()
     assert too_wide == {} and missing == []
     icon = Client().get("/favicon.ico")
@@ -181,4 +182,27 @@ def test_an_upload_shows_its_progress_and_a_refusal_lists_its_problems_at_the_to
     refused_at = page.locator("#refused").bounding_box()["y"]
     assert refused_at < page.get_by_role("heading", name="Systems").bounding_box()["y"] + 200  # at the top
     assert page.evaluate("document.documentElement.scrollWidth") <= page.viewport_size["width"]
+    context.close()
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("device", ["desktop", "phone"])
+def test_the_monitor_opens_on_the_newest_ratings_with_a_jump_to_each_part(browser, live_server, settings, tmp_path,
+                                                                         device):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = rated_study()
+    context = browser.new_context(**(PHONE if device == "phone" else DESKTOP))
+    page = log_in(context, live_server, study)
+    page.goto(f"{live_server.url}{reverse('study-monitor', args=[study.pk])}")
+    links = page.locator("nav.toc a")
+    targets = [href.lstrip("#") for href in links.evaluate_all("(links) => links.map((a) => a.getAttribute('href'))")]
+    parts = page.eval_on_selector_all("main section[id], main h2[id]", "parts => parts.map((p) => p.id)")
+    assert targets == parts and targets[0] == "ratings"  # every part, in the page's order, the live numbers first
+    assert {"entry", "rules-section", "data"} <= set(targets) and len(targets) >= 6
+    for link, target in ((links.last, "data"), (links.nth(2), targets[2])):
+        link.click()
+        page.wait_for_function(f"() => Math.abs(document.getElementById('{target}').getBoundingClientRect().top) < 80"
+                               " || innerHeight + scrollY >= document.documentElement.scrollHeight - 1")
+        box = page.locator(f"#{target}").bounding_box()
+        assert 0 <= box["y"] < page.viewport_size["height"], target  # the part is on the screen
     context.close()

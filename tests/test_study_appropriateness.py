@@ -141,7 +141,7 @@ def test_the_page_names_no_system_and_asks_for_five_levels():
     client = Client()
     participant = through_practice(client, study)
     html = page_html(client, study)
-    assert "orange band on the floor" in html and 'value="1"> slightly' in html and 'value="2"> clearly' in html
+    assert "orange band on the floor" in html and 'value="1" disabled>slightly<' in html and 'value="2" disabled>clearly<' in html
     for system in System.objects.filter(study=study):
         assert system.name not in html.replace("natural", "")
     assert not any(f">{name}<" in html or f" {name} " in html for name in PARTNERS)  # nor the controls

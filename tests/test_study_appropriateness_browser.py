@@ -129,8 +129,8 @@ def take_part(browser, live_server, study: Study, pid: str, screen: dict, shots:
         page.wait_for_selector("text=(not recorded)")
         heading = page.inner_text("p.meta")
         play_every_clip(page)
-        page.get_by_role("radio", name="slightly").check()
         page.get_by_role("button", name="A fits better").click()
+        page.get_by_role("button", name="slightly", exact=True).click()
         page.wait_for_function(f"() => !document.body.innerText.includes({heading!r})")
     first = True
     while clips := current_page(participant):
@@ -143,9 +143,9 @@ def take_part(browser, live_server, study: Study, pid: str, screen: dict, shots:
         matched = "A" if clips[0].stimulus.shown_control_id is None else "B"
         mismatched = "B" if matched == "A" else "A"
         play_every_clip(page)
-        page.get_by_role("radio", name="clearly").check()
         chosen = mismatched if clips[0].is_check and not careful else matched
-        page.get_by_role("button", name=f"{chosen} fits better").click()
+        page.get_by_role("button", name=f"{chosen} fits better").click()  # the choice first, then how much better
+        page.get_by_role("button", name="clearly", exact=True).click()
         page.wait_for_function(f"() => !document.body.innerHTML.includes('{clips[0].token}')")
     text = page.inner_text("body")
     context.close()

@@ -102,9 +102,9 @@ def answer_page(page, study: Study, clips, careful: bool, forced: bool = False) 
         page.get_by_role("button", name="Submit ratings").click()
         return
     choice = (careful_choice if careful else careless_choice)(clips) if clips else "left"
-    page.get_by_role("radio", name="slightly").check()
     verb = "closer" if study.abx else "better"
-    page.get_by_role("button", name=f"{'A' if choice == 'left' else 'B'} is {verb}").click()
+    page.get_by_role("button", name=f"{'A' if choice == 'left' else 'B'} is {verb}").click()  # the choice first
+    page.get_by_role("button", name="slightly", exact=True).click()  # then how strong: this sends the answer
 
 
 def take_part(browser, live_server, study: Study, pid: str, screen: dict, careful: bool = True,

@@ -18,7 +18,7 @@ from tests.test_study_design_browser import CLIP_SECONDS, DESKTOP, play_every_cl
 
 # Per participant, per page: (clip, strength label) or "none". The second one has no
 # preference at all, so every pair has a tie and the leaderboard's fit exists.
-ANSWERS = {"clear-and-slight": [("A", "much"), ("B", "slightly"), ("A", "slightly")],
+ANSWERS = {"clear-and-slight": [("A", "clearly"), ("B", "slightly"), ("A", "slightly")],
            "undecided": ["none", "none", "none"]}
 
 
@@ -32,14 +32,15 @@ def answer_in_browser(browser, live_server, study, pid: str, answers: list) -> N
     for answer in answers:
         clips = current_page(participant)
         page.wait_for_selector("video[data-slot]")
-        assert page.locator('input[name="strength"]').count() == 2  # slightly, much: five levels with none
+        strengths = page.locator('button[name="strength"]')
+        assert strengths.all_inner_texts() == ["slightly", "clearly"]  # five levels with none
         play_every_clip(page)
         if answer == "none":
             page.get_by_role("button", name="No preference").click()
         else:
             clip, strength = answer
-            page.get_by_role("radio", name=strength).check()
-            page.get_by_role("button", name=f"{clip} is better").click()
+            page.get_by_role("button", name=f"{clip} is better").click()  # the choice first, then its strength
+            page.get_by_role("button", name=strength, exact=True).click()
         page.wait_for_function(f"() => !document.body.innerHTML.includes('{clips[0].token}')")
     assert study.completion_code in page.inner_text("body")
     context.close()

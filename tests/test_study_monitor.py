@@ -141,6 +141,20 @@ def test_open_close_and_the_analysis_report(client, study):
     assert not study.is_open
 
 
+def test_a_get_of_the_report_address_leads_to_the_monitors_report_button_and_the_report_back_to_its_study(
+        client, study):
+    response = client.get(f"/studies/{study.pk}/report/")
+    assert response.status_code == 302 and response["Location"] == f"/studies/{study.pk}/monitor/#data"
+    monitor = client.get(response["Location"]).content.decode()
+    assert "press “Analysis report”" in monitor and '<section id="data">' in monitor
+    report = client.get(client.post(f"/studies/{study.pk}/report/")["Location"]).content.decode()
+    assert f'<a href="/studies/{study.pk}/monitor/">← {study.title}: back to its monitor</a>' in report
+    table = io.BytesIO(client.get(f"/studies/{study.pk}/ratings.csv").content)
+    table.name = "ratings.csv"
+    uploaded = client.post("/analysis/", {"ratings": table})
+    assert "back to its monitor" not in client.get(uploaded["Location"]).content.decode()  # an upload has no study
+
+
 def test_the_monitor_says_too_few_ratings_instead_of_fitting_models_and_marks_intervals_from_few_participants(
         client, study):
     monitor = study_monitor(study)

@@ -54,10 +54,10 @@ def play_and_answer(page, study: Study) -> None:
         move_every_slider(page)
         page.locator("#page-form button[type=submit]").click()
         return
-    strengths = page.locator("input[name=strength]")
-    if strengths.count():
-        strengths.first.check()
     page.locator("#page-form button[name=answer][value=left]").click()
+    strengths = page.locator("#page-form button[name=strength]")
+    if strengths.count():  # asked once the choice is made; its button sends the answer
+        strengths.first.click()
 
 
 def move_every_slider(page) -> None:
@@ -70,8 +70,10 @@ def answer_too_soon(page) -> None:
     """Unlock the answer buttons and answer at once, as a participant forcing the page would."""
     move_every_slider(page)
     page.evaluate("document.querySelectorAll('form[data-next-page] button').forEach((b) => { b.disabled = false; })")
-    page.evaluate("document.querySelectorAll('input[name=strength]').forEach((r, i) => { r.checked = i === 0; })")
     page.locator("form[data-next-page] button[type=submit]").first.click()
+    strengths = page.locator("form[data-next-page] button[name=strength]")
+    if strengths.count():  # A chosen: how strong, which sends the answer
+        strengths.first.click()
 
 
 @pytest.mark.slow

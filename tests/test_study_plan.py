@@ -205,3 +205,12 @@ def test_the_targets_planned_participants_are_those_enrolment_admits(db, setting
             enrol(study, f"p{admitted}", {})
             admitted += 1
     assert section["source"] == "targets" and section["planned"] == admitted > 0
+
+
+def test_the_plan_page_says_the_camera_in_words_not_as_json(client, closed_study):
+    study = closed_study
+    open_it(client, study)
+    page = client.get(f"/studies/{study.pk}/plan/").content.decode()
+    line = next(line for line in page.splitlines() if "Camera" in line)
+    assert "35° round the vertical and 18° above the horizon" in line and "following the character" in line
+    assert "{" not in line and "azimuth" not in line and "&quot;" not in line

@@ -168,6 +168,10 @@ def test_every_control_of_a_refused_submission_is_reported_at_once_and_nothing_i
         "1 of 8 controls ready, 7 refused: nothing written",
     ]:
         assert expected in report, report
+    # The refusals in red; what was read and the one control that would be kept, in ink.
+    assert f'<li class="accepted">{held_out[1]}: {held_out[1]}.bvh: read as centimetres' in page
+    assert '<li class="accepted">motion units: centimetres' in page
+    assert f"<li>{straight}: {straight}.npz: refused" in page and "<li>1 of 8 controls ready, 7 refused" in page
     assert not System.objects.filter(name="OtherLab").exists()
     stored = Path(settings.CHECKPOINT_ROOT) / "submitted"
     assert not stored.exists() or not any(stored.iterdir())

@@ -31,6 +31,7 @@ from analysis.reports.pairing_simulation import (DEFAULT_ELO, DEFAULT_VOTES, Sce
                                          write_pairing_simulation)
 from analysis.reports.rater_models import build_rater_models, rater_models_text, write_rater_models
 from analysis.ratings.reading import read_ratings
+from analysis.reports.reasons import has_reasons, reason_counts, write_reasons
 from analysis.reports.tables import to_markdown
 
 if TYPE_CHECKING:
@@ -188,10 +189,14 @@ def leaderboard_command(args: argparse.Namespace, out: Path) -> list[str]:
     if report.board.empty:
         raise AnalysisInputError("no cell has a leaderboard: " + " ".join(report.notes))
     notes += report.notes
-    written = [_summary(out, "Leaderboard", leaderboard_text(report), notes),
-               *write_leaderboard(report, out)]
+    written = write_leaderboard(report, out)
+    if has_reasons(kept):  # GENEA's reasons (juiceOptions, juiceOtherReason) per system
+        counts, reason_notes = reason_counts(kept)
+        notes += reason_notes
+        written += write_reasons(counts, out)
+    written.insert(0, _summary(out, "Leaderboard", leaderboard_text(report), notes))
     shown = report.board[["task", "control_class", "rank", "system", "elo", "ci_low", "ci_high", "pages",
-                          "few_participants"]]
+                          "warning"]]
     return [f"Elo with {origin_text(report.board)}", to_markdown(shown.round(1)), f"wrote {len(written)} files",
             *(f"note: {n}" for n in notes)]
 

@@ -389,11 +389,12 @@ def leaderboard(kept: pd.DataFrame, anchor: str | None = None, model: str = BRAD
     system, elo, ci_low, ci_high (bootstrap percentiles), pages (shown), wins, losses,
     ties (pages won, lost, without preference), model, anchor, origin (the Elo the anchor,
     or the mean, sits at), tie_parameter (Davidson's nu, NaN otherwise), resamples,
-    resamples_used, participants (whose votes were fitted), few_participants (the
-    intervals come from fewer than INTERVAL_WARNING_PARTICIPANTS; a note says so) and
-    warning (why a cell of too few participants has no intervals, or what makes its
-    intervals less certain than they look, `analysis.stats.minimums`). Cells without a fit are
-    left out; the notes say why.
+    resamples_used, participants (whose votes were fitted) and warning (why a cell of
+    too few participants has no intervals, or, for intervals from fewer than
+    INTERVAL_WARNING_PARTICIPANTS, that they are less certain than they look: the one
+    flag of few participants that every interval table of the report carries,
+    `analysis.stats.minimums`; a note says so too). Cells without a fit are left out;
+    the notes say why.
     """
     if anchor is not None and anchor not in set(kept["system"]):
         raise AnalysisInputError(f"anchor system {anchor!r} is not among the compared systems: "
@@ -428,17 +429,16 @@ def leaderboard(kept: pd.DataFrame, anchor: str | None = None, model: str = BRAD
         if participants < INTERVAL_WARNING_PARTICIPANTS and resamples:
             notes.append(f"Leaderboard for {where}: its intervals come from {participants} participants, fewer "
                          f"than {INTERVAL_WARNING_PARTICIPANTS}; a bootstrap over so few understates the "
-                         "uncertainty, so read them as rough (few_participants in the table).")
+                         "uncertainty, so read them as rough (warning in the table).")
         rows.append(pd.DataFrame({**key, "system": votes.systems, "elo": scores, "ci_low": low,
                                   "ci_high": high, **_page_counts(frame, votes.systems),
                                   "model": model, "anchor": chosen or "mean", "origin": ELO_BASE,
                                   "tie_parameter": fit.tie_parameter, "resamples": resamples,
                                   "resamples_used": len(fit.resampled), "participants": participants,
-                                  "few_participants": participants < INTERVAL_WARNING_PARTICIPANTS,
                                   "warning": warning or few_participants_warning(participants)}))
     columns = [*groupby, "rank", "system", "elo", "ci_low", "ci_high", "pages", "wins", "losses",
                "ties", "model", "anchor", "origin", "tie_parameter", "resamples", "resamples_used",
-               "participants", "few_participants", "warning"]
+               "participants", "warning"]
     if not rows:
         return pd.DataFrame(columns=columns), notes
     table = pd.concat(rows, ignore_index=True).sort_values([*groupby, "elo"], ascending=[True] * len(groupby) + [False])

@@ -12,11 +12,13 @@ its clip for another.
 rows per page with ``design`` ``pairwise`` or ``appropriateness``, ``side`` (model_a
 left), ``answer`` and ``strength`` (clearly 2, slightly 1, empty for a plain answer and for
 a tie, whose strength GENEA's own fit ignores), ``matched`` for the mismatch file, the
-vote's line as its ``page`` and ``input_code`` as the clip's control. Every original
+vote's line as its ``page`` and ``input_code`` as the clip's control, and the reasons in
+their own columns (``juiceOptions``, ``juiceOtherReason``: `analysis.reports.reasons` counts them). Every original
 column rides along on both rows as ``genea:<column>``, text untouched, so `genea_csv`
 writes the file back byte for byte: same columns, order, values and line endings, quoted
 where a field needs it (as pandas and Python's csv module write, GENEA's exports included).
-A table the study app exported gets its GENEA columns from the project's own.
+A table the study app exported gets its GENEA columns from the project's own, its reasons
+(where its pages asked for them) in GENEA's two reason columns.
 """
 
 from __future__ import annotations
@@ -111,12 +113,13 @@ def genea_ratings(text: str, source: str = "the GENEA file") -> pd.DataFrame:
                 raise refuse("model_b", f"with model_a {fields['model_a']!r} is no mismatch page: one system's "
                                         f"clip and its {MISMATCHED} clip, as every other page of this file")
         carried = {CARRIED + column: value for column, value in fields.items()}
+        reasons = {column: fields[column] for column in REASON_COLUMNS if column in fields}  # analysis.reports.reasons
         for side, name in systems.items():
             rows.append({"participant": fields["user"], "page": str(line),
                          "system": name.removesuffix(MISMATCHED) if mismatch else name,
                          "stimulus": f"{name}/{fields['input_code']}", "control": fields["input_code"],
                          "side": side, "answer": answer, "strength": strength,
-                         **({"matched": str(matched[side]).lower()} if mismatch else {}), **carried})
+                         **({"matched": str(matched[side]).lower()} if mismatch else {}), **reasons, **carried})
     table = pd.DataFrame(rows)
     table.insert(0, "design", "appropriateness" if mismatch else "pairwise")
     return table
@@ -128,8 +131,9 @@ def genea_csv(table: pd.DataFrame, layout: GeneaLayout | None = None) -> str:
     file is written back as it was; ``layout`` (`genea_layout` of that file) keeps its
     columns and line ending. Raises AnalysisInputError for a strength above 2: GENEA's
     votes are clearly or slightly better."""
+    reasons = [c for c in REASON_COLUMNS if c in table.columns]  # the study app's, in GENEA's columns
     layout = layout or GeneaLayout(tuple(dict.fromkeys(
-        [*VOTE_COLUMNS, *(c.removeprefix(CARRIED) for c in table.columns if c.startswith(CARRIED))])))
+        [*VOTE_COLUMNS, *reasons, *(c.removeprefix(CARRIED) for c in table.columns if c.startswith(CARRIED))])))
     left = table[table["side"] == "left"].reset_index(drop=True)
     right = table[table["side"] == "right"].set_index(["task", "participant", "page"]).loc[
         pd.MultiIndex.from_frame(left[["task", "participant", "page"]])].reset_index()
@@ -148,7 +152,8 @@ def genea_csv(table: pd.DataFrame, layout: GeneaLayout | None = None) -> str:
         "user": left["participant"], "input_code": left.get("control", left["stimulus"]),
         "model_a": model(left), "model_b": model(right),
         "winner": left["answer"].map(WINNER_OF_ANSWER),
-        "is_strong": strength.map(STRONG_OF_STRENGTH).where(left["answer"] != NO_PREFERENCE).fillna("")})
+        "is_strong": strength.map(STRONG_OF_STRENGTH).where(left["answer"] != NO_PREFERENCE).fillna(""),
+        **{c: left[c].fillna("") for c in reasons}})
     fields = pd.DataFrame({c: left[CARRIED + c] if CARRIED + c in left else derived[c] for c in layout.columns})
     out = io.StringIO(newline="")
     writer = csv.writer(out, lineterminator=layout.line_ending)

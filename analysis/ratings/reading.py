@@ -62,6 +62,10 @@ COLUMNS: tuple[Column, ...] = (
                              "`BAD` an attention-check clip (not compared); both names are options "
                              "(`--natural`, `--attention`)"),
     Column("stimulus", "text", "clip id, unique within a task"),
+    Column("clip", "text, or empty", "the clip's motion file stem, as the study app's motion export names it "
+                                     "(`<control id>`, in its system's folder; `stimulus` is the opaque token "
+                                     "of its video): `report --motion` matches a rated clip to its metrics by it "
+                                     "for the per-clip correlation, by `stimulus` where it is absent or empty"),
     Column("task", "text", "one block of columns in Table 2 (e.g. `human`, `dog`); each task uses one scale. "
                            "Default `all`"),
     Column("control_class", "text", "e.g. `held-out` or `synthetic` control: the second level of Table 2's "
@@ -74,6 +78,12 @@ COLUMNS: tuple[Column, ...] = (
     Column("strength", "whole number from 1, or empty", "how much better the preferred clip is, from 1 (slightly) "
                                                         "to the study's number of degrees (GENEA's five levels: 1 "
                                                         "slightly, 2 clearly); empty for `none` and a plain answer"),
+    Column("juiceOptions", "GENEA's options, or empty", "pairwise and side-by-side: the reasons ticked for the "
+                                                        "page's answer, as GENEA's battles file holds them (a dict "
+                                                        "of lists of options, `{}` for none; the study app's under "
+                                                        "`reasons`), the same on every row of the page"),
+    Column("juiceOtherReason", "text, or empty", "pairwise and side-by-side: the participant's own words under "
+                                                 "\"Other\" (counted as the reason `Other`)"),
     Column("shown_control", "text", "appropriateness: the control the page shows"),
     Column("made_for", "text", "appropriateness: the control the clip was made for"),
     Column("value", "integer", "the rating, `scale_min <= value <= scale_max`"),

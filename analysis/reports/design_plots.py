@@ -9,7 +9,8 @@
 - `preference_plot`: per pair, the share of pages preferring each system, with the
   Wilson interval and the share answered "no preference".
 - `appropriateness_plots`: per system, the share of appropriateness pages preferring the
-  matched clip and the mean appropriateness score, each with its interval.
+  matched clip (on 0..1) and the mean appropriateness score (on -2..+2), each with its
+  interval, every panel on the whole range.
 """
 
 from __future__ import annotations
@@ -62,10 +63,12 @@ def significance_matrix_plot(pairs: pd.DataFrame, order_by: pd.DataFrame) -> Fig
 
 
 def scale_plot(table: pd.DataFrame, estimates: Sequence[tuple[str, str, str, str]],
-               xlabel: str, order: Sequence[str], scale: tuple[int, int] | None = None) -> Figure:
+               xlabel: str, order: Sequence[str], scale: tuple[float, float] | None = None) -> Figure:
     """Point estimates with intervals per system; ``estimates`` lists (label, value column,
-    low column, high column), drawn side by side for each system. With a rating ``scale``
-    the axis spans it and the intervals are cut at its ends."""
+    low column, high column), drawn side by side for each system. With a ``scale`` (a
+    rating scale, a share's 0..1) every panel's axis spans it and the intervals are cut at
+    its ends. The axis label stands once under the panels (one per panel ran into the next);
+    a system with nothing in a panel's cell is said to have none there, its row not left blank."""
     cells = _cells(table)
     position = {system: len(order) - 1 - i for i, system in enumerate(order)}
     fig, axes = _cell_axes(cells, order, legend_in=0.9 if len(estimates) > 1 else 0.0)
@@ -77,8 +80,12 @@ def scale_plot(table: pd.DataFrame, estimates: Sequence[tuple[str, str, str, str
             error = interval_errors(frame[value], frame[low], frame[high], scale)
             ax.errorbar(frame[value].to_numpy(dtype=float), y + offset, xerr=error, fmt="o", capsize=3, label=label)
         ax.set_title(plain_text(f"{cell[0]} · {cell[1]}"), fontsize="medium")
-        ax.set_xlabel(xlabel)
         fit_scale(ax, scale)
+        for system in set(order) - set(frame["system"]):
+            ax.text(sum(ax.get_xlim()) / 2, position[system], "none in this cell", ha="center", va="center",
+                    color="#666666", fontsize="small", fontstyle="italic",
+                    bbox={"facecolor": "white", "edgecolor": "none", "pad": 1})
+    fig.supxlabel(xlabel, fontsize="medium", y=0.005, va="bottom")
     axes[0].set_yticks(list(position.values()), [plain_text(label) for label in position])
     axes[0].set_ylim(-0.5, len(order) - 0.5)
     if len(estimates) > 1:
@@ -123,9 +130,10 @@ def appropriateness_plots(shares: pd.DataFrame, scores: pd.DataFrame, order: Seq
     where motion shows no sign of the control it was made for (50 %, a score of 0)."""
     figures = {
         "matched_preference": (scale_plot(shares, [("matched", "share_matched", "ci_low", "ci_high")],
-                                          "share preferring the matched clip (Wilson 95 % CI)", order), 0.5),
+                                          "share preferring the matched clip (Wilson 95 % CI)", order, (0, 1)), 0.5),
         "appropriateness_scores": (scale_plot(scores, [("score", "mean_score", "ci_low", "ci_high")],
-                                              "mean appropriateness score, -2..+2 (bootstrap 95 % CI)", order), 0.0),
+                                              "mean appropriateness score, -2..+2 (bootstrap 95 % CI)", order,
+                                              (-2, 2)), 0.0),
     }
     for fig, chance in figures.values():
         for ax in fig.axes:

@@ -19,6 +19,7 @@ from typing import Protocol
 import pandas as pd
 from matplotlib.figure import Figure
 
+from analysis.reports import plots
 from analysis.errors import AnalysisInputError
 from analysis.exclusion_rules import (ExclusionRules, RuledDesign, apply_exclusions, compared_ratings, exclusion_notes,
                                  exclusion_summary, removed_by_reason)
@@ -26,6 +27,7 @@ from analysis.reports.leaderboard_report import LeaderboardReport, leaderboard_t
 from analysis.levels import ALPHA, POWER
 from analysis.stats.power import PoweredDesign, more_ratings_for_power, power_summary
 from analysis.reports.rater_models import RaterModels, rater_models_text
+from analysis.reports.reasons import CAPTION as REASONS_CAPTION, has_reasons, reason_counts, reasons_plot
 from analysis.stats.anova import CELL
 from analysis.reports.tables import write_table
 
@@ -95,6 +97,10 @@ def build_design_report(ratings: pd.DataFrame, design: RatingDesign, reference: 
     report = DesignReport(design, flagged, exclusion_summary(flagged), removed_by_reason(flagged), {},
                           reference, rules, alpha, notes, continuity_correction)
     design.analyse(report, kept)
+    if has_reasons(kept):  # pairwise and side-by-side pages that asked why
+        counts, reason_notes = reason_counts(kept)
+        report.tables["reasons"] = (REASONS_CAPTION, counts)
+        report.notes += reason_notes
     return report
 
 
@@ -167,6 +173,8 @@ def write_design_report(report: DesignReport, folder: str | Path) -> list[Path]:
         if len(table):
             written += write_table(table, tables, name, caption=f"{title}.")
     written += report.design.write_figures(report, figures)
+    if "reasons" in report.tables and len(report.table("reasons")):  # its table is written with the others
+        written += plots.save_figure(reasons_plot(report.table("reasons")), figures, "reasons")
     notes = "".join(f"- {n}\n" for n in report.notes) or "- None: everything was computed.\n"
     summary = folder / "summary.md"
     summary.write_text("# Summary\n\n" + design_summary_text(report)

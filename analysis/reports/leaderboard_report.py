@@ -92,7 +92,7 @@ def leaderboard_text(report: LeaderboardReport) -> str:
                 f"are odds of 10 to 1) with {origin} and {report.confidence * 100:g} % percentile "
                 f"intervals from {report.resamples:,} bootstrap resamples of the participants "
                 f"(seed {report.seed}): {systems}.")
-        if board["few_participants"].iloc[0]:
+        if _rough(board).any():
             text += (f" With fewer than {INTERVAL_WARNING_PARTICIPANTS} participants these intervals "
                      "understate the uncertainty: read them as rough.")
         bias = report.side_bias[(report.side_bias["task"] == task) & (report.side_bias["control_class"] == cc)]
@@ -103,6 +103,11 @@ def leaderboard_text(report: LeaderboardReport) -> str:
                      f"{_p_text(b['p'])}).")
         out.append(text)
     return "\n\n".join(out)
+
+
+def _rough(board: pd.DataFrame) -> pd.Series:
+    """The rows whose intervals come from fewer than INTERVAL_WARNING_PARTICIPANTS participants."""
+    return board["ci_low"].notna() & (board["participants"] < INTERVAL_WARNING_PARTICIPANTS)
 
 
 def origin_text(board: pd.DataFrame) -> str:
@@ -117,7 +122,7 @@ def origin_text(board: pd.DataFrame) -> str:
 def leaderboard_tables(report: LeaderboardReport) -> dict[str, tuple[str, pd.DataFrame]]:
     """File name -> (title, table) of the leaderboard and its battles."""
     few = (f"; intervals from fewer than {INTERVAL_WARNING_PARTICIPANTS} participants are rough "
-           "(few_participants)" if report.board["few_participants"].any() else "")
+           "(warning)" if _rough(report.board).any() else "")
     return {"leaderboard": (f"Leaderboard ({report.model}): Elo with {origin_text(report.board)}, 400 points "
                             f"odds of 10 to 1, and {report.confidence * 100:g} % bootstrap intervals over "
                             f"participants{few}", report.board),

@@ -10,8 +10,8 @@ acceleration (`analysis.motion.smoothness`), the bone-length error (with offsets
 adherence (clips that carry their control path: the root's mean distance from it and mean
 heading error) and the Fréchet distance of the clip's pose features to all of the natural
 system's frames (`analysis.motion.frechet`). A clip's stimulus is its file's stem (``FILE[k]``
-for the k-th clip of a stack), which is how the ratings should name it for the per-clip
-correlation.
+for the k-th clip of a stack); the ratings name it so in their ``clip`` column (the study
+app's export: ``stimulus`` there is the clip's opaque token) or else in ``stimulus``.
 
 Agreement (`metric_agreement`): a system's metric is the mean over its clips, its score
 the mean of its ratings; Kendall's tau-b between them over the systems having both, with a
@@ -101,6 +101,7 @@ def metric_agreement(metrics: pd.DataFrame, ratings: pd.DataFrame, resamples: in
     ratings (participant, system, stimulus, value). Returns (agreement: ``AGREEMENT_COLUMNS``;
     per system: system, metric, metric_mean, rating_mean; notes).
     """
+    ratings = by_clip_name(ratings)
     notes, rows, systems_rows = [], [], []
     tail = (1 - confidence) / 2 * 100
     clip_ratings = ratings.groupby(["system", "stimulus"])["value"].mean().rename("rating")
@@ -139,6 +140,15 @@ def metric_agreement(metrics: pd.DataFrame, ratings: pd.DataFrame, resamples: in
     per_system = (pd.concat(systems_rows, ignore_index=True) if systems_rows
                   else pd.DataFrame(columns=["system", "metric", "metric_mean", "rating_mean"]))
     return pd.DataFrame(rows, columns=AGREEMENT_COLUMNS), per_system, notes
+
+
+def by_clip_name(ratings: pd.DataFrame) -> pd.DataFrame:
+    """The ratings with each clip named as the motion names it: its ``clip`` column (the
+    study app's export, whose ``stimulus`` is an opaque token) where that is given."""
+    if "clip" not in ratings.columns:
+        return ratings
+    named = ratings["clip"].fillna("").astype(str)
+    return ratings.assign(stimulus=ratings["stimulus"].where(named == "", named))
 
 
 def agreement_text(agreement: pd.DataFrame) -> str:

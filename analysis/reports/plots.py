@@ -64,28 +64,39 @@ def interval_errors(centre, low, high, limits: tuple[float, float] | None = None
 
 def fit_scale(ax, limits: tuple[float, float] | None) -> None:
     """The value axis spans the rating scale (a little beyond its ends), integer points
-    marked on a short scale."""
+    marked on a short scale, quarters on a share's 0..1."""
     if limits is None:
         return
     low, high = limits
     pad = 0.04 * (high - low)
     ax.set_xlim(low - pad, high + pad)
-    if high - low <= 10:
+    if high - low <= 1:  # a share: quarters
+        ax.set_xticks(np.linspace(low, high, 5), [f"{tick:g}" for tick in np.linspace(low, high, 5)])
+    elif high - low <= 10:
         ax.set_xticks(np.arange(low, high + 1))
 
 
 def means_plot(means: pd.DataFrame, reference: str | None = None,
-               scale: tuple[int, int] | None = None) -> Figure:
+               scale: tuple[int, int] | None = None, singles: pd.DataFrame | None = None) -> Figure:
     """Mean rating and 95 % CI per system, one panel per task x control class; with the
-    ``scale``, the axis spans it and the intervals are cut at its ends."""
-    cells = sorted(means.groupby(["task", "control_class"]).groups)
-    order = system_order(means["system"].unique(), reference)
+    ``scale``, the axis spans it and the intervals are cut at its ends. ``singles``: the
+    ratings (task, control_class, system, value) of a system rated only once in a cell,
+    which has a mean but no interval: drawn hollow, without one, and said in its panel's legend."""
+    singles = singles if singles is not None else pd.DataFrame(columns=["task", "control_class", "system", "value"])
+    cells = sorted(set(means.groupby(["task", "control_class"]).groups)
+                   | set(singles.groupby(["task", "control_class"]).groups))
+    order = system_order(pd.concat([means["system"], singles["system"]]).unique(), reference)
     position = {system: len(order) - 1 - i for i, system in enumerate(order)}
     fig, axes = _cell_axes(cells, order)
     for ax, cell in zip(axes, cells):
         frame = means[(means["task"] == cell[0]) & (means["control_class"] == cell[1])]
         ax.errorbar(frame["mean"], frame["system"].map(position),
                     xerr=interval_errors(frame["mean"], frame["ci_low"], frame["ci_high"], scale), fmt="o", capsize=3)
+        single = singles[(singles["task"] == cell[0]) & (singles["control_class"] == cell[1])]
+        if len(single):
+            ax.plot(single["value"].astype(float), single["system"].map(position), "o", color="C0", mfc="none",
+                    label="one rating: no interval")
+            ax.legend(loc="best", fontsize="small")
         ax.set_title(plain_text(f"{cell[0]} · {cell[1]}"), fontsize="medium")
         ax.set_xlabel("mean rating (95 % CI)")
         fit_scale(ax, scale)

@@ -227,8 +227,11 @@ def report_figures(report: Report | DesignReport) -> dict[str, Figure]:
     distributions, the other designs' ``design_figures``."""
     if isinstance(report, DesignReport):
         return report.design.figures(report)
-    return {"means_ci": plots.means_plot(report.means, report.reference, plots.rating_scale(report.analysed)),
-            "rating_distributions": plots.distribution_plot(report.analysed, report.reference)}
+    # A system rated once in a cell has no interval and no test, but both figures show it.
+    kept = compared_ratings(report.flagged, report.rules, report.design)
+    singles = kept.merge(too_few_ratings(kept)[[*CELL, "system"]], on=[*CELL, "system"])
+    return {"means_ci": plots.means_plot(report.means, report.reference, plots.rating_scale(kept), singles),
+            "rating_distributions": plots.distribution_plot(kept, report.reference)}
 
 
 def write_report(report: Report | DesignReport, folder: str | Path) -> list[Path]:

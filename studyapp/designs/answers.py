@@ -158,7 +158,7 @@ def _store(study: Study, participant: Participant, answer: Answer) -> None:
     insert([
         Rating(assignment=a, value=answer.values.get(a.slot), answer=answer.choice, strength=answer.strength,
                client_started_s=times.started_s, client_ended_s=times.ended_s, client_answered_s=times.answered_s,
-               played_until_s=times.played_until_s,
+               played_until_s=times.played_until_s, reasons=list(answer.reasons), other_reason=answer.other_reason,
                answered_before_end=answered_early(a.shown_at, a.clip_seconds, now, times))
         for a in page for times in [answer.times.get(a.slot, ClientTimes())]
     ])

@@ -36,7 +36,7 @@ from studyapp.models import ATTENTION_NAME, Assignment, ControlSignal, Rating, S
 from studyapp.stimuli.mismatched import study_pairings
 
 Pair = tuple[Stimulus, Stimulus]  # (matched, mismatched): a system's clips of a page, before sides are chosen
-STRENGTH_WORDS = {1: "slightly", 2: "clearly"}
+STRENGTHS = 2  # GENEA's five levels: slightly or clearly better, either way, or no difference
 
 
 class Appropriateness(Pairwise):
@@ -48,7 +48,7 @@ class Appropriateness(Pairwise):
     attention_check_role = System.Role.NATURAL
 
     def strengths(self, study: Study) -> range:
-        return range(1, len(STRENGTH_WORDS) + 1)
+        return range(1, STRENGTHS + 1)
 
     def clips_per_page(self, study: Study) -> float:
         return 2.0
@@ -121,8 +121,7 @@ class Appropriateness(Pairwise):
         shown = next((c.shown_control_id for c in clips if c.shown_control_id), clips[0].control_id if clips else None)
         control = ControlSignal.objects.filter(pk=shown).values_list("control", flat=True).first() or {}
         labels = {"action": control["action"], "style": control["style"]} if "action" in control else None
-        return {**super().page_context(study, page), "labels": labels,
-                "strength_words": [(point, STRENGTH_WORDS[point]) for point in self.strengths(study)]}
+        return {**super().page_context(study, page), "labels": labels}
 
     def exclusion_reason(self, rules: ExclusionRules, study: Study, page: list[OnPage], answer: Answer) -> str:
         if not any(clip.assignment.is_check for clip in page):

@@ -72,6 +72,8 @@ class Answer:
     choice: str = ""
     strength: int | None = None
     moved: frozenset[int] = frozenset()  # the slots whose slider the participant moved (side-by-side)
+    reasons: tuple[str, ...] = ()  # the reasons ticked for the answer, in the study's words (``designs.reasons``)
+    other_reason: str = ""  # the participant's own words under "Other"
 
 
 @dataclass(frozen=True)

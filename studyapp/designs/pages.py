@@ -129,6 +129,6 @@ def preview_practice_pages(study: Study) -> list[dict]:
 
 
 def preview_clip(study: Study) -> Stimulus | None:
-    """A clip a participant of the study would see (the device check plays one)."""
+    """A clip a participant of the study would see (none: nothing to preview yet)."""
     planned, _ = _preview_plan(study)
     return planned[0].clips[0] if planned else None

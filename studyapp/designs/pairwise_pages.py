@@ -21,6 +21,13 @@ never past ``ratings_per_stimulus`` (two pairs of systems may share a control on
 participant's pages). With fewer stored votes than pairs of systems the fit would be the
 prior's, so pages are planned evenly as without the setting.
 
+A round of a leaderboard (`studyapp.leaderboards`): the votes of the board's other rounds
+in its fit count as votes so far too (among this study's systems, a system the same as a
+board's where their names in the ratings table are equal), so a new system's first round is
+planned against the board's current estimates: its pages go where the board is least certain
+of it, from the first participant on. Those votes are only read; their sides, balanced per
+pair within their own study, count with the rest.
+
 ABX, the variant: the control's natural clip is shown above A and B as a reference X, and
 the question is which of them is closer to it; pages pair the systems other than NAT, on
 controls with a natural clip (held-out controls), and X is not a row of the ratings table.
@@ -43,7 +50,8 @@ from analysis.stats.preferences import preference_pairs
 from studyapp.designs.answers import whole_number
 from studyapp.designs.design import Answer, OnPage, Page, PlannedPage, clip_label
 from studyapp.designs.multi_clip import MultiClip, bad_for, by_control, key_of, page_orders
-from studyapp.models import Assignment, Rating, Stimulus, Study, System
+from studyapp.designs.reasons import check_reasons, read_reasons, reasons_context
+from studyapp.models import Assignment, Rating, Stimulus, Study, System, export_name
 from studyapp.participants.refusal import AnswerRefused
 
 SIDES = {Assignment.LEFT: Rating.Answer.LEFT, Assignment.RIGHT: Rating.Answer.RIGHT}  # slot -> side
@@ -82,9 +90,36 @@ def stored_pages(study: Study) -> pd.DataFrame:
     return table.drop(columns=["early", "excluded", "finished"])
 
 
+def board_votes(study: Study) -> pd.DataFrame:
+    """The votes (rows of `stored_pages`, renamed to this study's system names) of the other
+    rounds in the fit of the leaderboard the study is a round of; empty if it is none's."""
+    columns = ["system_left", "system_right", "answer", "strength"]
+    board_round = getattr(study, "board_round", None)
+    if board_round is None:
+        return pd.DataFrame(columns=columns)
+    ours = {export_name(role, name): name for name, role in study.systems.values_list("name", "role")}
+    frames = []
+    for other in board_round.leaderboard.rounds.filter(in_fit=True).exclude(pk=board_round.pk).select_related("study"):
+        theirs = {name: ours.get(export_name(role, name)) for name, role in other.study.systems.values_list("name", "role")}
+        pages = stored_pages(other.study)
+        pages = pages[pages["vote"]].assign(system_left=lambda t: t["system_left"].map(theirs),
+                                            system_right=lambda t: t["system_right"].map(theirs))
+        frames.append(pages.dropna(subset=["system_left", "system_right"])[columns])
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=columns)
+
+
+def strength_words(count: int) -> list[tuple[int, str]]:
+    """Each strength of a preference, 1 to ``count``, with the word its button shows: the
+    weakest "slightly", the strongest "clearly" (GENEA's words, as the docs and the
+    appropriateness pages say them), any between by its number."""
+    words = {1: "slightly", count: "clearly"} if count > 1 else {1: "clearly"}
+    return [(point, words.get(point, str(point))) for point in range(1, count + 1)]
+
+
 class Pairwise(MultiClip):
     template = "pairwise.html"
-    settings = ("pages_per_participant", "abx", "preference_strengths", "adaptive_pairing")
+    settings = ("pages_per_participant", "abx", "preference_strengths", "adaptive_pairing", "reasons",
+                "reasons_required")
     export_columns = ("design", "page", "side", "answer", "strength")
     on_scale = False
 
@@ -160,7 +195,9 @@ class Pairwise(MultiClip):
         systems = sorted({s.system.name for pair in pairs for s in pair})
         stored = stored_pages(study)
         among = stored["system_left"].isin(systems) & stored["system_right"].isin(systems)
-        votes, held = stored[among & stored["vote"]], stored[among & stored["held"]]
+        board = board_votes(study)
+        board = board[board["system_left"].isin(systems) & board["system_right"].isin(systems)]
+        votes, held = pd.concat([board, stored[among & stored["vote"]]], ignore_index=True), stored[among & stored["held"]]
         if len(systems) < 2 or len(votes) < len(systems) * (len(systems) - 1) // 2:
             return None
         natural = {s.system.name for pair in pairs for s in pair if s.system.role == System.Role.NATURAL}
@@ -209,8 +246,8 @@ class Pairwise(MultiClip):
         return f"Each page shows two clips, A and B. {study.question} Say which clip is better."
 
     def page_context(self, study: Study, page: Page) -> dict:
-        return {**super().page_context(study, page), "strengths": list(self.strengths(study)),
-                "reference": self._reference(study, page)}
+        return {**super().page_context(study, page), "strengths": strength_words(len(self.strengths(study))),
+                "reference": self._reference(study, page), **reasons_context(study)}
 
     def _reference(self, study: Study, page: Page) -> dict | None:
         """ABX: the page's reference X, the natural clip of its control (played like the others, not rated)."""
@@ -221,9 +258,11 @@ class Pairwise(MultiClip):
         return {"video_url": natural.video_url} if natural else None
 
     def read_answer(self, study: Study, form: QueryDict) -> Answer:
+        reasons, other = read_reasons(study, form)
         return Answer(form.get(self.form_field, ""), self.slot_times(form, list(SIDES)),
                       choice=form.get("answer", "").strip(),
-                      strength=whole_number(form, "strength", "the strength of the preference"))
+                      strength=whole_number(form, "strength", "the strength of the preference"),
+                      reasons=reasons, other_reason=other)
 
     def check_answer(self, study: Study, answer: Answer, slots: list[int]) -> None:
         if answer.choice not in Rating.Answer.values:
@@ -235,6 +274,7 @@ class Pairwise(MultiClip):
                 raise AnswerRefused("a strength goes with a preference for one clip, and only where the study asks it")
         elif answer.strength not in strengths:
             raise AnswerRefused(f"the strength of the preference must be a whole number from 1 to {len(strengths)}")
+        check_reasons(study, answer.reasons, answer.other_reason)
 
     def exclusion_reason(self, rules: ExclusionRules, study: Study, page: list[OnPage], answer: Answer) -> str:
         preferred = any(rules.preferred_attention(clip.system, answer.choice, SIDES.get(clip.assignment.slot))

@@ -32,6 +32,7 @@ from analysis.stats.within_page import median_and_mean
 from studyapp.designs.answers import whole_number
 from studyapp.designs.design import (Answer, OnPage, Page, PlannedPage, clip_label, rated_clip_exclusion)
 from studyapp.designs.multi_clip import MultiClip, bad_for, by_control, key_of, page_orders
+from studyapp.designs.reasons import check_reasons, read_reasons, reasons_context
 from studyapp.models import Assignment, Rating, Stimulus, Study, System
 from studyapp.participants.refusal import AnswerRefused
 
@@ -72,7 +73,7 @@ def _williams_order(clips: list[Stimulus], orders: Counter, offset: int) -> list
 class SideBySide(MultiClip):
     template = "side_by_side.html"
     default_scale = (0, 100)
-    settings = ("pages_per_participant", "sliders_must_move")
+    settings = ("pages_per_participant", "sliders_must_move", "reasons", "reasons_required")
     export_columns = ("design", "page", "position")
 
     def clips_per_page(self, study: Study) -> float:
@@ -152,7 +153,7 @@ class SideBySide(MultiClip):
         return (study.scale_min + study.scale_max) // 2
 
     def page_context(self, study: Study, page: Page) -> dict:
-        return {**super().page_context(study, page), "middle": self.middle(study)}
+        return {**super().page_context(study, page), "middle": self.middle(study), **reasons_context(study)}
 
     def task(self, study: Study) -> str:
         moved = " Move every slider before you answer." if study.sliders_must_move else ""
@@ -170,7 +171,9 @@ class SideBySide(MultiClip):
             values[slot] = value
         moved = frozenset(slot for slot, value in values.items()
                           if form.get(f"moved-{slot}") == "1" or value != self.middle(study))
-        return Answer(form.get(self.form_field, ""), self.slot_times(form, slots), values=values, moved=moved)
+        reasons, other = read_reasons(study, form)
+        return Answer(form.get(self.form_field, ""), self.slot_times(form, slots), values=values, moved=moved,
+                      reasons=reasons, other_reason=other)
 
     def check_answer(self, study: Study, answer: Answer, slots: list[int]) -> None:
         for slot, value in answer.values.items():
@@ -185,6 +188,7 @@ class SideBySide(MultiClip):
         if study.sliders_must_move and (unmoved := sorted(set(slots) - answer.moved)):
             raise AnswerRefused(f"please move each clip's slider before you answer; not moved: the slider of clip "
                                 f"{', '.join(map(clip_label, unmoved))}")
+        check_reasons(study, answer.reasons, answer.other_reason)
 
     def exclusion_reason(self, rules: ExclusionRules, study: Study, page: list[OnPage], answer: Answer) -> str:
         return rated_clip_exclusion(rules, study, page, answer)

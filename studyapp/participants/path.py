@@ -36,16 +36,17 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from urllib.parse import urlencode
 
-from django.http import Http404, HttpRequest, HttpResponse
+from django.http import HttpRequest, HttpResponse
 from django.shortcuts import redirect, render
 from django.utils import timezone
 
 from studyapp.designs.answers import record_answer
-from studyapp.designs.pages import (practice_page, preview_clip, preview_practice_pages, preview_rating_pages,
+from studyapp.designs.pages import (practice_page, preview_practice_pages, preview_rating_pages,
                                     rating_page, remaining_practice)
 from studyapp.designs.registry import design_of
-from studyapp.models import Participant, Question, Stimulus, Study, json_object
+from studyapp.models import Participant, Question, Study, json_object
 from studyapp.participants.assignment import is_idle, renew_reservations
+from studyapp.participants.device_clip import device_clip_url
 from studyapp.participants.questionnaires import field_name, questions, read_answers, screened_out
 from studyapp.participants.refusal import AnswerRefused
 from studyapp.platforms.links import PROLIFIC_COMPLETION_URL, mturk_submit_url
@@ -146,25 +147,18 @@ def screen_need(study: Study) -> str:
     return f"at least {width} pixels wide" if width else f"at least {height} pixels high"
 
 
-def _device_context(study: Study, clip: Stimulus) -> dict:
-    return {"video_url": clip.video_url, "min_width": study.min_screen_width, "min_height": study.min_screen_height,
+def _device_context(study: Study) -> dict:
+    """The device check plays a neutral clip (``device_clip``), no study's stimulus: it comes before consent."""
+    return {"video_url": device_clip_url(), "min_width": study.min_screen_width, "min_height": study.min_screen_height,
             "screen_need": screen_need(study)}
 
 
 def _device_page(study: Study, participant: Participant) -> dict:
-    """A clip the participant will see anyway (their first), played before they consent."""
-    practice = participant.practice_ids()
-    first = practice[0] if practice else participant.assignments.values_list(
-        "stimulus_id", flat=True).order_by("position").first()
-    stimulus = Stimulus.objects.filter(pk=first).first()
-    if stimulus is None:
-        raise Http404("no clip for the device check")
-    return _device_context(study, stimulus)
+    return _device_context(study)
 
 
 def _device_preview(study: Study) -> list[dict]:
-    clip = preview_clip(study) if study.device_check else None
-    return [_device_context(study, clip)] if clip else []
+    return [_device_context(study)] if study.device_check else []
 
 
 def _device_check(request: HttpRequest, study: Study, participant: Participant) -> HttpResponse:

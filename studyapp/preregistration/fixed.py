@@ -26,7 +26,8 @@ from studyapp.models import (Assignment, ControlSignal, Participant, Question, R
 
 # The study's settings that participants are shown and judged by (and the camera).
 INSTRUMENT = ("design", "abx", "question", "scale_min", "scale_max", "label_min", "label_max", "preference_strengths",
-              "bad_threshold", "natural_threshold", "video_width", "video_height", "sliders_must_move")
+              "bad_threshold", "natural_threshold", "video_width", "video_height", "sliders_must_move",
+              "reasons", "reasons_required")
 # The fields of each kind of row that are fixed once anyone has started (None: all of them).
 FIXED_FIELDS: dict[type[models.Model], tuple[str, ...] | None] = {
     Study: (*INSTRUMENT, "camera"),

@@ -10,6 +10,7 @@ from datetime import datetime
 
 from django.core.exceptions import FieldDoesNotExist
 
+from generation.render.camera import Camera
 from studyapp.models import Study
 
 NOT_LOCKED = "This study was never opened: no plan was locked before its data came in."
@@ -38,6 +39,24 @@ def _shown(value: object) -> str:
     if isinstance(value, dict | list):
         return json.dumps(value, sort_keys=True, ensure_ascii=False)
     return str(value)
+
+
+def camera_words(camera: dict) -> str:
+    """A study's camera (``generation.render.camera.Camera``'s fields; those it lacks at their
+    defaults) in words, as the plan states it."""
+    c = {**Camera().to_dict(), **camera}
+    distance = (f"{c['distance']:g} cm from what it aims at" if c["distance"] is not None else
+                f"far enough that the character spans {c['figure_share'] * 100:g} % of the frame's height")
+    aim = (f"aimed {c['target_height']:g} cm above the floor" if c["target_height"] is not None else
+           f"aimed at {c['target_share'] * 100:g} % of the character's height")
+    follow = (f"following the character, its sway smoothed over {c['follow_smoothing']:g} s" if c["follow"]
+              else "fixed on the clip's mean floor position")
+    return (f"{c['azimuth']:g}° round the vertical and {c['elevation']:g}° above the horizon, {distance}, {aim}, "
+            f"{c['fov']:g}° field of view, {follow}; nothing nearer than {c['near']:g} cm is drawn")
+
+
+def _setting_shown(name: str, value: object) -> str:
+    return camera_words(value) if name == "camera" and isinstance(value, dict) else _shown(value)
 
 
 def _setting_label(name: str) -> str:
@@ -94,7 +113,7 @@ def deviation_text(row: dict) -> str:
         return f"{kind} {name} changed: {', '.join(changed)}"
     what = {"setting": lambda: f"setting “{_setting_label(name).lower()}”", "rule": lambda: f"rule {name}"}.get(
         kind, lambda: field)()
-    return f"{what}: {_shown(old)} → {_shown(new)}"
+    return f"{what}: {_setting_shown(name, old)} → {_setting_shown(name, new)}"
 
 
 def in_words(preregistration: dict) -> PlanInWords:
@@ -106,7 +125,8 @@ def in_words(preregistration: dict) -> PlanInWords:
     analysis = plan["analysis"]
     sections = [
         ("Design", [f"The {design['name']} design.",
-                    *(f"{_setting_label(name)}: {_shown(value)}" for name, value in design["settings"].items())]),
+                    *(f"{_setting_label(name)}: {_setting_shown(name, value)}"
+                      for name, value in design["settings"].items())]),
         ("Rules", list(plan["rules"]["in_words"])),
         ("Systems", [_system_line(name, system) for name, system in plan["systems"].items()] or ["none"]),
         ("Controls", [_control_line(name, control) for name, control in plan["controls"].items()] or ["none"]),

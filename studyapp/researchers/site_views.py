@@ -8,6 +8,7 @@ from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import redirect, render
 from django.views.decorators.http import require_safe
 
+from studyapp.models import Study
 from studyapp.researchers.results.report_files import report_zip
 from studyapp.researchers.results.reports import AnalysisInputError, create_report, report_page
 from studyapp.server.views import current_health
@@ -73,7 +74,10 @@ def analysis_report(request: HttpRequest, digest: str) -> HttpResponse:
     # Each file by its place in the report (tables/..., figures/...); the tables' CSVs are the short list.
     files = [(path, path.split("/", 2)[2]) for path in page.files]
     csv_files = [(path, name) for path, name in files if name.endswith(".csv")]
-    return render(request, "studyapp/analysis_report.html", {"page": page, "files": files, "csv_files": csv_files})
+    # A study's report leads back to the study (while it is there and the researcher's).
+    study = Study.objects.filter(pk=page.study_id, owner=request.user).first() if page.study_id else None
+    return render(request, "studyapp/analysis_report.html",
+                  {"page": page, "files": files, "csv_files": csv_files, "study": study})
 
 
 @login_required

@@ -49,10 +49,12 @@ SUBMITTED_FOLDER = "submitted"
 
 class SubmissionRefused(UploadRefused):
     """Submitted motion that cannot become a system; ``lines`` say why: the report of
-    every control where the files were read."""
+    every control where the files were read. ``refused``: those of the lines that say what
+    was refused (every line unless told), apart from those that say what would be kept."""
 
-    def __init__(self, lines: list[str]) -> None:
+    def __init__(self, lines: list[str], refused: list[str] | None = None) -> None:
         self.lines = lines
+        self.refused = lines if refused is None else refused
         super().__init__("the submitted motion was not registered:\n" + "\n".join(f"- {line}" for line in lines))
 
 
@@ -147,8 +149,9 @@ def check_submission(study: Study, files: dict[str, bytes], reading: Reading = R
         except ValueError as error:  # BVH files that mix units
             raise SubmissionRefused([str(error).replace(f"{scratch}{os.sep}", "")]) from None
         lines = [line.replace(f"{scratch}{os.sep}", "") for line in report.lines()]
+        refused = [line.replace(f"{scratch}{os.sep}", "") for line in report.refused_lines()]
     if not report.accepted:
-        raise SubmissionRefused(lines)
+        raise SubmissionRefused(lines, refused)
     return [Accepted(by_id[result.control], _body(result.motion, root), result.source_fps)
             for result in report.results], lines
 

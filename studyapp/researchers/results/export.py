@@ -2,8 +2,14 @@
 
 One row per rating, with the columns every design shares and, in front, the page
 structure its design adds (``Design.export_columns``); designs whose answers are not on
-a scale (pairwise) carry no value or scale columns. Instructed checks are left out: their
-answers were dictated, not given. Each row carries the live flags: the participant's
+a scale (pairwise) carry no value or scale columns. A clip is named twice: ``stimulus``
+is the opaque token its video is served under, ``clip`` its motion files' name in the
+study's motion export (``stimuli.motion_export.clip_name``; empty for an uploaded video),
+by which ``python -m analysis report --motion`` matches each rated clip to its metrics.
+The table is the researcher's (behind login and the owner check); no participant page
+shows either name beside a system. A study whose pages ask for reasons adds GENEA's
+columns ``juiceOptions`` and ``juiceOtherReason`` (``analysis.reports.reasons``).
+Instructed checks are left out: their answers were dictated, not given. Each row carries the live flags: the participant's
 exclusion as it was set when their answers arrived, and the early-answer discard, the
 analysis's own rule (``analysis.ratings.exclusions.early_discards``) with the study's rules.
 
@@ -18,14 +24,16 @@ import io
 import pandas as pd
 
 from analysis.ratings.exclusions import early_discards
+from analysis.reports.reasons import OTHER, REASON_COLUMNS, options_text
 from analysis.reports.tables import spreadsheet_safe
 from studyapp.designs.design import Design
 from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Rating, Study
+from studyapp.stimuli.motion_export import clip_name
 
 EXPORT_COLUMNS = (
-    "participant", "system", "stimulus", "task", "control_class", "value", "scale_min", "scale_max",
+    "participant", "system", "stimulus", "clip", "task", "control_class", "value", "scale_min", "scale_max",
     "clip_duration_s", "shown_at", "answered_at", "client_started_s", "client_ended_s", "client_answered_s",
     "played_until_s", "answered_before_end",
     "excluded_participant", "discarded_early", "exclusion_reason",
@@ -40,8 +48,16 @@ def design_export_columns(design: Design) -> tuple[str, ...]:
 
 
 def export_columns(study: Study) -> tuple[str, ...]:
-    """The columns of the study's ratings table, by its design."""
-    return design_export_columns(design_of(study))
+    """The columns of the study's ratings table, by its design (and GENEA's reason columns
+    where its pages ask for reasons)."""
+    return design_export_columns(design_of(study)) + (REASON_COLUMNS if study.reason_list else ())
+
+
+def reason_fields(rating: Rating) -> dict[str, str]:
+    """A rating's reasons in GENEA's columns: the options ticked ("Other" among them where
+    the participant wrote something) and the words under "Other"."""
+    ticked = [*rating.reasons, *([OTHER] if rating.other_reason else [])]
+    return dict(zip(REASON_COLUMNS, (options_text(ticked), rating.other_reason)))
 
 
 def ratings_rows(study: Study) -> list[dict]:
@@ -60,6 +76,7 @@ def ratings_rows(study: Study) -> list[dict]:
             "participant": participant.code,
             "system": stimulus.system.export_name,
             "stimulus": stimulus.token,
+            "clip": clip_name(stimulus) if stimulus.control_id is not None else "",
             "task": "all",
             "control_class": stimulus.control_class,
             "value": rating.value,
@@ -76,6 +93,7 @@ def ratings_rows(study: Study) -> list[dict]:
             "excluded_participant": participant.excluded,
             "exclusion_reason": participant.exclusion_reason,
             **design.export_fields(assignment, rating),
+            **reason_fields(rating),
         }
         rows.append({column: row.get(column) for column in columns})
     if rows:

@@ -54,6 +54,7 @@ RATINGS_NAME = "ratings.csv"
 REFERENCE_NAME = "reference.txt"
 RULES_NAME = "rules.json"
 OWNER_NAME = "owner.txt"
+STUDY_NAME = "study.txt"  # a study's report: the study's id, for the page's link back to it
 PLAN_NAME = "plan.json"  # a study's report: its locked plan and deviations (``plan.lock.preregistration``)
 PLAN_WORDS_NAME = "plan.md"
 PREVIOUS_RATINGS_NAME, PREVIOUS_RULES_NAME = "previous-ratings.csv", "previous-rules.json"
@@ -72,6 +73,7 @@ class ReportPage:
     files: list[str]  # every table file (CSV, Markdown, LaTeX, JSON), relative to MEDIA_ROOT
     notes: list[str]
     plan: PlanInWords | None = None  # a study's report: its plan and deviations (None for an uploaded table)
+    study_id: int | None = None  # a study's report: the study it was made from (None for an uploaded table)
 
 
 def report_folder(media_root: Path, digest: str) -> Path:
@@ -90,9 +92,10 @@ def report_owner(media_root: Path, digest: str) -> int | None:
 
 def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, owner_id: int,
                   rules: ExclusionRules = ExclusionRules(), preregistration: dict | None = None,
-                  previous: tuple[str, str] | None = None) -> str:
+                  previous: tuple[str, str] | None = None, study_id: int | None = None) -> str:
     """Analyse a ratings CSV with ``rules`` into its report folder, owned by ``owner_id``; returns the digest.
-    A study's ``preregistration`` (its locked plan and deviations) is kept beside it.
+    A study's ``preregistration`` (its locked plan and deviations) is kept beside it, and its id
+    (``study_id``), which the report page links back to.
     ``previous``: a previous run's ratings table and rules, compared with these.
 
     Raises AnalysisInputError (naming what is wrong) for a table that cannot be analysed.
@@ -105,6 +108,8 @@ def create_report(media_root: Path, ratings_csv: bytes, reference: str | None, o
     if final.is_dir():
         return digest
     with atomic_folder(final) as work:
+        if study_id is not None:
+            (work / STUDY_NAME).write_text(str(study_id))
         (work / RATINGS_NAME).write_bytes(ratings_csv)
         (work / REFERENCE_NAME).write_text(reference or "")
         (work / RULES_NAME).write_text(rules.to_json())
@@ -132,7 +137,8 @@ def create_study_report(study: Study, owner_id: int) -> str:
     A rerun's report shows its ratings beside the previous run's. Raises AnalysisInputError."""
     previous = study.previous_runs.last()
     return create_report(settings.MEDIA_ROOT, ratings_csv(study), None, owner_id, StudyRules.of(study).exclusion,
-                         preregistration(study), (previous.ratings_csv, previous.rules_json) if previous else None)
+                         preregistration(study), (previous.ratings_csv, previous.rules_json) if previous else None,
+                         study.pk)
 
 
 def _rules(folder: Path) -> ExclusionRules:
@@ -184,8 +190,10 @@ def report_page(media_root: Path, digest: str, owner_id: int) -> ReportPage:
     files = sorted(str(p.relative_to(media_root)) for p in (folder / "tables").iterdir())
     plan_file = folder / PLAN_NAME
     plan = in_words(json.loads(plan_file.read_text(encoding="utf-8"))) if plan_file.is_file() else None
+    study_file = folder / STUDY_NAME
+    study_id = int(study_file.read_text()) if study_file.is_file() else None
     return ReportPage(digest, _paragraphs(summary_text(report)), report.design.described(report.rules), tables,
-                      figures, files, report.notes, plan)
+                      figures, files, report.notes, plan, study_id)
 
 
 __all__ = ["AnalysisInputError", "ReportPage", "create_report", "html_table", "report_folder", "report_owner",

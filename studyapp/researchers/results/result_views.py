@@ -8,8 +8,9 @@ from functools import partial
 from django.contrib import messages
 from django.http import HttpRequest, HttpResponse
 from django.shortcuts import redirect, render
+from django.urls import reverse
 from django.views.decorators.cache import never_cache
-from django.views.decorators.http import require_POST, require_safe
+from django.views.decorators.http import require_http_methods, require_safe
 
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Study
@@ -93,9 +94,13 @@ def study_plan(request: HttpRequest, study: Study) -> HttpResponse:
 
 
 @researcher_study
-@require_POST
+@require_http_methods(["GET", "HEAD", "POST"])
 def study_report(request: HttpRequest, study: Study) -> HttpResponse:
-    """The analysis report of the ratings so far (the analysis pages' report)."""
+    """The analysis report of the ratings so far (the analysis pages' report), made by a POST;
+    a GET (a bookmark, a link) leads to the monitor's button that makes it."""
+    if request.method != "POST":
+        messages.info(request, "The analysis report is made from the ratings so far: press “Analysis report”.")
+        return redirect(reverse("study-monitor", args=[study.pk]) + "#data")
     try:
         digest = create_study_report(study, request.user.pk)
     except AnalysisInputError as error:

@@ -70,7 +70,9 @@ def _refusal(error: Exception) -> dict:
     """A refusal as the top of a page lists it: a title, then one problem a line."""
     problems = getattr(error, "lines", None)  # a submission's report, one control a line
     if problems:
-        return {"title": str(error).splitlines()[0].rstrip(":"), "problems": problems}
+        refused = set(getattr(error, "refused", problems))  # the others say what was read or ready
+        return {"title": str(error).splitlines()[0].rstrip(":"), "problems": problems,
+                "accepted": [line for line in problems if line not in refused]}
     return {"title": "Not done", "problems": [str(error)]}
 
 

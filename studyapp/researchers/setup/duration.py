@@ -4,6 +4,9 @@
     (pages + practice pages) x (clips on a page x a clip's length + answers on a page x ANSWER_S)
       + START_S for the consent and the instructions + QUESTION_S for each question
 
+said in words on the settings' card (no formula: "8 clips and 4 practice clips, each with
+1 clip of about 6.0 s to watch and 1 answer of about 5 s to give; ...").
+
 The pages, practice pages and what a page shows and asks come from the study's design
 (instructed checks are among the pages); a clip's length is the mean of the study's
 finished clips other than BAD, or of its controls before any clip is finished.
@@ -47,7 +50,16 @@ def expected_duration(study: Study) -> Duration | None:
     questions = study.questions.count()
     seconds = (pages + practice) * (clips * clip_s + answers * ANSWER_S) + START_S + questions * QUESTION_S
     word = design.page_word.lower()
-    how = (f"{pages} {word}s and {practice} practice {word}s × ({clips:.3g} clip(s) × {clip_s:.1f} s + "
-           f"{answers:.3g} answer(s) × {ANSWER_S:g} s), + {START_S / 60:g} min for consent and instructions"
-           + (f" + {QUESTION_S:g} s for each of {questions} question(s)" if questions else ""))
+    asked = (f"; {QUESTION_S:g} s for {'the question' if questions == 1 else f'each of the {questions} questions'}"
+             if questions else "")
+    how = (f"{_counted(pages, word)} and {_counted(practice, 'practice ' + word)}, each with "
+           f"{_counted(clips, 'clip')} of about {clip_s:.1f} s to watch and {_counted(answers, 'answer')} of about "
+           f"{ANSWER_S:g} s to give; {START_S / 60:g} min for the consent and the instructions{asked}")
     return Duration(seconds, how)
+
+
+def _counted(number: float, noun: str) -> str:
+    """"1 clip", "3 clips", "2.5 clips on average" (a design whose pages differ)."""
+    if number == int(number):
+        return f"{int(number)} {noun}{'' if number == 1 else 's'}"
+    return f"{number:.3g} {noun}s on average"

@@ -62,7 +62,8 @@ class StudyForm(forms.ModelForm):
     INSTRUMENT = INSTRUMENT  # plan.fixed's, which the admin and the commands hold to as well
     SECTIONS = (
         ("The study", ("title", "instructions", "consent_text")),
-        ("Design", ("design", "pages_per_participant", "abx", "preference_strengths", "adaptive_pairing")),
+        ("Design", ("design", "pages_per_participant", "abx", "preference_strengths", "adaptive_pairing",
+                    "reasons", "reasons_required")),
         ("Question and scale", ("question", "scale_min", "scale_max", "label_min", "label_max")),
         ("Clips and targets", ("clips_per_participant", "ratings_per_stimulus", "training_clips",
                                "reservation_minutes", "path_tolerance_cm")),
@@ -166,6 +167,8 @@ class StudyForm(forms.ModelForm):
             "abx": "Natural clip shown as a reference (ABX)",
             "preference_strengths": "Degrees of preference",
             "adaptive_pairing": "Adaptive pairing (pairs chosen from the votes so far)",
+            "reasons": "Reasons asked with each answer (one a line)",
+            "reasons_required": "A reason is required",
             "scale_min": "Lowest rating",
             "scale_max": "Highest rating",
             "label_min": "Lowest rating's label",
@@ -195,6 +198,7 @@ class StudyForm(forms.ModelForm):
         widgets = {
             "instructions": forms.Textarea(attrs={"rows": 4}),
             "consent_text": forms.Textarea(attrs={"rows": 4}),
+            "reasons": forms.Textarea(attrs={"rows": 4}),
         }
 
 

@@ -39,6 +39,7 @@ window.studyappSetUpPage = (shownAt, signal) => {
       ended.add(slot);
       document.querySelectorAll(`[data-played="${slot}"]`).forEach((mark) => { mark.hidden = false; });
       update();
+      playNext();
     });
     on(document.querySelector(`button[data-play="${slot}"]`), "click", () => {
       pauseOthers(video);
@@ -47,15 +48,29 @@ window.studyappSetUpPage = (shownAt, signal) => {
     });
   });
   sliders.forEach((slider) => {
+    // The slider's number beside it, and on its clip's tab (a phone shows one clip at a time).
     const output = document.querySelector(`output[for="${slider.id}"]`);
+    const tabValue = document.querySelector(`.clip-tabs [data-value="${slider.dataset.slot}"]`);
     on(slider, "input", () => {
       output.value = slider.value;
+      tabValue.textContent = slider.value;
       field(`moved-${slider.dataset.slot}`).value = "1";  // even a move back to the start counts
       update();
     });
   });
+  // The clips play by themselves, each once, in the page's order (where the participant has
+  // not asked for reduced motion): the first on arrival, the next when one ends. On a narrow
+  // screen, where one clip is shown at a time, only the shown clip plays by itself.
+  const autoplay = !window.matchMedia("(prefers-reduced-motion: reduce)").matches;
+  const shown = (video) => video.closest(".clip").offsetParent !== null;
+  const playNext = () => {
+    if (!autoplay || videos.some((video) => !video.paused && !video.ended)) return;
+    const next = videos.find((video) => !ended.has(video.dataset.slot) && shown(video));
+    if (next) next.play().catch(() => {});  // a browser that refuses: the play buttons remain
+  };
   // On a narrow screen the clips would stack beyond the screen: one is shown at a time, with
-  // tabs to switch between them (every slider stays in the form, hidden or not).
+  // tabs to switch between them (every slider stays in the form, hidden or not; each tab
+  // shows its clip's rating).
   const tabs = document.querySelector(".clip-tabs");
   if (tabs) {
     const sections = [...document.querySelectorAll(".clips > .clip")];
@@ -64,20 +79,34 @@ window.studyappSetUpPage = (shownAt, signal) => {
       videos.forEach((video) => video.pause());
       sections.forEach((section) => section.classList.toggle("current", section.id === `clip-${slot}`));
       buttons.forEach((button) => button.setAttribute("aria-selected", String(button.dataset.tab === slot)));
+      playNext();
     };
     buttons.forEach((button) => on(button, "click", () => show(button.dataset.tab)));
     document.querySelector(".clips").classList.add("tabbed");
     tabs.hidden = false;
     show(buttons[0].dataset.tab);
+  } else {
+    playNext();
   }
+  // A graded preference: the choice first (A, B or none), then, for A or B, how strong it is;
+  // the strength's button sends the answer, with the choice.
+  const strength = form.querySelector("fieldset.strength");
+  const choice = document.getElementById("choice");
   on(form, "submit", (event) => {
-    const strengths = [...form.querySelectorAll("input[name=strength]")];
-    const choice = event.submitter ? event.submitter.value : "";
-    if (choice === "none") strengths.forEach((radio) => { radio.checked = false; });
-    else if (strengths.length && !strengths.some((radio) => radio.checked)) {
-      event.preventDefault();
-      document.getElementById("strength-note").hidden = false;
-      return;
+    const submitter = event.submitter;
+    if (strength && submitter && submitter.name === "answer") {
+      if (submitter.value !== "none") {
+        event.preventDefault();
+        choice.value = submitter.value;
+        choice.disabled = false;
+        form.querySelectorAll("button[name=answer]").forEach((button) => {
+          button.setAttribute("aria-pressed", String(button === submitter));
+        });
+        strength.hidden = false;
+        strength.scrollIntoView({ block: "nearest" });
+        return;
+      }
+      choice.disabled = true;  // no preference has no strength
     }
     if (form.dataset.sent) { event.preventDefault(); return; }  // once (next-page.js clears it on a refusal)
     form.dataset.sent = "yes";
