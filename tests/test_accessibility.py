@@ -38,7 +38,7 @@ DESIGNS = {
     "appropriateness": {},
 }
 # The controls a participant answers with, on every design's rating pages.
-RATING_CONTROLS = ("button[name=value], input[type=range], input[name=strength], button[name=answer]")
+RATING_CONTROLS = "button[name=value], input[type=range], [name=strength], button[name=answer]"
 
 
 @pytest.fixture(scope="module")
@@ -156,12 +156,12 @@ def answer_with_the_keyboard(page) -> None:
         if page.locator(f"#value-{slot}").count():
             show_with_the_keyboard(page, slot)
             press(page, page.locator(f"#value-{slot}"), "ArrowRight")
-    if page.locator("input[name=strength]").count():
-        press(page, page.locator("input[name=strength]").first, "Space")  # into the group: the first is focused
-        page.keyboard.press("ArrowRight")  # arrows move the choice along the group
-        assert page.locator("input[name=strength]").nth(1).is_checked()
     answer = page.locator("button[name=answer][value=left]")
     press(page, answer if answer.count() else page.get_by_role("button", name="Submit ratings"))
+    strength = page.locator("button[name=strength]")
+    if strength.count():  # the strength of a choice, asked once A or B is chosen: its button sends the answer
+        strength.first.wait_for()
+        press(page, strength.last)
 
 
 def nothing_moves_but_clips(page) -> bool:
