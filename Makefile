@@ -35,6 +35,7 @@ test: $(INSTALLED)
 	scripts/ensure-r.sh
 	scripts/ensure-chromium.sh
 	scripts/ensure-caddy.sh
+	scripts/ensure-axe.sh
 	DATABASE_URL= $(BIN)/python -m pytest $(PYTEST_PARALLEL)
 	$(BIN)/python -m tests.postgres_pass $(PYTEST_PARALLEL)
 	$(BIN)/python -m mkdocs build --strict --quiet

@@ -367,12 +367,15 @@ def test_a_played_clip_has_no_dark_edge(browser, live_server, clip_video, settin
         assert inner[:, -1].mean() > 200 and inner[:, 0].mean() > 200, (slot, inner[:, -3:].mean(axis=0))
 
 
-def every_page(study: Study, page, prefix: str) -> None:
-    """Walk ``page``'s participant through every page of ``study``, checking each fits the
-    screen and saving it as ``prefix-<page>``; what is not reached by answering is reached
-    by setting the participant's progress as answering would."""
+def every_page(study: Study, page, prefix: str, pid: str = "tour", on_page=None) -> None:
+    """Walk participant ``pid`` (on ``page``) through every page of ``study``, checking each
+    fits the screen, passing its name to ``on_page`` (if given) and saving it as
+    ``prefix-<page>``; what is not reached by answering is reached by setting the
+    participant's progress as answering would."""
     def look(name: str) -> None:
         assert page.evaluate("document.documentElement.scrollWidth <= window.innerWidth"), name
+        if on_page:
+            on_page(name)
         shoot(page, f"{prefix}-{name}")
 
     page.wait_for_function("() => document.getElementById('device-ok') && !document.getElementById('device-ok')"
@@ -391,7 +394,7 @@ def every_page(study: Study, page, prefix: str) -> None:
     page.get_by_role("button", name="Start").click()
     page.wait_for_selector("text=(not recorded)")
     look("practice")
-    participant = skip_to_ratings(page, study, "tour")
+    participant = skip_to_ratings(page, study, pid)
     if study.design == "single":  # its clip plays by itself
         page.wait_for_function("() => document.getElementById('clip').ended", timeout=20_000)
     else:
