@@ -1,7 +1,7 @@
 """Analysis of motion rating studies: exclusions, significance tables, objective metrics.
 
 Independent of the models and of the web app: it reads ratings tables (schema in
-`analysis.ratings.reading`) and motion as plain arrays (positions (frames, joints, 3) in cm,
+`analysis.ratings.schema`) and motion as plain arrays (positions (frames, joints, 3) in cm,
 y up; fps; joint names and parents), and writes the tables and figures of MoGlow
 (Henter et al. 2020) Sec. 5.2-5.3 and HVRNN Sec. 5.2. Entry points:
 
@@ -29,7 +29,7 @@ from importlib import import_module
 _HOME = {"AnalysisInputError": "analysis.errors", "DesignReport": "analysis.reports.design_report",
          "ExclusionRules": "analysis.ratings.exclusions", "apply_exclusions": "analysis.ratings.exclusions",
          "exclusion_summary": "analysis.ratings.exclusions", "more_ratings_for_power": "analysis.ratings.more_ratings",
-         "read_ratings": "analysis.ratings.reading", "validate_ratings": "analysis.ratings.reading",
+         "read_ratings": "analysis.ratings.schema", "validate_ratings": "analysis.ratings.schema",
          "Report": "analysis.reports.single_report", "build_report": "analysis.ratings.report",
          "write_report": "analysis.reports.single_report"}
 

@@ -34,7 +34,7 @@ import scipy  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from analysis.motion.motion_io import SystemClips  # noqa: E402
 from analysis.motion.objective import objective_metrics  # noqa: E402
-from analysis.ratings.reading import read_ratings  # noqa: E402
+from analysis.ratings.schema import read_ratings  # noqa: E402
 from analysis.reports.single_report import write_report  # noqa: E402
 from analysis.ratings.report import build_report
 from analysis.ratings.simulate import (simulate_pairwise, simulate_ratings,  # noqa: E402

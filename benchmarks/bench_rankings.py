@@ -38,7 +38,7 @@ from analysis.raters.crossed_mixed import crossed_mixed_model  # noqa: E402
 from analysis.rankings.graded_votes import simulate_graded_pairwise  # noqa: E402
 from analysis.rankings.leaderboard import leaderboard, pair_votes, participant_resamples, vote_pages  # noqa: E402
 from analysis.raters.ordinal_mixed import ordinal_mixed_model  # noqa: E402
-from analysis.ratings.reading import read_ratings  # noqa: E402
+from analysis.ratings.schema import read_ratings  # noqa: E402
 from benchmarks.machine import describe_machine  # noqa: E402
 
 LEADERBOARD_TARGET_S = 10.0

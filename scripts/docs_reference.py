@@ -5,7 +5,7 @@
 Every command line's page comes from its argparse parser (``generation.cli.parser()``,
 ``analysis.cli.parser()``, each ``manage.py`` command's ``create_parser``), the
 environment page from ``studyapp.server.env.VARIABLES``, the ratings table's columns from
-``analysis.ratings.reading.COLUMNS`` with the designs' required and exported columns, and the study
+``analysis.ratings.schema.COLUMNS`` with the designs' required and exported columns, and the study
 definition file's keys from ``studyapp.definitions.layout``, so the pages say what the code
 does. tests/test_docs_reference.py writes them again into a temporary folder and fails
 when they differ from the committed ones.
@@ -128,8 +128,8 @@ def designs_text(names: list[str], every: list[str]) -> str:
 
 def undeclared_columns() -> list[str]:
     """Columns the analysis reads, a design requires or the study app writes that
-    ``analysis.ratings.reading.COLUMNS`` lacks."""
-    from analysis.ratings.reading import APP_FLAG_COLUMNS, COLUMNS, LABEL_COLUMNS
+    ``analysis.ratings.schema.COLUMNS`` lacks."""
+    from analysis.ratings.schema import APP_FLAG_COLUMNS, COLUMNS, LABEL_COLUMNS
 
     declared = {column.name for column in COLUMNS}
     used = [LABEL_COLUMNS, tuple(APP_FLAG_COLUMNS), *required_columns().values(), *exported_columns().values()]
@@ -139,7 +139,7 @@ def undeclared_columns() -> list[str]:
 def required_columns() -> dict[str, tuple[str, ...]]:
     """Each analysis design's required columns."""
     from analysis.designs import DESIGNS, design_named
-    from analysis.ratings.reading import REQUIRED_COLUMNS
+    from analysis.ratings.schema import REQUIRED_COLUMNS
 
     return {name: design_named(name).required_columns(REQUIRED_COLUMNS) for name in DESIGNS}
 
@@ -156,11 +156,11 @@ def exported_columns() -> dict[str, tuple[str, ...]]:
 
 
 def ratings_schema_page() -> str:
-    from analysis.ratings.reading import COLUMNS
+    from analysis.ratings.schema import COLUMNS
 
     missing = undeclared_columns()
     if missing:
-        raise SystemExit(f"declare the ratings column(s) {', '.join(missing)} in analysis/ratings/reading.py's COLUMNS")
+        raise SystemExit(f"declare the ratings column(s) {', '.join(missing)} in analysis/ratings/schema.py's COLUMNS")
     required, exported = required_columns(), exported_columns()
     rows = [f"| `{column.name}` | {cell(column.type)} | "
             f"{designs_text([d for d, names in required.items() if column.name in names], list(required))} | "
@@ -174,7 +174,7 @@ def ratings_schema_page() -> str:
         "column (the `design` column says a table's design; without it a table is `single`); *the app writes "
         "it in* names the designs whose exported tables have it. Booleans are `true`/`false`, `1`/`0` or "
         "`yes`/`no`. Any other column is carried through as it is. The columns are declared in "
-        "`analysis/ratings/reading.py` (`COLUMNS`); [Ratings table schema](../ratings-schema.md) explains the designs, "
+        "`analysis/ratings/schema.py` (`COLUMNS`); [Ratings table schema](../ratings-schema.md) explains the designs, "
         "the exclusion rules and what is refused, with examples.",
         "| column | type | required in | the app writes it in | meaning |\n| --- | --- | --- | --- | --- |\n"
         + "\n".join(rows)])

@@ -18,7 +18,7 @@ from analysis.stats.matching import (appropriateness_pages, appropriateness_scor
                                       score_pairs)
 from analysis.errors import AnalysisInputError
 from analysis.ratings.exclusions import apply_exclusions
-from analysis.ratings.reading import validate_ratings
+from analysis.ratings.schema import validate_ratings
 from analysis.ratings.simulate import simulate_appropriateness
 
 PREFER_MATCHED = {"NAT": 0.92, "MoGlow": 0.78, "RNN": 0.62, "Chance": 0.5}

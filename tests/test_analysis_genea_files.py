@@ -19,7 +19,7 @@ from analysis.errors import AnalysisInputError
 from analysis.ratings.genea_files import genea_csv, genea_layout
 from analysis.rankings.graded_votes import simulate_graded_pairwise
 from analysis.rankings.leaderboard import leaderboard
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 
 STRENGTHS = {"NAT": 1.0, "A": 0.5, "B": 0.1, "C": -0.4}
 REASONS = ["{}", "{'motion': ['hands', 'timing']}", "{'speech': ['rhythm']}"]

@@ -26,7 +26,7 @@ from analysis.rankings.leaderboard import (ELO_PER_LOG_ODDS, INTERVAL_WARNING_PA
 from analysis.reports.leaderboard_report import build_leaderboard, leaderboard_tables, leaderboard_text
 from analysis.stats.minimums import few_participants_warning
 from analysis.stats.preferences import preference_pages
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from analysis.ratings.simulate import simulate_pairwise
 
 STRENGTHS = {"NAT": 1.0, "A": 0.5, "B": 0.2, "C": -0.1, "D": -0.6}

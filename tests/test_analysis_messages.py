@@ -15,7 +15,7 @@ from analysis.errors import AnalysisInputError
 from analysis.ratings.exclusions import ExclusionRules, apply_exclusions, compared_ratings
 from analysis.rankings.leaderboard import leaderboard
 from analysis.stats.preferences import preference_pages
-from analysis.ratings.reading import validate_ratings
+from analysis.ratings.schema import validate_ratings
 from analysis.ratings.simulate import (
     simulate_appropriateness,
     simulate_pairwise,

@@ -15,7 +15,7 @@ from analysis.rankings.leaderboard import leaderboard
 from analysis.stats.minimums import (BOOTSTRAP_MIN_PARTICIPANTS, INTERVAL_FEW_PARTICIPANTS, MODEL_MIN_PARTICIPANTS,
                                MODEL_MIN_RATINGS_PER_SYSTEM)
 from analysis.stats.preferences import preference_pages, preference_pairs
-from analysis.ratings.reading import validate_ratings
+from analysis.ratings.schema import validate_ratings
 from analysis.ratings.report import build_report
 from analysis.stats.within_page import median_and_mean
 from analysis.ratings.simulate import simulate_appropriateness, simulate_pairwise, simulate_ratings, simulate_side_by_side

@@ -19,7 +19,7 @@ from analysis.rankings.bradley_terry import bradley_terry_scale, fit_bradley_ter
 from analysis.errors import AnalysisInputError
 from analysis.stats.preferences import (preference_pages, preference_pairs, side_bias, sign_test_p,
                                wilson_interval)
-from analysis.ratings.reading import validate_ratings
+from analysis.ratings.schema import validate_ratings
 from analysis.ratings.simulate import simulate_pairwise
 
 STRENGTHS = {"NAT": 1.0, "A": 0.4, "B": 0.1, "C": -0.5}

@@ -17,7 +17,7 @@ from analysis.stats.power import (SEQUENTIAL_LOOKS_NOTE, pages_for_page_effect, 
                                   ratings_per_system_for_effect, sign_test_power, sign_test_trials_for_power,
                                   walsh_positive_share)
 from analysis.ratings.more_ratings import more_ratings_for_power
-from analysis.ratings.reading import validate_ratings
+from analysis.ratings.schema import validate_ratings
 from analysis.ratings.simulate import simulate_pairwise, simulate_ratings, simulate_side_by_side
 
 pytestmark = pytest.mark.slow

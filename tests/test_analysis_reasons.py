@@ -11,7 +11,7 @@ import pytest
 
 from analysis.cli import main
 from analysis.ratings.genea_files import genea_csv
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from analysis.reports.reasons import OTHER, options_text, read_options, reason_counts
 
 SMOOTH, GESTURES, UNREAL = "Motion smoothness", "Recognisable gestures", "Unrealistic motion"

@@ -14,7 +14,7 @@ from scipy import stats
 from statsmodels.stats.multitest import multipletests
 
 from analysis.stats.multiple_comparisons import holm_adjusted
-from analysis.ratings.reading import validate_ratings
+from analysis.ratings.schema import validate_ratings
 from analysis.stats.within_page import (median_and_mean, median_interval, page_differences,
                                    significance_matrix, signed_rank_pairs)
 from analysis.stats.signed_rank import signed_rank_test

@@ -1,6 +1,6 @@
 """The reference pages are the code's: regenerated, they equal the committed ones; every
 environment variable the code reads is declared once in studyapp/server/env.py, every ratings
-column a design requires or the study app writes in analysis/ratings/reading.py, and every key of a
+column a design requires or the study app writes in analysis/ratings/schema.py, and every key of a
 study definition file in studyapp/definitions/layout.py."""
 
 from __future__ import annotations
@@ -121,7 +121,7 @@ def test_generation_help_lists_every_command():
 
 
 def test_every_ratings_column_read_required_or_written_is_declared():
-    assert docs_reference.undeclared_columns() == [], "declare these in analysis/ratings/reading.py's COLUMNS"
+    assert docs_reference.undeclared_columns() == [], "declare these in analysis/ratings/schema.py's COLUMNS"
 
 
 def test_a_column_the_app_starts_writing_without_a_declaration_is_named(monkeypatch):
@@ -134,7 +134,7 @@ def test_a_column_the_app_starts_writing_without_a_declaration_is_named(monkeypa
 
 
 def test_a_column_declared_anew_changes_the_ratings_page(monkeypatch):
-    from analysis.ratings import reading as ratings
+    from analysis.ratings import schema as ratings
 
     before = docs_reference.ratings_schema_page()
     monkeypatch.setattr(ratings, "COLUMNS", (*ratings.COLUMNS, ratings.Column("client_volume", "number", "loudness")))

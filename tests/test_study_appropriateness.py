@@ -12,7 +12,7 @@ from django.test import Client
 
 from analysis.designs import table_design
 from analysis.ratings.exclusions import apply_exclusions
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Participant, Stimulus, System
 from studyapp.participants.assignment import enrol

@@ -25,7 +25,7 @@ from django.test import Client
 from analysis.stats.matching import appropriateness_pages, appropriateness_scores, matched_preference
 from analysis.ratings.exclusions import apply_exclusions, compared_ratings
 from analysis.cli import main as analysis_main
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from generation.motion.data.dataset import build_dataset
 from generation.motion.data.dataset_options import DatasetOptions
 from generation.render.camera import Camera

@@ -12,7 +12,7 @@ import pytest
 
 from analysis.stats.matching import matched_preference
 from analysis.ratings.exclusions import apply_exclusions, compared_ratings
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from studyapp.designs.rules import StudyRules
 from studyapp.models import Assignment
 from studyapp.participants import assignment

@@ -15,7 +15,7 @@ import io
 
 import pytest
 
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from studyapp.models import Participant, Rating, Study, System
 from studyapp.researchers.results.export import ratings_csv
 from tests.study_fixtures import current_page, make_study

@@ -10,7 +10,7 @@ import pytest
 from django.test import Client
 from django.utils import timezone
 
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from studyapp.designs.multi_clip import page_loads
 from tests.study_fixtures import current_clip, current_page
 from studyapp.designs.rules import StudyRules

@@ -12,7 +12,7 @@ from django.test import Client
 from django.urls import reverse
 
 from analysis.stats.minimums import MODEL_MIN_PARTICIPANTS
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from studyapp.models import Participant, Rating, Stimulus, Study, System
 from studyapp.researchers.results.export import ratings_csv
 from studyapp.researchers.setup.forms import StudyForm

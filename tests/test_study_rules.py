@@ -15,7 +15,7 @@ from django.urls import reverse
 from analysis.cli import main as analysis_main
 from analysis.ratings.exclusions import ExclusionRules
 from analysis.stats.minimums import MODEL_MIN_PARTICIPANTS
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from analysis.ratings.report import build_report
 from studyapp.models import Participant, System
 from studyapp.researchers.results.monitor import study_monitor

@@ -33,7 +33,7 @@ from analysis.motion.motion_io import SystemClips, load_motion_sets
 from analysis.motion.objective import objective_metrics
 from analysis.cli.rankings import add_commands as add_ranking_commands
 from analysis.ratings.previous_run import previous_run_comparison
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from analysis.reports.single_report import write_report
 from analysis.ratings.report import build_report, require_design_taking_motion
 from analysis.reports.tables import objective_table, to_markdown, write_table

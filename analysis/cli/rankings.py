@@ -30,7 +30,7 @@ from analysis.rankings.pairing import EXPLORATION
 from analysis.reports.pairing_simulation import (DEFAULT_ELO, DEFAULT_VOTES, Scenario, compare_pairings,
                                          write_pairing_simulation)
 from analysis.reports.rater_models import build_rater_models, rater_models_text, write_rater_models
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from analysis.reports.reasons import has_reasons, reason_counts, write_reasons
 from analysis.reports.tables import to_markdown
 

@@ -3,7 +3,7 @@
 A design object says everything that differs between designs in the analysis:
 
 - the table: the columns it needs beyond the minimal schema, and the page structure it
-  checks (`analysis.ratings.reading` calls both);
+  checks (`analysis.ratings.schema` calls both);
 - the rules (`analysis.ratings.exclusions`): which rows fail the attention rule, which answers
   came before their clips had played, and which kept ratings are compared;
 - the words: its rules as the report and the study app state them;

@@ -126,7 +126,7 @@ def genea_ratings(text: str, source: str = "the GENEA file") -> pd.DataFrame:
 
 
 def genea_csv(table: pd.DataFrame, layout: GeneaLayout | None = None) -> str:
-    """A pairwise or appropriateness table (as `analysis.ratings.reading.read_ratings` returns it)
+    """A pairwise or appropriateness table (as `analysis.ratings.schema.read_ratings` returns it)
     as GENEA's vote file, one line per page in the table's order. A table read from a GENEA
     file is written back as it was; ``layout`` (`genea_layout` of that file) keeps its
     columns and line ending. Raises AnalysisInputError for a strength above 2: GENEA's

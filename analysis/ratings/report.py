@@ -33,7 +33,7 @@ def build_report(ratings: pd.DataFrame, motion: dict[str, SystemClips] | None = 
                  systems: Sequence[str] | None = None, compare_attention_checks: bool = False,
                  foot_joints: Sequence[str] | None = None,
                  foot_kind: str = "heel", continuity_correction: bool = False) -> Report | DesignReport:
-    """Run the whole analysis on a validated ratings table (see `analysis.ratings.reading`).
+    """Run the whole analysis on a validated ratings table (see `analysis.ratings.schema`).
 
     The table's design builds the report (`analysis.designs`): a single-design table gets a
     `Report` (`build_single_report`), side-by-side, pairwise and appropriateness tables a

@@ -1,4 +1,4 @@
-"""Synthetic ratings in the schema of `analysis.ratings.reading`, for power analysis and testing.
+"""Synthetic ratings in the schema of `analysis.ratings.schema`, for power analysis and testing.
 
 One function per design (`analysis.designs`), each drawing a study with known effects:
 

@@ -42,7 +42,7 @@ SCALE_COLUMNS = ("value", "scale_min", "scale_max")
 
 
 def design_export_columns(design: Design) -> tuple[str, ...]:
-    """The columns of a ratings table of ``design`` (each declared in ``analysis.ratings.reading.COLUMNS``)."""
+    """The columns of a ratings table of ``design`` (each declared in ``analysis.ratings.schema.COLUMNS``)."""
     shared = EXPORT_COLUMNS if design.on_scale else tuple(c for c in EXPORT_COLUMNS if c not in SCALE_COLUMNS)
     return (*design.export_columns, *shared)
 

@@ -1,7 +1,7 @@
 """What the researcher watches while a study runs: participants, ratings, means with CIs.
 
 Everything is computed from the exported ratings table (the CSV a researcher
-downloads), read back through ``analysis.ratings.reading`` and flagged by
+downloads), read back through ``analysis.ratings.schema`` and flagged by
 ``analysis.ratings.exclusions`` with the study's own rules (``designs.rules``), so the page
 agrees with the analysis report. Means and 95 % confidence intervals are over kept
 ratings (excluded participants and early answers left out, as the papers report them),
@@ -22,7 +22,7 @@ from analysis.ratings.exclusions import apply_exclusions, compared_ratings
 from analysis.stats.minimums import INTERVAL_FEW_PARTICIPANTS, few_participants_warning
 from analysis.ratings.more_ratings import more_ratings_for_power
 from analysis.reports.rater_models import build_rater_models
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from analysis.stats.anova import system_means
 from studyapp.designs.registry import design_of
 from studyapp.designs.rules import StudyRules

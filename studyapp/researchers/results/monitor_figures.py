@@ -18,7 +18,7 @@ import matplotlib.pyplot as plt
 from django.core.cache import cache
 
 from analysis.errors import AnalysisInputError
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from analysis.reports.single_report import report_figures
 from analysis.ratings.report import build_report
 from studyapp.designs.rules import StudyRules

@@ -36,7 +36,7 @@ from analysis.designs import table_design
 from analysis.errors import AnalysisInputError
 from analysis.ratings.exclusions import ExclusionRules
 from analysis.ratings.previous_run import previous_run_comparison
-from analysis.ratings.reading import read_ratings
+from analysis.ratings.schema import read_ratings
 from analysis.reports.single_report import Report, summary_text, write_report
 from analysis.ratings.report import build_report
 from analysis.reports.tables import write_table
