@@ -20,6 +20,7 @@ def closed_port() -> int:
 def broker_down(monkeypatch: pytest.MonkeyPatch, closed_port: int) -> None:
     monkeypatch.setitem(celery_app.conf, "broker_url", f"redis://127.0.0.1:{closed_port}/0")
     monkeypatch.setitem(celery_app.conf, "broker_transport_options", {})
+    monkeypatch.setitem(celery_app.conf, "broker_transport", None)  # the URL's scheme says which
 
 
 @pytest.fixture

@@ -28,7 +28,7 @@ from tests.test_study_leaderboard_browser import answer_in_browser
 pytestmark = pytest.mark.slow
 
 DESKTOP = {"viewport": {"width": 1366, "height": 800}}
-ANSWERS = [("A", "much"), ("B", "slightly"), "none"]
+ANSWERS = [("A", "clearly"), ("B", "slightly"), "none"]
 
 
 def shoot(page, name: str) -> None:

@@ -167,7 +167,7 @@ def test_the_tested_commands_are_the_documented_ones():
     assert dockerfile_command(8000)[2:] == ["gunicorn", "studyapp.server.wsgi", "--access-logfile", "-", "--bind",
                                             "127.0.0.1:8000"]
     assert "manage.py serve" in (REPO / "docs" / "deploying.md").read_text()
-    assert '"manage.py", "serve"' in Path(REPO / "studyapp" / "server" / "demo.py").read_text()
+    assert '"manage.py", "serve"' in Path(REPO / "studyapp" / "demo.py").read_text()
 
 
 def test_gunicorns_workers_import_every_view_when_they_load_the_app_not_in_their_first_request(environment):

@@ -259,5 +259,5 @@ def test_a_label_controlled_page_names_the_shown_controls_action_and_style_in_wo
     html = page_html(client, study)
     shown = next(a.stimulus.shown_control or a.stimulus.control for a in current_page(participant))
     action, style = shown.control["action"], shown.control["style"]
-    assert f"<strong>{action}</strong>, in a\n  <strong>{style}</strong> style" in html
+    assert f"<strong>{action}</strong>, in a <strong>{style}</strong> style" in html
     assert "orange band" not in html

@@ -68,10 +68,11 @@ def queue(tmp_path) -> Path:
 
 @pytest.fixture
 def broker_down():
-    saved = celery_app.conf.broker_url
+    saved = celery_app.conf.broker_url, celery_app.conf.broker_transport
     celery_app.conf.broker_url = "redis://127.0.0.1:9/0"  # the discard port: nothing answers
+    celery_app.conf.broker_transport = None  # the URL's scheme says which
     yield
-    celery_app.conf.broker_url = saved
+    celery_app.conf.broker_url, celery_app.conf.broker_transport = saved
 
 
 @pytest.fixture
