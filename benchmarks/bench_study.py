@@ -109,7 +109,7 @@ PARTICIPANTS_PER_PROCESS = 125  # simulated participants (threads) per client pr
 PARTS = ("server-time", "crowd", "large", "targets", "floor")
 FLOOR_S, FLOOR_CLIENTS = 20.0, 32  # the floor's length and its simultaneous clients (threads over two processes)
 # compose.yaml's web service, the configuration the README recommends.
-GUNICORN = ["--workers", "3", "--worker-class", "gthread", "--threads", "8"]
+GUNICORN = ["--workers", "3", "--worker-class", "gthread", "--threads", "8", "--keep-alive", "75"]
 
 
 def django_step(env: dict, *args: str, code: Path = REPO) -> str:

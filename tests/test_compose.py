@@ -125,3 +125,16 @@ def test_every_setting_the_caddyfile_reads_is_given_by_compose() -> None:
 
     assert read - given == {"STUDY_HTTP_PORT", "STUDY_HTTPS_PORT"}  # their defaults, 80 and 443, are compose's ports
     assert "X-Accel-Redirect" in caddyfile and "/_accel/media" in caddyfile
+
+
+def test_gunicorn_keeps_an_idle_connection_longer_than_the_proxy_does() -> None:
+    # Else the proxy may send a rating on a connection gunicorn has just closed and answer
+    # the participant 502 Bad Gateway (a POST is not retried): at 1,000 watching
+    # participants 312 were stopped so before gunicorn's keep-alive outlasted Caddy's.
+    command = load_compose()["services"]["web"]["command"]
+    gunicorn_s = float(command[command.index("--keep-alive") + 1])
+    caddyfile = (REPO_ROOT / "deploy" / "Caddyfile").read_text()
+    transport = re.search(r"transport http \{[^}]*?\bkeepalive (\d+)s\b", caddyfile)
+
+    assert transport, "the Caddyfile's reverse_proxy names no keepalive for its upstream connections"
+    assert gunicorn_s > float(transport.group(1)) + 5

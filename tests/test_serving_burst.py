@@ -162,7 +162,8 @@ def test_every_documented_server_answers_100_connections_opened_at_once(command,
 
 def test_the_tested_commands_are_the_documented_ones():
     assert compose_web_command(8000)[2:] == ["gunicorn", "studyapp.server.wsgi", "--workers", "3", "--worker-class",
-                                             "gthread", "--threads", "8", "--access-logfile", "-", "--bind",
+                                             "gthread", "--threads", "8", "--keep-alive", "75", "--access-logfile",
+                                             "-", "--bind",
                                              "127.0.0.1:8000"]
     assert dockerfile_command(8000)[2:] == ["gunicorn", "studyapp.server.wsgi", "--access-logfile", "-", "--bind",
                                             "127.0.0.1:8000"]
