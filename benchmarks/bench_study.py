@@ -114,9 +114,13 @@ GUNICORN = ["--workers", "3", "--worker-class", "gthread", "--threads", "8", "--
 
 def django_step(env: dict, *args: str, code: Path = REPO) -> str:
     """Run ``--setup``, ``--count`` or ``--server-time`` of this script in a process of its
-    own (one database per process), importing the study app from ``code``."""
-    return subprocess.run([sys.executable, __file__, *args], env={**env, "BENCH_STUDY_CODE": str(code)}, cwd=code,
-                          check=True, capture_output=True, text=True).stdout.strip()
+    own (one database per process), importing the study app from ``code``; a failed step
+    raises with the end of what it wrote to stderr."""
+    step = subprocess.run([sys.executable, __file__, *args], env={**env, "BENCH_STUDY_CODE": str(code)}, cwd=code,
+                          capture_output=True, text=True)
+    if step.returncode:
+        raise RuntimeError(f"bench_study.py {' '.join(args)} exited with {step.returncode}:\n{step.stderr[-3000:]}")
+    return step.stdout.strip()
 
 
 def setup_study(participants: int, video: str | None = None, clip_seconds: float = BROWSER_CLIP_S) -> str:
