@@ -130,7 +130,7 @@ def test_every_setting_the_caddyfile_reads_is_given_by_compose() -> None:
 def test_gunicorn_keeps_an_idle_connection_longer_than_the_proxy_does() -> None:
     # Else the proxy may send a rating on a connection gunicorn has just closed and answer
     # the participant 502 Bad Gateway (a POST is not retried): at 1,000 watching
-    # participants 312 were stopped so before gunicorn's keep-alive outlasted Caddy's.
+    # participants 62 to 312 were stopped so before gunicorn's keep-alive outlasted Caddy's.
     command = load_compose()["services"]["web"]["command"]
     gunicorn_s = float(command[command.index("--keep-alive") + 1])
     caddyfile = (REPO_ROOT / "deploy" / "Caddyfile").read_text()
