@@ -80,6 +80,8 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import yaml
+
 REPO = Path(__file__).resolve().parents[1]
 # The code whose rating step ``--server-time`` times: this checkout, or a reference one.
 CODE = Path(os.environ.get("BENCH_STUDY_CODE", REPO))
@@ -108,8 +110,17 @@ URLENCODED = "application/x-www-form-urlencoded"
 PARTICIPANTS_PER_PROCESS = 125  # simulated participants (threads) per client process
 PARTS = ("server-time", "crowd", "large", "targets", "floor")
 FLOOR_S, FLOOR_CLIENTS = 20.0, 32  # the floor's length and its simultaneous clients (threads over two processes)
-# compose.yaml's web service, the configuration the README recommends.
-GUNICORN = ["--workers", "3", "--worker-class", "gthread", "--threads", "8", "--keep-alive", "75"]
+
+
+def compose_gunicorn_options() -> list[str]:
+    """The gunicorn options of compose.yaml's web service (the configuration the README
+    recommends), read from it, less its address and access log, which each measurement sets."""
+    command = yaml.safe_load((REPO / "compose.yaml").read_text())["services"]["web"]["command"]
+    options, own = command[2:], {"--bind", "--access-logfile"}
+    return [word for i, word in enumerate(options) if word not in own and (i == 0 or options[i - 1] not in own)]
+
+
+GUNICORN = compose_gunicorn_options()
 
 
 def django_step(env: dict, *args: str, code: Path = REPO) -> str:
