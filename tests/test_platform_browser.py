@@ -39,6 +39,7 @@ def within_width(page, selector: str) -> bool:
 
 
 def table_rows(page, selector: str) -> list[dict]:
+    page.locator(selector).wait_for()  # after a click the next page may not have arrived yet
     headers = page.locator(f"{selector} tr").nth(0).locator("th").all_inner_texts()
     return [dict(zip(headers, row.locator("td").all_inner_texts()))
             for row in page.locator(f"{selector} tr").all()[1:]]
