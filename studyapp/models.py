@@ -26,6 +26,7 @@ from generation.submission import PATH_TOLERANCE_CM
 from generation.render.display_figure import PARENT, DisplayFigure, MappingError
 from studyapp.bounds import Within, storable_json
 from studyapp.designs import registry as designs
+from studyapp.server.bucket_addresses import presigned_clip_url
 from studyapp.server.clip_urls import signed_clip_url
 
 NATURAL_NAME, ATTENTION_NAME = "NAT", "BAD"  # the names the analysis expects for these roles
@@ -595,6 +596,8 @@ class Stimulus(models.Model):
 
     @property
     def video_url(self) -> str:
+        if settings.MEDIA_BUCKET_URL:  # the bucket's own expiring address (studyapp.server.bucket_addresses)
+            return presigned_clip_url(self.relative_path)
         if settings.MEDIA_ACCEL:  # behind the proxy: an address that expires (studyapp.server.clip_urls)
             return signed_clip_url(self.relative_path)
         return f"/{settings.MEDIA_URL.strip('/')}/{self.relative_path}"

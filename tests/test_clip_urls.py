@@ -68,3 +68,47 @@ def test_without_the_proxy_the_clip_addresses_are_the_plain_ones(settings):
     assert Stimulus(token="ab" * 16).video_url == f"/media/stimuli/{'ab' * 16}.mp4"
     settings.MEDIA_ACCEL = True
     assert Stimulus(token="ab" * 16).video_url.startswith(f"/media/stimuli/{'ab' * 16}.mp4?until=")
+
+
+def through_the_gate(url: str, method: str = "GET") -> tuple[str, dict[str, str], bool]:
+    """The status and headers the WSGI application gives ``url``, and whether Django answered it."""
+    from studyapp.server.clip_urls import answering_signed_clips
+
+    django_asked, answered = [], {}
+    path, _, query = url.partition("?")
+
+    def django(environ, start_response):
+        django_asked.append(environ["PATH_INFO"])
+        start_response("404 Not Found", [("Content-Type", "text/html")])
+        return [b"Django's answer"]
+
+    def start_response(status, headers):
+        answered.update(status=status, headers=dict(headers))
+
+    body = b"".join(answering_signed_clips(django)({"REQUEST_METHOD": method, "PATH_INFO": path, "QUERY_STRING": query},
+                                                    start_response))
+    assert body == (b"Django's answer" if django_asked else b"")
+    return answered["status"], answered["headers"], bool(django_asked)
+
+
+def test_a_signed_clip_is_answered_ahead_of_django_as_the_media_view_answers_it(client, behind_the_proxy):
+    url = signed_clip_url(CLIP)
+    status, headers, django_asked = through_the_gate(url)
+    view = client.get(url)
+
+    assert status == "200 OK" and not django_asked
+    assert headers["X-Accel-Redirect"] == view["X-Accel-Redirect"] == f"/_accel/media/{CLIP}"
+    assert headers["Cache-Control"] == view["Cache-Control"] and headers["Content-Length"] == "0"
+    assert through_the_gate(url, "HEAD")[0] == "200 OK"
+
+
+def test_every_other_clip_request_goes_on_to_django_which_refuses_it(behind_the_proxy, settings):
+    query = query_of(signed_clip_url(CLIP))
+    expired = signed_clip_url(CLIP, now=time.time() - settings.CLIP_URL_LIFETIME_S * 2)
+    for url in (f"/media/{CLIP}", f"/media/{CLIP}?until={query['until']}&sig={'0' * 32}", expired,
+                signed_clip_url("stimuli/.0123.mp4.part"), signed_clip_url("stimuli/absent.mp4"),
+                signed_clip_url("stimuli/../../etc/passwd"), "/media/reports/x.csv", "/p/some-study/"):
+        assert through_the_gate(url)[2], url
+    assert through_the_gate(signed_clip_url(CLIP), "POST")[2]
+    settings.MEDIA_ACCEL = False  # no proxy in front: the app sends the clip itself
+    assert through_the_gate(signed_clip_url(CLIP))[2]

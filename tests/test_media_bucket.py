@@ -1,13 +1,14 @@
 """The clips in an S3 bucket (``MEDIA_BUCKET_URL``), on a real S3 server this module starts
 (SeaweedFS, ``tests/s3_server.py``): a study's clips rendered by the workers' code and uploaded
-ones go to the bucket and nowhere under MEDIA_ROOT, a participant's clip request is answered
-with a redirect to an expiring address of the bucket that serves the same bytes (with ranges),
-and the study is rated and reported. Without a bucket the clips stay in MEDIA_ROOT, as the
+ones go to the bucket and nowhere under MEDIA_ROOT, a participant's page names each clip by an
+expiring address of the bucket that serves the same bytes (with ranges) and stops when it
+expires, and the study is rated and reported. Without a bucket the clips stay in MEDIA_ROOT, as the
 rest of the suite checks."""
 
 from __future__ import annotations
 
 import hashlib
+import time
 import urllib.error
 import urllib.request
 
@@ -22,6 +23,7 @@ from studyapp.models import Study
 from studyapp.researchers.results.reports import create_study_report, report_folder
 from studyapp.researchers.setup.duplication import duplicate_study
 from studyapp.researchers.setup.removal import delete_files
+from studyapp.server.bucket_addresses import presigned_clip_url
 from studyapp.server.media_bucket import bucket_storage
 from studyapp.stimuli.clips import claim
 from tests.s3_server import s3_server
@@ -69,10 +71,10 @@ def test_a_study_generated_rated_and_reported_keeps_its_clips_only_in_the_bucket
     assert claim(clips[0].pk, clips[0].task_id) is None  # a worker finds the clip done, in the bucket
 
     for clip in clips:
-        answer = Client().get(clip.video_url)  # a participant's browser, with no login
-        assert answer.status_code == 302 and "private" in answer["Cache-Control"]
-        target = answer["Location"]
+        target = clip.video_url  # what a participant's page names: the bucket's own address
         assert target.startswith(f"{s3.endpoint_url}/{s3.bucket}/{bucket}/{clip.relative_path}?")
+        answer = Client().get(f"/media/{clip.relative_path}")  # the app's address of it, with no login
+        assert answer.status_code == 302 and answer["Location"] == target and "private" in answer["Cache-Control"]
         found = s3.client().get_object(Bucket=s3.bucket, Key=f"{bucket}/{clip.relative_path}")
         stored = found["Body"].read()
         assert found["ContentType"] == "video/mp4"  # what Safari needs to play it
@@ -111,6 +113,13 @@ def test_the_bucket_sends_a_clip_kept_as_long_as_its_address_works_but_dated_by_
     uploaded = headers["Last-Modified"]  # the leak: when the clip went into the bucket
     assert answer_of(redirect["Location"], **{"If-Modified-Since": uploaded})[0] == 304
     assert headers["Etag"].strip('"') == hashlib.md5(b"\0\0\0\x18ftypmp42" + bytes(4096)).hexdigest()  # no time in it
+
+
+def test_the_bucket_refuses_a_clip_address_once_it_has_expired(bucket, settings):
+    default_storage.save("stimuli/0123abcd.mp4", ContentFile(b"\0\0\0\x18ftypmp42" + bytes(64)))
+    lifetime = settings.CLIP_URL_LIFETIME_S
+    assert answer_of(presigned_clip_url("stimuli/0123abcd.mp4"))[0] == 200
+    assert answer_of(presigned_clip_url("stimuli/0123abcd.mp4", now=time.time() - lifetime * 9 / 8 - 60))[0] == 403
 
 
 def test_a_clip_request_names_a_clip_file_or_is_refused_without_asking_the_bucket(bucket):

@@ -18,6 +18,9 @@ from django.http import Http404, HttpRequest, HttpResponse, HttpResponseNotAllow
 from django.utils.http import http_date
 
 CHUNK_BYTES = 64 * 1024
+# Where the proxy (deploy/Caddyfile) finds MEDIA_ROOT for the files this app tells it to send;
+# no client can ask for it: the proxy sends every request to the app, which answers 404 there.
+ACCEL_MEDIA_PREFIX = "/_accel/media/"
 _SINGLE_RANGE = re.compile(r"^bytes=(\d*)-(\d*)$")
 # No file has more bytes than this; longer numbers are read as "past any end" rather
 # than handed to int(), which refuses more than 4,300 digits.
@@ -73,7 +76,8 @@ def _read_span(path: Path, first: int, length: int) -> Iterator[bytes]:
             yield chunk
 
 
-def _resolve_inside(document_root: Path, relative_path: str) -> Path:
+def resolve_inside(document_root: Path, relative_path: str) -> Path:
+    """The file at ``relative_path`` in ``document_root``, or Http404 where there is none to serve."""
     # Hidden names are work in progress (atomic_output's ".NAME.*.part" temporaries)
     # or private; a half-written video must never be served. No file name holds a NUL,
     # which the operating system's calls refuse outright.
@@ -98,12 +102,19 @@ def accel_redirect(request: HttpRequest, path: str, document_root: str | Path,
     """
     if request.method not in ("GET", "HEAD"):
         return HttpResponseNotAllowed(["GET", "HEAD"])
-    root = Path(document_root).resolve()
-    target = _resolve_inside(root, path)
     response = HttpResponse()
-    response["X-Accel-Redirect"] = f"{internal_prefix.rstrip('/')}/{quote(target.relative_to(root).as_posix())}"
-    response["Cache-Control"] = f"private, max-age={max_age}"
+    for header, value in accel_headers(path, document_root, internal_prefix, max_age):
+        response[header] = value
     return response
+
+
+def accel_headers(path: str, document_root: str | Path, internal_prefix: str, max_age: int) -> list[tuple[str, str]]:
+    """The headers of ``accel_redirect``'s answer for `document_root/path` (Http404 where it
+    names no file to serve)."""
+    root = Path(document_root).resolve()
+    target = resolve_inside(root, path)
+    return [("X-Accel-Redirect", f"{internal_prefix.rstrip('/')}/{quote(target.relative_to(root).as_posix())}"),
+            ("Cache-Control", f"private, max-age={max_age}")]
 
 
 def serve_with_ranges(request: HttpRequest, path: str, document_root: str | Path,
@@ -115,7 +126,7 @@ def serve_with_ranges(request: HttpRequest, path: str, document_root: str | Path
     """
     if request.method not in ("GET", "HEAD"):
         return HttpResponseNotAllowed(["GET", "HEAD"])
-    target = _resolve_inside(Path(document_root), path)
+    target = resolve_inside(Path(document_root), path)
     stat = target.stat()
     size = stat.st_size
     try:

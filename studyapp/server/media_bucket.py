@@ -2,10 +2,10 @@
 
 With a bucket, ``STORAGES["default"]`` is django-storages' S3 storage: the workers upload
 each clip once it is rendered and checked whole (so a half-written clip is never in the
-bucket), and the media view, having decided that the clip may be seen, answers with a
-redirect to a presigned address of the bucket that expires after CLIP_URL_LIFETIME_S: the
-bucket (or a CDN in front of it) sends the bytes and answers ranges, and no app thread is
-held while a clip downloads. Without a bucket every function here works on MEDIA_ROOT as
+bucket), and the pages name each clip by a presigned address of the bucket that expires
+after CLIP_URL_LIFETIME_S (``bucket_addresses``; the media view answers the app's own address
+of a clip with a redirect there): the bucket (or a CDN in front of it) sends the bytes and
+answers ranges, and no app thread is held while a clip downloads. Without a bucket every function here works on MEDIA_ROOT as
 the app always has. The gallery and the reports stay under MEDIA_ROOT either way.
 """
 
@@ -26,6 +26,8 @@ from django.core.files import File
 from django.core.files.storage import default_storage
 from django.http import Http404, HttpRequest, HttpResponseBase, HttpResponseNotAllowed, HttpResponseRedirect
 
+from studyapp.server.bucket_addresses import LONGEST_EXPIRY_S, presigned_clip_url
+
 S3_STORAGE = "storages.backends.s3.S3Storage"
 CLIPS_FOLDER = "stimuli"
 # A clip's key is a plain file name in CLIPS_FOLDER; a hidden one is never a finished clip.
@@ -39,6 +41,10 @@ def bucket_storage(url: str, endpoint_url: str, lifetime_s: float) -> dict:
     parts = urlsplit(url)
     if parts.scheme != "s3" or not parts.netloc or parts.query or parts.fragment:
         raise ImproperlyConfigured(f"MEDIA_BUCKET_URL={url!r} is not s3://BUCKET or s3://BUCKET/PREFIX")
+    if lifetime_s * 9 / 8 > LONGEST_EXPIRY_S:  # an address lasts an eighth longer (bucket_addresses)
+        raise ImproperlyConfigured(f"CLIP_URL_LIFETIME_S={lifetime_s:g} is longer than a bucket's presigned address "
+                                   f"may last with an eighth more ({LONGEST_EXPIRY_S} s, 7 days): at most "
+                                   f"{LONGEST_EXPIRY_S * 8 // 9} s")
     if endpoint_url and urlsplit(endpoint_url).scheme not in ("http", "https"):
         raise ImproperlyConfigured(f"MEDIA_BUCKET_ENDPOINT_URL={endpoint_url!r} is not an http(s) address")
     options = {
@@ -110,17 +116,14 @@ def delete_clip(relative_path: str) -> None:
 def clip_redirect(request: HttpRequest, name: str) -> HttpResponseBase:
     """A redirect to the bucket's presigned, expiring address of the clip ``name`` in the clips'
     folder; any other key is not asked for. The browser may keep the redirect for an eighth of
-    the address's life, so that the clip it fetched ahead for the next page is the one that page
-    plays (the address changes with each signing)."""
+    the address's life, as long as the address it leads to is the one the pages name."""
     if request.method not in ("GET", "HEAD"):
         return HttpResponseNotAllowed(["GET", "HEAD"])
     if not _CLIP_NAME.fullmatch(name):
         raise Http404("No such file")
     # The bucket's answer is kept by the browser as long as the address works (S3's
     # response-cache-control). Its Last-Modified cannot be left out: see the deployment page.
-    lifetime = int(settings.CLIP_URL_LIFETIME_S)
-    address = default_storage.url(f"{CLIPS_FOLDER}/{name}",
-                                  parameters={"ResponseCacheControl": f"private, max-age={lifetime}"})
-    response = HttpResponseRedirect(address)
+    # The pages name the bucket's address itself; this answers an address of the app's.
+    response = HttpResponseRedirect(presigned_clip_url(f"{CLIPS_FOLDER}/{name}"))
     response["Cache-Control"] = f"private, max-age={int(settings.CLIP_URL_LIFETIME_S // 8)}"
     return response

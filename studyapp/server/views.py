@@ -13,14 +13,11 @@ from django.views.decorators.http import require_safe
 from studyapp.researchers.results.reports import REPORTS_FOLDER, report_owner
 from studyapp.server.celery import app as celery_app
 from studyapp.server.clip_urls import is_signed_and_current, seconds_left
-from studyapp.server.file_responses import accel_redirect, serve_with_ranges
+from studyapp.server.file_responses import ACCEL_MEDIA_PREFIX, accel_redirect, serve_with_ranges
 from studyapp.server.health import HealthReport, collect_health
 from studyapp.server.media_bucket import clip_redirect, in_bucket
 from studyapp.stimuli.gallery import GALLERY_FOLDER
 
-# Where the proxy (deploy/Caddyfile) finds MEDIA_ROOT for the files this app tells it to send;
-# no client can ask for it: the proxy sends every request to the app, which answers 404 here.
-ACCEL_MEDIA_PREFIX = "/_accel/media/"
 RESEARCHER_FILES_MAX_AGE_S = 3600  # the gallery and reports behind the proxy: an hour in the browser
 
 
