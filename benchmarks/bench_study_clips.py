@@ -13,11 +13,11 @@ size to the next so that a shared machine's load reaches each alike:
 - *gunicorn sends the clips* (the code before: the app without MEDIA_ACCEL, facing the
   participants; ``file_responses.serve_with_ranges`` streams each clip through a worker thread);
 - *proxy*: Caddy with deploy/Caddyfile in front of gunicorn, MEDIA_ACCEL on: the clips'
-  addresses signed and expiring, the app answering each with an empty X-Accel-Redirect and
-  Caddy sending the bytes from MEDIA_ROOT;
+  addresses signed and expiring, the app answering each (ahead of Django, ``clip_urls``) with
+  an empty X-Accel-Redirect and Caddy sending the bytes from MEDIA_ROOT;
 - *bucket*: the same proxy in front (as compose runs it), MEDIA_BUCKET_URL on a SeaweedFS
-  S3 server: the app answers each clip with a redirect to a presigned address and SeaweedFS
-  sends the bytes; the clips are only in the bucket.
+  S3 server: the pages name each clip by the bucket's presigned address and SeaweedFS sends
+  the bytes, no request to the app in between; the clips are only in the bucket.
 
 Gunicorn runs as compose's web service, on a throwaway PostgreSQL. The proxy speaks plain
 HTTP here (``STUDY_DOMAIN=http://127.0.0.1:PORT``, the Caddyfile's routes unchanged): the
@@ -103,7 +103,7 @@ class ClipWatchingParticipant(SimulatedParticipant):
         return super()._answer(page_url, body)
 
     def _download(self, url: str) -> None:
-        """The clip's bytes, redirects followed (the bucket's presigned address), as a browser's video element asks."""
+        """The clip's bytes (redirects followed), as a browser's video element asks for them."""
         self.fetched.add(url)
         self.outcome.clips += 1
         start = time.perf_counter()
