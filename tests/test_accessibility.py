@@ -277,6 +277,7 @@ def test_the_researchers_pages_pass_axe(browser, live_server, axe, settings, tmp
     study = rated_study()
     context = browser.new_context(**SCREENS[device])
     page = log_in(context, live_server, study)
+    page.wait_for_url(f"**{reverse('study-list')}")  # axe is to check the study list, not the login page
     findings = Findings(axe)
     findings.check(page, "study list after login")
     report = page.request.post(f"{live_server.url}{reverse('study-report', args=[study.pk])}", headers={

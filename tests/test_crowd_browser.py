@@ -95,7 +95,8 @@ def test_the_server_refuses_an_answer_sooner_than_the_clip_and_the_page_says_why
     page.click("button[name=value][value='4']")
     page.wait_for_selector("text=Please watch the clip to its end")
     assert "it lasts 60.0 s" in page.inner_text("body")
-    page.get_by_role("link", name="Back to the study").click()
+    with page.expect_navigation():  # the page left has #clip and the token too
+        page.get_by_role("link", name="Back to the study").click()
     page.wait_for_selector("#clip")
     assert on_screen(page) == token and Rating.objects.count() == 0
     participant = Participant.objects.get(platform_id="speeder")
@@ -127,6 +128,7 @@ def test_another_session_of_the_same_prolific_id_cannot_continue_and_the_researc
         page.keyboard.press("4")
         page.wait_for_load_state()
         page.wait_for_function(f"() => !document.body.innerHTML.includes('{token}')")
+    page.wait_for_load_state()  # the end page has arrived, but may not be all there yet
     assert study.completion_code in page.inner_text("body")
     context.close()
 
@@ -271,10 +273,12 @@ def test_device_check_and_questionnaires_in_a_browser_and_the_answers_reach_the_
     page.get_by_label("yes").check()
     page.get_by_role("button", name="Continue").click()
     page.get_by_role("button", name="Start").click()
+    page.wait_for_selector("#clip")  # wait_for_clip_end throws on a page without it
     wait_for_clip_end(page)
     page.keyboard.press("4")
     page.get_by_label("How old are you?").fill("37")
     page.get_by_role("button", name="Continue").click()
+    page.wait_for_selector("#completion-code")  # "body" is on the questions page too
     assert study.completion_code in page.inner_text("body")
     context.close()
 

@@ -120,14 +120,16 @@ def test_a_leaderboard_of_three_rounds_runs_end_to_end_and_its_public_page_shows
     third_round = Round.objects.get(study=third)
     page.locator(f"#id_round-{third_round.pk}-in_fit").uncheck()
     page.fill(f"#id_round-{third_round.pk}-left_out_because", "its clips were rendered with the old camera")
-    page.get_by_role("button", name="Save round 3").click()
+    with page.expect_navigation():  # the page before has the text too (a help text), and a long page arrives in parts
+        page.get_by_role("button", name="Save round 3").click()
     page.wait_for_selector("text=is left out of the fit")
     assert "left out: its clips were rendered with the old camera" in page.inner_text("#board-rounds")
 
     # The public page, turned on: what the researcher's page previews, read without logging in.
     assert "The public page is off" in page.inner_text("#public-state")
     page.locator("#id_public").check()
-    page.get_by_role("button", name="Save settings").click()
+    with page.expect_navigation():  # the preview, below the link, may not have arrived with it
+        page.get_by_role("button", name="Save settings").click()
     page.wait_for_selector("#public-link")
     public_url = page.locator("#public-link").get_attribute("href")
     preview = page.inner_text("#public-preview")

@@ -128,6 +128,7 @@ def test_the_answer_waits_for_every_slider_to_move_and_each_played_clip_is_marke
     for slot in slots:
         assert not page.locator(f'.clip [data-played="{slot}"]').is_visible()
         play_to_end(page, slot)
+        page.locator(f'.clip [data-played="{slot}"]').wait_for()  # set by the "ended" event, a moment after .ended
         assert page.locator(f'.clip [data-played="{slot}"]').is_visible()  # "played ✓" by its clip
         if device == "phone":
             assert page.locator(f'.clip-tabs [data-played="{slot}"]').is_visible()  # and on its tab

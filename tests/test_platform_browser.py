@@ -135,6 +135,7 @@ def test_the_researcher_sends_the_suggested_decisions_to_prolific_through_a_dry_
         page.get_by_role("button", name="Keep for this session").click()
         assert "Your API token is kept" in page.inner_text("#credentials-kept")
         page.get_by_role("button", name="Dry run: list the requests").first.click()
+        page.wait_for_url(f"**{reverse('study-platform-dry-run', args=[study.pk])}")  # h1 is on the page before too
         assert "Dry run: 4 requests to Prolific" in page.inner_text("h1") and prolific.requests == []
         plan = page.locator("#plan li").all()
         assert [item.locator("p.what").inner_text().strip() for item in plan] == [

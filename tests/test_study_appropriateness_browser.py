@@ -147,6 +147,7 @@ def take_part(browser, live_server, study: Study, pid: str, screen: dict, shots:
         page.get_by_role("button", name=f"{chosen} fits better").click()  # the choice first, then how much better
         page.get_by_role("button", name="clearly", exact=True).click()
         page.wait_for_function(f"() => !document.body.innerHTML.includes('{clips[0].token}')")
+    page.wait_for_load_state()  # the last page has arrived, but may not be all there yet
     text = page.inner_text("body")
     context.close()
     return text

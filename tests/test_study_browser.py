@@ -99,6 +99,7 @@ def take_part(browser, live_server, study, pid: str, value_for, early_at: int | 
             page.get_by_role("button", name=value, exact=True).click()
         page.wait_for_load_state()
         page.wait_for_function(f"() => !document.body.innerHTML.includes('{assignment.token}')")
+    page.wait_for_load_state()  # the last page has arrived, but may not be all there yet
     text = page.inner_text("body")
     context.close()
     return text

@@ -146,13 +146,15 @@ def take_part(browser, live_server, study: Study, pid: str, screen: dict, carefu
                                    f"|| !document.body.innerHTML.includes('{clips[0].token}')")
             answered = "Please watch every clip" not in page.inner_text("body")
             if not answered:
-                page.get_by_role("link", name="Back to the study").click()  # to the page, still to answer
+                with page.expect_navigation():  # the page left has video[data-slot] too; its script must run
+                    page.get_by_role("link", name="Back to the study").click()  # to the page, still to answer
                 page.wait_for_selector("video[data-slot]")
         if not answered:
             play_every_clip(page)
             answer_page(page, study, clips, careful)
         page.wait_for_function(f"() => !document.body.innerHTML.includes('{clips[0].token}')")
         first = False
+    page.wait_for_load_state()  # the last page has arrived, but may not be all there yet
     text = page.inner_text("body")
     context.close()
     return text

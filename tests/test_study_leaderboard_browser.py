@@ -42,6 +42,7 @@ def answer_in_browser(browser, live_server, study, pid: str, answers: list) -> N
             page.get_by_role("button", name=f"{clip} is better").click()  # the choice first, then its strength
             page.get_by_role("button", name=strength, exact=True).click()
         page.wait_for_function(f"() => !document.body.innerHTML.includes('{clips[0].token}')")
+    page.wait_for_load_state()  # the last page has arrived, but may not be all there yet
     assert study.completion_code in page.inner_text("body")
     context.close()
 

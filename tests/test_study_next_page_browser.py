@@ -97,6 +97,7 @@ def test_pages_follow_each_other_without_a_reload_their_next_clips_already_loade
 
     clips = current_page(participant)
     on_screen(page, clips[0].token)
+    page.wait_for_load_state()  # next-page.js set up, or the forced answer below is posted as a plain form
     page.evaluate("window.loadedOnce = true")  # gone if the document is ever loaded anew
     # Too soon by the server's clock however slow this machine is: the clips last a minute while it answers.
     first = Stimulus.objects.filter(assignments__in=clips)

@@ -90,20 +90,24 @@ def take_part(browser, live_server, study: Study, pid: str) -> list[str]:
     page.goto(f"{live_server.url}/p/{study.key}/?pid={pid}")
     pages.append(page.content())
     page.get_by_role("button", name="I agree to take part").click()
+    page.get_by_role("button", name="Start").wait_for()  # content() does not wait for the next page
     pages.append(page.content())
     page.get_by_role("button", name="Start").click()
     participant = Participant.objects.get(study=study, platform_id=pid)
-    for _ in participant.training:
+    for number, _ in enumerate(participant.training, start=1):
+        page.wait_for_selector(f"text=/Practice \\w+ {number} of/")  # the page before, not yet replaced
         pages.append(page.content())
         wait_for_clip_end(page)
         page.get_by_role("button", name="3", exact=True).click()
     while (assignment := current_clip(participant)) is not None:
-        page.wait_for_selector("#clip")
+        # Its own token, not #clip: the page before (practice's too) has a #clip.
+        page.wait_for_selector(f"input[name=assignment][value='{assignment.token}']", state="attached")
         pages.append(page.content())
         wait_for_clip_end(page)
         page.get_by_role("button", name="1" if assignment.stimulus.system.role == System.Role.BAD else "4",
                          exact=True).click()
         page.wait_for_function(f"() => !document.body.innerHTML.includes('{assignment.token}')")
+    page.wait_for_load_state()  # the last page has arrived, but may not be all there yet
     pages.append(page.content())
     context.close()
     return pages

@@ -57,6 +57,7 @@ def answer_in_browser(browser, live_server, study, pid: str, answers: list) -> N
             page.get_by_label("In your own words").fill(other)
         page.get_by_role("button", name=button).click()
         page.wait_for_function(f"() => !document.body.innerHTML.includes('{clips[0].token}')")
+    page.wait_for_load_state()  # the last page has arrived, but may not be all there yet
     assert study.completion_code in page.inner_text("body")
     context.close()
 
