@@ -76,7 +76,7 @@ def _read_span(path: Path, first: int, length: int) -> Iterator[bytes]:
             yield chunk
 
 
-def resolve_inside(document_root: Path, relative_path: str) -> Path:
+def _resolve_inside(document_root: Path, relative_path: str) -> Path:
     """The file at ``relative_path`` in ``document_root``, or Http404 where there is none to serve."""
     # Hidden names are work in progress (atomic_output's ".NAME.*.part" temporaries)
     # or private; a half-written video must never be served. No file name holds a NUL,
@@ -112,7 +112,7 @@ def accel_headers(path: str, document_root: str | Path, internal_prefix: str, ma
     """The headers of ``accel_redirect``'s answer for `document_root/path` (Http404 where it
     names no file to serve)."""
     root = Path(document_root).resolve()
-    target = resolve_inside(root, path)
+    target = _resolve_inside(root, path)
     return [("X-Accel-Redirect", f"{internal_prefix.rstrip('/')}/{quote(target.relative_to(root).as_posix())}"),
             ("Cache-Control", f"private, max-age={max_age}")]
 
@@ -126,7 +126,7 @@ def serve_with_ranges(request: HttpRequest, path: str, document_root: str | Path
     """
     if request.method not in ("GET", "HEAD"):
         return HttpResponseNotAllowed(["GET", "HEAD"])
-    target = resolve_inside(Path(document_root), path)
+    target = _resolve_inside(Path(document_root), path)
     stat = target.stat()
     size = stat.st_size
     try:
