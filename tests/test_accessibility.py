@@ -3,8 +3,8 @@
 runs) finds no serious or critical violation on any participant page of any design, on a
 desktop (1366×800) and a phone (390×844), nor on the researcher's pages; every rating
 control has a name in the browser's accessibility tree; and the whole participant path of
-each design is taken with the keyboard alone, with reduced motion asked for, nothing moving
-on the page but the clips.
+each design is taken with the keyboard alone, with reduced motion asked for: nothing moves on
+the page, and each clip waits for its play button.
 """
 
 from __future__ import annotations
@@ -142,7 +142,9 @@ def show_with_the_keyboard(page, slot: str) -> None:
 
 def answer_with_the_keyboard(page) -> None:
     """Answer the rating page on screen with Tab, arrows, Space and Enter only."""
-    if page.locator("#rating-form").count():  # one clip, a scale of buttons
+    if page.locator("#rating-form").count():  # one clip, a scale of buttons; motion reduced, it waits for Play
+        page.wait_for_function("() => document.getElementById('replay').textContent === 'Play'", timeout=20_000)
+        press(page, page.locator("#replay"))
         page.wait_for_function("() => document.getElementById('clip').ended", timeout=20_000)
         press(page, page.locator("button[name=value][value='3']"))
         return

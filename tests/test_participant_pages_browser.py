@@ -257,6 +257,32 @@ def test_the_clips_of_a_page_play_by_themselves_one_after_another_unless_motion_
 
 
 @pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("device", SCREENS)
+def test_a_single_clip_plays_by_itself_unless_motion_is_reduced_when_it_waits_for_its_button(
+        browser, live_server, clip_video, settings, tmp_path, device):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, bad_checks=0)
+    moving = enter(browser, live_server, study, SCREENS[device])
+    skip_to_ratings(moving, study)
+    moving.wait_for_function("() => document.getElementById('clip').ended", timeout=20_000)  # by itself
+    assert moving.locator("#replay").inner_text() == "Play again"
+
+    still = enter(browser, live_server, study, {**SCREENS[device], "reduced_motion": "reduce"}, pid="p2")
+    skip_to_ratings(still, study, "p2")
+    play = still.get_by_role("button", name="Play", exact=True)
+    play.wait_for()
+    # Loaded far enough to have started by itself, and still at its start, the answers locked.
+    still.wait_for_function("() => document.getElementById('clip').readyState >= HTMLMediaElement.HAVE_ENOUGH_DATA",
+                            timeout=20_000)
+    assert still.locator("#clip").evaluate("(video) => video.paused && video.currentTime === 0")
+    assert still.locator("button[name=value]").first.is_disabled()
+    play.click()
+    still.wait_for_function("() => !document.querySelector('button[name=value]').disabled", timeout=20_000)
+    assert still.locator("#clip").evaluate("(video) => video.ended")  # unlocked by its end
+    assert still.locator("#replay").inner_text() == "Play again"
+
+
+@pytest.mark.django_db(transaction=True)
 def test_a_phones_clip_tabs_show_every_sliders_rating(browser, live_server, clip_video, settings, tmp_path):
     settings.MEDIA_ROOT = tmp_path / "media"
     study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, bad_checks=0, **SIDE_BY_SIDE)

@@ -1,8 +1,9 @@
-// A page of one clip (the single design): the clip's times are recorded (seconds after the
-// page was shown; the server judges early answers with them), the answer buttons unlock at
-// the clip's first end where the study asks, and the keys answer too. next-page.js sets the
-// page up, on load and again for each page it swaps in: ``shownAt`` is the moment
-// (performance.now()) the page was shown, ``signal`` ends the page's listeners.
+// A page of one clip (the single design): the clip plays by itself unless motion is reduced,
+// its times are recorded (seconds after the page was shown; the server judges early answers
+// with them), the answer buttons unlock at the clip's first end where the study asks, and the
+// keys answer too. next-page.js sets the page up, on load and again for each page it swaps
+// in: ``shownAt`` is the moment (performance.now()) the page was shown, ``signal`` ends the
+// page's listeners.
 window.studyappSetUpPage = (shownAt, signal) => {
   const video = document.getElementById("clip");
   const form = document.getElementById("rating-form");
@@ -22,6 +23,17 @@ window.studyappSetUpPage = (shownAt, signal) => {
     unlock();
   });
   if (video.ended) video.dispatchEvent(new Event("ended"));  // ended before this script ran
+  // Where the participant asked for reduced motion the clip waits for its button, as the clips of
+  // a page of several do (page-clips.js); one that began before this script ran goes back to its start.
+  const replay = document.getElementById("replay");
+  if (window.matchMedia("(prefers-reduced-motion: reduce)").matches && !video.ended) {
+    video.autoplay = false;
+    video.pause();
+    video.currentTime = 0;
+    const again = replay.textContent;
+    replay.textContent = replay.dataset.firstLabel;
+    on(video, "playing", () => { replay.textContent = again; });
+  }
   // A clip swapped in had loaded while the page before it played: autoplay starts only a loading clip.
   if (video.paused && video.autoplay && video.readyState >= HTMLMediaElement.HAVE_FUTURE_DATA) {
     video.play().catch(() => {});
@@ -38,7 +50,7 @@ window.studyappSetUpPage = (shownAt, signal) => {
     video.play().catch(() => {});
   });
 
-  on(document.getElementById("replay"), "click", () => { video.currentTime = 0; video.play(); });
+  on(replay, "click", () => { video.currentTime = 0; video.play(); });
   on(document.getElementById("enlarge"), "click", () => {
     // The whole screen where the browser allows it; iPhones only let the video itself go full screen.
     const stage = document.getElementById("stage");
