@@ -133,11 +133,17 @@ def page_id(page) -> str:
 
 
 def show_with_the_keyboard(page, slot: str) -> None:
-    """Bring clip ``slot`` on screen: on a phone, by choosing its tab (a desktop shows every clip)."""
+    """Bring clip ``slot`` on screen: on a phone, by choosing its tab with the arrow keys from the
+    chosen one, the tab in the Tab order (a desktop shows every clip)."""
     tab = page.locator(f'.clip-tabs [data-tab="{slot}"]')
     if tab.is_visible():
-        press(page, tab)
+        tab_to(page, page.locator(".clip-tabs [aria-selected=true]"))
+        for _ in range(page.locator(".clip-tabs [data-tab]").count()):
+            if tab.get_attribute("aria-selected") == "true":
+                break
+            page.keyboard.press("ArrowRight")
         assert tab.get_attribute("aria-selected") == "true"
+        assert tab.evaluate("(element) => element === document.activeElement")
 
 
 def answer_with_the_keyboard(page) -> None:

@@ -211,6 +211,27 @@ def figure_height(page, slot: str) -> int:
 
 
 @pytest.mark.django_db(transaction=True)
+def test_a_phones_clip_tabs_are_one_stop_of_the_tab_key_and_the_arrows_choose_among_them(
+        browser, live_server, clip_video, settings, tmp_path):
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, bad_checks=0, **SIDE_BY_SIDE)
+    page = enter(browser, live_server, study, {**PHONE, "reduced_motion": "reduce"})
+    skip_to_ratings(page, study)
+    tabs = page.locator(".clip-tabs [data-tab]")
+    chosen = lambda: page.evaluate(  # noqa: E731 (the chosen tab, the focused one, and which is in the Tab order)
+        """() => [...document.querySelectorAll('.clip-tabs [data-tab]')].map((tab) =>
+            `${tab.dataset.tab}:${tab.getAttribute('aria-selected')}:${tab.tabIndex}:${tab === document.activeElement}`)""")
+    assert tabs.count() == 3 and page.locator(".clips > .clip[role=tabpanel]").count() == 3
+    tabs.first.focus()
+    assert chosen() == ["1:true:0:true", "2:false:-1:false", "3:false:-1:false"]
+    for key, expected in (("ArrowRight", "2"), ("ArrowRight", "3"), ("ArrowRight", "1"), ("ArrowLeft", "3"),
+                          ("Home", "1"), ("End", "3")):
+        page.keyboard.press(key)
+        assert [state for state in chosen() if ":true:0:true" in state] == [f"{expected}:true:0:true"], key
+        assert page.locator(f"#clip-{expected}").is_visible() and len(visible_clips(page)) == 1, key
+
+
+@pytest.mark.django_db(transaction=True)
 @pytest.mark.parametrize("models", [2, 3])  # with NAT and the BAD anchor: 4 and 5 clips
 def test_four_or_five_clips_in_a_row_draw_the_character_large_with_submit_on_the_screen(
         browser, live_server, clip_video, settings, tmp_path, models):

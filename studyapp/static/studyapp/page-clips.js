@@ -78,10 +78,25 @@ window.studyappSetUpPage = (shownAt, signal) => {
     const show = (slot) => {
       videos.forEach((video) => video.pause());
       sections.forEach((section) => section.classList.toggle("current", section.id === `clip-${slot}`));
-      buttons.forEach((button) => button.setAttribute("aria-selected", String(button.dataset.tab === slot)));
+      buttons.forEach((button) => {
+        const selected = button.dataset.tab === slot;
+        button.setAttribute("aria-selected", String(selected));
+        button.tabIndex = selected ? 0 : -1;  // the chosen tab alone in the Tab order; the arrows move along them
+      });
       playNext();
     };
     buttons.forEach((button) => on(button, "click", () => show(button.dataset.tab)));
+    sections.forEach((section) => section.setAttribute("role", "tabpanel"));
+    // ARIA's tabs pattern: left and right arrows (round the ends), Home and End choose a tab.
+    on(tabs, "keydown", (event) => {
+      const at = buttons.indexOf(document.activeElement);
+      const to = { ArrowRight: at + 1, ArrowLeft: at - 1, Home: 0, End: buttons.length - 1 }[event.key];
+      if (at < 0 || to === undefined || event.altKey || event.ctrlKey || event.metaKey) return;
+      event.preventDefault();
+      const next = buttons[(to + buttons.length) % buttons.length];
+      next.focus();
+      show(next.dataset.tab);
+    });
     document.querySelector(".clips").classList.add("tabbed");
     tabs.hidden = false;
     show(buttons[0].dataset.tab);
