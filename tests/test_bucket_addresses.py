@@ -74,3 +74,16 @@ def test_the_pages_of_a_few_minutes_name_a_clip_by_one_bucket_address(bucket):
 def test_a_clip_lifetime_no_bucket_address_can_last_is_refused_at_start_up():
     with pytest.raises(ImproperlyConfigured, match=r"CLIP_URL_LIFETIME_S=600000 .* at most 537600 s"):
         bucket_storage("s3://study-media", "", 600_000)
+
+
+def test_a_bucket_without_a_key_is_named_rather_than_signed_for(settings, monkeypatch):
+    for name in ("AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY", "AWS_SESSION_TOKEN", "AWS_PROFILE"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("AWS_SHARED_CREDENTIALS_FILE", "/nonexistent")
+    monkeypatch.setenv("AWS_CONFIG_FILE", "/nonexistent")
+    monkeypatch.setenv("AWS_EC2_METADATA_DISABLED", "true")
+    settings.MEDIA_BUCKET_URL = "s3://keyless-media"
+    settings.STORAGES = {**settings.STORAGES, "default": bucket_storage(
+        settings.MEDIA_BUCKET_URL, "http://127.0.0.1:1", settings.CLIP_URL_LIFETIME_S)}
+    with pytest.raises(ImproperlyConfigured, match="no key for the bucket keyless-media: set AWS_ACCESS_KEY_ID"):
+        presigned_clip_url(CLIP)

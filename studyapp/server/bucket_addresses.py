@@ -23,6 +23,7 @@ from urllib.parse import parse_qsl, quote, urlsplit
 
 import boto3
 from django.conf import settings
+from django.core.exceptions import ImproperlyConfigured
 from django.core.files.storage import default_storage
 
 ALGORITHM = "AWS4-HMAC-SHA256"
@@ -83,14 +84,17 @@ def _encode(text: str) -> str:
 def _bucket_address(bucket_name: str, location: str, endpoint_url: str | None) -> BucketAddress:
     """The storage's bucket as boto3 addresses it (the arguments are the cache's key: a test's
     or a deployment's bucket)."""
+    credentials = _session(default_storage).get_credentials()
+    if credentials is None:
+        raise ImproperlyConfigured(f"no key for the bucket {bucket_name}: set AWS_ACCESS_KEY_ID and "
+                                   "AWS_SECRET_ACCESS_KEY (or give the machine a role boto3 finds)")
     signed = urlsplit(default_storage.url(_PROBE))
     key_path = quote(f"{location.strip('/')}/{_PROBE}".lstrip("/"), safe="/-_.~")
     if not signed.path.endswith("/" + key_path):
         raise RuntimeError(f"boto3 addresses {_PROBE} in bucket {bucket_name} as {signed.path}, not ending in {key_path}")
     credential = dict(parse_qsl(signed.query))["X-Amz-Credential"]  # KEY/DAY/REGION/s3/aws4_request
-    return BucketAddress(origin=f"{signed.scheme}://{signed.netloc}",
-                         path_before_key=signed.path[: -len(_PROBE)],
-                         region=credential.split("/")[-3], credentials=_session(default_storage).get_credentials())
+    return BucketAddress(origin=f"{signed.scheme}://{signed.netloc}", path_before_key=signed.path[: -len(_PROBE)],
+                         region=credential.split("/")[-3], credentials=credentials)
 
 
 def _session(storage) -> boto3.Session:
