@@ -28,6 +28,7 @@ from studyapp.bounds import Within, storable_json
 from studyapp.designs import registry as designs
 from studyapp.server.bucket_addresses import presigned_clip_url
 from studyapp.server.clip_urls import signed_clip_url
+from studyapp.server.media_bucket import in_bucket
 
 NATURAL_NAME, ATTENTION_NAME = "NAT", "BAD"  # the names the analysis expects for these roles
 # A name that is a plain file name on every system: a control's export id where its name is one.
@@ -596,7 +597,7 @@ class Stimulus(models.Model):
 
     @property
     def video_url(self) -> str:
-        if settings.MEDIA_BUCKET_URL:  # the bucket's own expiring address (studyapp.server.bucket_addresses)
+        if in_bucket():  # the bucket's own expiring address (studyapp.server.bucket_addresses)
             return presigned_clip_url(self.relative_path)
         if settings.MEDIA_ACCEL:  # behind the proxy: an address that expires (studyapp.server.clip_urls)
             return signed_clip_url(self.relative_path)

@@ -229,6 +229,7 @@ def test_a_phones_clip_tabs_are_one_stop_of_the_tab_key_and_the_arrows_choose_am
         page.keyboard.press(key)
         assert [state for state in chosen() if ":true:0:true" in state] == [f"{expected}:true:0:true"], key
         assert page.locator(f"#clip-{expected}").is_visible() and len(visible_clips(page)) == 1, key
+    shoot(page, "side-by-side-phone-tab-chosen-by-keyboard")
 
 
 @pytest.mark.django_db(transaction=True)
@@ -297,6 +298,7 @@ def test_a_single_clip_plays_by_itself_unless_motion_is_reduced_when_it_waits_fo
                             timeout=20_000)
     assert still.locator("#clip").evaluate("(video) => video.paused && video.currentTime === 0")
     assert still.locator("button[name=value]").first.is_disabled()
+    shoot(still, f"single-clip-reduced-motion-{device}")
     play.click()
     still.wait_for_function("() => !document.querySelector('button[name=value]').disabled", timeout=20_000)
     assert still.locator("#clip").evaluate("(video) => video.ended")  # unlocked by its end

@@ -3,10 +3,11 @@ with AWS's signature version 4 for query strings, so that a participant's page n
 clip by the bucket's own address and the browser fetches it from the bucket, with no request
 to the app in between.
 
-boto3 signs an address with the moment it is made; here the signing time is rounded down to
-an eighth of CLIP_URL_LIFETIME_S and the address lasts that eighth longer, as ``clip_urls``
-does for the proxy: every page of those minutes, from any gunicorn worker, names a clip by one
-address, so a clip fetched ahead for the next page is the one that page plays. Where the
+boto3 signs an address with the moment it is made; here the address ends when ``clip_urls``'
+addresses for the proxy end (``address_until``: the lifetime on, rounded up to an eighth of
+it) and is signed as of its lifetime and an eighth before that: every page of those minutes,
+from any gunicorn worker, names a clip by one address, so a clip fetched ahead for the next
+page is the one that page plays. Where the
 bucket's addresses point and its region are read once from an address boto3 signs, and the
 key is the one django-storages' session finds (refreshed as boto3 refreshes a role's).
 """
@@ -16,7 +17,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import hmac
-import time
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from urllib.parse import parse_qsl, quote, urlsplit
@@ -25,6 +25,8 @@ import boto3
 from django.conf import settings
 from django.core.exceptions import ImproperlyConfigured
 from django.core.files.storage import default_storage
+
+from studyapp.server.clip_urls import address_until
 
 ALGORITHM = "AWS4-HMAC-SHA256"
 LONGEST_EXPIRY_S = 7 * 24 * 3600  # the longest an S3 presigned address may last
@@ -45,10 +47,9 @@ def presigned_clip_url(relative_path: str, now: float | None = None) -> str:
     """The bucket's address of the clip ``relative_path`` (``stimuli/<token>.mp4``), working for
     CLIP_URL_LIFETIME_S and at most an eighth more, its answer kept by the browser that long."""
     lifetime = settings.CLIP_URL_LIFETIME_S
-    step = lifetime / 8
-    signed_at = int((now if now is not None else time.time()) // step * step)
+    expires_s = int(lifetime * 9 / 8)
     bucket = _bucket_address(default_storage.bucket_name, default_storage.location, default_storage.endpoint_url)
-    return sign_get(bucket, relative_path, signed_at, int(lifetime + step),
+    return sign_get(bucket, relative_path, address_until(now) - expires_s, expires_s,
                     {"response-cache-control": f"private, max-age={int(lifetime)}"})
 
 

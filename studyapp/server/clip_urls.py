@@ -34,12 +34,18 @@ def _signature(relative_path: str, until: int) -> str:
     return salted_hmac(_SALT, f"{relative_path}\0{until}", algorithm="sha256").hexdigest()[:32]
 
 
+def address_until(now: float | None = None) -> int:
+    """When a clip address made at ``now`` stops working: CLIP_URL_LIFETIME_S later, rounded up
+    to an eighth of it (the rule of the proxy's addresses and of the bucket's)."""
+    lifetime = settings.CLIP_URL_LIFETIME_S
+    step = lifetime / 8
+    return int(math.ceil(((now if now is not None else time.time()) + lifetime) / step) * step)
+
+
 def signed_clip_url(relative_path: str, now: float | None = None) -> str:
     """The address of the clip at ``relative_path`` under MEDIA_ROOT, working for CLIP_URL_LIFETIME_S
     (and at most an eighth more)."""
-    lifetime = settings.CLIP_URL_LIFETIME_S
-    step = lifetime / 8
-    until = int(math.ceil(((now if now is not None else time.time()) + lifetime) / step) * step)
+    until = address_until(now)
     query = urlencode({UNTIL: until, SIGNATURE: _signature(relative_path, until)})
     return f"/{settings.MEDIA_URL.strip('/')}/{relative_path}?{query}"
 
