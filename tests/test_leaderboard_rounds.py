@@ -300,6 +300,8 @@ def test_the_public_page_shows_the_board_and_no_participant_data_and_the_researc
                "my cat typed this", "secret-pid"]
     for secret in secrets:
         assert secret not in html and secret not in csv_text, secret
+    for researchers_page in ("study-list", "gallery", "analysis", "health", "login"):  # no way in from the public page
+        assert f'href="{reverse(researchers_page)}"' not in html, researchers_page
     owner = Client()
     owner.force_login(board.owner)
     researcher_page = owner.get(reverse("leaderboard", args=[board.pk])).content.decode()
