@@ -296,6 +296,24 @@ def test_an_expired_form_is_explained_in_the_studys_language():
     assert response.status_code == 403 and "Diese Seite war abgelaufen" in response.content.decode()
 
 
+def test_refusals_made_before_the_view_come_in_the_studys_language_on_its_pages_only():
+    study = make_study(language=Study.Language.GERMAN)
+    client = Client()
+    enter(client, study)
+    nul = client.get(f"/p/{study.key}/now/", {"x": "a\x00"})
+    page = nul.content.decode()
+    assert nul.status_code == 400 and '<html lang="de">' in page, page[:300]
+    assert "Der Parameter x der Adresse enthält ein NUL-Zeichen" in page and "Ungültige Anfrage" in page
+    too_large = client.post(f"/p/{study.key}/rate/", data=b"", content_type="application/x-www-form-urlencoded",
+                            CONTENT_LENGTH=str(10**9))
+    page = too_large.content.decode()
+    assert too_large.status_code == 413 and "Der Upload hat 1.000,0 MB; diese Seite nimmt höchstens" in page, page[-600:]
+    english = Client().post("/studies/new/", {"title": "a\x00"})  # a researcher's page: English, as they all are
+    assert english.status_code == 400 and "The form field title holds a NUL character" in english.content.decode()
+    no_study = Client().get("/p/no-such-study/now/", {"x": "a\x00"}).content.decode()
+    assert "The query parameter x holds a NUL character" in no_study
+
+
 def test_the_study_form_sets_the_language_and_one_from_before_the_setting_keeps_it():
     study = make_study(controls=0, is_open=False)
     form = StudyForm(study_fields(language="de"), instance=study)

@@ -7,11 +7,17 @@ refusals (raised with their words in that language) all come in it, and the lang
 thread had before comes back when the view returns. Only the app's own words are
 translated: the researcher's texts (title, instructions, consent, question, scale labels,
 questions) are shown as they were written.
+
+A refusal made before the view runs (a middleware's: a NUL character, an oversized body)
+is said in the study's language too where the view is a participant page, which
+``in_study_language`` marks.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from contextlib import AbstractContextManager
+from typing import Any
 
 from django.conf import settings
 from django.utils import translation
@@ -31,4 +37,23 @@ def speak(study: Study) -> Study:
     return study
 
 
-__all__ = ["participant_language", "speak"]
+# The attribute marking a participant view; it survives decorators outside it (functools.wraps copies it).
+_MARK = "in_study_language"
+
+
+def in_study_language(view: Callable) -> Callable:
+    """Mark ``view`` (taking the study's entry ``key``) as a participant page, said in its study's language."""
+    setattr(view, _MARK, True)
+    return view
+
+
+def language_before_view(view: Callable, kwargs: dict[str, Any]) -> str:
+    """The language of a refusal made before ``view`` runs with ``kwargs``: its study's for a
+    participant page of a study that exists, else the project's."""
+    key = kwargs.get("key") if getattr(view, _MARK, False) else None
+    if not isinstance(key, str) or "\x00" in key:  # PostgreSQL cannot even compare text with NUL
+        return settings.LANGUAGE_CODE
+    return Study.objects.filter(key=key).values_list("language", flat=True).first() or settings.LANGUAGE_CODE
+
+
+__all__ = ["in_study_language", "language_before_view", "participant_language", "speak"]

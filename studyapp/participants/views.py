@@ -25,7 +25,7 @@ from django.views.decorators.http import require_POST, require_safe
 
 from studyapp.models import Participant, StoredDataError, Study, json_object, new_token
 from studyapp.participants.assignment import StudyFull, StudyNotReady, enrol
-from studyapp.participants.language import participant_language, speak
+from studyapp.participants.language import in_study_language, participant_language, speak
 from studyapp.participants.path import Step, current_page, may_post, message, stage
 from studyapp.participants.refusal import AnswerRefused
 from studyapp.participants.study_cache import current_study
@@ -97,7 +97,9 @@ def plain_pages(view: Callable[..., HttpResponse]) -> Callable[..., HttpResponse
     """Whatever goes wrong, a participant gets a plain page of the study's own, never
     Django's error or debug pages: a missing study or page (404), a row of the study's
     that its code cannot read (503) or a server error (500, its traceback logged). Its pages
-    are in the study's language from the moment the study is read (``language``)."""
+    are in the study's language from the moment the study is read (``language``), and so are the
+    refusals made before the view runs (``in_study_language``)."""
+    @in_study_language
     @wraps(view)
     def shielded(request: HttpRequest, *args, **kwargs) -> HttpResponse:
         with participant_language():

@@ -6,8 +6,8 @@ and was a server error on the deployed one, and so was such a study key, rating 
 session cookie. No browser sends NUL in earnest, so the request is checked once here, on
 every database alike: an address whose parts hold NUL names nothing (404, as a missing
 file is), and a NUL in a query parameter, a form field (name or value), a cookie or a
-header is a 400 naming where it was. Text read from an uploaded file is checked by the
-page that stores it (``null_character_in``).
+header is a 400 naming where it was, in the study's language on a participant page. Text
+read from an uploaded file is checked by the page that stores it (``null_character_in``).
 """
 
 from __future__ import annotations
@@ -17,6 +17,12 @@ from typing import Any
 
 from django.http import Http404, HttpRequest, HttpResponse
 from django.template.loader import render_to_string
+from django.utils import translation
+from django.utils.text import capfirst
+from django.utils.translation import gettext as _
+from django.utils.translation import gettext_lazy
+
+from studyapp.participants.language import language_before_view
 
 NUL = "\x00"
 
@@ -26,23 +32,34 @@ def _shown(name: str) -> str:
     return name.replace(NUL, "\\0")[:60]
 
 
-def _texts(request: HttpRequest) -> Iterator[tuple[str, str]]:
-    """(where, text) of every piece of text the request sends besides its address."""
-    for what, data in (("query parameter", request.GET), ("form field", request.POST)):
+# Where a text was, by the kind of text (_texts), said in the refusal's language.
+_WHERE = {"query": gettext_lazy("the query parameter %(name)s"), "form": gettext_lazy("the form field %(name)s"),
+          "cookie": gettext_lazy("the cookie %(name)s"), "header": gettext_lazy("the header %(name)s")}
+
+
+def _texts(request: HttpRequest) -> Iterator[tuple[str, str, str]]:
+    """(kind, name, text) of every piece of text the request sends besides its address."""
+    for kind, data in (("query", request.GET), ("form", request.POST)):
         for name, values in data.lists():
-            yield f"the {what} {_shown(name)}", name
+            yield kind, name, name
             for value in values:
-                yield f"the {what} {_shown(name)}", value
+                yield kind, name, value
     for name, value in request.COOKIES.items():  # a quoted cookie may spell NUL as \000
-        yield f"the cookie {_shown(name)}", name + value
+        yield "cookie", name, name + value
     for key, value in request.META.items():
         if key.startswith("HTTP_"):
-            yield f"the header {key.removeprefix('HTTP_').replace('_', '-').title()}", value
+            yield "header", key, value
 
 
 def null_character_at(request: HttpRequest) -> str | None:
-    """Where the request's first NUL character is, or None."""
-    return next((where for where, text in _texts(request) if NUL in text), None)
+    """Where the request's first NUL character is (in the language active), or None."""
+    found = next(((kind, name) for kind, name, text in _texts(request) if NUL in text), None)
+    if found is None:
+        return None
+    kind, name = found
+    if kind == "header":  # HTTP_USER_AGENT: User-Agent
+        name = name.removeprefix("HTTP_").replace("_", "-").title()
+    return _WHERE[kind] % {"name": _shown(name)}
 
 
 def null_character_in(value: Any, where: str = "") -> str | None:
@@ -83,9 +100,9 @@ class RefuseNullCharactersMiddleware:
     def process_view(self, request: HttpRequest, view, args, kwargs) -> HttpResponse | None:
         if any(NUL in str(part) for part in (*args, *kwargs.values())):
             raise Http404("an address with a NUL character")
-        where = null_character_at(request)
-        if where is None:
+        if not any(NUL in text for _kind, _name, text in _texts(request)):
             return None
-        explanation = (f"{where[0].upper()}{where[1:]} holds a NUL character (\\0), which no text here may "
-                       "contain. Please check the link or what was typed.")
-        return HttpResponse(render_to_string("400.html", {"explanation": explanation}), status=400)
+        with translation.override(language_before_view(view, kwargs)):
+            explanation = _("%(where)s holds a NUL character (\\0), which no text here may contain. Please check "
+                            "the link or what was typed.") % {"where": capfirst(null_character_at(request))}
+            return HttpResponse(render_to_string("400.html", {"explanation": explanation}), status=400)

@@ -3,7 +3,8 @@
 Django would stream a large upload to a temporary file and only then let a form see
 its size, so a 600 MB file cost 600 MB of disk and the time to receive it before the
 refusal. The declared length (``Content-Length``) is checked first instead; Django
-never reads past it, so a body cannot be longer than it claims.
+never reads past it, so a body cannot be longer than it claims. On a participant page the
+refusal is in the study's language.
 """
 
 from __future__ import annotations
@@ -13,22 +14,34 @@ from collections.abc import Callable
 from django.conf import settings
 from django.http import HttpRequest, HttpResponse
 from django.template.loader import render_to_string
-from django.urls import Resolver404, resolve
+from django.urls import Resolver404, ResolverMatch, resolve
+from django.utils import translation
+from django.utils.formats import number_format
+from django.utils.translation import gettext as _
 
 from studyapp.definitions.reading import MAX_DEFINITION_BYTES
+from studyapp.participants.language import language_before_view
 
 # Room for a form's other fields and the multipart boundaries around its file.
 FORM_MARGIN_BYTES = 1_000_000
+
+
+def _page(path: str) -> ResolverMatch | None:
+    try:
+        return resolve(path)
+    except Resolver404:
+        return None
 
 
 def request_limit(path: str) -> int:
     """The most bytes a request to ``path`` may carry: the systems page takes checkpoints
     and videos, the import page a study bundle, the definition page a definition, every
     other page at most a ratings table or a control file."""
-    try:
-        name = resolve(path).url_name
-    except Resolver404:
-        name = None
+    return _limit(_page(path))
+
+
+def _limit(page: ResolverMatch | None) -> int:
+    name = page.url_name if page else None
     if name == "study-systems":
         return max(settings.MAX_CHECKPOINT_UPLOAD_BYTES, settings.MAX_VIDEO_UPLOAD_BYTES) + FORM_MARGIN_BYTES
     if name == "study-import":
@@ -36,6 +49,11 @@ def request_limit(path: str) -> int:
     if name == "study-from-definition":
         return MAX_DEFINITION_BYTES + FORM_MARGIN_BYTES
     return settings.DATA_UPLOAD_MAX_MEMORY_SIZE + FORM_MARGIN_BYTES
+
+
+def _megabytes(size: int, decimals: int) -> str:
+    """``size`` bytes in MB, written as the active language writes numbers."""
+    return number_format(size / 1e6, decimal_pos=decimals, force_grouping=True)
 
 
 class UploadLimitMiddleware:
@@ -48,11 +66,13 @@ class UploadLimitMiddleware:
         declared = request.META.get("CONTENT_LENGTH") or "0"
         # A length that is no number, or one thousands of digits long, is no upload either.
         size = int(declared) if declared.isdigit() and len(declared) <= 18 else None
-        limit = request_limit(request.path_info)
-        if size is None or size > limit:
-            what = f"{size / 1e6:,.1f} MB" if size is not None else f"of unreadable length {declared[:20]!r}"
-            explanation = (f"The upload is {what}; this page takes at most {limit / 1e6:,.0f} MB in one request. "
-                           "Upload fewer or smaller files at a time.")
-            page = render_to_string("413.html", {"explanation": explanation})
-            return HttpResponse(page, status=413)
-        return self.get_response(request)
+        page = _page(request.path_info)
+        limit = _limit(page)
+        if size is not None and size <= limit:
+            return self.get_response(request)
+        with translation.override(language_before_view(page.func, page.kwargs) if page else settings.LANGUAGE_CODE):
+            what = (_("%(size)s MB") % {"size": _megabytes(size, 1)} if size is not None
+                    else _("of unreadable length %(length)s") % {"length": repr(declared[:20])})
+            explanation = _("The upload is %(what)s; this page takes at most %(limit)s MB in one request. Upload "
+                            "fewer or smaller files at a time.") % {"what": what, "limit": _megabytes(limit, 0)}
+            return HttpResponse(render_to_string("413.html", {"explanation": explanation}), status=413)
