@@ -1,9 +1,11 @@
 """The participant's pages in a real browser (headless Debian Chromium), on a desktop
 (1366×768) and a phone (390×844): what the multi-clip pages' script does (the slider's
 number, the sliders that must be moved, the played marks, one clip at a time on a phone),
-what each page shows where (above the fold, on one line, no dark edge on a clip), and every
-page of every design with nothing wider than the screen. With $SHOTS_DIR set, each page is
-also saved there as a PNG, to be looked at."""
+what each page shows where (above the fold, on one line, no dark edge on a clip), and
+`every_page`, the walk through every page of a design that checks nothing on it is wider
+than the screen (tests/test_accessibility.py takes it for every design on both screens,
+checking each page with axe-core too). With $SHOTS_DIR set, each page is also saved there
+as a PNG, to be looked at."""
 
 from __future__ import annotations
 
@@ -16,8 +18,7 @@ import pytest
 from django.utils import timezone
 from PIL import Image
 
-from studyapp.models import Assignment, ControlSignal, Participant, Question, Rating, Stimulus, Study, System
-from tests.appropriateness_fixtures import make_appropriateness_study
+from studyapp.models import Assignment, ControlSignal, Participant, Rating, Stimulus, Study, System
 from tests.study_fixtures import make_study
 from tests.test_study_browser import browser, clip_video  # noqa: F401 (fixtures)
 
@@ -481,23 +482,3 @@ def answer_by_hand(assignments: list[Assignment]) -> None:
         on_scale = study.design in ("single", "side-by-side")
         Rating.objects.create(assignment=assignment, value=study.scale_min if on_scale else None,
                               answer="" if on_scale else Rating.Answer.LEFT, client_answered_s=5.0)
-
-
-@pytest.mark.django_db(transaction=True)
-@pytest.mark.parametrize("design", ["single", "side-by-side", "pairwise", "appropriateness"])
-@pytest.mark.parametrize("device", SCREENS)
-def test_every_participant_page_of_every_design_fits_the_screen(browser, live_server, clip_video, settings, tmp_path,
-                                                                design, device):
-    settings.MEDIA_ROOT = tmp_path / "media"
-    common = {"video": clip_video, "clip_seconds": CLIP_SECONDS, "training_clips": 1, "instructed_checks": 1,
-              "device_check": True, "min_screen_width": 360, "stopped_code": "ST0PPED", "screen_out_code": "SCR33N"}
-    fields = {"single": {"clips_per_participant": 4}, "side-by-side": SIDE_BY_SIDE,
-              "pairwise": {"design": "pairwise", "pages_per_participant": 3, "preference_strengths": 3}}
-    study = (make_appropriateness_study(**common) if design == "appropriateness"
-             else make_study(controls=2, **common, **fields[design]))
-    Question.objects.create(study=study, part=Question.Part.BEFORE, name="vision",
-                            text="Do you have normal or corrected-to-normal vision?", choices="yes\nno", accepted="yes")
-    Question.objects.create(study=study, part=Question.Part.AFTER, name="comments", text="Any comments?",
-                            kind=Question.Kind.TEXT, required=False)
-    page = enter(browser, live_server, study, SCREENS[device], pid="tour")
-    every_page(study, page, f"{design}-{device}")
