@@ -21,6 +21,7 @@ REPO = Path(__file__).resolve().parents[1]
 CADDYFILE = REPO / "deploy" / "Caddyfile"
 STATIC = REPO / "studyapp" / "static"
 START_TIMEOUT_S = 60
+CERTIFICATE_RETRY = '"logger":"tls.obtain","msg":"will retry"'
 
 
 class Proxy:
@@ -38,17 +39,28 @@ class Proxy:
                        "STATIC_ROOT": str(STATIC), "XDG_DATA_HOME": str(data), "XDG_CONFIG_HOME": str(data),
                        "HOME": str(folder)}
         self.log = (folder / "caddy.log").open("w")
-        self.process = subprocess.Popen(["caddy", "run", "--config", str(CADDYFILE), "--adapter", "caddyfile"],
-                                        cwd=folder, env=environment, stdout=self.log, stderr=subprocess.STDOUT)
+        self._folder, self._environment = folder, environment
+        self.process = self._start()
         root_certificate = data / "caddy" / "pki" / "authorities" / "local" / "root.crt"
         self.tls = self._answering(root_certificate if https else None)
+
+    def _start(self) -> subprocess.Popen:
+        return subprocess.Popen(["caddy", "run", "--config", str(CADDYFILE), "--adapter", "caddyfile"],
+                                cwd=self._folder, env=self._environment, stdout=self.log, stderr=subprocess.STDOUT)
 
     def _answering(self, root_certificate: Path | None) -> ssl.SSLContext | None:
         """Once the proxy answers: a context trusting its CA alone (over HTTPS), else None."""
         deadline = time.monotonic() + START_TIMEOUT_S
+        restarts = 0
         while time.monotonic() < deadline:
             if self.process.poll() is not None:
                 raise RuntimeError(f"caddy exited: {Path(self.log.name).read_text()[-3000:]}")
+            if Path(self.log.name).read_text().count(CERTIFICATE_RETRY) > restarts:
+                # Caddy 2.6 cleans its storage as it starts, beside obtaining the first certificate,
+                # and can delete the new key while it is being written ("because key is empty");
+                # it would try again in a minute. Started again, it finds its CA and obtains at once.
+                self.stop(close_log=False)
+                self.process, restarts = self._start(), restarts + 1
             if root_certificate is None or root_certificate.is_file():
                 context = ssl.create_default_context(cafile=str(root_certificate)) if root_certificate else None
                 try:
@@ -59,7 +71,8 @@ class Proxy:
             time.sleep(0.2)
         raise RuntimeError(f"caddy did not answer at {self.url}: {Path(self.log.name).read_text()[-3000:]}")
 
-    def stop(self) -> None:
+    def stop(self, close_log: bool = True) -> None:
         self.process.terminate()
         self.process.wait(timeout=20)
-        self.log.close()
+        if close_log:
+            self.log.close()
