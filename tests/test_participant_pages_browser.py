@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import io
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -304,6 +305,30 @@ def test_a_single_clip_plays_by_itself_unless_motion_is_reduced_when_it_waits_fo
     still.wait_for_function("() => !document.querySelector('button[name=value]').disabled", timeout=20_000)
     assert still.locator("#clip").evaluate("(video) => video.ended")  # unlocked by its end
     assert still.locator("#replay").inner_text() == "Play again"
+
+
+@pytest.mark.django_db(transaction=True)
+@pytest.mark.parametrize("reduced", [False, True], ids=["moving", "reduced-motion"])
+def test_a_single_clip_waits_for_its_pages_script_however_late_it_comes(browser, live_server, clip_video, settings,
+                                                                        tmp_path, reduced):
+    """A clip started before the page's script arrived would go unrecorded (its start) and, on a
+    short clip, end by itself where motion is reduced: the script starts it, or leaves it waiting."""
+    settings.MEDIA_ROOT = tmp_path / "media"
+    study = make_study(video=clip_video, clip_seconds=CLIP_SECONDS, controls=2, bad_checks=0)
+    page = enter(browser, live_server, study, {**DESKTOP, "reduced_motion": "reduce" if reduced else "no-preference"})
+
+    def late(route) -> None:
+        time.sleep(2 * CLIP_SECONDS)  # longer than the clip: one that started by itself would have ended
+        route.continue_()
+
+    page.route("**/clip-page*.js", late)
+    skip_to_ratings(page, study)  # the page loaded again, its script late
+    if reduced:
+        page.get_by_role("button", name="Play", exact=True).wait_for()
+        assert page.locator("#clip").evaluate("(video) => video.paused && video.played.length === 0")
+    else:
+        page.wait_for_function("() => document.getElementById('clip').ended", timeout=20_000)
+        assert page.locator("input[name=started_s]").input_value() != ""
 
 
 @pytest.mark.django_db(transaction=True)

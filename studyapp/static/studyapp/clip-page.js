@@ -22,20 +22,16 @@ window.studyappSetUpPage = (shownAt, signal) => {
     if (document.fullscreenElement) document.exitFullscreen();
     unlock();
   });
-  if (video.ended) video.dispatchEvent(new Event("ended"));  // ended before this script ran
-  // Where the participant asked for reduced motion the clip waits for its button, as the clips of
-  // a page of several do (page-clips.js); one that began before this script ran goes back to its start.
+  // The clip plays by itself, started here rather than by an autoplay attribute: one the page
+  // started could play (and a short one end) before this script arrived, its start unrecorded and
+  // reduced motion not honoured. Where the participant asked for reduced motion the clip waits
+  // for its button, as the clips of a page of several do (page-clips.js).
   const replay = document.getElementById("replay");
-  if (window.matchMedia("(prefers-reduced-motion: reduce)").matches && !video.ended) {
-    video.autoplay = false;
-    video.pause();
-    video.currentTime = 0;
+  if (window.matchMedia("(prefers-reduced-motion: reduce)").matches) {
     const again = replay.textContent;
     replay.textContent = replay.dataset.firstLabel;
     on(video, "playing", () => { replay.textContent = again; });
-  }
-  // A clip swapped in had loaded while the page before it played: autoplay starts only a loading clip.
-  if (video.paused && video.autoplay && video.readyState >= HTMLMediaElement.HAVE_FUTURE_DATA) {
+  } else if (video.paused && !video.ended) {
     video.play().catch(() => {});
   }
 
