@@ -31,7 +31,7 @@ window.studyappSetUpPage = (shownAt, signal) => {
     const again = replay.textContent;
     replay.textContent = replay.dataset.firstLabel;
     on(video, "playing", () => { replay.textContent = again; });
-  } else if (video.paused && !video.ended) {
+  } else {  // nothing has played it yet: neither a page's new clip nor a hidden one adopted (next-page.js)
     video.play().catch(() => {});
   }
 
