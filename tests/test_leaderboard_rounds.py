@@ -1,6 +1,7 @@
 """A leaderboard that spans studies: three pairwise rounds (the second adding two systems)
 fitted together, checked against a weighted logistic regression of every round's votes
-computed here from the stored rows; a round left out; earlier rounds' ratings untouched;
+computed here from the stored rows; a round left out; a round removed only while unrated
+(on the board page and in the admin); earlier rounds' ratings untouched;
 the new systems' first round planned against the board; the researcher's pages behind login,
 owner checks and CSRF; the public page off by default and free of participant data."""
 
@@ -24,7 +25,7 @@ from studyapp.designs.pairwise_pages import board_votes
 from studyapp.leaderboards.fit import fit_board
 from studyapp.leaderboards.models import Leaderboard, Round
 from studyapp.leaderboards.public import PUBLIC_COLUMNS
-from studyapp.models import Assignment, Participant, Rating, Stimulus, System
+from studyapp.models import Assignment, Participant, Rating, Stimulus, Study, System
 from studyapp.participants.assignment import enrol
 from tests.study_fixtures import make_study
 
@@ -165,6 +166,70 @@ def test_leaving_a_round_out_needs_a_reason_and_is_refused_without_one():
     assert response.status_code == 400 and "say why the round is left out" in response.content.decode()
     round_.refresh_from_db()
     assert round_.in_fit
+
+
+def test_a_round_nobody_has_rated_can_be_removed_and_its_study_added_to_another_board():
+    board = three_round_board()
+    mistake = round_study(4, OLD + NEW, adaptive_pairing=True)
+    enrol(mistake, "early", {}, rng=random.Random(0))  # enrolled, nothing rated yet
+    Round.objects.create(leaderboard=board, study=mistake)
+    other = Leaderboard.objects.create(owner=board.owner, title="Gesture leaderboard")
+    client = Client()
+    client.force_login(board.owner)
+    page = client.get(reverse("leaderboard", args=[board.pk])).content.decode()
+    assert "Remove round 4" in page and page.count('class="round-remove"') == 1  # the rated rounds offer none
+    response = client.post(reverse("leaderboard-remove-round", args=[board.pk, mistake.board_round.pk]))
+    assert response.status_code == 302
+    page = client.get(response["Location"]).content.decode()
+    assert "Took Round 4 of locomotion off the board" in page and board.rounds.count() == 3
+    assert Assignment.objects.filter(participant__study=mistake).exists()  # the study itself untouched
+    response = client.post(reverse("leaderboard-add-round", args=[other.pk]), {"study": mistake.pk})
+    assert response.status_code == 302 and Round.objects.get(study=mistake).leaderboard == other
+    assert board_votes(Study.objects.get(pk=mistake.pk)).empty  # its pairing plans against the new board, voteless
+
+
+def test_a_rated_round_stays_on_its_board_on_the_page_and_in_the_admin():
+    from django.contrib import admin
+    from django.test import RequestFactory
+
+    from studyapp.leaderboards.admin import RoundInline
+    from studyapp.researchers.accounts import grant_researcher_rights
+
+    board = three_round_board()
+    first = board.rounds.order_by("added").first()
+    round_study(9, OLD, owner_name="stranger")
+    stranger = Client()
+    stranger.force_login(User.objects.get(username="stranger"))
+    url = reverse("leaderboard-remove-round", args=[board.pk, first.pk])
+    assert stranger.post(url).status_code == 404
+    owner = Client()
+    owner.force_login(board.owner)
+    response = owner.post(url)
+    assert response.status_code == 409
+    assert "Round 1 of locomotion has ratings, so it stays on the board" in response.content.decode()
+    assert board.rounds.count() == 3
+    # The admin holds the rated rounds to the same rule: neither deleted nor given another study.
+    grant_researcher_rights(board.owner)
+    request = RequestFactory().post("/admin/")
+    request.user = board.owner
+    formset_class = RoundInline(Leaderboard, admin.site).get_formset(request, board)
+    rounds = list(board.rounds.order_by("added", "pk"))
+    spare = round_study(5, OLD)
+
+    def posted(changes: dict) -> dict:
+        data = {"rounds-TOTAL_FORMS": str(len(rounds)), "rounds-INITIAL_FORMS": str(len(rounds))}
+        for n, round_ in enumerate(rounds):
+            data |= {f"rounds-{n}-id": str(round_.pk), f"rounds-{n}-leaderboard": str(board.pk),
+                     f"rounds-{n}-study": str(round_.study_id), f"rounds-{n}-in_fit": "on"}
+        return data | changes
+
+    deleted = formset_class(posted({"rounds-0-DELETE": "on"}), instance=board, prefix="rounds")
+    assert not deleted.is_valid() and "has ratings, so it stays on the board" in str(deleted.non_form_errors())
+    swapped = formset_class(posted({"rounds-0-study": str(spare.pk)}), instance=board, prefix="rounds")
+    assert not swapped.is_valid()
+    assert swapped.errors[0]["study"] == ["this round's study has ratings, so it stays the round's study"]
+    assert formset_class(posted({}), instance=board, prefix="rounds").is_valid()
+    assert board.rounds.count() == 3
 
 
 def test_fitting_and_showing_the_board_never_changes_a_rounds_ratings():

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 from django.contrib import admin
 
+from studyapp.leaderboards.forms import AdminRoundForm, AdminRoundFormSet
 from studyapp.leaderboards.models import Leaderboard, Round
 
 
 class RoundInline(admin.TabularInline):
     model = Round
+    form = AdminRoundForm
+    formset = AdminRoundFormSet
     extra = 0
     fields = ["study", "in_fit", "left_out_because", "added"]
     readonly_fields = ["added"]

@@ -5,8 +5,9 @@ added to it. A study is a round of at most one board (its adaptive pairing then 
 against that board). Systems across rounds are one system when their names in the ratings
 table are equal (``System.export_name``: the name, NAT and BAD for those roles). A round's
 study's ratings are only read. A round left out of the fit (``in_fit`` off) stays on the
-board, listed as left out. The public page is off until the researcher turns it on; its
-address carries ``public_key``, which says nothing about the board.
+board, listed as left out; only a round whose study has no rating yet can be removed. The
+public page is off until the researcher turns it on; its address carries ``public_key``,
+which says nothing about the board.
 """
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ researcher_urls = [
     path("<int:pk>/settings/", views.leaderboard_settings, name="leaderboard-settings"),
     path("<int:pk>/rounds/", views.leaderboard_add_round, name="leaderboard-add-round"),
     path("<int:pk>/rounds/<int:round_pk>/fit/", views.leaderboard_round_fit, name="leaderboard-round-fit"),
+    path("<int:pk>/rounds/<int:round_pk>/remove/", views.leaderboard_remove_round, name="leaderboard-remove-round"),
     path("<int:pk>/leaderboard.csv", views.leaderboard_csv, name="leaderboard-csv"),
 ]
 

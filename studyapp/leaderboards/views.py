@@ -18,7 +18,7 @@ from django.urls import reverse
 from django.views.decorators.http import require_http_methods, require_POST, require_safe
 
 from studyapp.leaderboards.fit import BoardFit, fit_board
-from studyapp.leaderboards.forms import LeaderboardForm, RoundFitForm, RoundForm
+from studyapp.leaderboards.forms import LeaderboardForm, RoundFitForm, RoundForm, is_rated
 from studyapp.leaderboards.models import Leaderboard, Round
 from studyapp.leaderboards.public import board_context, board_csv
 
@@ -83,6 +83,7 @@ def _page(request: HttpRequest, board: Leaderboard, status: int = 200, **forms) 
         "round_form": forms.get("round_form") or RoundForm(owner=request.user),
         "round_forms": [(rounds[r.pk], forms.get(f"fit_{r.pk}") or RoundFitForm(instance=r, prefix=f"round-{r.pk}"))
                         for r in board.rounds.order_by("added", "pk")],
+        "removable": {r.pk for r in board.rounds.all() if not is_rated(r)},
         "public_url": request.build_absolute_uri(reverse("leaderboard-public", args=[board.public_key])),
     }
     return render(request, "studyapp/leaderboard/board.html", context, status=status)
@@ -126,6 +127,23 @@ def leaderboard_round_fit(request: HttpRequest, board: Leaderboard, round_pk: in
         return _page(request, board, 400, **{f"fit_{round_.pk}": form})
     form.save()
     messages.success(request, f"{round_.study.title} is {'in' if round_.in_fit else 'left out of'} the fit.")
+    return redirect("leaderboard", pk=board.pk)
+
+
+@researcher_board
+@require_POST
+def leaderboard_remove_round(request: HttpRequest, board: Leaderboard, round_pk: int) -> HttpResponse:
+    """Take a round added by mistake off the board while its study has no rating, so that the
+    study can be added to another board (and its pairing no longer plans against this one's
+    votes). A rated round stays: its votes may have been shown, so it can only leave the fit,
+    with its reason on the board."""
+    round_ = get_object_or_404(Round, pk=round_pk, leaderboard=board)
+    if is_rated(round_):
+        messages.error(request, f"{round_.study.title} has ratings, so it stays on the board: leave it out of the "
+                                "fit instead, saying why.")
+        return _page(request, board, 409)
+    round_.delete()
+    messages.success(request, f"Took {round_.study.title} off the board; it can be added to a board again.")
     return redirect("leaderboard", pk=board.pk)
 
 
