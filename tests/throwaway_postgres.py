@@ -1,7 +1,8 @@
 """A PostgreSQL cluster of one's own for the length of a block: the tests' second database
 and the benchmarks' production database.
 
-The cluster lives in a temporary folder, listens on 127.0.0.1 on a free port, trusts
+The cluster lives in a temporary folder, listens on 127.0.0.1 on a free port (another,
+where that one is taken before the server binds it), trusts
 local connections (it holds nothing worth a password) and is stopped and deleted
 afterwards. It needs PostgreSQL's server programs (Debian: the postgresql package), which
 are installed with ``scripts/apt-install.sh`` when missing.
@@ -19,6 +20,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+STARTS = 3  # a port found free may be taken by another process before the server binds it
 
 
 def free_port() -> int:
@@ -49,7 +51,7 @@ def throwaway_postgres(durable: bool = True) -> Iterator[tuple[str, Path]]:
     on a slow one). Benchmarks keep them on, as production does. PostgreSQL refuses to run
     as root, so as root the cluster belongs to the postgres user.
     """
-    binaries, port = postgres_bin(), free_port()
+    binaries = postgres_bin()
     folder = Path(tempfile.mkdtemp(prefix="throwaway-pg-"))
     as_owner: list[str] = []
     if os.geteuid() == 0:
@@ -58,12 +60,20 @@ def throwaway_postgres(durable: bool = True) -> Iterator[tuple[str, Path]]:
     data = folder / "data"
     run = lambda *args: subprocess.run([*as_owner, *args], check=True, capture_output=True)  # noqa: E731
     durability = "-c fsync=on" if durable else "-c fsync=off -c full_page_writes=off -c synchronous_commit=off"
+    log = folder / "log"
     try:
         run(str(binaries / "initdb"), "-D", str(data), "-U", "postgres", "--auth=trust", "--no-sync")
-        run(str(binaries / "pg_ctl"), "-D", str(data), "-l", str(folder / "log"), "-w", "start", "-o",
-            f"-p {port} -k {folder} -c listen_addresses=127.0.0.1 -c max_connections=200 {durability}")
+        for start in range(1, STARTS + 1):
+            port = free_port()
+            try:
+                run(str(binaries / "pg_ctl"), "-D", str(data), "-l", str(log), "-w", "start", "-o",
+                    f"-p {port} -k {folder} -c listen_addresses=127.0.0.1 -c max_connections=200 {durability}")
+                break
+            except subprocess.CalledProcessError:
+                if start == STARTS or "could not bind" not in log.read_text(errors="replace"):
+                    raise
+                log.unlink()
     except subprocess.CalledProcessError as error:
-        log = folder / "log"
         detail = (error.stderr or b"").decode(errors="replace") + (log.read_text(errors="replace") if log.exists() else "")
         shutil.rmtree(folder, ignore_errors=True)
         raise RuntimeError(f"the throwaway PostgreSQL cluster did not start: {detail[-2000:]}") from None

@@ -1,6 +1,7 @@
-"""The tests' own S3 server starts though a port it was given is taken before it binds it
-(another test's server can take one between its being found free and weed's binding it),
-and leaves nothing behind: neither its folder nor the Unix sockets weed makes beside its ports."""
+"""The tests' own servers start though a port they were given is taken before they bind it
+(another process can take one between its being found free and its binding): the S3 server,
+which leaves nothing behind (neither its folder nor the Unix sockets weed makes beside its
+ports), and the PostgreSQL cluster."""
 
 from __future__ import annotations
 
@@ -8,7 +9,10 @@ import socket
 import tempfile
 from pathlib import Path
 
+import psycopg
+
 from tests import s3_server as s3
+from tests import throwaway_postgres as pg
 
 
 def test_the_s3_server_starts_again_on_other_ports_when_one_is_taken_and_leaves_nothing_behind(monkeypatch):
@@ -36,3 +40,23 @@ def test_the_s3_server_starts_again_on_other_ports_when_one_is_taken_and_leaves_
         taken.close()
     assert not folder.exists()
     assert set(Path(tempfile.gettempdir()).glob("seaweedfs-*.sock")) <= sockets_before
+
+
+def test_the_postgresql_cluster_starts_again_on_another_port_when_its_first_is_taken(monkeypatch):
+    taken = socket.socket()
+    taken.bind(("127.0.0.1", 0))
+    taken.listen()
+    handed, free = [], pg.free_port
+
+    def first_port_taken() -> int:
+        handed.append(taken.getsockname()[1] if not handed else free())
+        return handed[-1]
+
+    monkeypatch.setattr(pg, "free_port", first_port_taken)
+    try:
+        with pg.throwaway_postgres(durable=False) as (url, _):
+            assert len(handed) == 2 and url.endswith(f":{handed[1]}/study")
+            with psycopg.connect(url) as connection:
+                assert connection.execute("select 1").fetchone() == (1,)
+    finally:
+        taken.close()
