@@ -1,7 +1,8 @@
 """The deployment's proxy (deploy/Caddyfile, Caddy) on free ports of 127.0.0.1, in front of an
 app server, for the proxy tests and the crowd benchmark's watching participants.
 
-Over HTTPS its certificates come from Caddy's local CA (standing in for Let's Encrypt) and
+Where a port found free is taken before Caddy binds it, Caddy stops and is started again on
+others. Over HTTPS its certificates come from Caddy's local CA (standing in for Let's Encrypt) and
 ``tls`` is a client context that trusts that CA alone; with ``https=False`` the same routes are
 served over plain HTTP (``STUDY_DOMAIN=http://127.0.0.1:PORT``), and ``tls`` is None.
 """
@@ -22,6 +23,11 @@ CADDYFILE = REPO / "deploy" / "Caddyfile"
 STATIC = REPO / "studyapp" / "static"
 START_TIMEOUT_S = 60
 CERTIFICATE_RETRY = '"logger":"tls.obtain","msg":"will retry"'
+STARTS = 3
+
+
+class PortTaken(Exception):
+    """Caddy stopped at its start: one of its ports was taken."""
 
 
 class Proxy:
@@ -29,20 +35,29 @@ class Proxy:
     files under ``media_root`` that the app allows; ``stop()`` ends it."""
 
     def __init__(self, folder: Path, upstream: str, media_root: Path, https: bool = True) -> None:
-        self.port = free_port()
-        http_port = self.port if not https else free_port()
-        self.url = f"https://localhost:{self.port}" if https else f"http://127.0.0.1:{self.port}"
         data = folder / "caddy"
-        environment = {**os.environ, "STUDY_DOMAIN": "localhost" if https else self.url,
-                       "STUDY_HTTPS_PORT": str(self.port if https else free_port()), "STUDY_HTTP_PORT": str(http_port),
-                       "STUDY_LOCAL_CERTS": "local_certs", "STUDY_UPSTREAM": upstream, "MEDIA_ROOT": str(media_root),
-                       "STATIC_ROOT": str(STATIC), "XDG_DATA_HOME": str(data), "XDG_CONFIG_HOME": str(data),
-                       "HOME": str(folder)}
-        self.log = (folder / "caddy.log").open("w")
-        self._folder, self._environment = folder, environment
-        self.process = self._start()
         root_certificate = data / "caddy" / "pki" / "authorities" / "local" / "root.crt"
-        self.tls = self._answering(root_certificate if https else None)
+        self._folder = folder
+        for start in range(1, STARTS + 1):  # a port found free may be taken by another process before Caddy binds it
+            self.port = free_port()
+            http_port = self.port if not https else free_port()
+            self.url = f"https://localhost:{self.port}" if https else f"http://127.0.0.1:{self.port}"
+            self._environment = {
+                **os.environ, "STUDY_DOMAIN": "localhost" if https else self.url,
+                "STUDY_HTTPS_PORT": str(self.port if https else free_port()), "STUDY_HTTP_PORT": str(http_port),
+                "STUDY_LOCAL_CERTS": "local_certs", "STUDY_UPSTREAM": upstream, "MEDIA_ROOT": str(media_root),
+                "STATIC_ROOT": str(STATIC), "XDG_DATA_HOME": str(data), "XDG_CONFIG_HOME": str(data),
+                "HOME": str(folder)}
+            self.log = (folder / "caddy.log").open("w")
+            self.process = self._start()
+            try:
+                self.tls = self._answering(root_certificate if https else None)
+                return
+            except PortTaken:
+                self.log.close()
+                if start == STARTS:
+                    raise RuntimeError(f"caddy found a port taken {STARTS} times: "
+                                       f"{Path(self.log.name).read_text()[-3000:]}") from None
 
     def _start(self) -> subprocess.Popen:
         return subprocess.Popen(["caddy", "run", "--config", str(CADDYFILE), "--adapter", "caddyfile"],
@@ -54,6 +69,8 @@ class Proxy:
         restarts = 0
         while time.monotonic() < deadline:
             if self.process.poll() is not None:
+                if "address already in use" in Path(self.log.name).read_text():
+                    raise PortTaken()
                 raise RuntimeError(f"caddy exited: {Path(self.log.name).read_text()[-3000:]}")
             if Path(self.log.name).read_text().count(CERTIFICATE_RETRY) > restarts:
                 # Caddy 2.6 cleans its storage as it starts, beside obtaining the first certificate,
