@@ -16,14 +16,13 @@ import time
 import urllib.request
 from pathlib import Path
 
-from tests.throwaway_postgres import free_port
+from tests.throwaway_postgres import STARTS, free_port
 
 REPO = Path(__file__).resolve().parents[1]
 CADDYFILE = REPO / "deploy" / "Caddyfile"
 STATIC = REPO / "studyapp" / "static"
 START_TIMEOUT_S = 60
 CERTIFICATE_RETRY = '"logger":"tls.obtain","msg":"will retry"'
-STARTS = 3
 
 
 class PortTaken(Exception):
@@ -38,7 +37,7 @@ class Proxy:
         data = folder / "caddy"
         root_certificate = data / "caddy" / "pki" / "authorities" / "local" / "root.crt"
         self._folder = folder
-        for start in range(1, STARTS + 1):  # a port found free may be taken by another process before Caddy binds it
+        for start in range(1, STARTS + 1):
             self.port = free_port()
             http_port = self.port if not https else free_port()
             self.url = f"https://localhost:{self.port}" if https else f"http://127.0.0.1:{self.port}"
@@ -69,9 +68,10 @@ class Proxy:
         restarts = 0
         while time.monotonic() < deadline:
             if self.process.poll() is not None:
-                if "address already in use" in Path(self.log.name).read_text():
+                said = Path(self.log.name).read_text()
+                if "address already in use" in said:
                     raise PortTaken()
-                raise RuntimeError(f"caddy exited: {Path(self.log.name).read_text()[-3000:]}")
+                raise RuntimeError(f"caddy exited: {said[-3000:]}")
             if Path(self.log.name).read_text().count(CERTIFICATE_RETRY) > restarts:
                 # Caddy 2.6 cleans its storage as it starts, beside obtaining the first certificate,
                 # and can delete the new key while it is being written ("because key is empty");

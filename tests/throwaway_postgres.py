@@ -20,7 +20,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-STARTS = 3  # a port found free may be taken by another process before the server binds it
+# How often the tests' servers are started on newly found free ports: a port found free may be
+# taken by another process before the server binds it.
+STARTS = 3
 
 
 def free_port() -> int:
