@@ -16,7 +16,7 @@ import time
 import urllib.request
 from pathlib import Path
 
-from tests.throwaway_postgres import STARTS, free_port
+from tests.throwaway_postgres import PORT_TAKEN, STARTS, free_port
 
 REPO = Path(__file__).resolve().parents[1]
 CADDYFILE = REPO / "deploy" / "Caddyfile"
@@ -69,7 +69,7 @@ class Proxy:
         while time.monotonic() < deadline:
             if self.process.poll() is not None:
                 said = Path(self.log.name).read_text()
-                if "address already in use" in said:
+                if PORT_TAKEN in said:
                     raise PortTaken()
                 raise RuntimeError(f"caddy exited: {said[-3000:]}")
             if Path(self.log.name).read_text().count(CERTIFICATE_RETRY) > restarts:

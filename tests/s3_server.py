@@ -24,7 +24,7 @@ from pathlib import Path
 import boto3
 from botocore.exceptions import BotoCoreError, ClientError
 
-from tests.throwaway_postgres import STARTS, free_port
+from tests.throwaway_postgres import PORT_TAKEN, STARTS, free_port
 
 START_TIMEOUT_S = 60
 
@@ -110,7 +110,7 @@ def _create_bucket_once_up(server: S3Server, process: subprocess.Popen, log: Pat
             return True
         except (BotoCoreError, ClientError) as error:
             stopped = process.poll() is not None
-            if stopped and not last and "address already in use" in log.read_text(errors="replace"):
+            if stopped and not last and PORT_TAKEN in log.read_text(errors="replace"):
                 return False
             if stopped or time.monotonic() > deadline:
                 raise RuntimeError(f"the throwaway S3 server did not start ({error}): "

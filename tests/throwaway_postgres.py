@@ -23,6 +23,7 @@ REPO = Path(__file__).resolve().parents[1]
 # How often the tests' servers are started on newly found free ports: a port found free may be
 # taken by another process before the server binds it.
 STARTS = 3
+PORT_TAKEN = "address already in use"  # what Caddy and SeaweedFS (both Go) log for a port taken
 
 
 def free_port() -> int:
